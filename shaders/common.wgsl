@@ -1,0 +1,30 @@
+// Shared definitions of every brdf-basis kernel. Each kernel is compiled as
+// common.wgsl + <kernel>.wgsl (see src/gpu/mod.rs).
+
+// An analytic lobe kd / pi + ks * rho_s(F0, n).
+// Keep in sync with `LobeParams` in src/backend/mod.rs.
+struct Lobe {
+    kd: f32,
+    ks: f32,
+    f0: f32,
+    n: f32,
+}
+
+const INV_PI: f32 = 0.31830988618379067;
+const INV_8PI: f32 = 0.039788735772973836;
+
+// Offsets into the grid-table buffer (720 f32). Keep in sync with `TABLE_*` in
+// src/gpu/mod.rs.
+const T_COS_H: u32 = 0u;
+const T_SIN_H: u32 = 90u;
+const T_LOG2_COS_H: u32 = 180u;
+const T_COS_D: u32 = 270u;
+const T_SIN_D: u32 = 360u;
+const T_SCHLICK_D: u32 = 450u;
+const T_ABS_COS_P: u32 = 540u;
+const T_LEN: u32 = 720u;
+
+// Register block of material pairs owned by one pairwise invocation (BLOCK x BLOCK).
+// Keep in sync with `BLOCK` in src/gpu/pairwise.rs.
+const BLOCK: u32 = 4u;
+const WG: u32 = 64u;

@@ -1,0 +1,94 @@
+//! The compute back-end trait that the algorithms call, and its CPU implementation.
+//!
+//! Algorithms describe *what* to reduce over the grid ([`Lobe`]s over a [`CellSet`]);
+//! a back-end decides *how* (GPU kernels in [`crate::gpu`], blocked multi-threaded loops
+//! in [`cpu`]). Both stream the grid in chunks of cells so that memory stays bounded
+//! whatever the number of cells.
+
+pub mod cpu;
+
+use crate::error::BackendError;
+use crate::merl::{CellSet, MerlTable};
+use std::sync::Arc;
+
+/// An analytic lobe `kd / pi + ks * rho_s(F0, n)`: the specular lobe is
+/// `(0, 1, F0, n)`, one RGB channel `(d_c, s_c, F0, n)`, the channel mean
+/// `(mean d, mean s, F0, n)`.
+///
+/// Keep in sync with `struct Lobe` in `shaders/common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct LobeParams {
+    /// Coefficient of the Lambertian term `1 / pi`.
+    pub kd: f32,
+    /// Coefficient of `rho_s`.
+    pub ks: f32,
+    /// Schlick F0.
+    pub f0: f32,
+    /// Exponent.
+    pub n: f32,
+}
+
+/// One function on the grid to tabulate or compare.
+#[derive(Clone, Debug)]
+pub enum Lobe {
+    /// An analytic lobe, evaluated where needed.
+    Analytic(LobeParams),
+    /// A measured table: the mean of the three channels (`channel = None`) or one channel.
+    Measured {
+        /// The table.
+        table: Arc<MerlTable>,
+        /// `None`: mean over R, G, B; `Some(c)`: channel c.
+        channel: Option<usize>,
+    },
+}
+
+impl Lobe {
+    /// Value at a flat cell, in f64, from the f64 model (the reference for every kernel).
+    pub fn eval_f64(&self, tables: &crate::merl::GridTables, cell: usize) -> f64 {
+        match self {
+            Lobe::Analytic(p) => {
+                let (i, j, k) = crate::merl::grid::unflat(cell);
+                p.kd as f64 * std::f64::consts::FRAC_1_PI
+                    + p.ks as f64 * tables.rho_s(i, j, k, p.f0 as f64, p.n as f64)
+            }
+            Lobe::Measured { table, channel } => match channel {
+                Some(c) => table.value(*c, cell) as f64,
+                None => (0..3).map(|c| table.value(c, cell) as f64).sum::<f64>() / 3.0,
+            },
+        }
+    }
+}
+
+/// Progress reporting for long reductions: called with (done, total) in cells.
+pub type Progress<'a> = &'a (dyn Fn(u64, u64) + Sync);
+
+/// A compute back-end.
+pub trait Backend: Send + Sync {
+    /// Human-readable name (`cpu (2 threads)`, `gpu: llvmpipe (Vulkan)`).
+    fn name(&self) -> String;
+
+    /// Tabulates `lobes` over `cells`: returns `values[l * cells.len() + c]` in f32.
+    fn tabulate(&self, lobes: &[Lobe], cells: &[u32]) -> Result<Vec<f32>, BackendError>;
+
+    /// Weighted pairwise L1 distances `sum_s w_s |L_i(s) - L_j(s)|` over `cells` for all
+    /// `i < j`, condensed (row-major upper triangle), accumulated in f64.
+    fn pairwise_l1(
+        &self,
+        lobes: &[Lobe],
+        cells: &CellSet,
+        progress: Progress<'_>,
+    ) -> Result<Vec<f64>, BackendError>;
+}
+
+/// Number of condensed entries for `n` items.
+pub fn condensed_len(n: usize) -> usize {
+    n * n.saturating_sub(1) / 2
+}
+
+/// Condensed index of `(i, j)`, `i < j < n`.
+#[inline]
+pub fn condensed_index(n: usize, i: usize, j: usize) -> usize {
+    debug_assert!(i < j && j < n);
+    i * n - i * (i + 1) / 2 + (j - i - 1)
+}

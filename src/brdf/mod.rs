@@ -1,0 +1,6 @@
+//! Analytic BRDF models. One file per model; shared pieces (Fresnel) in their own module.
+
+pub mod ashikhmin_shirley;
+pub mod fresnel;
+
+pub use ashikhmin_shirley::AshikhminShirley;

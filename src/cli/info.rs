@@ -1,0 +1,63 @@
+//! `brdf-basis info`.
+
+use super::Global;
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::Backend;
+use brdf_basis::engine::BackendChoice;
+use brdf_basis::gpu::GpuContext;
+
+/// Arguments of `info`.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu")]
+pub struct InfoArgs {}
+
+/// Prints the back-end, adapter, driver and limits.
+pub fn run(g: &Global, _a: InfoArgs) -> anyhow::Result<()> {
+    let gpu = if g.backend == BackendChoice::Cpu {
+        None
+    } else {
+        Some(GpuContext::new())
+    };
+    let chosen = match (&gpu, g.backend) {
+        (_, BackendChoice::Cpu) => "cpu",
+        (Some(Ok(_)), BackendChoice::Gpu) => "gpu",
+        (Some(Ok(c)), BackendChoice::Auto) if !c.is_software() => "gpu",
+        (Some(Err(e)), BackendChoice::Gpu) => anyhow::bail!("{e}"),
+        _ => "cpu",
+    };
+    println!("backend: {chosen} (requested: {:?})", g.backend);
+    match gpu {
+        Some(Ok(c)) => {
+            println!("adapter: {}", c.info.name);
+            println!(
+                "adapter type: {:?}{}",
+                c.info.device_type,
+                if c.is_software() { " (software)" } else { "" }
+            );
+            println!("graphics api: {:?}", c.info.backend);
+            println!("driver: {} {}", c.info.driver, c.info.driver_info);
+            println!("limits used:");
+            println!(
+                "  max_storage_buffer_binding_size: {}",
+                c.limits.max_storage_buffer_binding_size
+            );
+            println!("  max_buffer_size: {}", c.limits.max_buffer_size);
+            println!(
+                "  max_compute_workgroups_per_dimension: {}",
+                c.limits.max_compute_workgroups_per_dimension
+            );
+            println!(
+                "  max_compute_invocations_per_workgroup: {}",
+                c.limits.max_compute_invocations_per_workgroup
+            );
+            println!(
+                "  max_storage_buffers_per_shader_stage: {}",
+                c.limits.max_storage_buffers_per_shader_stage
+            );
+        }
+        Some(Err(e)) => println!("adapter: none ({e})"),
+        None => {}
+    }
+    println!("cpu back-end: {}", CpuBackend::new().name());
+    Ok(())
+}

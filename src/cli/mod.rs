@@ -1,0 +1,90 @@
+//! The command line: clap arguments -> library parameters, one module per subcommand.
+
+pub mod distance;
+pub mod info;
+pub mod tabulate;
+
+use brdf_basis::backend::Backend;
+use brdf_basis::collection::Collection;
+use brdf_basis::engine::{open_backend, BackendChoice};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+/// Find small, expressive bases of BRDFs and fit materials as non-negative combinations
+/// of them (GPU through wgpu/Vulkan, or a fast multi-threaded CPU back-end).
+#[derive(Parser, Debug)]
+#[command(name = "brdf-basis", version, about, long_about = None)]
+pub struct Cli {
+    /// Global options.
+    #[command(flatten)]
+    pub global: Global,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Options every subcommand takes.
+#[derive(Args, Debug, Clone)]
+pub struct Global {
+    /// Compute back-end: auto (a hardware GPU if present, else CPU), gpu (any adapter,
+    /// lavapipe included) or cpu.
+    #[arg(long, global = true, default_value = "auto")]
+    pub backend: BackendChoice,
+    /// Seed of every random step.
+    #[arg(long, global = true, default_value_t = 1)]
+    pub seed: u64,
+    /// No progress bars.
+    #[arg(long, global = true)]
+    pub quiet: bool,
+}
+
+/// Subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Back-end, adapter name, driver and the limits used.
+    Info(info::InfoArgs),
+    /// Write one material on the MERL grid as a MERL .binary file.
+    Tabulate(tabulate::TabulateArgs),
+    /// Pairwise distance matrix (BRDF_it or Euclidean) as .npy or .csv.
+    Distance(distance::DistanceArgs),
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Info(a) => info::run(&cli.global, a),
+        Command::Tabulate(a) => tabulate::run(&cli.global, a),
+        Command::Distance(a) => distance::run(&cli.global, a),
+    }
+}
+
+/// Loads the COLLECTION arguments (none: the embedded default).
+pub fn load_collection(paths: &[PathBuf]) -> anyhow::Result<Collection> {
+    Ok(Collection::load_many(paths)?)
+}
+
+/// Opens the back-end chosen by `--backend`.
+pub fn backend(g: &Global) -> anyhow::Result<Box<dyn Backend>> {
+    let b = open_backend(g.backend)?;
+    if !g.quiet {
+        eprintln!("backend: {}", b.name());
+    }
+    Ok(b)
+}
+
+/// A progress bar over `total` units (hidden with --quiet or when stderr is no terminal).
+pub fn progress_bar(g: &Global, total: u64, what: &str) -> indicatif::ProgressBar {
+    if g.quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::new(total);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg:>12} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}

@@ -1,0 +1,66 @@
+//! `brdf-basis tabulate`.
+
+use super::Global;
+use anyhow::Context;
+use brdf_basis::backend::{Lobe, LobeParams};
+use brdf_basis::collection::MaterialData;
+use brdf_basis::merl::grid::{cell_info, N_CELLS};
+use brdf_basis::merl::write_binary;
+use std::path::PathBuf;
+
+/// Arguments of `tabulate`.
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Example:\n  brdf-basis tabulate ../shared/data/ngan2005_ashikhmin_shirley.csv --material gold-metallic-paint --out g.binary"
+)]
+pub struct TabulateArgs {
+    /// Collection(s): analytic .csv, .binary file or directory (none: embedded default).
+    pub collection: Vec<PathBuf>,
+    /// Material to write.
+    #[arg(long)]
+    pub material: String,
+    /// Output MERL .binary file.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Writes the material on the full MERL grid (invalid cells = -1).
+pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
+    let coll = super::load_collection(&a.collection)?;
+    let m = coll.get(&a.material)?;
+    let mut rgb = vec![0f32; 3 * N_CELLS];
+    match &m.data {
+        MaterialData::Analytic(p) => {
+            let backend = super::backend(g)?;
+            let lobes: Vec<Lobe> = (0..3)
+                .map(|c| {
+                    Lobe::Analytic(LobeParams {
+                        kd: p.d[c] as f32,
+                        ks: p.s[c] as f32,
+                        f0: p.f0 as f32,
+                        n: p.n as f32,
+                    })
+                })
+                .collect();
+            let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+            rgb = backend.tabulate(&lobes, &cells).context("tabulating")?;
+            for cell in 0..N_CELLS {
+                if !cell_info(cell).valid {
+                    for c in 0..3 {
+                        rgb[c * N_CELLS + cell] = -1.0;
+                    }
+                }
+            }
+        }
+        MaterialData::Measured(t) => rgb.copy_from_slice(&t.rgb),
+    }
+    write_binary(&a.out, &rgb)?;
+    if !g.quiet {
+        eprintln!(
+            "wrote {} ({} bytes)",
+            a.out.display(),
+            std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0)
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,353 @@
+//! Collections: ordered lists of uniquely named materials, analytic (Ashikhmin-Shirley
+//! rows of a CSV, SPEC 1) or measured (MERL `.binary` tables, SPEC 2).
+
+use crate::brdf::AshikhminShirley;
+use crate::error::CollectionError;
+use crate::merl::{read_binary, MerlTable};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The embedded default collection, authored by this project (see `data/README.md`).
+pub const DEFAULT_COLLECTION_CSV: &str = include_str!("../data/default_collection.csv");
+/// Name under which the embedded collection reports errors and provenance.
+pub const DEFAULT_COLLECTION_NAME: &str = "<embedded default collection>";
+
+/// Required columns of an analytic CSV.
+pub const REQUIRED_COLUMNS: [&str; 9] = [
+    "material", "d_r", "d_g", "d_b", "s_r", "s_g", "s_b", "F0", "n",
+];
+
+/// What a material is made of.
+#[derive(Clone, Debug)]
+pub enum MaterialData {
+    /// Ashikhmin-Shirley parameters.
+    Analytic(AshikhminShirley),
+    /// A measured table on the MERL grid.
+    Measured(Arc<MerlTable>),
+}
+
+/// One named material.
+#[derive(Clone, Debug)]
+pub struct Material {
+    /// Unique name.
+    pub name: String,
+    /// Its data.
+    pub data: MaterialData,
+    /// Where it came from (file and line, for messages).
+    pub origin: String,
+}
+
+impl Material {
+    /// The analytic parameters, if any.
+    pub fn analytic(&self) -> Option<&AshikhminShirley> {
+        match &self.data {
+            MaterialData::Analytic(a) => Some(a),
+            MaterialData::Measured(_) => None,
+        }
+    }
+}
+
+/// An ordered collection of uniquely named materials.
+#[derive(Clone, Debug, Default)]
+pub struct Collection {
+    materials: Vec<Material>,
+    index: HashMap<String, usize>,
+}
+
+impl Collection {
+    /// An empty collection.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Appends a material; rejects a duplicate name.
+    pub fn push(&mut self, m: Material, path: &Path, line: u64) -> Result<(), CollectionError> {
+        if let Some(&i) = self.index.get(&m.name) {
+            return Err(CollectionError::Duplicate {
+                path: path.to_path_buf(),
+                line,
+                material: m.name,
+                first: self.materials[i].origin.clone(),
+            });
+        }
+        self.index.insert(m.name.clone(), self.materials.len());
+        self.materials.push(m);
+        Ok(())
+    }
+
+    /// The embedded default collection.
+    pub fn embedded_default() -> Self {
+        parse_csv(
+            DEFAULT_COLLECTION_CSV.as_bytes(),
+            Path::new(DEFAULT_COLLECTION_NAME),
+        )
+        .expect("the embedded default collection is valid (checked by tests)")
+    }
+
+    /// Loads one COLLECTION argument: an analytic `.csv`, a `.binary` file, or a directory
+    /// of `.binary` files (materials sorted by name).
+    pub fn load(path: &Path) -> Result<Self, CollectionError> {
+        let mut c = Self::new();
+        c.extend_from(path)?;
+        Ok(c)
+    }
+
+    /// Loads several COLLECTION arguments into one collection, in order; an empty list
+    /// gives the embedded default.
+    pub fn load_many(paths: &[PathBuf]) -> Result<Self, CollectionError> {
+        if paths.is_empty() {
+            return Ok(Self::embedded_default());
+        }
+        let mut c = Self::new();
+        for p in paths {
+            c.extend_from(p)?;
+        }
+        Ok(c)
+    }
+
+    fn extend_from(&mut self, path: &Path) -> Result<(), CollectionError> {
+        let io = |source| CollectionError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        if path.is_dir() {
+            let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+                .map_err(io)?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|e| e == "binary"))
+                .collect();
+            files.sort();
+            if files.is_empty() {
+                return Err(CollectionError::Empty {
+                    path: path.to_path_buf(),
+                });
+            }
+            for f in files {
+                self.push_measured(&f)?;
+            }
+            return Ok(());
+        }
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("binary") => self.push_measured(path),
+            Some("csv") => {
+                let bytes = std::fs::read(path).map_err(io)?;
+                let parsed = parse_csv(&bytes, path)?;
+                for (m, line) in parsed.materials.into_iter().zip(2u64..) {
+                    self.push(m, path, line)?;
+                }
+                Ok(())
+            }
+            _ if !path.exists() => Err(io(std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "no such file or directory",
+            ))),
+            _ => Err(CollectionError::UnknownKind {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+
+    fn push_measured(&mut self, f: &Path) -> Result<(), CollectionError> {
+        let table = read_binary(f)?;
+        let name = f
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        self.push(
+            Material {
+                name,
+                data: MaterialData::Measured(Arc::new(table)),
+                origin: f.display().to_string(),
+            },
+            f,
+            0,
+        )
+    }
+
+    /// Materials in order.
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// Number of materials.
+    pub fn len(&self) -> usize {
+        self.materials.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.materials.is_empty()
+    }
+
+    /// Names in order.
+    pub fn names(&self) -> Vec<String> {
+        self.materials.iter().map(|m| m.name.clone()).collect()
+    }
+
+    /// Index of a material by name, with close-name suggestions on failure.
+    pub fn index_of(&self, name: &str) -> Result<usize, CollectionError> {
+        self.index
+            .get(name)
+            .copied()
+            .ok_or_else(|| CollectionError::UnknownMaterial {
+                name: name.to_string(),
+                suggestions: self.suggest(name),
+            })
+    }
+
+    /// Material by name.
+    pub fn get(&self, name: &str) -> Result<&Material, CollectionError> {
+        Ok(&self.materials[self.index_of(name)?])
+    }
+
+    /// Whether every material is analytic.
+    pub fn all_analytic(&self) -> bool {
+        self.materials.iter().all(|m| m.analytic().is_some())
+    }
+
+    /// A new collection with the materials at `idx`, in that order.
+    pub fn subset(&self, idx: &[usize]) -> Self {
+        let mut c = Self::new();
+        for &i in idx {
+            let m = self.materials[i].clone();
+            c.index.insert(m.name.clone(), c.materials.len());
+            c.materials.push(m);
+        }
+        c
+    }
+
+    fn suggest(&self, name: &str) -> Vec<String> {
+        let mut scored: Vec<(usize, &str)> = self
+            .materials
+            .iter()
+            .map(|m| (edit_distance(name, &m.name), m.name.as_str()))
+            .filter(|(d, n)| *d <= 3.max(name.len() / 3) || n.contains(name))
+            .collect();
+        scored.sort();
+        scored
+            .into_iter()
+            .take(3)
+            .map(|(_, n)| n.to_string())
+            .collect()
+    }
+}
+
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, &cb) in b.iter().enumerate() {
+            cur[j + 1] = (prev[j] + usize::from(ca != cb))
+                .min(prev[j + 1] + 1)
+                .min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+/// Parses an analytic CSV (SPEC 1) from bytes; `path` names the source in errors.
+pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(bytes);
+    let malformed = |line: u64, message: String| CollectionError::Malformed {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
+    let headers = rdr
+        .headers()
+        .map_err(|e| malformed(1, e.to_string()))?
+        .clone();
+    if headers.iter().all(|h| h.is_empty()) {
+        return Err(CollectionError::Empty {
+            path: path.to_path_buf(),
+        });
+    }
+    let mut col = [0usize; 9];
+    for (k, name) in REQUIRED_COLUMNS.iter().enumerate() {
+        col[k] = headers.iter().position(|h| h == *name).ok_or_else(|| {
+            CollectionError::MissingColumn {
+                path: path.to_path_buf(),
+                column: name.to_string(),
+            }
+        })?;
+    }
+    let mut out = Collection::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line());
+            malformed(line, e.to_string())
+        })?;
+        let line = rec.position().map_or(0, |p| p.line());
+        if rec.iter().all(|f| f.is_empty()) {
+            continue;
+        }
+        let material = rec.get(col[0]).unwrap_or("").to_string();
+        if material.is_empty() {
+            return Err(CollectionError::BadValue {
+                path: path.to_path_buf(),
+                line,
+                column: "material".into(),
+                material,
+                value: String::new(),
+                message: "empty material name".into(),
+            });
+        }
+        let mut v = [0f64; 8];
+        for k in 0..8 {
+            let column = REQUIRED_COLUMNS[k + 1];
+            let text = rec.get(col[k + 1]).unwrap_or("");
+            let bad = |message: &str| CollectionError::BadValue {
+                path: path.to_path_buf(),
+                line,
+                column: column.into(),
+                material: material.clone(),
+                value: text.into(),
+                message: message.into(),
+            };
+            let x: f64 = text.parse().map_err(|_| bad("not a number"))?;
+            if !x.is_finite() {
+                return Err(bad("not a finite number"));
+            }
+            match column {
+                "F0" if !(0.0..=1.0).contains(&x) => return Err(bad("F0 must lie in [0, 1]")),
+                "n" if x <= 0.0 => return Err(bad("n must be > 0")),
+                c if c.starts_with("d_") && x < 0.0 => {
+                    return Err(bad("diffuse albedo must be >= 0"))
+                }
+                c if c.starts_with("s_") && x < 0.0 => {
+                    return Err(bad("specular scale must be >= 0"))
+                }
+                _ => {}
+            }
+            v[k] = x;
+        }
+        let m = AshikhminShirley {
+            d: [v[0], v[1], v[2]],
+            s: [v[3], v[4], v[5]],
+            f0: v[6],
+            n: v[7],
+        };
+        let origin = format!("{}:{}", path.display(), line);
+        out.push(
+            Material {
+                name: material,
+                data: MaterialData::Analytic(m),
+                origin,
+            },
+            path,
+            line,
+        )?;
+    }
+    if out.is_empty() {
+        return Err(CollectionError::Empty {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(out)
+}

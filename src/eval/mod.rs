@@ -1,0 +1,4 @@
+//! Evaluation: renders and error metrics.
+
+pub mod image_error;
+pub mod render;

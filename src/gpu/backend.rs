@@ -1,0 +1,91 @@
+//! [`GpuBackend`]: the [`Backend`] trait on a wgpu device.
+
+use super::pairwise::{PairPlan, PairwiseKernel};
+use super::tabulate::TabulateKernel;
+use super::GpuContext;
+use crate::backend::{Backend, Lobe, LobeParams, Progress};
+use crate::error::{BackendError, GpuError};
+use crate::merl::{CellSet, GridTables};
+
+/// The GPU back-end: a context and its compiled kernels, built once and reused.
+#[derive(Debug)]
+pub struct GpuBackend {
+    ctx: GpuContext,
+    tab: TabulateKernel,
+    pair: PairwiseKernel,
+}
+
+impl GpuBackend {
+    /// Opens the default adapter and compiles the kernels.
+    pub fn new() -> Result<Self, GpuError> {
+        Self::with_context(GpuContext::new()?)
+    }
+
+    /// Uses a caller's context (device and queue), compiling the kernels on it.
+    pub fn with_context(ctx: GpuContext) -> Result<Self, GpuError> {
+        let tab = TabulateKernel::new(&ctx)?;
+        let pair = PairwiseKernel::new(&ctx)?;
+        Ok(Self { ctx, tab, pair })
+    }
+
+    /// The context.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// The pairwise plan this back-end would use for `n` materials over `cells` cells.
+    pub fn plan(&self, n: usize, cells: usize) -> Result<PairPlan, GpuError> {
+        PairPlan::new(n, cells, self.ctx.max_binding(), self.ctx.is_software())
+    }
+}
+
+impl Backend for GpuBackend {
+    fn name(&self) -> String {
+        format!(
+            "gpu: {} ({:?}, {})",
+            self.ctx.info.name, self.ctx.info.backend, self.ctx.info.driver
+        )
+    }
+
+    fn tabulate(&self, lobes: &[Lobe], cells: &[u32]) -> Result<Vec<f32>, BackendError> {
+        let analytic: Vec<(usize, LobeParams)> = lobes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| {
+                if let Lobe::Analytic(p) = l {
+                    Some((i, *p))
+                } else {
+                    None
+                }
+            })
+            .collect();
+        let params: Vec<LobeParams> = analytic.iter().map(|a| a.1).collect();
+        let vals = self.tab.tabulate(&self.ctx, &params, cells)?;
+        let n = cells.len();
+        let mut out = vec![0f32; lobes.len() * n];
+        for (r, (i, _)) in analytic.iter().enumerate() {
+            out[i * n..(i + 1) * n].copy_from_slice(&vals[r * n..(r + 1) * n]);
+        }
+        let tables = GridTables::new();
+        for (i, l) in lobes.iter().enumerate() {
+            if let Lobe::Measured { .. } = l {
+                for (o, &c) in out[i * n..(i + 1) * n].iter_mut().zip(cells) {
+                    *o = l.eval_f64(&tables, c as usize) as f32;
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    fn pairwise_l1(
+        &self,
+        lobes: &[Lobe],
+        cells: &CellSet,
+        progress: Progress<'_>,
+    ) -> Result<Vec<f64>, BackendError> {
+        let plan = self.plan(lobes.len(), cells.len())?;
+        Ok(self
+            .pair
+            .run(&self.ctx, &self.tab, lobes, cells, &plan, progress)?)
+    }
+}

@@ -1,0 +1,288 @@
+//! The GPU back-end (wgpu: Vulkan, Metal, DX12 or any adapter): device context, buffers,
+//! one module per kernel. Kernels live in `shaders/<name>.wgsl`, each compiled together
+//! with `shaders/common.wgsl`; each kernel module owns its pipeline and a CPU twin.
+
+pub mod backend;
+pub mod pairwise;
+pub mod tabulate;
+
+pub use backend::GpuBackend;
+
+use crate::error::GpuError;
+use crate::merl::GridTables;
+use std::sync::Arc;
+
+/// WGSL shared by every kernel.
+pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
+
+/// Offsets of the grid-table buffer; keep in sync with `T_*` in `shaders/common.wgsl`.
+pub const TABLE_COS_H: usize = 0;
+/// See [`TABLE_COS_H`].
+pub const TABLE_SIN_H: usize = 90;
+/// See [`TABLE_COS_H`].
+pub const TABLE_LOG2_COS_H: usize = 180;
+/// See [`TABLE_COS_H`].
+pub const TABLE_COS_D: usize = 270;
+/// See [`TABLE_COS_H`].
+pub const TABLE_SIN_D: usize = 360;
+/// See [`TABLE_COS_H`].
+pub const TABLE_SCHLICK_D: usize = 450;
+/// See [`TABLE_COS_H`].
+pub const TABLE_ABS_COS_P: usize = 540;
+/// Length of the grid-table buffer in f32.
+pub const TABLE_LEN: usize = 720;
+
+/// The grid tables as the f32 array the kernels read (each entry computed in f64 and
+/// rounded once).
+pub fn grid_table_f32(t: &GridTables) -> Vec<f32> {
+    let mut v = vec![0f32; TABLE_LEN];
+    for i in 0..90 {
+        v[TABLE_COS_H + i] = t.cos_h[i] as f32;
+        v[TABLE_SIN_H + i] = t.sin_h[i] as f32;
+        v[TABLE_LOG2_COS_H + i] = (t.ln_cos_h[i] / std::f64::consts::LN_2) as f32;
+        v[TABLE_COS_D + i] = t.cos_d[i] as f32;
+        v[TABLE_SIN_D + i] = t.sin_d[i] as f32;
+        v[TABLE_SCHLICK_D + i] = t.schlick_d[i] as f32;
+    }
+    for k in 0..180 {
+        v[TABLE_ABS_COS_P + k] = t.abs_cos_p[k] as f32;
+    }
+    v
+}
+
+/// The full source of a kernel: `common.wgsl` followed by the kernel's own file.
+pub fn kernel_source(kernel: &str) -> String {
+    format!("{COMMON_WGSL}\n{kernel}")
+}
+
+/// A wgpu device and queue, with the adapter's description and the limits in force.
+#[derive(Clone, Debug)]
+pub struct GpuContext {
+    /// The device.
+    pub device: Arc<wgpu::Device>,
+    /// Its queue.
+    pub queue: Arc<wgpu::Queue>,
+    /// The adapter's description.
+    pub info: wgpu::AdapterInfo,
+    /// The limits the device was opened with.
+    pub limits: wgpu::Limits,
+}
+
+impl GpuContext {
+    /// Opens the best adapter (wgpu's `WGPU_*` environment variables are honoured, e.g.
+    /// `WGPU_ADAPTER_NAME=llvmpipe`) with the adapter's own limits.
+    pub fn new() -> Result<Self, GpuError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            &instance, None,
+        ))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("brdf-basis"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Device(e.to_string()))?;
+        Ok(Self {
+            device: Arc::new(device),
+            queue: Arc::new(queue),
+            info,
+            limits,
+        })
+    }
+
+    /// Wraps a caller's device and queue (embedding brdf-basis as a compute back-end).
+    /// `limits` should be those the device was created with (`device.limits()`).
+    pub fn from_device(
+        device: Arc<wgpu::Device>,
+        queue: Arc<wgpu::Queue>,
+        info: wgpu::AdapterInfo,
+    ) -> Self {
+        let limits = device.limits();
+        Self {
+            device,
+            queue,
+            info,
+            limits,
+        }
+    }
+
+    /// Whether the adapter is a software rasteriser (lavapipe, WARP, SwiftShader).
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// Largest storage-buffer binding, in bytes.
+    pub fn max_binding(&self) -> u64 {
+        (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size)
+    }
+
+    /// Compiles a kernel (common.wgsl + `source`) into a compute pipeline with entry
+    /// point `main` and an automatic layout, checking for validation errors.
+    pub fn pipeline(&self, label: &str, source: &str) -> Result<wgpu::ComputePipeline, GpuError> {
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = self
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(kernel_source(source).into()),
+            });
+        let pipeline = self
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Wgpu {
+                context: format!("compiling {label}"),
+                message: e.to_string(),
+            });
+        }
+        Ok(pipeline)
+    }
+
+    /// A storage buffer initialised with `data`.
+    pub fn storage_init(
+        &self,
+        label: &str,
+        data: &[u8],
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        // wgpu rejects empty bindings: pad to 16 bytes.
+        let mut owned;
+        let contents = if data.len() < 16 {
+            owned = data.to_vec();
+            owned.resize(16, 0);
+            &owned[..]
+        } else {
+            data
+        };
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
+            })
+    }
+
+    /// An uninitialised storage buffer of `size` bytes (at least 16).
+    pub fn storage(&self, label: &str, size: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size.max(16).next_multiple_of(4),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// A uniform buffer holding `data`.
+    pub fn uniform<T: bytemuck::Pod>(&self, label: &str, data: &T) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::bytes_of(data),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+    }
+
+    /// A bind group over `buffers` bound at 0, 1, 2, ... of group 0 of `pipeline`.
+    pub fn bind(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[&wgpu::Buffer],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        })
+    }
+
+    /// Submits `encoder` after copying `size` bytes of `src` into a staging buffer, waits,
+    /// and returns the bytes: every readback of the crate goes through here.
+    pub fn submit_and_read(
+        &self,
+        mut encoder: wgpu::CommandEncoder,
+        src: &wgpu::Buffer,
+        size: u64,
+    ) -> Result<Vec<u8>, GpuError> {
+        let size = size.next_multiple_of(4).max(4);
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        encoder.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        self.queue.submit(Some(encoder.finish()));
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Wgpu {
+                context: "submitting work".into(),
+                message: e.to_string(),
+            });
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Map(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Map(e.to_string()))?
+            .map_err(|e| GpuError::Map(e.to_string()))?;
+        let bytes = {
+            let view = staging
+                .slice(..)
+                .get_mapped_range()
+                .map_err(|e| GpuError::Map(e.to_string()))?;
+            view.to_vec()
+        };
+        staging.unmap();
+        Ok(bytes)
+    }
+
+    /// A new command encoder.
+    pub fn encoder(&self) -> wgpu::CommandEncoder {
+        self.device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None })
+    }
+}
+
+/// Records one compute pass dispatching `pipeline` over `groups` workgroups.
+pub fn dispatch(
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    bind: &wgpu::BindGroup,
+    groups: (u32, u32),
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: None,
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, bind, &[]);
+    pass.dispatch_workgroups(groups.0, groups.1, 1);
+}

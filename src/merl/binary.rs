@@ -1,0 +1,139 @@
+//! MERL `.binary` files (SPEC 2): three little-endian int32 dimensions (90, 90, 180), then
+//! 3 x 1,458,000 little-endian float64, channel-planar (R, then G, then B). Stored value x
+//! channel scale = reflectance; negative values mark missing cells.
+
+use super::grid::{self, N_CELLS, N_PD, N_TD, N_TH};
+use crate::error::{MerlError, OutputError};
+use std::io::Read;
+use std::path::Path;
+
+/// Channel scales: stored value x scale = reflectance (R, G, B).
+pub const SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
+/// Size in bytes of a MERL `.binary` file.
+pub const FILE_BYTES: u64 = 12 + 3 * 8 * N_CELLS as u64;
+
+/// A measured BRDF on the MERL grid, in f32 reflectance units, channel-planar
+/// (`rgb[c * N_CELLS + cell]`). A negative value marks an invalid cell (all three
+/// channels are negative together).
+#[derive(Clone, Debug)]
+pub struct MerlTable {
+    /// Reflectance, channel-planar, negative = invalid.
+    pub rgb: Vec<f32>,
+}
+
+impl MerlTable {
+    /// Whether `cell` holds a measurement (no channel negative).
+    #[inline]
+    pub fn is_valid(&self, cell: usize) -> bool {
+        self.rgb[cell] >= 0.0
+            && self.rgb[N_CELLS + cell] >= 0.0
+            && self.rgb[2 * N_CELLS + cell] >= 0.0
+    }
+
+    /// Reflectance of channel `c` at `cell` (negative when invalid).
+    #[inline]
+    pub fn value(&self, c: usize, cell: usize) -> f32 {
+        self.rgb[c * N_CELLS + cell]
+    }
+
+    /// Number of valid cells.
+    pub fn valid_count(&self) -> usize {
+        (0..N_CELLS).filter(|&i| self.is_valid(i)).count()
+    }
+}
+
+/// Reads and validates a MERL `.binary` file. Cells that are negative in any channel, or
+/// below the horizon on the grid, become invalid (all channels -1).
+pub fn read_binary(path: &Path) -> Result<MerlTable, MerlError> {
+    let io = |source| MerlError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len();
+    let mut head = [0u8; 12];
+    if len >= 12 {
+        f.read_exact(&mut head).map_err(io)?;
+        let dims = [0, 1, 2]
+            .map(|i| i32::from_le_bytes(head[4 * i..4 * i + 4].try_into().unwrap_or([0; 4])));
+        if dims != [N_TH as i32, N_TD as i32, N_PD as i32] {
+            return Err(MerlError::Dims {
+                path: path.to_path_buf(),
+                dims,
+            });
+        }
+    }
+    if len != FILE_BYTES {
+        return Err(MerlError::Size {
+            path: path.to_path_buf(),
+            expected: FILE_BYTES,
+            found: len,
+        });
+    }
+    let mut raw = vec![0u8; (FILE_BYTES - 12) as usize];
+    f.read_exact(&mut raw).map_err(io)?;
+    let mut rgb = vec![0f32; 3 * N_CELLS];
+    for c in 0..3 {
+        for cell in 0..N_CELLS {
+            let o = 8 * (c * N_CELLS + cell);
+            let v = f64::from_le_bytes(raw[o..o + 8].try_into().unwrap_or([0; 8]));
+            if !v.is_finite() {
+                return Err(MerlError::NonFinite {
+                    path: path.to_path_buf(),
+                    channel: c,
+                    cell,
+                    value: v,
+                });
+            }
+            rgb[c * N_CELLS + cell] = if v < 0.0 { -1.0 } else { (v * SCALE[c]) as f32 };
+        }
+    }
+    let mut valid = 0usize;
+    for cell in 0..N_CELLS {
+        let geometric = grid::cell_info(cell).valid;
+        let ok = geometric && (0..3).all(|c| rgb[c * N_CELLS + cell] >= 0.0);
+        if ok {
+            valid += 1;
+        } else {
+            for c in 0..3 {
+                rgb[c * N_CELLS + cell] = -1.0;
+            }
+        }
+    }
+    if valid == 0 {
+        return Err(MerlError::NoValidCell {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(MerlTable { rgb })
+}
+
+/// Writes a MERL `.binary` file atomically from channel-planar reflectance values
+/// (`rgb[c * N_CELLS + cell]`, length 3 x 1,458,000). Negative or non-finite values are
+/// written as -1 (invalid); others as reflectance / scale.
+pub fn write_binary(path: &Path, rgb: &[f32]) -> Result<(), OutputError> {
+    assert_eq!(
+        rgb.len(),
+        3 * N_CELLS,
+        "write_binary needs 3 x 1,458,000 values"
+    );
+    crate::io::atomic::write_atomic(path, |w| {
+        for d in [N_TH as i32, N_TD as i32, N_PD as i32] {
+            w.write_all(&d.to_le_bytes())?;
+        }
+        let mut buf = Vec::with_capacity(8 * N_CELLS);
+        for c in 0..3 {
+            buf.clear();
+            for &v in &rgb[c * N_CELLS..(c + 1) * N_CELLS] {
+                let s = if v.is_finite() && v >= 0.0 {
+                    v as f64 / SCALE[c]
+                } else {
+                    -1.0
+                };
+                buf.extend_from_slice(&s.to_le_bytes());
+            }
+            w.write_all(&buf)?;
+        }
+        Ok(())
+    })
+}
