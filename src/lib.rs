@@ -18,7 +18,7 @@
 
 pub mod backend;
 pub mod brdf;
-// pub mod cluster;
+pub mod cluster;
 pub mod collection;
 pub mod distance;
 pub mod engine;
@@ -28,4 +28,4 @@ pub mod gpu;
 pub mod io;
 pub mod merl;
 // pub mod nnls;
-// pub mod stats;
+pub mod stats;

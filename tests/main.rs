@@ -1,1 +1,13 @@
-//! Integration tests.
+//! Integration tests: one binary to keep link times low.
+//!
+//! GPU tests run on any wgpu adapter (lavapipe in CI), print `SKIP (no adapter)` when
+//! there is none, and fail when `BRDF_BASIS_REQUIRE_GPU=1` is set and no adapter is found.
+
+mod common;
+
+mod cli;
+mod collection;
+mod distance;
+mod gpu_kernels;
+mod grid;
+mod shaders;

@@ -182,8 +182,9 @@ mod tests {
                 let b = m.eval(wo, wi);
                 for c in 0..3 {
                     assert!(a[c] >= 0.0 && a[c].is_finite());
+                    // n amplifies the rounding of theta_h: 1e-9 relative.
                     assert!(
-                        (a[c] - b[c]).abs() <= 1e-12 * a[c].abs().max(1e-300),
+                        (a[c] - b[c]).abs() <= 1e-9 * a[c].abs().max(1e-300),
                         "{a:?} {b:?}"
                     );
                 }
@@ -195,7 +196,7 @@ mod tests {
     fn cos_pow_stable_for_huge_exponents() {
         // Compare with a high-precision expansion: ln cos t = -t^2/2 - t^4/12 - t^6/45 - ...
         for &n in &[1.0, 80.0, 5_000.0, 80_000.0] {
-            for &t in &[1e-6, 1e-4, 1e-3, 3e-3, 1e-2] {
+            for &t in &[1e-6f64, 1e-4, 1e-3, 3e-3, 1e-2] {
                 let lc: f64 =
                     -t * t / 2.0 - t.powi(4) / 12.0 - t.powi(6) / 45.0 - 17.0 * t.powi(8) / 2520.0;
                 let want = (n * lc).exp();

@@ -1,0 +1,152 @@
+//! Clustering of materials from a distance matrix: k-medoids (PAM), GCUK and the medoid
+//! Davies-Bouldin validity index (SPEC section 6, paper section V-B).
+//!
+//! Every algorithm takes anything that implements [`Distances`](crate::distance::Distances)
+//! (a symmetric matrix with a zero diagonal), a parameter builder with documented defaults
+//! that is validated by `check()`, and returns a named result struct. Stochastic steps are
+//! driven by a [`rand_chacha::ChaCha8Rng`] seeded from the parameters, so the same seed
+//! always gives the same result.
+//!
+//! * [`validity`]: medoid of a cluster, nearest-medoid assignment, k-medoids loss and the
+//!   medoid Davies-Bouldin index (Davies & Bouldin 1979, doi:10.1109/TPAMI.1979.4766909).
+//! * [`kmedoids`]: PAM, BUILD + SWAP (Kaufman & Rousseeuw 1990,
+//!   doi:10.1002/9780470316801.ch2) with seeded random restarts.
+//! * [`gcuk`]: Genetic Clustering for Unknown K (Bandyopadhyay & Maulik 2002,
+//!   doi:10.1016/S0031-3203(01)00108-X) as modified by the paper (no mutation, medoids).
+
+pub mod gcuk;
+pub mod kmedoids;
+pub mod validity;
+
+pub use gcuk::{Gcuk, GcukParams, ValidGcukParams};
+pub use kmedoids::{KMedoids, KMedoidsInit, KMedoidsParams, ValidKMedoidsParams};
+pub use validity::{assign, check_distances, davies_bouldin, loss, medoid_of};
+
+/// Errors of the clustering algorithms and validity indices.
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ClusterError {
+    /// The number of clusters `k` must satisfy `2 <= k <= n` (the Davies-Bouldin index
+    /// needs two clusters, and every cluster needs a distinct medoid).
+    #[error("number of clusters k = {k} is out of range: need 2 <= k <= n = {n}")]
+    KOutOfRange {
+        /// Requested number of clusters.
+        k: usize,
+        /// Number of items.
+        n: usize,
+    },
+    /// The number of clusters must be at least 2 (the Davies-Bouldin index needs two).
+    #[error("number of clusters k = {k} is too small: need k >= 2")]
+    KTooSmall {
+        /// Requested number of clusters.
+        k: usize,
+    },
+    /// The range of cluster counts is empty.
+    #[error("k_min = {k_min} is larger than k_max = {k_max}")]
+    EmptyKRange {
+        /// Requested minimum number of clusters.
+        k_min: usize,
+        /// Requested maximum number of clusters.
+        k_max: usize,
+    },
+    /// The minimum number of clusters must be at least 2.
+    #[error("k_min = {k_min} is too small: the Davies-Bouldin index needs k_min >= 2")]
+    KMinTooSmall {
+        /// Requested minimum number of clusters.
+        k_min: usize,
+    },
+    /// The maximum number of clusters (GCUK slots) exceeds the number of items.
+    #[error("k_max = {k_max} exceeds the number of items n = {n}")]
+    KMaxTooLarge {
+        /// Requested maximum number of clusters.
+        k_max: usize,
+        /// Number of items.
+        n: usize,
+    },
+    /// A genetic population needs at least two individuals to cross over.
+    #[error("population size {population} is too small: need at least 2")]
+    PopulationTooSmall {
+        /// Requested population size.
+        population: usize,
+    },
+    /// There are too few items to cluster.
+    #[error("too few items to cluster: found {n}, need at least {needed}")]
+    TooFewItems {
+        /// Number of items found.
+        n: usize,
+        /// Minimum number of items needed.
+        needed: usize,
+    },
+    /// A distance is NaN or infinite.
+    #[error("distance between items {i} and {j} is not finite ({value})")]
+    NonFiniteDistance {
+        /// First item.
+        i: usize,
+        /// Second item.
+        j: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// A distance is negative.
+    #[error("distance between items {i} and {j} is negative ({value})")]
+    NegativeDistance {
+        /// First item.
+        i: usize,
+        /// Second item.
+        j: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// At least one run (start) is needed.
+    #[error("the number of runs (restarts) must be at least 1")]
+    ZeroRuns,
+    /// A probability parameter is outside `[0, 1]` or not finite.
+    #[error("{name} = {value} is not a probability in [0, 1]")]
+    ProbabilityOutOfRange {
+        /// Parameter name.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+    },
+    /// A function that needs at least one medoid was given none.
+    #[error("at least one medoid is needed")]
+    NoMedoids,
+    /// A function that needs at least one cluster member was given none.
+    #[error("the cluster has no members")]
+    EmptyCluster,
+    /// A label vector does not have one entry per item.
+    #[error("expected {expected} labels (one per item), found {found}")]
+    LabelCountMismatch {
+        /// Number of items.
+        expected: usize,
+        /// Number of labels given.
+        found: usize,
+    },
+    /// A label points past the list of medoids.
+    #[error("item {item} has label {label} but there are only {k} clusters")]
+    LabelOutOfRange {
+        /// Item whose label is invalid.
+        item: usize,
+        /// The invalid label.
+        label: usize,
+        /// Number of clusters (medoids).
+        k: usize,
+    },
+    /// An item index (medoid or member) is not below the number of items.
+    #[error("item index {index} is out of range for {n} items")]
+    IndexOutOfRange {
+        /// The invalid index.
+        index: usize,
+        /// Number of items.
+        n: usize,
+    },
+    /// GCUK could not draw a valid initial individual (every draw had fewer than `k_min`
+    /// non-empty clusters, which needs many items at distance 0 from each other).
+    #[error("no valid initial individual after {attempts} draws (k_min = {k_min}): too many items at distance 0?")]
+    NoValidIndividual {
+        /// Number of draws made.
+        attempts: usize,
+        /// Minimum number of non-empty clusters required.
+        k_min: usize,
+    },
+}

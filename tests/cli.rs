@@ -1,0 +1,101 @@
+//! The command line, run as a user would.
+
+use crate::common::*;
+use brdf_basis::merl::binary::{read_binary, FILE_BYTES, SCALE};
+use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS};
+use std::process::Command;
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_brdf-basis"));
+    c.arg("--quiet");
+    c
+}
+
+fn backend_flag() -> &'static str {
+    if gpu("cli backend").is_some() {
+        "gpu"
+    } else {
+        "cpu"
+    }
+}
+
+#[test]
+fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
+    let dir = tmp();
+    let out = dir.path().join("g.binary");
+    let st = bin()
+        .args(["--backend", backend_flag(), "tabulate"])
+        .arg(shared("ngan2005_ashikhmin_shirley.csv"))
+        .args(["--material", "gold-metallic-paint", "--out"])
+        .arg(&out)
+        .status()
+        .expect("run");
+    assert!(st.success());
+    assert_eq!(std::fs::metadata(&out).expect("meta").len(), 34_992_012);
+    assert_eq!(FILE_BYTES, 34_992_012);
+    let t = read_binary(&out).expect("read back");
+    // Written again from what was read: byte-identical.
+    let again = dir.path().join("again.binary");
+    brdf_basis::merl::write_binary(&again, &t.rgb).expect("write");
+    assert_eq!(std::fs::read(&out).expect("a"), std::fs::read(&again).expect("b"));
+    // Equal to the f64 model within f32 rounding (plus the GPU's 1e-4 where it is used).
+    let m = *ngan().get("gold-metallic-paint").expect("gold").analytic().expect("analytic");
+    let raw = std::fs::read(&out).expect("raw");
+    let mut worst = 0f64;
+    for cell in (0..N_CELLS).step_by(11) {
+        let valid = cell_info(cell).valid;
+        let (wi, wo) = cell_directions(cell);
+        let f = m.eval(wi, wo);
+        for c in 0..3 {
+            let o = 12 + 8 * (c * N_CELLS + cell);
+            let stored = f64::from_le_bytes(raw[o..o + 8].try_into().expect("8 bytes"));
+            if !valid {
+                assert_eq!(stored, -1.0);
+                continue;
+            }
+            let rel = (stored * SCALE[c] - f[c]).abs() / f[c];
+            worst = worst.max(rel);
+            assert!(rel <= 1e-4, "cell {cell} channel {c}: {} vs {}", stored * SCALE[c], f[c]);
+        }
+    }
+    eprintln!("tabulate: worst relative error {worst:e}");
+}
+
+#[test]
+fn info_names_the_adapter_backend_and_limits() {
+    let out = bin().args(["info"]).output().expect("run");
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("backend:") && text.contains("cpu back-end:"), "{text}");
+    if gpu("info_names_the_adapter").is_some() {
+        assert!(text.contains("adapter: ") && text.contains("max_storage_buffer_binding_size"), "{text}");
+    }
+}
+
+#[test]
+fn distance_on_the_embedded_default_writes_csv_and_npy() {
+    let dir = tmp();
+    for ext in ["csv", "npy"] {
+        let out = dir.path().join(format!("d.{ext}"));
+        let st = bin().args(["--backend", "cpu", "distance", "--stride", "4", "--out"]).arg(&out).status().expect("run");
+        assert!(st.success());
+        assert!(std::fs::metadata(&out).expect("meta").len() > 0);
+    }
+}
+
+#[test]
+fn errors_name_the_problem_and_exit_non_zero() {
+    let dir = tmp();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\nx,0,0,0,0,0,0,1.5,3\n").expect("write");
+    let out = bin().args(["distance"]).arg(&bad).args(["--out", "x.csv"]).output().expect("run");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.csv") && err.contains("line 2") && err.contains("F0"), "{err}");
+    let out = bin().args(["tabulate", "--material", "nope", "--out"]).arg(dir.path().join("n.binary")).output().expect("run");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no material named `nope`"));
+    assert!(!dir.path().join("n.binary").exists(), "nothing half-written");
+    let out = bin().args(["distance", "--metric", "cosine", "--out", "x.csv"]).output().expect("run");
+    assert!(!out.status.success());
+}
