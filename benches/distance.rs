@@ -1,1 +1,83 @@
-fn main() {}
+//! Pairwise BRDF_it throughput: N = 100 and N = 1000 materials on the full grid
+//! (evaluation mask, 894,396 cells), each back-end. Prints G abs-diffs/s
+//! (N (N - 1) / 2 x cells / s) and the peak resident memory of the process.
+//!
+//! `cargo bench --bench distance` (set BENCH_N=100 or 1000 to run one size).
+
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::{Backend, Lobe, LobeParams};
+use brdf_basis::gpu::GpuBackend;
+use brdf_basis::merl::{CellSet, Mask, Weighting};
+use std::time::Instant;
+
+fn lobes(n: usize) -> Vec<Lobe> {
+    // Deterministic spread of (F0, n) like the Ngan table: n from 1 to 80,000, log-uniform.
+    (0..n)
+        .map(|i| {
+            let t = (i as f64 + 0.5) / n as f64;
+            let f0 = (0.02 + 0.96 * ((i * 37) % n) as f64 / n as f64) as f32;
+            Lobe::Analytic(LobeParams {
+                kd: 0.0,
+                ks: 1.0,
+                f0,
+                n: (80_000f64).powf(t) as f32,
+            })
+        })
+        .collect()
+}
+
+fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .map(|l| l.to_string())
+        })
+        .and_then(|l| {
+            l.split_whitespace()
+                .nth(1)
+                .and_then(|v| v.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn run(name: &str, b: &dyn Backend, n: usize, cells: &CellSet, reps: usize) -> f64 {
+    let l = lobes(n);
+    let _ = b.pairwise_l1(&l, cells, &|_, _| {}).expect("warm-up");
+    let t = Instant::now();
+    for _ in 0..reps {
+        std::hint::black_box(b.pairwise_l1(&l, cells, &|_, _| {}).expect("pairwise"));
+    }
+    let s = t.elapsed().as_secs_f64() / reps as f64;
+    let diffs = (n * (n - 1) / 2) as f64 * cells.len() as f64;
+    let g = diffs / s / 1e9;
+    println!(
+        "distance {name:<50} N={n:<5} cells={} time={:.3} s  {:.2} G abs-diffs/s  peak RSS {:.0} MB",
+        cells.len(),
+        s,
+        g,
+        peak_rss_mb()
+    );
+    g
+}
+
+fn main() {
+    let only: Option<usize> = std::env::var("BENCH_N").ok().and_then(|v| v.parse().ok());
+    let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 1);
+    let cpu = CpuBackend::new();
+    let gpu = GpuBackend::new().ok();
+    for n in [100usize, 1000] {
+        if only.is_some_and(|o| o != n) {
+            continue;
+        }
+        let reps = if n == 100 { 3 } else { 1 };
+        let c = run(&cpu.name(), &cpu, n, &cells, reps);
+        if let Some(g) = &gpu {
+            let gg = run(&g.name(), g, n, &cells, reps);
+            println!("distance N={n}: gpu / cpu throughput ratio {:.2}", gg / c);
+        } else {
+            println!("distance: no GPU adapter, GPU figures skipped");
+        }
+    }
+}

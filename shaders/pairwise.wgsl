@@ -1,5 +1,7 @@
-// Pairwise weighted L1: for a BLOCK x BLOCK block of material pairs (rows pre-multiplied
-// by the cell weights, so w |a - b| = |w a - w b|), one workgroup reduces one run of
+// Pairwise reductions over grid cells. OP = 0: weighted L1 (rows pre-multiplied by the
+// cell weights, so w |a - b| = |w a - w b|); OP = 1: weighted dot products for Gram
+// matrices (rows pre-multiplied by sqrt(w)). For a BLOCK x BLOCK block of lobe pairs
+// (from a caller-given list), one workgroup reduces one run of
 // WG * run_iters cells. Lane l takes cells l, l + WG, ... (coalesced loads), keeps 16
 // f32 accumulators in registers, and the 64 lanes are summed once through workgroup
 // memory at the end. Every loop is bounded by run_iters <= MAX_RUN_ITERS (src/gpu/pairwise.rs),
@@ -22,6 +24,8 @@ struct PairParams {
 @group(0) @binding(2) var<storage, read> blocks: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read_write> partial: array<f32>;
 
+override OP: u32 = 0u;
+
 var<workgroup> red: array<vec4<f32>, 256>;
 
 @compute @workgroup_size(64)
@@ -43,10 +47,21 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
             break;
         }
         let bv = vec4<f32>(vals[rb + c], vals[rb + s + c], vals[rb + 2u * s + c], vals[rb + 3u * s + c]);
-        acc0 = acc0 + abs(vec4<f32>(vals[ra + c]) - bv);
-        acc1 = acc1 + abs(vec4<f32>(vals[ra + s + c]) - bv);
-        acc2 = acc2 + abs(vec4<f32>(vals[ra + 2u * s + c]) - bv);
-        acc3 = acc3 + abs(vec4<f32>(vals[ra + 3u * s + c]) - bv);
+        let a0 = vec4<f32>(vals[ra + c]);
+        let a1 = vec4<f32>(vals[ra + s + c]);
+        let a2 = vec4<f32>(vals[ra + 2u * s + c]);
+        let a3 = vec4<f32>(vals[ra + 3u * s + c]);
+        if (OP == 0u) {
+            acc0 = acc0 + abs(a0 - bv);
+            acc1 = acc1 + abs(a1 - bv);
+            acc2 = acc2 + abs(a2 - bv);
+            acc3 = acc3 + abs(a3 - bv);
+        } else {
+            acc0 = fma(a0, bv, acc0);
+            acc1 = fma(a1, bv, acc1);
+            acc2 = fma(a2, bv, acc2);
+            acc3 = fma(a3, bv, acc3);
+        }
     }
     red[lid.x * 4u + 0u] = acc0;
     red[lid.x * 4u + 1u] = acc1;

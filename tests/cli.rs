@@ -37,9 +37,16 @@ fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
     // Written again from what was read: byte-identical.
     let again = dir.path().join("again.binary");
     brdf_basis::merl::write_binary(&again, &t.rgb).expect("write");
-    assert_eq!(std::fs::read(&out).expect("a"), std::fs::read(&again).expect("b"));
+    assert_eq!(
+        std::fs::read(&out).expect("a"),
+        std::fs::read(&again).expect("b")
+    );
     // Equal to the f64 model within f32 rounding (plus the GPU's 1e-4 where it is used).
-    let m = *ngan().get("gold-metallic-paint").expect("gold").analytic().expect("analytic");
+    let m = *ngan()
+        .get("gold-metallic-paint")
+        .expect("gold")
+        .analytic()
+        .expect("analytic");
     let raw = std::fs::read(&out).expect("raw");
     let mut worst = 0f64;
     for cell in (0..N_CELLS).step_by(11) {
@@ -55,7 +62,12 @@ fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
             }
             let rel = (stored * SCALE[c] - f[c]).abs() / f[c];
             worst = worst.max(rel);
-            assert!(rel <= 1e-4, "cell {cell} channel {c}: {} vs {}", stored * SCALE[c], f[c]);
+            assert!(
+                rel <= 1e-4,
+                "cell {cell} channel {c}: {} vs {}",
+                stored * SCALE[c],
+                f[c]
+            );
         }
     }
     eprintln!("tabulate: worst relative error {worst:e}");
@@ -66,9 +78,15 @@ fn info_names_the_adapter_backend_and_limits() {
     let out = bin().args(["info"]).output().expect("run");
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("backend:") && text.contains("cpu back-end:"), "{text}");
+    assert!(
+        text.contains("backend:") && text.contains("cpu back-end:"),
+        "{text}"
+    );
     if gpu("info_names_the_adapter").is_some() {
-        assert!(text.contains("adapter: ") && text.contains("max_storage_buffer_binding_size"), "{text}");
+        assert!(
+            text.contains("adapter: ") && text.contains("max_storage_buffer_binding_size"),
+            "{text}"
+        );
     }
 }
 
@@ -77,7 +95,11 @@ fn distance_on_the_embedded_default_writes_csv_and_npy() {
     let dir = tmp();
     for ext in ["csv", "npy"] {
         let out = dir.path().join(format!("d.{ext}"));
-        let st = bin().args(["--backend", "cpu", "distance", "--stride", "4", "--out"]).arg(&out).status().expect("run");
+        let st = bin()
+            .args(["--backend", "cpu", "distance", "--stride", "4", "--out"])
+            .arg(&out)
+            .status()
+            .expect("run");
         assert!(st.success());
         assert!(std::fs::metadata(&out).expect("meta").len() > 0);
     }
@@ -87,15 +109,37 @@ fn distance_on_the_embedded_default_writes_csv_and_npy() {
 fn errors_name_the_problem_and_exit_non_zero() {
     let dir = tmp();
     let bad = dir.path().join("bad.csv");
-    std::fs::write(&bad, "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\nx,0,0,0,0,0,0,1.5,3\n").expect("write");
-    let out = bin().args(["distance"]).arg(&bad).args(["--out", "x.csv"]).output().expect("run");
+    std::fs::write(
+        &bad,
+        "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\nx,0,0,0,0,0,0,1.5,3\n",
+    )
+    .expect("write");
+    let out = bin()
+        .args(["distance"])
+        .arg(&bad)
+        .args(["--out", "x.csv"])
+        .output()
+        .expect("run");
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("bad.csv") && err.contains("line 2") && err.contains("F0"), "{err}");
-    let out = bin().args(["tabulate", "--material", "nope", "--out"]).arg(dir.path().join("n.binary")).output().expect("run");
+    assert!(
+        err.contains("bad.csv") && err.contains("line 2") && err.contains("F0"),
+        "{err}"
+    );
+    let out = bin()
+        .args(["tabulate", "--material", "nope", "--out"])
+        .arg(dir.path().join("n.binary"))
+        .output()
+        .expect("run");
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no material named `nope`"));
-    assert!(!dir.path().join("n.binary").exists(), "nothing half-written");
-    let out = bin().args(["distance", "--metric", "cosine", "--out", "x.csv"]).output().expect("run");
+    assert!(
+        !dir.path().join("n.binary").exists(),
+        "nothing half-written"
+    );
+    let out = bin()
+        .args(["distance", "--metric", "cosine", "--out", "x.csv"])
+        .output()
+        .expect("run");
     assert!(!out.status.success());
 }

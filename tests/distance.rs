@@ -11,7 +11,11 @@ fn check_backend_against_reference(backends: &[&dyn Backend]) {
     let coll = ngan();
     for mask in [Mask::Evaluation, Mask::Valid] {
         for weighting in [Weighting::Uniform, Weighting::SolidAngle] {
-            let p = DistanceParams::default().mask(mask).weighting(weighting).check(&coll).expect("params");
+            let p = DistanceParams::default()
+                .mask(mask)
+                .weighting(weighting)
+                .check(&coll)
+                .expect("params");
             let cells = cell_set(&coll, &p);
             let reference = reference_pairwise_f64(&lobes(&coll, p.lobe), &cells);
             for b in backends {
@@ -38,11 +42,21 @@ fn hand_computed_tiny_case() {
     // Two materials differing only in the Lambertian term of the full lobe: the distance
     // is |kd_a - kd_b| / pi whatever the mask and weights.
     let csv = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\na,0.3,0.3,0.3,0.5,0.5,0.5,0.1,20\nb,0.6,0.6,0.6,0.5,0.5,0.5,0.1,20\n";
-    let coll = brdf_basis::collection::parse_csv(csv.as_bytes(), std::path::Path::new("t.csv")).expect("csv");
-    let p = DistanceParams::default().lobe(LobeKind::Full).weighting(Weighting::SolidAngle).stride(5).check(&coll).expect("p");
+    let coll = brdf_basis::collection::parse_csv(csv.as_bytes(), std::path::Path::new("t.csv"))
+        .expect("csv");
+    let p = DistanceParams::default()
+        .lobe(LobeKind::Full)
+        .weighting(Weighting::SolidAngle)
+        .stride(5)
+        .check(&coll)
+        .expect("p");
     let d = distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("d");
     let want = 0.3 / std::f64::consts::PI;
-    assert!((d.dist(0, 1) - want).abs() < 1e-6 * want, "{} vs {want}", d.dist(0, 1));
+    assert!(
+        (d.dist(0, 1) - want).abs() < 1e-6 * want,
+        "{} vs {want}",
+        d.dist(0, 1)
+    );
     assert_eq!(d.dist(0, 0), 0.0);
     assert_eq!(d.dist(1, 0), d.dist(0, 1));
 }
@@ -50,7 +64,10 @@ fn hand_computed_tiny_case() {
 #[test]
 fn euclidean_is_on_f0_and_n() {
     let coll = ngan().subset(&[0, 1, 2]);
-    let p = DistanceParams::default().metric(Metric::Euclidean).check(&coll).expect("p");
+    let p = DistanceParams::default()
+        .metric(Metric::Euclidean)
+        .check(&coll)
+        .expect("p");
     let d = distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("d");
     let a = coll.materials()[0].analytic().copied().expect("a");
     let b = coll.materials()[2].analytic().copied().expect("b");
@@ -59,12 +76,30 @@ fn euclidean_is_on_f0_and_n() {
 
 #[test]
 fn rejects_bad_options_and_inputs() {
-    assert!(matches!("cosine".parse::<Metric>(), Err(DistanceError::UnknownOption { what: "metric", .. })));
-    assert!(matches!("area".parse::<Weighting>(), Err(DistanceError::UnknownOption { what: "weighting", .. })));
-    assert!(matches!("all".parse::<Mask>(), Err(DistanceError::UnknownOption { what: "mask", .. })));
-    assert!(matches!("diffuse".parse::<LobeKind>(), Err(DistanceError::UnknownOption { what: "lobe", .. })));
+    assert!(matches!(
+        "cosine".parse::<Metric>(),
+        Err(DistanceError::UnknownOption { what: "metric", .. })
+    ));
+    assert!(matches!(
+        "area".parse::<Weighting>(),
+        Err(DistanceError::UnknownOption {
+            what: "weighting",
+            ..
+        })
+    ));
+    assert!(matches!(
+        "all".parse::<Mask>(),
+        Err(DistanceError::UnknownOption { what: "mask", .. })
+    ));
+    assert!(matches!(
+        "diffuse".parse::<LobeKind>(),
+        Err(DistanceError::UnknownOption { what: "lobe", .. })
+    ));
     let one = ngan().subset(&[3]);
-    assert!(matches!(DistanceParams::default().check(&one), Err(DistanceError::TooFew(1))));
+    assert!(matches!(
+        DistanceParams::default().check(&one),
+        Err(DistanceError::TooFew(1))
+    ));
     assert!(DistanceParams::default().stride(0).check(&ngan()).is_err());
 }
 
@@ -83,7 +118,10 @@ fn matrix_files_round_trip() {
     brdf_basis::io::matrix::write_csv(&csv, &d).expect("csv");
     let text = std::fs::read_to_string(&csv).expect("read");
     let mut lines = text.lines();
-    assert_eq!(lines.next().expect("header"), format!("material,{}", d.names().join(",")));
+    assert_eq!(
+        lines.next().expect("header"),
+        format!("material,{}", d.names().join(","))
+    );
     for (i, line) in lines.enumerate() {
         let f: Vec<&str> = line.split(',').collect();
         assert_eq!(f[0], d.names()[i]);

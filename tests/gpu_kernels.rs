@@ -29,34 +29,57 @@ fn valid_geometry() -> Vec<(u32, f64, f64, f64)> {
 
 #[test]
 fn gpu_tabulation_of_every_ngan_material_matches_the_f64_model() {
-    let Some(gpu) = gpu("gpu_tabulation_of_every_ngan_material_matches_the_f64_model") else { return };
+    let Some(gpu) = gpu("gpu_tabulation_of_every_ngan_material_matches_the_f64_model") else {
+        return;
+    };
     let coll = ngan();
     let geo = valid_geometry();
     let cells: Vec<u32> = geo.iter().map(|g| g.0).collect();
     let mut worst = 0f64;
-    let mats: Vec<_> = coll.materials().iter().map(|m| *m.analytic().expect("analytic")).collect();
+    let mats: Vec<_> = coll
+        .materials()
+        .iter()
+        .map(|m| *m.analytic().expect("analytic"))
+        .collect();
     for batch in mats.chunks(10) {
         // Full RGB BRDF: three lobes (d_c, s_c, F0, n) per material.
         let lobes: Vec<Lobe> = batch
             .iter()
-            .flat_map(|a| (0..3).map(move |c| Lobe::Analytic(LobeParams { kd: a.d[c] as f32, ks: a.s[c] as f32, f0: a.f0 as f32, n: a.n as f32 })))
+            .flat_map(|a| {
+                (0..3).map(move |c| {
+                    Lobe::Analytic(LobeParams {
+                        kd: a.d[c] as f32,
+                        ks: a.s[c] as f32,
+                        f0: a.f0 as f32,
+                        n: a.n as f32,
+                    })
+                })
+            })
             .collect();
         let vals = gpu.tabulate(&lobes, &cells).expect("gpu tabulate");
         let w = lobes
             .par_iter()
             .enumerate()
             .map(|(l, lobe)| {
-                let Lobe::Analytic(p) = lobe else { unreachable!() };
+                let Lobe::Analytic(p) = lobe else {
+                    unreachable!()
+                };
                 let a = &batch[l / 3];
                 let (d, s) = (a.d[l % 3], a.s[l % 3]);
                 let mut worst = 0f64;
                 for (c, g) in geo.iter().enumerate() {
-                    let want = d / std::f64::consts::PI + s * rho_s_angles(g.1, g.2, g.3, a.f0, a.n);
+                    let want =
+                        d / std::f64::consts::PI + s * rho_s_angles(g.1, g.2, g.3, a.f0, a.n);
                     let got = vals[l * cells.len() + c] as f64;
                     assert!(got.is_finite(), "non-finite at cell {}", g.0);
                     if want >= 1e-6 {
                         let rel = (got - want).abs() / want;
-                        assert!(rel <= 1e-4, "material n={} lobe {l} cell {}: {got} vs {want} (rel {rel:e})", p.n, g.0);
+                        assert!(
+                            rel <= 1e-4,
+                            "material n={} lobe {l} cell {}: {got} vs {want} (rel {rel:e})",
+                            p.n,
+                            g.0
+                        );
                         worst = worst.max(rel);
                     }
                 }
@@ -72,10 +95,23 @@ fn gpu_tabulation_of_every_ngan_material_matches_the_f64_model() {
 fn cpu_tabulation_matches_gpu_twin_and_model() {
     // The CPU back-end evaluates in f64 and rounds once: 1e-6 relative against f64.
     let cpu = CpuBackend::new();
-    let cells: Vec<u32> = (0..N_CELLS as u32).step_by(7).filter(|&c| cell_info(c as usize).valid).collect();
+    let cells: Vec<u32> = (0..N_CELLS as u32)
+        .step_by(7)
+        .filter(|&c| cell_info(c as usize).valid)
+        .collect();
     let lobes = vec![
-        Lobe::Analytic(LobeParams { kd: 0.0, ks: 1.0, f0: 0.05, n: 78_200.0 }),
-        Lobe::Analytic(LobeParams { kd: 0.3, ks: 0.5, f0: 0.9, n: 1.2 }),
+        Lobe::Analytic(LobeParams {
+            kd: 0.0,
+            ks: 1.0,
+            f0: 0.05,
+            n: 78_200.0,
+        }),
+        Lobe::Analytic(LobeParams {
+            kd: 0.3,
+            ks: 0.5,
+            f0: 0.9,
+            n: 1.2,
+        }),
     ];
     let vals = cpu.tabulate(&lobes, &cells).expect("cpu tabulate");
     let t = brdf_basis::merl::GridTables::new();
@@ -83,7 +119,10 @@ fn cpu_tabulation_matches_gpu_twin_and_model() {
         for (c, &cell) in cells.iter().enumerate() {
             let want = lobe.eval_f64(&t, cell as usize);
             let got = vals[l * cells.len() + c] as f64;
-            assert!((got - want).abs() <= 1e-6 * want.max(1e-30), "{got} vs {want}");
+            assert!(
+                (got - want).abs() <= 1e-6 * want.max(1e-30),
+                "{got} vs {want}"
+            );
         }
     }
 }
@@ -96,14 +135,18 @@ fn lobes_of(coll: &brdf_basis::collection::Collection) -> Vec<Lobe> {
 fn pairwise_kernel_matches_cpu_at_full_run_length() {
     // Every lane runs MAX_RUN_ITERS iterations: a loop cut short by the driver (lavapipe
     // ends loops after 65,535 iterations) would change the result.
-    let Some(gpu) = gpu("pairwise_kernel_matches_cpu_at_full_run_length") else { return };
+    let Some(gpu) = gpu("pairwise_kernel_matches_cpu_at_full_run_length") else {
+        return;
+    };
     let coll = ngan().subset(&(0..13).collect::<Vec<_>>());
     let cells = CellSet::new(Mask::Valid, Weighting::SolidAngle, 1);
     let plan = gpu.plan(13, cells.len()).expect("plan");
     assert!(plan.run_iters as usize * WG <= plan.chunk);
     let lobes = lobes_of(&coll);
     let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
-    let c = CpuBackend::new().pairwise_l1(&lobes, &cells, &|_, _| {}).expect("cpu");
+    let c = CpuBackend::new()
+        .pairwise_l1(&lobes, &cells, &|_, _| {})
+        .expect("cpu");
     let r = max_rel(&g, &c, 1e-30);
     assert!(r <= 1e-4, "gpu vs cpu relative {r:e}");
 }
@@ -113,18 +156,32 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
     // The largest loop of any invocation, for the largest inputs the planner accepts.
     const LAVAPIPE_LOOP_LIMIT: u32 = 65_535;
     assert!(MAX_RUN_ITERS < LAVAPIPE_LOOP_LIMIT / 16);
-    for (n, software) in [(2, true), (100, true), (1000, true), (5000, false), (100, false)] {
+    for (n, software) in [
+        (2, true),
+        (100, true),
+        (1000, true),
+        (5000, false),
+        (100, false),
+    ] {
         let plan = PairPlan::new(n, 1_096_216, 128 << 20, software).expect("plan");
         assert!(plan.run_iters <= MAX_RUN_ITERS && (WG as u32) < LAVAPIPE_LOOP_LIMIT);
-        assert!(plan.n_pad * plan.chunk * 4 <= 128 << 20, "value buffer fits one binding");
-        assert!(plan.n_runs * WG * plan.run_iters as usize >= plan.chunk, "runs cover the chunk");
+        assert!(
+            plan.n_pad * plan.chunk * 4 <= 128 << 20,
+            "value buffer fits one binding"
+        );
+        assert!(
+            plan.n_runs * WG * plan.run_iters as usize >= plan.chunk,
+            "runs cover the chunk"
+        );
     }
 }
 
 #[test]
 fn pairwise_handles_padding_measured_rows_and_tiny_sets() {
     // 5 materials (padded to 8), one of them measured; a handful of cells.
-    let Some(gpu) = gpu("pairwise_handles_padding_measured_rows_and_tiny_sets") else { return };
+    let Some(gpu) = gpu("pairwise_handles_padding_measured_rows_and_tiny_sets") else {
+        return;
+    };
     let coll = ngan().subset(&[0, 10, 20, 30, 40]);
     let mut lobes = brdf_basis::distance::lobes(&coll, brdf_basis::distance::LobeKind::Full);
     let cpu = CpuBackend::new();
@@ -134,7 +191,10 @@ fn pairwise_handles_padding_measured_rows_and_tiny_sets() {
     for ch in 0..3 {
         rgb[ch * N_CELLS..(ch + 1) * N_CELLS].copy_from_slice(&table);
     }
-    lobes[2] = Lobe::Measured { table: std::sync::Arc::new(brdf_basis::merl::MerlTable { rgb }), channel: None };
+    lobes[2] = Lobe::Measured {
+        table: std::sync::Arc::new(brdf_basis::merl::MerlTable { rgb }),
+        channel: None,
+    };
     for stride in [1usize, 13] {
         let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, stride);
         let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");

@@ -56,22 +56,32 @@ fn valid_and_evaluation_counts_match_spec() {
     assert_eq!(valid, 1_096_216);
     assert_eq!(eval, 894_396);
     assert_eq!(eval_row1, 16_200, "theta_d row 1 has 90 x 180 cells");
-    assert_eq!(CellSet::new(Mask::Evaluation, Weighting::Uniform, 1).len(), 894_396);
-    assert_eq!(CellSet::new(Mask::Valid, Weighting::SolidAngle, 1).len(), 1_096_216);
+    assert_eq!(
+        CellSet::new(Mask::Evaluation, Weighting::Uniform, 1).len(),
+        894_396
+    );
+    assert_eq!(
+        CellSet::new(Mask::Valid, Weighting::SolidAngle, 1).len(),
+        1_096_216
+    );
 }
 
 #[test]
 fn solid_angle_weights_integrate_closed_forms() {
     // Over the whole grid: int 4 sin th cos td sin td = 4 (1 - cos(pi/2)) (1/2) pi = 2 pi.
-    let total: f64 = (0..N_CELLS).map(|i| {
-        let (a, b, c) = unflat(i);
-        bin_measure(a, b, c)
-    }).sum();
+    let total: f64 = (0..N_CELLS)
+        .map(|i| {
+            let (a, b, c) = unflat(i);
+            bin_measure(a, b, c)
+        })
+        .sum();
     assert!((total - 2.0 * PI).abs() < 1e-10, "{total}");
     // Over theta_h < (10/90)^2 pi/2 and theta_d < 30 deg: 4 (1 - cos a)(sin^2 30 deg / 2) pi.
     let a = (10.0f64 / 90.0).powi(2) * PI / 2.0;
     let want = 4.0 * (1.0 - a.cos()) * (0.25 / 2.0) * PI;
-    let got: f64 = (0..10).flat_map(|i| (0..30).flat_map(move |j| (0..180).map(move |k| bin_measure(i, j, k)))).sum();
+    let got: f64 = (0..10)
+        .flat_map(|i| (0..30).flat_map(move |j| (0..180).map(move |k| bin_measure(i, j, k))))
+        .sum();
     assert!((got - want).abs() < 1e-12, "{got} vs {want}");
     // Normalised weights sum to 1.
     let cs = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 1);
@@ -95,7 +105,12 @@ fn subsampled_grid_takes_every_sth_cell() {
 #[test]
 fn factored_tables_equal_the_model_from_directions() {
     let t = GridTables::new();
-    let m = AshikhminShirley { d: [0.0; 3], s: [1.0; 3], f0: 0.3, n: 5000.0 };
+    let m = AshikhminShirley {
+        d: [0.0; 3],
+        s: [1.0; 3],
+        f0: 0.3,
+        n: 5000.0,
+    };
     for idx in (0..N_CELLS).step_by(97) {
         if !cell_info(idx).valid {
             continue;
@@ -104,6 +119,9 @@ fn factored_tables_equal_the_model_from_directions() {
         let want = m.rho_s(wi, wo);
         let (i, j, k) = unflat(idx);
         let got = t.rho_s(i, j, k, m.f0, m.n);
-        assert!((got - want).abs() <= 1e-9 * want.max(1e-300), "cell {idx}: {got} vs {want}");
+        assert!(
+            (got - want).abs() <= 1e-9 * want.max(1e-300),
+            "cell {idx}: {got} vs {want}"
+        );
     }
 }

@@ -8,10 +8,14 @@ use std::mem::{offset_of, size_of};
 
 fn module(src: &str) -> (naga::Module, naga::valid::ModuleInfo) {
     let full = kernel_source(src);
-    let m = naga::front::wgsl::parse_str(&full).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&full)));
-    let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
-        .validate(&m)
-        .unwrap_or_else(|e| panic!("validation: {e:?}"));
+    let m = naga::front::wgsl::parse_str(&full)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&full)));
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&m)
+    .unwrap_or_else(|e| panic!("validation: {e:?}"));
     (m, info)
 }
 
@@ -19,7 +23,13 @@ fn layout(m: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
     for (_, ty) in m.types.iter() {
         if ty.name.as_deref() == Some(name) {
             if let naga::TypeInner::Struct { members, span } = &ty.inner {
-                return (*span, members.iter().map(|mm| (mm.name.clone().unwrap_or_default(), mm.offset)).collect());
+                return (
+                    *span,
+                    members
+                        .iter()
+                        .map(|mm| (mm.name.clone().unwrap_or_default(), mm.offset))
+                        .collect(),
+                );
             }
         }
     }
@@ -79,7 +89,16 @@ fn shared_constants_agree() {
     let common = brdf_basis::gpu::COMMON_WGSL;
     assert!(common.contains(&format!("const BLOCK: u32 = {}u;", pairwise::BLOCK)));
     assert!(common.contains(&format!("const WG: u32 = {}u;", pairwise::WG)));
-    assert!(common.contains(&format!("const T_LOG2_COS_H: u32 = {}u;", brdf_basis::gpu::TABLE_LOG2_COS_H)));
-    assert!(common.contains(&format!("const T_ABS_COS_P: u32 = {}u;", brdf_basis::gpu::TABLE_ABS_COS_P)));
-    assert!(common.contains(&format!("const T_LEN: u32 = {}u;", brdf_basis::gpu::TABLE_LEN)));
+    assert!(common.contains(&format!(
+        "const T_LOG2_COS_H: u32 = {}u;",
+        brdf_basis::gpu::TABLE_LOG2_COS_H
+    )));
+    assert!(common.contains(&format!(
+        "const T_ABS_COS_P: u32 = {}u;",
+        brdf_basis::gpu::TABLE_ABS_COS_P
+    )));
+    assert!(common.contains(&format!(
+        "const T_LEN: u32 = {}u;",
+        brdf_basis::gpu::TABLE_LEN
+    )));
 }

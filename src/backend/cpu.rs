@@ -1,20 +1,24 @@
-//! The CPU back-end: rayon over materials and block pairs, blocked loops that vectorise
-//! (AVX2 when the processor has it, chosen at run time). It is also the reference twin of
-//! every GPU kernel in the tests.
+//! The CPU back-end: rayon over materials and block pairs, blocked loops with AVX2 (chosen
+//! at run time, portable code otherwise). It is also the reference twin of every GPU
+//! kernel in the tests.
+//!
+//! Analytic lobes are tabulated from factors: on the grid
+//! `rho_s = (n + 1) / (8 pi) * P[i] * F[j] / (cos theta_d max(N.wi, N.wo))` with
+//! `P[i] = (cos theta_h)^n` and `F[j]` the Fresnel term, so each lobe needs 180
+//! exponentials and powers, not one per cell; everything is f64, rounded once to f32.
 
-use super::{condensed_index, condensed_len, Backend, Lobe, Progress};
+use super::blocks::{add_block, PairOp, BLOCK};
+use super::{Backend, Lobe, LobeParams, Progress};
 use crate::error::BackendError;
-use crate::merl::grid::unflat;
+use crate::merl::grid::{unflat, N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
 use rayon::prelude::*;
 
-/// Cells per streamed chunk: a row of a chunk is 32 KiB, so a 4 x 4 block's 8 rows stay
-/// in L2.
-pub const CHUNK_CELLS: usize = 8192;
+/// Cells per streamed chunk: a row of a chunk is 16 KiB, so the 6 rows a 4 x 2 sub-block
+/// streams stay in L2 while the block pairs of the chunk reuse them.
+pub const CHUNK_CELLS: usize = 4096;
 /// Cells accumulated in f32 before the partial sum is added to f64.
 pub const F32_RUN: usize = 1024;
-/// Block size (rows and columns of material pairs per task).
-pub const BLOCK: usize = 4;
 
 /// The CPU back-end.
 #[derive(Debug)]
@@ -26,6 +30,35 @@ pub struct CpuBackend {
 impl Default for CpuBackend {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+/// Per-lobe factors of an analytic lobe on the grid.
+struct Factors {
+    kd: f64,
+    coef: f64,
+    p: [f64; N_TH],
+    f: [f64; N_TD],
+}
+
+impl Factors {
+    fn new(t: &GridTables, l: &LobeParams) -> Self {
+        let (f0, n) = (l.f0 as f64, l.n as f64);
+        let mut p = [0.0; N_TH];
+        let mut f = [0.0; N_TD];
+        for i in 0..N_TH {
+            p[i] = (n * t.ln_cos_h[i]).exp();
+        }
+        for j in 0..N_TD {
+            f[j] = f0 + (1.0 - f0) * t.schlick_d[j];
+        }
+        let coef = l.ks as f64 * (n + 1.0) / (8.0 * std::f64::consts::PI);
+        Self {
+            kd: l.kd as f64 * std::f64::consts::FRAC_1_PI,
+            coef,
+            p,
+            f,
+        }
     }
 }
 
@@ -64,130 +97,189 @@ impl CpuBackend {
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
     }
 
-    /// Tabulates one lobe over `cells` into `out`, multiplying by `weights` when given.
-    /// Analytic lobes are evaluated in f64 and rounded once to f32.
+    /// Tabulates one lobe over `cells` into `out`, each value times `scale[c]` if given.
     pub fn tabulate_into(
         &self,
         lobe: &Lobe,
         cells: &[u32],
-        weights: Option<&[f64]>,
+        scale: Option<&[f64]>,
         out: &mut [f32],
     ) {
         let t = &self.tables;
         match lobe {
             Lobe::Analytic(p) => {
-                let (kd, ks, f0, n) = (p.kd as f64, p.ks as f64, p.f0 as f64, p.n as f64);
+                let fa = Factors::new(t, p);
                 for (c, (&cell, o)) in cells.iter().zip(out.iter_mut()).enumerate() {
                     let (i, j, k) = unflat(cell as usize);
-                    let v = kd * std::f64::consts::FRAC_1_PI + ks * t.rho_s(i, j, k, f0, n);
-                    *o = (weights.map_or(1.0, |w| w[c]) * v) as f32;
+                    let g = 1.0 / (t.cos_d[j] * t.max_cos(i, j, k));
+                    let v = fa.kd + fa.coef * fa.p[i] * fa.f[j] * g;
+                    *o = (scale.map_or(1.0, |s| s[c]) * v) as f32;
                 }
             }
             Lobe::Measured { .. } => {
                 for (c, (&cell, o)) in cells.iter().zip(out.iter_mut()).enumerate() {
-                    *o = (weights.map_or(1.0, |w| w[c]) * lobe.eval_f64(t, cell as usize)) as f32;
+                    *o = (scale.map_or(1.0, |s| s[c]) * lobe.eval_f64(t, cell as usize)) as f32;
                 }
             }
         }
     }
 }
 
-/// Sum over a block of rows `a` x rows `b` of `|a - b|` over `len` cells, added into `acc`
-/// (f64) after f32 runs of [`F32_RUN`] cells.
-#[inline(always)]
-fn block_l1_generic(a: [&[f32]; BLOCK], b: [&[f32]; BLOCK], acc: &mut [[f64; BLOCK]; BLOCK]) {
-    const L: usize = 8;
+/// Portable kernel: `acc[r][q] += sum_c op(a_r(c), b_q(c))`, f32 runs of [`F32_RUN`] cells
+/// added into f64.
+fn block_portable<const DOT: bool>(
+    a: [&[f32]; BLOCK],
+    b: [&[f32]; BLOCK],
+    acc: &mut [[f64; BLOCK]; BLOCK],
+) {
     let len = a[0].len();
-    let mut start = 0;
-    while start < len {
+    for start in (0..len).step_by(F32_RUN) {
         let end = (start + F32_RUN).min(len);
-        let mut s = [[[0f32; L]; BLOCK]; BLOCK];
-        let vec_end = start + (end - start) / L * L;
-        let mut c = start;
-        while c < vec_end {
-            let mut av = [[0f32; L]; BLOCK];
-            for r in 0..BLOCK {
-                av[r].copy_from_slice(&a[r][c..c + L]);
-            }
-            for q in 0..BLOCK {
-                let bv: &[f32] = &b[q][c..c + L];
-                for r in 0..BLOCK {
-                    for l in 0..L {
-                        s[r][q][l] += (av[r][l] - bv[l]).abs();
-                    }
-                }
-            }
-            c += L;
-        }
         for r in 0..BLOCK {
             for q in 0..BLOCK {
-                let mut t: f32 = s[r][q].iter().sum();
-                for cc in vec_end..end {
-                    t += (a[r][cc] - b[q][cc]).abs();
+                let mut s = [0f32; 8];
+                let (ar, bq) = (&a[r][start..end], &b[q][start..end]);
+                let (ac, bc) = (ar.chunks_exact(8), bq.chunks_exact(8));
+                let (at, bt) = (ac.remainder(), bc.remainder());
+                for (x, y) in ac.zip(bc) {
+                    for l in 0..8 {
+                        s[l] += if DOT {
+                            x[l] * y[l]
+                        } else {
+                            (x[l] - y[l]).abs()
+                        };
+                    }
+                }
+                let mut t: f32 = s.iter().sum();
+                for (x, y) in at.iter().zip(bt) {
+                    t += if DOT { x * y } else { (x - y).abs() };
                 }
                 acc[r][q] += t as f64;
             }
         }
-        start = end;
     }
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn block_l1_avx2(a: [&[f32]; BLOCK], b: [&[f32]; BLOCK], acc: &mut [[f64; BLOCK]; BLOCK]) {
-    block_l1_generic(a, b, acc)
+mod avx2 {
+    use super::{BLOCK, F32_RUN};
+    use std::arch::x86_64::*;
+
+    /// Sum of the 8 lanes.
+    #[inline(always)]
+    unsafe fn hsum(v: __m256) -> f32 {
+        let mut o = [0f32; 8];
+        _mm256_storeu_ps(o.as_mut_ptr(), v);
+        o.iter().sum()
+    }
+
+    /// AVX2 kernel over a 4 x 4 block as two 4 x 2 passes (8 accumulators, 4 + 1 row
+    /// registers and the sign mask: no spills).
+    ///
+    /// # Safety
+    /// The processor must support AVX2 and FMA; all rows must have one length.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn block<const DOT: bool>(
+        a: [&[f32]; BLOCK],
+        b: [&[f32]; BLOCK],
+        acc: &mut [[f64; BLOCK]; BLOCK],
+    ) {
+        let len = a[0].len();
+        let vec_len = len / 8 * 8;
+        let sign = _mm256_set1_ps(-0.0);
+        for half in 0..2 {
+            let (q0, q1) = (2 * half, 2 * half + 1);
+            let mut start = 0;
+            while start < vec_len {
+                let end = (start + F32_RUN).min(vec_len);
+                let mut s = [_mm256_setzero_ps(); 8];
+                let mut c = start;
+                while c < end {
+                    let a0 = _mm256_loadu_ps(a[0].as_ptr().add(c));
+                    let a1 = _mm256_loadu_ps(a[1].as_ptr().add(c));
+                    let a2 = _mm256_loadu_ps(a[2].as_ptr().add(c));
+                    let a3 = _mm256_loadu_ps(a[3].as_ptr().add(c));
+                    for (k, q) in [q0, q1].into_iter().enumerate() {
+                        let bv = _mm256_loadu_ps(b[q].as_ptr().add(c));
+                        if DOT {
+                            s[4 * k] = _mm256_fmadd_ps(a0, bv, s[4 * k]);
+                            s[4 * k + 1] = _mm256_fmadd_ps(a1, bv, s[4 * k + 1]);
+                            s[4 * k + 2] = _mm256_fmadd_ps(a2, bv, s[4 * k + 2]);
+                            s[4 * k + 3] = _mm256_fmadd_ps(a3, bv, s[4 * k + 3]);
+                        } else {
+                            s[4 * k] = _mm256_add_ps(
+                                s[4 * k],
+                                _mm256_andnot_ps(sign, _mm256_sub_ps(a0, bv)),
+                            );
+                            s[4 * k + 1] = _mm256_add_ps(
+                                s[4 * k + 1],
+                                _mm256_andnot_ps(sign, _mm256_sub_ps(a1, bv)),
+                            );
+                            s[4 * k + 2] = _mm256_add_ps(
+                                s[4 * k + 2],
+                                _mm256_andnot_ps(sign, _mm256_sub_ps(a2, bv)),
+                            );
+                            s[4 * k + 3] = _mm256_add_ps(
+                                s[4 * k + 3],
+                                _mm256_andnot_ps(sign, _mm256_sub_ps(a3, bv)),
+                            );
+                        }
+                    }
+                    c += 8;
+                }
+                for k in 0..2 {
+                    for r in 0..4 {
+                        acc[r][[q0, q1][k]] += hsum(s[4 * k + r]) as f64;
+                    }
+                }
+                start = end;
+            }
+        }
+        for r in 0..BLOCK {
+            for q in 0..BLOCK {
+                let mut t = 0f32;
+                for c in vec_len..len {
+                    t += if DOT {
+                        a[r][c] * b[q][c]
+                    } else {
+                        (a[r][c] - b[q][c]).abs()
+                    };
+                }
+                acc[r][q] += t as f64;
+            }
+        }
+    }
 }
 
-/// `acc[r][q] += sum_c |a_r(c) - b_q(c)|` with the fastest code path of this processor.
-pub fn block_l1(a: [&[f32]; BLOCK], b: [&[f32]; BLOCK], acc: &mut [[f64; BLOCK]; BLOCK]) {
+/// `acc[r][q] += sum_c op(a_r(c), b_q(c))` with the fastest code path of this processor.
+pub fn block_reduce(
+    op: PairOp,
+    a: [&[f32]; BLOCK],
+    b: [&[f32]; BLOCK],
+    acc: &mut [[f64; BLOCK]; BLOCK],
+) {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the features were detected on this processor just above.
-            unsafe { block_l1_avx2(a, b, acc) };
+        if is_avx2() {
+            // SAFETY: AVX2 and FMA were detected on this processor; rows share one length.
+            unsafe {
+                match op {
+                    PairOp::L1 => avx2::block::<false>(a, b, acc),
+                    PairOp::Dot => avx2::block::<true>(a, b, acc),
+                }
+            }
             return;
         }
     }
-    block_l1_generic(a, b, acc)
-}
-
-/// Pairwise L1 over one chunk of tabulated rows (`rows[m]`, all of one length; rows
-/// beyond the materials are zero padding), accumulated into the condensed `out`.
-pub fn pairwise_chunk(rows: &[&[f32]], n: usize, out: &mut [f64]) {
-    let nb = rows.len() / BLOCK;
-    let pairs: Vec<(usize, usize)> = (0..nb)
-        .flat_map(|bi| (bi..nb).map(move |bj| (bi, bj)))
-        .collect();
-    let partials: Vec<[[f64; BLOCK]; BLOCK]> = pairs
-        .par_iter()
-        .map(|&(bi, bj)| {
-            let a = std::array::from_fn(|r| rows[bi * BLOCK + r]);
-            let b = std::array::from_fn(|q| rows[bj * BLOCK + q]);
-            let mut acc = [[0f64; BLOCK]; BLOCK];
-            block_l1(a, b, &mut acc);
-            acc
-        })
-        .collect();
-    for (&(bi, bj), acc) in pairs.iter().zip(&partials) {
-        for r in 0..BLOCK {
-            for q in 0..BLOCK {
-                let (i, j) = (bi * BLOCK + r, bj * BLOCK + q);
-                if i < j && j < n {
-                    out[condensed_index(n, i, j)] += acc[r][q];
-                }
-            }
-        }
+    match op {
+        PairOp::L1 => block_portable::<false>(a, b, acc),
+        PairOp::Dot => block_portable::<true>(a, b, acc),
     }
 }
 
 impl Backend for CpuBackend {
     fn name(&self) -> String {
-        let simd = if cfg!(target_arch = "x86_64") && is_avx2() {
-            "avx2"
-        } else {
-            "portable"
-        };
+        let simd = if is_avx2() { "avx2" } else { "portable" };
         format!("cpu ({} threads, {simd})", self.threads())
     }
 
@@ -200,23 +292,26 @@ impl Backend for CpuBackend {
             out.par_chunks_mut(cells.len())
                 .zip(lobes.par_iter())
                 .for_each(|(row, lobe)| {
-                    row.par_chunks_mut(CHUNK_CELLS)
-                        .zip(cells.par_chunks(CHUNK_CELLS))
+                    row.par_chunks_mut(1 << 16)
+                        .zip(cells.par_chunks(1 << 16))
                         .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o));
                 })
         });
         Ok(out)
     }
 
-    fn pairwise_l1(
+    fn reduce_pairs(
         &self,
         lobes: &[Lobe],
         cells: &CellSet,
+        blocks: &[[u32; 2]],
+        op: PairOp,
         progress: Progress<'_>,
     ) -> Result<Vec<f64>, BackendError> {
         let n = lobes.len();
-        let mut out = vec![0f64; condensed_len(n)];
         let n_pad = n.div_ceil(BLOCK) * BLOCK;
+        let mut out = vec![0f64; n * n];
+        let mut sums = vec![[[0f64; BLOCK]; BLOCK]; blocks.len()];
         let mut buf = vec![0f32; n_pad * CHUNK_CELLS];
         let total = cells.len() as u64;
         let mut done = 0u64;
@@ -226,19 +321,29 @@ impl Backend for CpuBackend {
             .zip(cells.weights.chunks(CHUNK_CELLS))
         {
             let len = cc.len();
+            let scale: Vec<f64> = cw.iter().map(|&w| op.row_scale(w)).collect();
             self.install(|| {
                 buf[..n * len]
                     .par_chunks_mut(len)
                     .zip(lobes.par_iter())
                     .for_each(|(row, lobe)| {
-                        self.tabulate_into(lobe, cc, Some(cw), row);
+                        self.tabulate_into(lobe, cc, Some(&scale), row);
                     });
                 buf[n * len..n_pad * len].fill(0.0);
                 let rows: Vec<&[f32]> = buf[..n_pad * len].chunks(len).collect();
-                pairwise_chunk(&rows, n, &mut out);
+                sums.par_iter_mut()
+                    .zip(blocks.par_iter())
+                    .for_each(|(acc, &[bi, bj])| {
+                        let a = std::array::from_fn(|r| rows[bi as usize * BLOCK + r]);
+                        let b = std::array::from_fn(|q| rows[bj as usize * BLOCK + q]);
+                        block_reduce(op, a, b, acc);
+                    });
             });
             done += len as u64;
             progress(done, total);
+        }
+        for (acc, &b) in sums.iter().zip(blocks) {
+            add_block(&mut out, n, b, |r, q| acc[r][q]);
         }
         Ok(out)
     }
@@ -247,10 +352,55 @@ impl Backend for CpuBackend {
 fn is_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx2")
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
         false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn avx2_and_portable_kernels_agree_with_a_hand_sum() {
+        let rows: Vec<Vec<f32>> = (0..8)
+            .map(|r| {
+                (0..1037)
+                    .map(|c| ((r * 31 + c * 7) % 13) as f32 - 6.0)
+                    .collect()
+            })
+            .collect();
+        let a: [&[f32]; BLOCK] = std::array::from_fn(|r| rows[r].as_slice());
+        let b: [&[f32]; BLOCK] = std::array::from_fn(|q| rows[4 + q].as_slice());
+        for op in [PairOp::L1, PairOp::Dot] {
+            let mut fast = [[0f64; BLOCK]; BLOCK];
+            block_reduce(op, a, b, &mut fast);
+            let mut port = [[0f64; BLOCK]; BLOCK];
+            match op {
+                PairOp::L1 => block_portable::<false>(a, b, &mut port),
+                PairOp::Dot => block_portable::<true>(a, b, &mut port),
+            }
+            for r in 0..BLOCK {
+                for q in 0..BLOCK {
+                    let want: f64 = a[r]
+                        .iter()
+                        .zip(b[q])
+                        .map(|(&x, &y)| {
+                            if op == PairOp::Dot {
+                                x as f64 * y as f64
+                            } else {
+                                (x as f64 - y as f64).abs()
+                            }
+                        })
+                        .sum();
+                    // Small integers: every partial sum is exact in f32.
+                    assert_eq!(fast[r][q], want, "{op:?} {r} {q}");
+                    assert_eq!(port[r][q], want, "{op:?} {r} {q}");
+                }
+            }
+        }
     }
 }

@@ -5,7 +5,10 @@
 //! in [`cpu`]). Both stream the grid in chunks of cells so that memory stays bounded
 //! whatever the number of cells.
 
+pub mod blocks;
 pub mod cpu;
+
+pub use blocks::{PairOp, BLOCK};
 
 use crate::error::BackendError;
 use crate::merl::{CellSet, MerlTable};
@@ -65,11 +68,23 @@ pub type Progress<'a> = &'a (dyn Fn(u64, u64) + Sync);
 
 /// A compute back-end.
 pub trait Backend: Send + Sync {
-    /// Human-readable name (`cpu (2 threads)`, `gpu: llvmpipe (Vulkan)`).
+    /// Human-readable name (`cpu (2 threads, avx2)`, `gpu: llvmpipe (Vulkan, ...)`).
     fn name(&self) -> String;
 
     /// Tabulates `lobes` over `cells`: returns `values[l * cells.len() + c]` in f32.
     fn tabulate(&self, lobes: &[Lobe], cells: &[u32]) -> Result<Vec<f32>, BackendError>;
+
+    /// Reduces `op` over `cells` (with their weights) for every lobe pair in the listed
+    /// `BLOCK x BLOCK` block pairs; returns the full symmetric `n x n` matrix (f64) with
+    /// the entries of those blocks filled and the rest 0.
+    fn reduce_pairs(
+        &self,
+        lobes: &[Lobe],
+        cells: &CellSet,
+        blocks: &[[u32; 2]],
+        op: PairOp,
+        progress: Progress<'_>,
+    ) -> Result<Vec<f64>, BackendError>;
 
     /// Weighted pairwise L1 distances `sum_s w_s |L_i(s) - L_j(s)|` over `cells` for all
     /// `i < j`, condensed (row-major upper triangle), accumulated in f64.
@@ -78,7 +93,34 @@ pub trait Backend: Send + Sync {
         lobes: &[Lobe],
         cells: &CellSet,
         progress: Progress<'_>,
-    ) -> Result<Vec<f64>, BackendError>;
+    ) -> Result<Vec<f64>, BackendError> {
+        let full = self.reduce_pairs(
+            lobes,
+            cells,
+            &blocks::all_blocks(lobes.len()),
+            PairOp::L1,
+            progress,
+        )?;
+        Ok(blocks::condensed_of(&full, lobes.len()))
+    }
+
+    /// Weighted Gram quantities `sum_s w_s L_i(s) L_j(s)` for every pair with `i < basis`
+    /// or `j < basis`, and the diagonal: full `n x n`, f64.
+    fn gram(
+        &self,
+        lobes: &[Lobe],
+        cells: &CellSet,
+        basis: usize,
+        progress: Progress<'_>,
+    ) -> Result<Vec<f64>, BackendError> {
+        self.reduce_pairs(
+            lobes,
+            cells,
+            &blocks::gram_blocks(lobes.len(), basis),
+            PairOp::Dot,
+            progress,
+        )
+    }
 }
 
 /// Number of condensed entries for `n` items.

@@ -3,7 +3,7 @@
 use super::pairwise::{PairPlan, PairwiseKernel};
 use super::tabulate::TabulateKernel;
 use super::GpuContext;
-use crate::backend::{Backend, Lobe, LobeParams, Progress};
+use crate::backend::{Backend, Lobe, LobeParams, PairOp, Progress};
 use crate::error::{BackendError, GpuError};
 use crate::merl::{CellSet, GridTables};
 
@@ -77,15 +77,17 @@ impl Backend for GpuBackend {
         Ok(out)
     }
 
-    fn pairwise_l1(
+    fn reduce_pairs(
         &self,
         lobes: &[Lobe],
         cells: &CellSet,
+        blocks: &[[u32; 2]],
+        op: PairOp,
         progress: Progress<'_>,
     ) -> Result<Vec<f64>, BackendError> {
         let plan = self.plan(lobes.len(), cells.len())?;
-        Ok(self
-            .pair
-            .run(&self.ctx, &self.tab, lobes, cells, &plan, progress)?)
+        Ok(self.pair.run(
+            &self.ctx, &self.tab, lobes, cells, blocks, op, &plan, progress,
+        )?)
     }
 }

@@ -124,6 +124,16 @@ impl GpuContext {
     /// Compiles a kernel (common.wgsl + `source`) into a compute pipeline with entry
     /// point `main` and an automatic layout, checking for validation errors.
     pub fn pipeline(&self, label: &str, source: &str) -> Result<wgpu::ComputePipeline, GpuError> {
+        self.pipeline_with(label, source, &[])
+    }
+
+    /// [`Self::pipeline`] with values for the kernel's `override` constants.
+    pub fn pipeline_with(
+        &self,
+        label: &str,
+        source: &str,
+        constants: &[(&str, f64)],
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = self
             .device
@@ -138,7 +148,10 @@ impl GpuContext {
                 layout: None,
                 module: &module,
                 entry_point: Some("main"),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    ..Default::default()
+                },
                 cache: None,
             });
         if let Some(e) = pollster::block_on(scope.pop()) {

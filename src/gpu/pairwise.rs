@@ -8,14 +8,14 @@
 
 use super::tabulate::TabulateKernel;
 use super::{dispatch, GpuContext};
-use crate::backend::{condensed_index, condensed_len, Lobe, LobeParams, Progress};
+use crate::backend::blocks::{add_block, PairOp};
+use crate::backend::{Lobe, LobeParams, Progress};
 use crate::error::GpuError;
 use crate::merl::{CellSet, GridTables};
 
 /// WGSL source of the kernel.
 pub const SOURCE: &str = include_str!("../../shaders/pairwise.wgsl");
-/// Rows and columns of the register block; keep in sync with `BLOCK` in common.wgsl.
-pub const BLOCK: usize = 4;
+pub use crate::backend::blocks::BLOCK;
 /// Lanes per workgroup; keep in sync with `WG` in common.wgsl.
 pub const WG: usize = 64;
 /// Most loop iterations of one invocation (lavapipe silently ends loops after 65,535).
@@ -97,43 +97,50 @@ impl PairPlan {
     }
 }
 
-/// The compiled pairwise kernel.
+/// The compiled pairwise kernel, one pipeline per operation.
 #[derive(Debug)]
 pub struct PairwiseKernel {
-    pipeline: wgpu::ComputePipeline,
+    l1: wgpu::ComputePipeline,
+    dot: wgpu::ComputePipeline,
 }
 
 impl PairwiseKernel {
-    /// Compiles the kernel.
+    /// Compiles the kernel for both operations.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
-            pipeline: ctx.pipeline("pairwise", SOURCE)?,
+            l1: ctx.pipeline_with("pairwise (L1)", SOURCE, &[("OP", 0.0)])?,
+            dot: ctx.pipeline_with("pairwise (dot)", SOURCE, &[("OP", 1.0)])?,
         })
     }
 
-    /// Weighted pairwise L1 of `lobes` over `cells`, condensed, f64.
+    /// Reduces `op` of `lobes` over `cells` for the listed block pairs: full `n x n`, f64.
+    #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,
         ctx: &GpuContext,
         tab: &TabulateKernel,
         lobes: &[Lobe],
         cells: &CellSet,
+        blocks: &[[u32; 2]],
+        op: PairOp,
         plan: &PairPlan,
         progress: Progress<'_>,
     ) -> Result<Vec<f64>, GpuError> {
         let n = lobes.len();
-        let mut out = vec![0f64; condensed_len(n)];
-        let nb = plan.n_pad / BLOCK;
-        let blocks: Vec<[u32; 2]> = (0..nb as u32)
-            .flat_map(|bi| (bi..nb as u32).map(move |bj| [bi, bj]))
-            .collect();
+        let mut out = vec![0f64; n * n];
+        let pipeline = match op {
+            PairOp::L1 => &self.l1,
+            PairOp::Dot => &self.dot,
+        };
+        let mut sums = vec![0f64; blocks.len() * 16];
+        let n_blocks = blocks.len();
         let block_buf = ctx.storage_init(
             "block pairs",
-            bytemuck::cast_slice(&blocks),
+            bytemuck::cast_slice(blocks),
             wgpu::BufferUsages::empty(),
         );
         let vals = ctx.storage("values", (plan.n_pad * plan.chunk * 4) as u64);
-        let partial_bytes = (plan.n_blocks * plan.n_runs * 16 * 4) as u64;
+        let partial_bytes = (n_blocks * plan.n_runs * 16 * 4) as u64;
         if partial_bytes > ctx.max_binding() {
             return Err(GpuError::Limits(format!(
                 "{n} materials need {partial_bytes} bytes of partial sums, over the binding limit"
@@ -169,7 +176,7 @@ impl PairwiseKernel {
             .zip(cells.weights.chunks(plan.chunk))
         {
             let len = cc.len();
-            let w32: Vec<f32> = cw.iter().map(|&w| w as f32).collect();
+            let w32: Vec<f32> = cw.iter().map(|&w| op.row_scale(w) as f32).collect();
             ctx.queue
                 .write_buffer(&cell_buf, 0, bytemuck::cast_slice(cc));
             ctx.queue
@@ -200,50 +207,42 @@ impl PairwiseKernel {
                     plan.chunk as u32,
                 );
             }
-            for off in (0..plan.n_blocks).step_by(max_dim) {
+            for off in (0..n_blocks).step_by(max_dim) {
                 let params = PairParams {
                     n_cells: len as u32,
                     row_stride: plan.chunk as u32,
                     run_iters: plan.run_iters,
                     n_runs: plan.n_runs as u32,
                     block_offset: off as u32,
-                    n_blocks: plan.n_blocks as u32,
+                    n_blocks: n_blocks as u32,
                     _pad0: 0,
                     _pad1: 0,
                 };
                 let pbuf = ctx.uniform("pairwise params", &params);
-                let bind = ctx.bind(&self.pipeline, &[&pbuf, &vals, &block_buf, &partial]);
-                let groups_y = (plan.n_blocks - off).min(max_dim);
+                let bind = ctx.bind(pipeline, &[&pbuf, &vals, &block_buf, &partial]);
+                let groups_y = (n_blocks - off).min(max_dim);
                 dispatch(
                     &mut enc,
-                    &self.pipeline,
+                    pipeline,
                     &bind,
                     (plan.n_runs as u32, groups_y as u32),
                 );
             }
             let bytes = ctx.submit_and_read(enc, &partial, partial_bytes)?;
             let part: &[f32] = bytemuck::cast_slice(&bytes[..partial_bytes as usize]);
-            accumulate(&blocks, part, plan.n_runs, n, &mut out);
+            for (b, s) in sums.chunks_mut(16).enumerate() {
+                for (e, v) in s.iter_mut().enumerate() {
+                    *v += (0..plan.n_runs)
+                        .map(|run| part[(b * plan.n_runs + run) * 16 + e] as f64)
+                        .sum::<f64>();
+                }
+            }
             done += len as u64;
             progress(done, total);
         }
-        Ok(out)
-    }
-}
-
-/// Adds the per-(block, run) partial sums of one chunk into the condensed f64 result.
-pub fn accumulate(blocks: &[[u32; 2]], part: &[f32], n_runs: usize, n: usize, out: &mut [f64]) {
-    for (b, &[bi, bj]) in blocks.iter().enumerate() {
-        for r in 0..BLOCK {
-            for q in 0..BLOCK {
-                let (i, j) = (bi as usize * BLOCK + r, bj as usize * BLOCK + q);
-                if i < j && j < n {
-                    let s: f64 = (0..n_runs)
-                        .map(|run| part[(b * n_runs + run) * 16 + r * 4 + q] as f64)
-                        .sum();
-                    out[condensed_index(n, i, j)] += s;
-                }
-            }
+        for (s, &b) in sums.chunks(16).zip(blocks) {
+            add_block(&mut out, n, b, |r, q| s[r * BLOCK + q]);
         }
+        Ok(out)
     }
 }

@@ -7,12 +7,15 @@ use std::sync::OnceLock;
 
 /// `../shared/data/<name>` beside the repository.
 pub fn shared(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name)
 }
 
 /// The Ngan et al. 2005 Ashikhmin-Shirley table (100 materials).
 pub fn ngan() -> Collection {
-    Collection::load(&shared("ngan2005_ashikhmin_shirley.csv")).expect("../shared/data/ngan2005_ashikhmin_shirley.csv")
+    Collection::load(&shared("ngan2005_ashikhmin_shirley.csv"))
+        .expect("../shared/data/ngan2005_ashikhmin_shirley.csv")
 }
 
 /// The GPU back-end, opened once; `None` (after printing SKIP) when there is no adapter,
@@ -34,7 +37,10 @@ pub fn gpu(test: &str) -> Option<&'static GpuBackend> {
 /// Largest relative difference `|a - b| / max(|b|, floor)` over pairs.
 pub fn max_rel(a: &[f64], b: &[f64], floor: f64) -> f64 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs() / y.abs().max(floor)).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / y.abs().max(floor))
+        .fold(0.0, f64::max)
 }
 
 /// A temporary directory.
