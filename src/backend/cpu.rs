@@ -97,6 +97,27 @@ impl CpuBackend {
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
     }
 
+    /// Tabulates one lobe over `cells` in f64 (the reference values of every reduction).
+    pub fn values_f64(&self, lobe: &Lobe, cells: &[u32]) -> Vec<f64> {
+        let t = &self.tables;
+        match lobe {
+            Lobe::Analytic(p) => {
+                let fa = Factors::new(t, p);
+                cells
+                    .iter()
+                    .map(|&cell| {
+                        let (i, j, k) = unflat(cell as usize);
+                        fa.kd + fa.coef * fa.p[i] * fa.f[j] / (t.cos_d[j] * t.max_cos(i, j, k))
+                    })
+                    .collect()
+            }
+            Lobe::Measured { .. } => cells
+                .iter()
+                .map(|&c| lobe.eval_f64(t, c as usize))
+                .collect(),
+        }
+    }
+
     /// Tabulates one lobe over `cells` into `out`, each value times `scale[c]` if given.
     pub fn tabulate_into(
         &self,

@@ -1,7 +1,11 @@
 //! The command line: clap arguments -> library parameters, one module per subcommand.
 
 pub mod distance;
+pub mod fit;
 pub mod info;
+pub mod render;
+pub mod reproduce;
+pub mod select;
 pub mod tabulate;
 
 use brdf_basis::backend::Backend;
@@ -47,6 +51,14 @@ pub enum Command {
     Tabulate(tabulate::TabulateArgs),
     /// Pairwise distance matrix (BRDF_it or Euclidean) as .npy or .csv.
     Distance(distance::DistanceArgs),
+    /// Select a basis: empirical (Algorithm 1), k-medoids or GCUK.
+    Select(select::SelectArgs),
+    /// Fit materials as non-negative combinations of a basis (NNLS per channel).
+    Fit(fit::FitArgs),
+    /// Render a material or a fitted combination on a sphere (OpenEXR, PNG, heatmap).
+    Render(render::RenderArgs),
+    /// Re-run the paper's experiments (section VI) end to end into a directory.
+    Reproduce(reproduce::ReproduceArgs),
 }
 
 /// Runs the parsed command line.
@@ -55,6 +67,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(a) => info::run(&cli.global, a),
         Command::Tabulate(a) => tabulate::run(&cli.global, a),
         Command::Distance(a) => distance::run(&cli.global, a),
+        Command::Select(a) => select::run(&cli.global, a),
+        Command::Fit(a) => fit::run(&cli.global, a),
+        Command::Render(a) => render::run(&cli.global, a),
+        Command::Reproduce(a) => reproduce::run(&cli.global, a),
     }
 }
 

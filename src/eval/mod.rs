@@ -2,3 +2,4 @@
 
 pub mod image_error;
 pub mod render;
+pub mod shade;

@@ -2,4 +2,5 @@
 
 pub mod atomic;
 pub mod image;
+pub mod json;
 pub mod matrix;

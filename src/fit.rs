@@ -1,0 +1,334 @@
+//! Fitting materials as non-negative combinations of a basis (the paper's Eq. 1-2, SPEC 5).
+//!
+//! Per colour channel c, over the fit mask with weights w:
+//! `min sum_s w_s (a0 / pi + sum_k a_k f_k,c(s) - f_B,c(s))^2` subject to `a >= 0`.
+//! Gram quantities `A^T W A`, `A^T W b` and `b^T W b` come from one pass of the back-end
+//! over the grid (f32 partials reduced in f64); the problem is solved exactly by
+//! Lawson-Hanson (default) or by the batched projected-gradient solver; residuals and MAE
+//! are computed on the grid in f64.
+
+use crate::backend::cpu::CpuBackend;
+use crate::backend::{Backend, Lobe, LobeParams, Progress};
+use crate::collection::{Collection, MaterialData};
+use crate::error::BackendError;
+use crate::merl::{CellSet, Mask, Weighting};
+use crate::nnls::{lawson_hanson, pgd, GramBatch, NnlsError, NnlsSolution};
+use rayon::prelude::*;
+
+/// Errors of fitting.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitError {
+    /// The basis is empty.
+    #[error("the basis is empty: give at least one basis material")]
+    EmptyBasis,
+    /// No target to fit.
+    #[error("no target material to fit")]
+    NoTargets,
+    /// Too many basis materials for the chosen solver.
+    #[error("a basis of {found} materials is larger than the {solver} solver supports ({limit})")]
+    BasisTooLarge {
+        /// Solver name.
+        solver: &'static str,
+        /// Its limit.
+        limit: usize,
+        /// Basis size asked for.
+        found: usize,
+    },
+    /// A material appears twice in the basis.
+    #[error("material `{0}` appears twice in the basis")]
+    DuplicateBasis(String),
+    /// A Gram quantity is not finite (non-finite data).
+    #[error("non-finite Gram entry for `{material}` (channel {channel}): the data holds NaN or infinite values")]
+    NonFinite {
+        /// Material.
+        material: String,
+        /// Channel.
+        channel: usize,
+    },
+    /// Back-end failure.
+    #[error(transparent)]
+    Backend(#[from] BackendError),
+    /// Solver failure.
+    #[error(transparent)]
+    Nnls(#[from] NnlsError),
+}
+
+/// Which NNLS solver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Solver {
+    /// Exact active-set Lawson-Hanson (f64).
+    Exact,
+    /// Accelerated projected gradient, batched over targets; targets whose KKT violation
+    /// stays above tolerance are re-solved exactly.
+    Pgd,
+}
+
+/// Fit parameters. Defaults: evaluation mask, uniform weights, full grid, exact solver.
+#[derive(Clone, Debug)]
+pub struct FitParams {
+    /// Fit mask.
+    pub mask: Mask,
+    /// Weighting.
+    pub weighting: Weighting,
+    /// Grid stride.
+    pub stride: usize,
+    /// Solver.
+    pub solver: Solver,
+}
+
+impl Default for FitParams {
+    fn default() -> Self {
+        Self {
+            mask: Mask::Evaluation,
+            weighting: Weighting::Uniform,
+            stride: 1,
+            solver: Solver::Exact,
+        }
+    }
+}
+
+/// The fit of one target.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TargetFit {
+    /// Target material.
+    pub material: String,
+    /// Coefficients per column (0 = Lambertian, then the basis in order), RGB.
+    pub coefficients: Vec<[f64; 3]>,
+    /// `sqrt(sum_s w_s r_s^2)` per channel, on the grid.
+    pub residual: [f64; 3],
+    /// Weighted mean of |fit - target| over the mask, averaged over channels.
+    pub mae: f64,
+    /// Largest scaled KKT violation per channel.
+    pub kkt: [f64; 3],
+    /// Solver iterations per channel.
+    pub iterations: [usize; 3],
+}
+
+impl TargetFit {
+    /// Whether basis column `k` (0-based, Lambertian excluded) contributes (`a > 0` in
+    /// some channel).
+    pub fn contributes(&self, k: usize) -> bool {
+        self.coefficients[k + 1].iter().any(|&a| a > 0.0)
+    }
+}
+
+/// The lobe of channel `c` of a material.
+pub fn channel_lobe(m: &MaterialData, c: usize) -> Lobe {
+    match m {
+        MaterialData::Analytic(a) => Lobe::Analytic(LobeParams {
+            kd: a.d[c] as f32,
+            ks: a.s[c] as f32,
+            f0: a.f0 as f32,
+            n: a.n as f32,
+        }),
+        MaterialData::Measured(t) => Lobe::Measured {
+            table: t.clone(),
+            channel: Some(c),
+        },
+    }
+}
+
+/// The Lambertian column `1 / pi`.
+pub const LAMBERTIAN: Lobe = Lobe::Analytic(LobeParams {
+    kd: 1.0,
+    ks: 0.0,
+    f0: 0.0,
+    n: 1.0,
+});
+
+/// The cells of a fit: the mask, restricted to cells valid in every measured material.
+pub fn fit_cells(coll: &Collection, idx: &[usize], p: &FitParams) -> CellSet {
+    let sub = coll.subset(idx);
+    let dp = crate::distance::ValidDistanceParams {
+        metric: crate::distance::Metric::BrdfIt,
+        mask: p.mask,
+        weighting: p.weighting,
+        lobe: crate::distance::LobeKind::Full,
+        stride: p.stride.max(1),
+    };
+    crate::distance::cell_set(&sub, &dp)
+}
+
+/// Gram quantities of one channel: returns `(G, hs, bbs)` with `G` the `(k+1)^2` Gram of
+/// the Lambertian and basis columns, `hs[t]` and `bbs[t]` per target.
+pub fn channel_gram(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cells: &CellSet,
+    c: usize,
+    progress: Progress<'_>,
+) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), FitError> {
+    let m = basis.len() + 1;
+    let mut lobes = vec![LAMBERTIAN];
+    lobes.extend(
+        basis
+            .iter()
+            .map(|&i| channel_lobe(&coll.materials()[i].data, c)),
+    );
+    lobes.extend(
+        targets
+            .iter()
+            .map(|&i| channel_lobe(&coll.materials()[i].data, c)),
+    );
+    let n = lobes.len();
+    let full = backend.gram(&lobes, cells, m, progress)?;
+    let mut g = vec![0.0; m * m];
+    for i in 0..m {
+        g[i * m..(i + 1) * m].copy_from_slice(&full[i * n..i * n + m]);
+    }
+    let mut hs = Vec::with_capacity(targets.len() * m);
+    let mut bbs = Vec::with_capacity(targets.len());
+    for (t, &ti) in targets.iter().enumerate() {
+        let col = m + t;
+        hs.extend((0..m).map(|i| full[i * n + col]));
+        let bb = full[col * n + col];
+        if !bb.is_finite() || hs[t * m..].iter().any(|v| !v.is_finite()) {
+            return Err(FitError::NonFinite {
+                material: coll.materials()[ti].name.clone(),
+                channel: c,
+            });
+        }
+        bbs.push(bb);
+    }
+    if let Some(i) = g.iter().position(|v| !v.is_finite()) {
+        let k = (i / m).max(1) - 1;
+        return Err(FitError::NonFinite {
+            material: coll.materials()[basis[k]].name.clone(),
+            channel: c,
+        });
+    }
+    Ok((g, hs, bbs))
+}
+
+/// Solves one channel's batch with the chosen solver.
+pub fn solve_channel(
+    m: usize,
+    g: &[f64],
+    hs: &[f64],
+    bbs: &[f64],
+    solver: Solver,
+) -> Result<Vec<NnlsSolution>, FitError> {
+    let batch = GramBatch::new(m, g, hs, bbs)?;
+    let lh = lawson_hanson::LhParams::default();
+    Ok(match solver {
+        Solver::Exact => lawson_hanson::solve_batch(&batch, &lh)?,
+        Solver::Pgd => {
+            let pp = pgd::PgdParams::default();
+            let mut sols = pgd::solve_batch(&batch, &pp)?;
+            for (t, s) in sols.iter_mut().enumerate() {
+                if s.max_kkt_violation > pp.tol {
+                    if let Some(p) = batch.problem(t) {
+                        *s = lawson_hanson::solve(&p, &lh)?;
+                    }
+                }
+            }
+            sols
+        }
+    })
+}
+
+/// Fits every target by the basis.
+pub fn fit(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    p: &FitParams,
+    progress: Progress<'_>,
+) -> Result<Vec<TargetFit>, FitError> {
+    if basis.is_empty() {
+        return Err(FitError::EmptyBasis);
+    }
+    if targets.is_empty() {
+        return Err(FitError::NoTargets);
+    }
+    for (i, &b) in basis.iter().enumerate() {
+        if basis[..i].contains(&b) {
+            return Err(FitError::DuplicateBasis(coll.materials()[b].name.clone()));
+        }
+    }
+    if p.solver == Solver::Pgd && basis.len() + 1 > pgd::PGD_MAX_COLUMNS {
+        return Err(FitError::BasisTooLarge {
+            solver: "pgd",
+            limit: pgd::PGD_MAX_COLUMNS - 1,
+            found: basis.len(),
+        });
+    }
+    let mut all: Vec<usize> = basis.to_vec();
+    all.extend_from_slice(targets);
+    let cells = fit_cells(coll, &all, p);
+    let m = basis.len() + 1;
+    let mut fits: Vec<TargetFit> = targets
+        .iter()
+        .map(|&t| TargetFit {
+            material: coll.materials()[t].name.clone(),
+            coefficients: vec![[0.0; 3]; m],
+            residual: [0.0; 3],
+            mae: 0.0,
+            kkt: [0.0; 3],
+            iterations: [0; 3],
+        })
+        .collect();
+    let cpu = CpuBackend::new();
+    for c in 0..3 {
+        let (g, hs, bbs) = channel_gram(backend, coll, basis, targets, &cells, c, progress)?;
+        let sols = solve_channel(m, &g, &hs, &bbs, p.solver)?;
+        // Errors on the grid, in f64.
+        let mut cols = vec![cpu.values_f64(&LAMBERTIAN, &cells.cells)];
+        cols.extend(
+            basis.iter().map(|&b| {
+                cpu.values_f64(&channel_lobe(&coll.materials()[b].data, c), &cells.cells)
+            }),
+        );
+        let errs: Vec<(f64, f64)> = targets
+            .par_iter()
+            .zip(&sols)
+            .map(|(&t, s)| {
+                let b = cpu.values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
+                let (mut sq, mut ab) = (0.0, 0.0);
+                for (i, (&bv, &w)) in b.iter().zip(&cells.weights).enumerate() {
+                    let fitv: f64 = cols.iter().zip(&s.x).map(|(col, &a)| a * col[i]).sum();
+                    let r = fitv - bv;
+                    sq += w * r * r;
+                    ab += w * r.abs();
+                }
+                (sq.sqrt(), ab)
+            })
+            .collect();
+        for ((f, s), (res, mae)) in fits.iter_mut().zip(&sols).zip(errs) {
+            for (k, &a) in s.x.iter().enumerate() {
+                f.coefficients[k][c] = a;
+            }
+            f.residual[c] = res;
+            f.mae += mae / 3.0;
+            f.kkt[c] = s.max_kkt_violation;
+            f.iterations[c] = s.iterations;
+        }
+    }
+    Ok(fits)
+}
+
+/// The fitted combination of channel `c` at the given cells (f64).
+pub fn combination_values(
+    coll: &Collection,
+    basis: &[usize],
+    fit: &TargetFit,
+    c: usize,
+    cells: &[u32],
+) -> Vec<f64> {
+    let cpu = CpuBackend::new();
+    let mut out = cpu.values_f64(&LAMBERTIAN, cells);
+    out.iter_mut().for_each(|v| *v *= fit.coefficients[0][c]);
+    for (k, &b) in basis.iter().enumerate() {
+        let a = fit.coefficients[k + 1][c];
+        if a != 0.0 {
+            let v = cpu.values_f64(&channel_lobe(&coll.materials()[b].data, c), cells);
+            out.iter_mut().zip(v).for_each(|(o, x)| *o += a * x);
+        }
+    }
+    out
+}
