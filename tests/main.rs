@@ -8,6 +8,8 @@ mod common;
 mod cli;
 mod collection;
 mod distance;
+mod fit;
 mod gpu_kernels;
 mod grid;
 mod shaders;
+mod workflow;

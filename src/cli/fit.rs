@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis fit ../shared/data/ngan2005_ashikhmin_shirley.csv --basis acrylic-blue,acrylic-yellow,aluminium-oxide,cherry-235,steel --all-others --json fits.json\n  brdf-basis fit --basis mirror-silver,matte-white-paint --targets polished-gold --json f.json --export fitted/"
+    after_help = "Examples:\n  brdf-basis fit ../shared/data/ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json\n  brdf-basis fit --basis mirror-silver,matte-white-paint --targets polished-gold --json f.json --export fitted/"
 )]
 pub struct FitArgs {
     /// Collection(s) (none: embedded default).
