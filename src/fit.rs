@@ -204,8 +204,14 @@ pub fn channel_gram(
     Ok((g, hs, bbs))
 }
 
-/// Solves one channel's batch with the chosen solver.
+/// Scaled-KKT level above which a projected-gradient solution is re-solved exactly.
+pub const PGD_FALLBACK_KKT: f64 = 1e-5;
+
+/// Solves one channel's batch with the chosen solver (PGD on the back-end: the GPU kernel
+/// in f32 on the GPU back-end; targets left above [`PGD_FALLBACK_KKT`] are re-solved
+/// exactly).
 pub fn solve_channel(
+    backend: &dyn Backend,
     m: usize,
     g: &[f64],
     hs: &[f64],
@@ -218,9 +224,9 @@ pub fn solve_channel(
         Solver::Exact => lawson_hanson::solve_batch(&batch, &lh)?,
         Solver::Pgd => {
             let pp = pgd::PgdParams::default();
-            let mut sols = pgd::solve_batch(&batch, &pp)?;
+            let mut sols = backend.nnls_pgd(&batch, &pp)?;
             for (t, s) in sols.iter_mut().enumerate() {
-                if s.max_kkt_violation > pp.tol {
+                if s.max_kkt_violation > PGD_FALLBACK_KKT.max(pp.tol) {
                     if let Some(p) = batch.problem(t) {
                         *s = lawson_hanson::solve(&p, &lh)?;
                     }
@@ -276,7 +282,7 @@ pub fn fit(
     let cpu = CpuBackend::new();
     for c in 0..3 {
         let (g, hs, bbs) = channel_gram(backend, coll, basis, targets, &cells, c, progress)?;
-        let sols = solve_channel(m, &g, &hs, &bbs, p.solver)?;
+        let sols = solve_channel(backend, m, &g, &hs, &bbs, p.solver)?;
         // Errors on the grid, in f64.
         let mut cols = vec![cpu.values_f64(&LAMBERTIAN, &cells.cells)];
         cols.extend(

@@ -3,7 +3,7 @@
 use brdf_basis::backend::LobeParams;
 use brdf_basis::gpu::pairwise::PairParams;
 use brdf_basis::gpu::tabulate::TabParams;
-use brdf_basis::gpu::{kernel_source, pairwise, tabulate};
+use brdf_basis::gpu::{kernel_source, pairwise, pgd, tabulate};
 use std::mem::{offset_of, size_of};
 
 fn module(src: &str) -> (naga::Module, naga::valid::ModuleInfo) {
@@ -101,4 +101,26 @@ fn shared_constants_agree() {
         "const T_LEN: u32 = {}u;",
         brdf_basis::gpu::TABLE_LEN
     )));
+}
+
+#[test]
+fn pgd_shader_validates_and_matches_rust_structs() {
+    let (m, _) = module(pgd::SOURCE);
+    let (span, members) = layout(&m, "PgdUniforms");
+    assert_eq!(span as usize, size_of::<pgd::PgdUniforms>());
+    let rust = [
+        ("m", offset_of!(pgd::PgdUniforms, m)),
+        ("n_targets", offset_of!(pgd::PgdUniforms, n_targets)),
+        ("steps", offset_of!(pgd::PgdUniforms, steps)),
+        ("max_iter", offset_of!(pgd::PgdUniforms, max_iter)),
+        ("inv_l", offset_of!(pgd::PgdUniforms, inv_l)),
+        ("tol", offset_of!(pgd::PgdUniforms, tol)),
+        ("_pad0", offset_of!(pgd::PgdUniforms, _pad0)),
+        ("_pad1", offset_of!(pgd::PgdUniforms, _pad1)),
+    ];
+    assert_eq!(members.len(), rust.len());
+    for ((n, o), (rn, ro)) in members.iter().zip(rust) {
+        assert_eq!((n.as_str(), *o as usize), (rn, ro));
+    }
+    assert!(pgd::SOURCE.contains(&format!("const S_LEN: u32 = {}u;", pgd::STATE_LEN)));
 }

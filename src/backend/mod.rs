@@ -121,6 +121,17 @@ pub trait Backend: Send + Sync {
             progress,
         )
     }
+
+    /// Batched accelerated projected-gradient NNLS for many targets sharing one Gram
+    /// matrix (the CPU solver by default; the GPU back-end runs its f32 kernel).
+    fn nnls_pgd(
+        &self,
+        batch: &crate::nnls::GramBatch<'_>,
+        params: &crate::nnls::pgd::PgdParams,
+    ) -> Result<Vec<crate::nnls::NnlsSolution>, BackendError> {
+        crate::nnls::pgd::solve_batch(batch, params)
+            .map_err(|e| BackendError::Invalid(e.to_string()))
+    }
 }
 
 /// Number of condensed entries for `n` items.

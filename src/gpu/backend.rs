@@ -6,6 +6,8 @@ use super::GpuContext;
 use crate::backend::{Backend, Lobe, LobeParams, PairOp, Progress};
 use crate::error::{BackendError, GpuError};
 use crate::merl::{CellSet, GridTables};
+use crate::nnls::pgd::PgdParams;
+use crate::nnls::{GramBatch, NnlsSolution};
 
 /// The GPU back-end: a context and its compiled kernels, built once and reused.
 #[derive(Debug)]
@@ -13,6 +15,7 @@ pub struct GpuBackend {
     ctx: GpuContext,
     tab: TabulateKernel,
     pair: PairwiseKernel,
+    pgd: super::pgd::PgdKernel,
 }
 
 impl GpuBackend {
@@ -25,7 +28,13 @@ impl GpuBackend {
     pub fn with_context(ctx: GpuContext) -> Result<Self, GpuError> {
         let tab = TabulateKernel::new(&ctx)?;
         let pair = PairwiseKernel::new(&ctx)?;
-        Ok(Self { ctx, tab, pair })
+        let pgd = super::pgd::PgdKernel::new(&ctx)?;
+        Ok(Self {
+            ctx,
+            tab,
+            pair,
+            pgd,
+        })
     }
 
     /// The context.
@@ -89,5 +98,17 @@ impl Backend for GpuBackend {
         Ok(self.pair.run(
             &self.ctx, &self.tab, lobes, cells, blocks, op, &plan, progress,
         )?)
+    }
+
+    fn nnls_pgd(
+        &self,
+        batch: &GramBatch<'_>,
+        params: &PgdParams,
+    ) -> Result<Vec<NnlsSolution>, BackendError> {
+        if batch.m() > crate::nnls::pgd::PGD_KERNEL_COLUMNS {
+            return Ok(crate::nnls::pgd::solve_batch(batch, params)
+                .map_err(|e| BackendError::Invalid(e.to_string()))?);
+        }
+        Ok(self.pgd.solve_batch(&self.ctx, batch, params)?)
     }
 }

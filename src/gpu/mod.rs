@@ -4,6 +4,7 @@
 
 pub mod backend;
 pub mod pairwise;
+pub mod pgd;
 pub mod tabulate;
 
 pub use backend::GpuBackend;

@@ -106,14 +106,39 @@ pub fn solve_batch(
         .collect())
 }
 
-/// What every target shares: the scaled `G` with duplicate columns removed, and `1 / L`.
-struct Prepared {
+/// A batch's shared preparation: the scaled Gram matrix `G~` (duplicate columns fixed at
+/// 0) and the step `1 / L`. Public so that the GPU kernel runs the same iteration.
+#[derive(Debug, Clone)]
+pub struct Prepared {
     sg: ScaledGram,
     inv_l: f64,
 }
 
 impl Prepared {
-    fn new(m: usize, g: &[f64], params: &PgdParams) -> Result<Self, NnlsError> {
+    /// The scaled Gram matrix `G~` (row-major `m x m`).
+    pub fn scaled_gram(&self) -> &[f64] {
+        &self.sg.gs
+    }
+
+    /// The step `1 / L`.
+    pub fn inv_l(&self) -> f64 {
+        self.inv_l
+    }
+
+    /// `h~ = D^-1 h` of one target.
+    pub fn scaled_h(&self, h: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.sg.m];
+        self.sg.scale_h(h, &mut out);
+        out
+    }
+
+    /// The caller-facing solution (objective and KKT in f64) of scaled coefficients `y`.
+    pub fn finish(&self, p: &GramProblem<'_>, y: &[f64], iterations: usize) -> NnlsSolution {
+        self.sg.finish(p, y, iterations)
+    }
+
+    /// Prepares a batch with `m` columns and Gram matrix `g`.
+    pub fn new(m: usize, g: &[f64], params: &PgdParams) -> Result<Self, NnlsError> {
         params.check()?;
         if m > PGD_MAX_COLUMNS {
             return Err(NnlsError::TooManyColumns {
