@@ -14,29 +14,51 @@ use brdf_basis::nnls::GramBatch;
 use std::time::Instant;
 
 fn main() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/ngan2005_ashikhmin_shirley.csv");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/ngan2005_ashikhmin_shirley.csv");
     let coll = Collection::load(&path).unwrap_or_else(|_| Collection::embedded_default());
     let mut backends: Vec<Box<dyn Backend>> = vec![Box::new(CpuBackend::new())];
     if let Ok(g) = GpuBackend::new() {
         backends.push(Box::new(g));
     }
     let basis: Vec<usize> = (0..5).map(|i| i * 7).collect();
-    let targets: Vec<usize> = (0..coll.len()).filter(|i| !basis.contains(i)).take(62).collect();
+    let targets: Vec<usize> = (0..coll.len())
+        .filter(|i| !basis.contains(i))
+        .take(62)
+        .collect();
     for b in &backends {
         let p = FitParams::default();
         let t = Instant::now();
         let fits = fit(b.as_ref(), &coll, &basis, &targets, &p, &|_, _| {}).expect("fit");
         let s = t.elapsed().as_secs_f64();
         let mae = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
-        println!("fit {:<50} 62 targets x 5 basis, full evaluation mask: {s:.3} s (mean MAE {mae:.3e})", b.name());
+        println!(
+            "fit {:<50} 62 targets x 5 basis, full evaluation mask: {s:.3} s (mean MAE {mae:.3e})",
+            b.name()
+        );
     }
     // 100,000 targets x 10-material basis: the Gram of 10 materials, targets = random
     // non-negative combinations of 30 other materials' h vectors.
     let basis10: Vec<usize> = (0..10).map(|i| i * 9).collect();
-    let others: Vec<usize> = (0..coll.len()).filter(|i| !basis10.contains(i)).take(30).collect();
-    let p = FitParams { stride: 3, ..Default::default() };
+    let others: Vec<usize> = (0..coll.len())
+        .filter(|i| !basis10.contains(i))
+        .take(30)
+        .collect();
+    let p = FitParams {
+        stride: 3,
+        ..Default::default()
+    };
     let cells = fit_cells(&coll, &(0..coll.len()).collect::<Vec<_>>(), &p);
-    let (g, h30, bb30) = channel_gram(&CpuBackend::new(), &coll, &basis10, &others, &cells, 0, &|_, _| {}).expect("gram");
+    let (g, h30, bb30) = channel_gram(
+        &CpuBackend::new(),
+        &coll,
+        &basis10,
+        &others,
+        &cells,
+        0,
+        &|_, _| {},
+    )
+    .expect("gram");
     let m = 11;
     let n = 100_000;
     let mut state = 0x9E37_79B9_7F4A_7C15u64;

@@ -163,8 +163,15 @@ fn check_solvers_on(backend: &dyn Backend) {
                     f.material
                 );
                 worst_kkt = worst_kkt.max(f.kkt[ch]);
+                // Exact: 1e-8. PGD: the GPU kernel is f32 (KKT ~1e-6); anything above
+                // PGD_FALLBACK_KKT is re-solved exactly, so that is the bound.
+                let tol = if solver == Solver::Exact {
+                    1e-8
+                } else {
+                    PGD_FALLBACK_KKT
+                };
                 assert!(
-                    f.kkt[ch] <= 1e-8,
+                    f.kkt[ch] <= tol,
                     "{} {solver:?}: KKT {:e}",
                     f.material,
                     f.kkt[ch]
