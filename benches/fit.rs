@@ -7,7 +7,7 @@
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
-use brdf_basis::fit::{channel_gram, fit, fit_cells, FitParams};
+use brdf_basis::fit::{channel_gram, fit, fit_cells, FitParams, GramMode};
 use brdf_basis::gpu::GpuBackend;
 use brdf_basis::nnls::pgd::PgdParams;
 use brdf_basis::nnls::GramBatch;
@@ -27,15 +27,17 @@ fn main() {
         .take(62)
         .collect();
     for b in &backends {
-        let p = FitParams::default();
-        let t = Instant::now();
-        let fits = fit(b.as_ref(), &coll, &basis, &targets, &p, &|_, _| {}).expect("fit");
-        let s = t.elapsed().as_secs_f64();
-        let mae = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
-        println!(
-            "fit {:<50} 62 targets x 5 basis, full evaluation mask: {s:.3} s (mean MAE {mae:.3e})",
-            b.name()
-        );
+        for gram in [GramMode::Auto, GramMode::Grid] {
+            let p = FitParams {
+                gram,
+                ..Default::default()
+            };
+            let t = Instant::now();
+            let fits = fit(b.as_ref(), &coll, &basis, &targets, &p, &|_, _| {}).expect("fit");
+            let s = t.elapsed().as_secs_f64();
+            let mae = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
+            println!("fit {:<50} gram {gram:?}: 62 targets x 5 basis, full evaluation mask: {s:.3} s (mean MAE {mae:.3e})", b.name());
+        }
     }
     // 100,000 targets x 10-material basis: the Gram of 10 materials, targets = random
     // non-negative combinations of 30 other materials' h vectors.
@@ -56,6 +58,7 @@ fn main() {
         &others,
         &cells,
         0,
+        GramMode::Auto,
         &|_, _| {},
     )
     .expect("gram");

@@ -11,8 +11,9 @@ use crate::backend::cpu::CpuBackend;
 use crate::backend::{Backend, Lobe, LobeParams, Progress};
 use crate::collection::{Collection, MaterialData};
 use crate::error::BackendError;
-use crate::merl::{CellSet, Mask, Weighting};
+use crate::merl::{CellSet, GridTables, Mask, Weighting};
 use crate::nnls::{lawson_hanson, pgd, GramBatch, NnlsError, NnlsSolution};
+use crate::separable::{CellMoments, SeparableLobe};
 use rayon::prelude::*;
 
 /// Errors of fitting.
@@ -65,7 +66,19 @@ pub enum Solver {
     Pgd,
 }
 
-/// Fit parameters. Defaults: evaluation mask, uniform weights, full grid, exact solver.
+/// How Gram matrices and grid errors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GramMode {
+    /// The separable closed form ([`crate::separable`]) when every lobe is analytic, else
+    /// the back-end's grid pass.
+    Auto,
+    /// Always the back-end's pass over the grid (GPU kernel or CPU twin).
+    Grid,
+}
+
+/// Fit parameters. Defaults: evaluation mask, uniform weights, full grid, exact solver,
+/// automatic Gram mode.
 #[derive(Clone, Debug)]
 pub struct FitParams {
     /// Fit mask.
@@ -76,6 +89,8 @@ pub struct FitParams {
     pub stride: usize,
     /// Solver.
     pub solver: Solver,
+    /// Gram mode.
+    pub gram: GramMode,
 }
 
 impl Default for FitParams {
@@ -85,6 +100,7 @@ impl Default for FitParams {
             weighting: Weighting::Uniform,
             stride: 1,
             solver: Solver::Exact,
+            gram: GramMode::Auto,
         }
     }
 }
@@ -151,6 +167,38 @@ pub fn fit_cells(coll: &Collection, idx: &[usize], p: &FitParams) -> CellSet {
     crate::distance::cell_set(&sub, &dp)
 }
 
+/// Lobes in separable form when every one is analytic.
+pub fn separable_lobes(lobes: &[Lobe]) -> Option<Vec<SeparableLobe>> {
+    let t = GridTables::new();
+    lobes
+        .iter()
+        .map(|l| match l {
+            Lobe::Analytic(p) => Some(SeparableLobe::new(&t, p)),
+            Lobe::Measured { .. } => None,
+        })
+        .collect()
+}
+
+/// The full Gram matrix of `lobes` with the first `basis` as columns (layout of
+/// [`Backend::gram`]): the separable closed form in f64 when `mode` is `Auto` and every
+/// lobe is analytic, else the back-end's grid pass.
+pub fn gram_full(
+    backend: &dyn Backend,
+    lobes: &[Lobe],
+    cells: &CellSet,
+    basis: usize,
+    mode: GramMode,
+    progress: Progress<'_>,
+) -> Result<Vec<f64>, FitError> {
+    if mode == GramMode::Auto {
+        if let Some(sep) = separable_lobes(lobes) {
+            let mom = CellMoments::new(&GridTables::new(), cells);
+            return Ok(mom.gram(&sep, basis));
+        }
+    }
+    Ok(backend.gram(lobes, cells, basis, progress)?)
+}
+
 /// Gram quantities of one channel: returns `(G, hs, bbs)` with `G` the `(k+1)^2` Gram of
 /// the Lambertian and basis columns, `hs[t]` and `bbs[t]` per target.
 pub fn channel_gram(
@@ -160,6 +208,7 @@ pub fn channel_gram(
     targets: &[usize],
     cells: &CellSet,
     c: usize,
+    mode: GramMode,
     progress: Progress<'_>,
 ) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), FitError> {
     let m = basis.len() + 1;
@@ -175,7 +224,7 @@ pub fn channel_gram(
             .map(|&i| channel_lobe(&coll.materials()[i].data, c)),
     );
     let n = lobes.len();
-    let full = backend.gram(&lobes, cells, m, progress)?;
+    let full = gram_full(backend, &lobes, cells, m, mode, progress)?;
     let mut g = vec![0.0; m * m];
     for i in 0..m {
         g[i * m..(i + 1) * m].copy_from_slice(&full[i * n..i * n + m]);
@@ -280,31 +329,66 @@ pub fn fit(
         })
         .collect();
     let cpu = CpuBackend::new();
+    let all_analytic = all
+        .iter()
+        .all(|&i| coll.materials()[i].analytic().is_some());
+    let moments = (p.gram == GramMode::Auto && all_analytic)
+        .then(|| CellMoments::new(&GridTables::new(), &cells));
     for c in 0..3 {
-        let (g, hs, bbs) = channel_gram(backend, coll, basis, targets, &cells, c, progress)?;
+        let (g, hs, bbs) =
+            channel_gram(backend, coll, basis, targets, &cells, c, p.gram, progress)?;
         let sols = solve_channel(backend, m, &g, &hs, &bbs, p.solver)?;
-        // Errors on the grid, in f64.
-        let mut cols = vec![cpu.values_f64(&LAMBERTIAN, &cells.cells)];
-        cols.extend(
-            basis.iter().map(|&b| {
-                cpu.values_f64(&channel_lobe(&coll.materials()[b].data, c), &cells.cells)
-            }),
+        let mut lobes = vec![LAMBERTIAN];
+        lobes.extend(
+            basis
+                .iter()
+                .map(|&b| channel_lobe(&coll.materials()[b].data, c)),
         );
-        let errs: Vec<(f64, f64)> = targets
-            .par_iter()
-            .zip(&sols)
-            .map(|(&t, s)| {
-                let b = cpu.values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
-                let (mut sq, mut ab) = (0.0, 0.0);
-                for (i, (&bv, &w)) in b.iter().zip(&cells.weights).enumerate() {
-                    let fitv: f64 = cols.iter().zip(&s.x).map(|(col, &a)| a * col[i]).sum();
-                    let r = fitv - bv;
-                    sq += w * r * r;
-                    ab += w * r.abs();
-                }
-                (sq.sqrt(), ab)
-            })
-            .collect();
+        let errs: Vec<(f64, f64)> = match (moments.as_ref(), separable_lobes(&lobes)) {
+            (Some(mom), Some(cols)) => {
+                // Every lobe analytic: one multiply-add per cell from per-(i, j) tables.
+                let refs: Vec<&SeparableLobe> = cols.iter().collect();
+                let t = GridTables::new();
+                targets
+                    .par_iter()
+                    .zip(&sols)
+                    .map(|(&ti, s)| {
+                        let target = match channel_lobe(&coll.materials()[ti].data, c) {
+                            Lobe::Analytic(tp) => SeparableLobe::new(&t, &tp),
+                            Lobe::Measured { .. } => {
+                                unreachable!("moments exist only when every material is analytic")
+                            }
+                        };
+                        let (sq, ab) =
+                            mom.errors(&SeparableLobe::combination(&refs, &s.x), &target);
+                        (sq.sqrt(), ab)
+                    })
+                    .collect()
+            }
+            _ => {
+                // On the grid, in f64, cell by cell.
+                let cols: Vec<Vec<f64>> = lobes
+                    .iter()
+                    .map(|l| cpu.values_f64(l, &cells.cells))
+                    .collect();
+                targets
+                    .par_iter()
+                    .zip(&sols)
+                    .map(|(&t, s)| {
+                        let b = cpu
+                            .values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
+                        let (mut sq, mut ab) = (0.0, 0.0);
+                        for (i, (&bv, &w)) in b.iter().zip(&cells.weights).enumerate() {
+                            let fitv: f64 = cols.iter().zip(&s.x).map(|(col, &a)| a * col[i]).sum();
+                            let r = fitv - bv;
+                            sq += w * r * r;
+                            ab += w * r.abs();
+                        }
+                        (sq.sqrt(), ab)
+                    })
+                    .collect()
+            }
+        };
         for ((f, s), (res, mae)) in fits.iter_mut().zip(&sols).zip(errs) {
             for (k, &a) in s.x.iter().enumerate() {
                 f.coefficients[k][c] = a;

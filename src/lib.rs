@@ -30,4 +30,5 @@ pub mod io;
 pub mod merl;
 pub mod nnls;
 pub mod select;
+pub mod separable;
 pub mod stats;

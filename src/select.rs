@@ -62,7 +62,7 @@ pub fn empirical(
         let mut lobes = vec![LAMBERTIAN];
         lobes.extend(coll.materials().iter().map(|m| channel_lobe(&m.data, c)));
         let m1 = n + 1;
-        let full = backend.gram(&lobes, &cells, m1, progress)?;
+        let full = crate::fit::gram_full(backend, &lobes, &cells, m1, p.fit.gram, progress)?;
         let rows: Vec<Vec<bool>> = (0..n)
             .into_par_iter()
             .map(|t| {

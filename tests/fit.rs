@@ -139,13 +139,14 @@ fn reference_objective(
     (obj, bb)
 }
 
-fn check_solvers_on(backend: &dyn Backend) {
+fn check_solvers_on(backend: &dyn Backend, gram: GramMode) {
     let c = ngan();
     let basis = idx(&c, &BASIS5);
     let targets: Vec<usize> = (0..c.len()).filter(|i| !basis.contains(i)).collect();
     for solver in [Solver::Exact, Solver::Pgd] {
         let p = FitParams {
             solver,
+            gram,
             ..Default::default()
         };
         let fits = fit(backend, &c, &basis, &targets, &p, &|_, _| {}).expect("fit");
@@ -179,7 +180,7 @@ fn check_solvers_on(backend: &dyn Backend) {
             }
         }
         eprintln!(
-            "{} {solver:?}: worst objective excess {worst:e} x energy, worst KKT {worst_kkt:e}",
+            "{} {gram:?} {solver:?}: worst objective excess {worst:e} x energy, worst KKT {worst_kkt:e}",
             backend.name()
         );
     }
@@ -187,9 +188,10 @@ fn check_solvers_on(backend: &dyn Backend) {
 
 #[test]
 fn both_solvers_reach_the_exact_optimum_on_the_grid() {
-    check_solvers_on(&CpuBackend::new());
+    check_solvers_on(&CpuBackend::new(), GramMode::Auto);
+    check_solvers_on(&CpuBackend::new(), GramMode::Grid);
     if let Some(g) = gpu("both_solvers_reach_the_exact_optimum_on_the_grid (gpu)") {
-        check_solvers_on(g);
+        check_solvers_on(g, GramMode::Grid);
     }
 }
 
@@ -204,8 +206,17 @@ fn gpu_gram_matches_cpu_gram() {
     let basis = idx(&c, &BASIS5);
     let targets: Vec<usize> = (0..40).collect();
     for ch in 0..3 {
-        let (gg, hg, bg) =
-            channel_gram(g, &c, &basis, &targets, &cells, ch, &|_, _| {}).expect("gpu");
+        let (gg, hg, bg) = channel_gram(
+            g,
+            &c,
+            &basis,
+            &targets,
+            &cells,
+            ch,
+            GramMode::Grid,
+            &|_, _| {},
+        )
+        .expect("gpu");
         let (gc, hc, bc) = channel_gram(
             &CpuBackend::new(),
             &c,
@@ -213,6 +224,7 @@ fn gpu_gram_matches_cpu_gram() {
             &targets,
             &cells,
             ch,
+            GramMode::Grid,
             &|_, _| {},
         )
         .expect("cpu");
@@ -302,4 +314,52 @@ fn rejects_bad_fits() {
         .expect_err("nan")
         .to_string();
     assert!(e.contains("nan-table") && e.contains("non-finite"), "{e}");
+}
+
+#[test]
+fn separable_gram_matches_the_grid_pass() {
+    // The closed form (f64, exact) against the CPU grid pass (f32 values, f64 partials).
+    let c = ngan();
+    for weighting in [
+        brdf_basis::merl::Weighting::Uniform,
+        brdf_basis::merl::Weighting::SolidAngle,
+    ] {
+        let p = FitParams {
+            weighting,
+            stride: 2,
+            ..Default::default()
+        };
+        let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p);
+        let basis = idx(&c, &BASIS5);
+        let targets: Vec<usize> = (0..c.len()).collect();
+        for ch in 0..3 {
+            let cpu = CpuBackend::new();
+            let a = channel_gram(
+                &cpu,
+                &c,
+                &basis,
+                &targets,
+                &cells,
+                ch,
+                GramMode::Auto,
+                &|_, _| {},
+            )
+            .expect("separable");
+            let b = channel_gram(
+                &cpu,
+                &c,
+                &basis,
+                &targets,
+                &cells,
+                ch,
+                GramMode::Grid,
+                &|_, _| {},
+            )
+            .expect("grid");
+            // f32 rounding of the tabulated values bounds the agreement: 1e-5 relative.
+            assert!(max_rel(&a.0, &b.0, 1e-300) <= 1e-5, "G {weighting:?}");
+            assert!(max_rel(&a.1, &b.1, 1e-300) <= 1e-5, "h {weighting:?}");
+            assert!(max_rel(&a.2, &b.2, 1e-300) <= 1e-5, "bb {weighting:?}");
+        }
+    }
 }

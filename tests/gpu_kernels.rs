@@ -232,9 +232,17 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
     let cpu = CpuBackend::new();
     let (mut worst, mut worst_kkt, mut over) = (0f64, 0f64, 0usize);
     for ch in 0..3 {
-        let (g, hs, bbs) =
-            brdf_basis::fit::channel_gram(&cpu, &c, &basis, &targets, &cells, ch, &|_, _| {})
-                .expect("gram");
+        let (g, hs, bbs) = brdf_basis::fit::channel_gram(
+            &cpu,
+            &c,
+            &basis,
+            &targets,
+            &cells,
+            ch,
+            brdf_basis::fit::GramMode::Grid,
+            &|_, _| {},
+        )
+        .expect("gram");
         let _ = channel_gram;
         let batch = GramBatch::new(6, &g, &hs, &bbs).expect("batch");
         let gp = gpu.context();

@@ -2,7 +2,7 @@
 
 use super::Global;
 use brdf_basis::collection::Collection;
-use brdf_basis::fit::{combination_values, fit, FitParams, Solver, TargetFit};
+use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
 use brdf_basis::io::json::write_json;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::{write_binary, Mask, Weighting};
@@ -38,6 +38,10 @@ pub struct FitArgs {
     /// exact (Lawson-Hanson) or pgd (batched projected gradient, exact fallback).
     #[arg(long, default_value = "exact")]
     pub solver: String,
+    /// auto (closed-form separable Gram when every material is analytic) or grid (the
+    /// back-end's pass over the grid).
+    #[arg(long, default_value = "auto")]
+    pub gram: String,
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
@@ -116,11 +120,17 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         "pgd" => Solver::Pgd,
         s => anyhow::bail!("unknown solver `{s}` (expected exact or pgd)"),
     };
+    let gram = match a.gram.as_str() {
+        "auto" => GramMode::Auto,
+        "grid" => GramMode::Grid,
+        g => anyhow::bail!("unknown gram mode `{g}` (expected auto or grid)"),
+    };
     let p = FitParams {
         mask: a.mask,
         weighting: a.weighting,
         stride: a.stride,
         solver,
+        gram,
     };
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "gram");
