@@ -66,7 +66,12 @@ fn main() {
     let only: Option<usize> = std::env::var("BENCH_N").ok().and_then(|v| v.parse().ok());
     let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 1);
     let cpu = CpuBackend::new();
-    let gpu = GpuBackend::new().ok();
+    // BENCH_BACKENDS=cpu skips the GPU (lavapipe takes minutes at N = 1000).
+    let gpu = if std::env::var("BENCH_BACKENDS").is_ok_and(|v| v == "cpu") {
+        None
+    } else {
+        GpuBackend::new().ok()
+    };
     for n in [100usize, 1000] {
         if only.is_some_and(|o| o != n) {
             continue;

@@ -202,6 +202,10 @@ fn pairwise_handles_padding_measured_rows_and_tiny_sets() {
         let r = brdf_basis::distance::reference_pairwise_f64(&lobes, &cells);
         assert!(max_rel(&g, &r, 1e-30) <= 1e-4, "gpu stride {stride}");
         assert!(max_rel(&c, &r, 1e-30) <= 1e-4, "cpu stride {stride}");
+        // Gram (dot) mode with the measured row among the basis columns.
+        let gg = gpu.gram(&lobes, &cells, 3, &|_, _| {}).expect("gpu gram");
+        let gc = cpu.gram(&lobes, &cells, 3, &|_, _| {}).expect("cpu gram");
+        assert!(max_rel(&gg, &gc, 1e-30) <= 1e-4, "gram stride {stride}");
     }
 }
 

@@ -185,7 +185,9 @@ impl PairwiseKernel {
                 let row: Vec<f32> = cc
                     .iter()
                     .zip(cw)
-                    .map(|(&c, &w)| (w * lobes[m].eval_f64(&tables, c as usize)) as f32)
+                    .map(|(&c, &w)| {
+                        (op.row_scale(w) * lobes[m].eval_f64(&tables, c as usize)) as f32
+                    })
                     .collect();
                 ctx.queue.write_buffer(
                     &vals,
