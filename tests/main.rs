@@ -11,5 +11,6 @@ mod distance;
 mod fit;
 mod gpu_kernels;
 mod grid;
+mod measured;
 mod shaders;
 mod workflow;
