@@ -4,7 +4,6 @@
 
 use super::grid::{self, N_CELLS, N_PD, N_TD, N_TH};
 use crate::error::{MerlError, OutputError};
-use std::io::Read;
 use std::path::Path;
 
 /// Channel scales: stored value x scale = reflectance (R, G, B).
@@ -45,17 +44,19 @@ impl MerlTable {
 /// Reads and validates a MERL `.binary` file. Cells that are negative in any channel, or
 /// below the horizon on the grid, become invalid (all channels -1).
 pub fn read_binary(path: &Path) -> Result<MerlTable, MerlError> {
-    let io = |source| MerlError::Io {
+    let bytes = std::fs::read(path).map_err(|source| MerlError::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let mut f = std::fs::File::open(path).map_err(io)?;
-    let len = f.metadata().map_err(io)?.len();
-    let mut head = [0u8; 12];
+    })?;
+    parse_binary(&bytes, path)
+}
+
+/// Parses and validates the bytes of a MERL `.binary` file (`path` names it in errors).
+pub fn parse_binary(bytes: &[u8], path: &Path) -> Result<MerlTable, MerlError> {
+    let len = bytes.len() as u64;
     if len >= 12 {
-        f.read_exact(&mut head).map_err(io)?;
         let dims = [0, 1, 2]
-            .map(|i| i32::from_le_bytes(head[4 * i..4 * i + 4].try_into().unwrap_or([0; 4])));
+            .map(|i| i32::from_le_bytes(bytes[4 * i..4 * i + 4].try_into().unwrap_or([0; 4])));
         if dims != [N_TH as i32, N_TD as i32, N_PD as i32] {
             return Err(MerlError::Dims {
                 path: path.to_path_buf(),
@@ -70,8 +71,7 @@ pub fn read_binary(path: &Path) -> Result<MerlTable, MerlError> {
             found: len,
         });
     }
-    let mut raw = vec![0u8; (FILE_BYTES - 12) as usize];
-    f.read_exact(&mut raw).map_err(io)?;
+    let raw = &bytes[12..];
     let mut rgb = vec![0f32; 3 * N_CELLS];
     for c in 0..3 {
         for cell in 0..N_CELLS {
@@ -90,7 +90,7 @@ pub fn read_binary(path: &Path) -> Result<MerlTable, MerlError> {
     }
     let mut valid = 0usize;
     for cell in 0..N_CELLS {
-        let geometric = grid::cell_info(cell).valid;
+        let geometric = grid::geometric_validity()[cell];
         let ok = geometric && (0..3).all(|c| rgb[c * N_CELLS + cell] >= 0.0);
         if ok {
             valid += 1;

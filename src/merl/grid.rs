@@ -142,6 +142,12 @@ pub fn bin_measure(i: usize, j: usize, _k: usize) -> f64 {
     4.0 * (ah.cos() - bh.cos()) * (bd.sin().powi(2) - ad.sin().powi(2)) / 2.0 * dp
 }
 
+/// Whether each cell's directions are both above the horizon (cached, computed once).
+pub fn geometric_validity() -> &'static [bool] {
+    static VALID: std::sync::OnceLock<Vec<bool>> = std::sync::OnceLock::new();
+    VALID.get_or_init(|| (0..N_CELLS).map(|c| cell_info(c).valid).collect())
+}
+
 /// Classifies one cell (SPEC 2-3): horizon, 80 deg and 3 deg tests in f64 with a
 /// tolerance of [`ANGLE_TOL`] in favour of inclusion.
 pub fn cell_info(idx: usize) -> CellInfo {
