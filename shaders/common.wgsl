@@ -27,4 +27,4 @@ const T_LEN: u32 = 720u;
 // Register block of material pairs owned by one pairwise invocation (BLOCK x BLOCK).
 // Keep in sync with `BLOCK` in src/gpu/pairwise.rs.
 const BLOCK: u32 = 4u;
-const WG: u32 = 64u;
+const WG: u32 = 8u;

@@ -1,11 +1,12 @@
 // Pairwise reductions over grid cells. OP = 0: weighted L1 (rows pre-multiplied by the
 // cell weights, so w |a - b| = |w a - w b|); OP = 1: weighted dot products for Gram
-// matrices (rows pre-multiplied by sqrt(w)). For a BLOCK x BLOCK block of lobe pairs
-// (from a caller-given list), one workgroup reduces one run of
-// WG * run_iters cells. Lane l takes cells l, l + WG, ... (coalesced loads), keeps 16
-// f32 accumulators in registers, and the 64 lanes are summed once through workgroup
-// memory at the end. Every loop is bounded by run_iters <= MAX_RUN_ITERS (src/gpu/pairwise.rs),
-// far below lavapipe's 65,535-iteration limit.
+// matrices (rows pre-multiplied by sqrt(w)). For a BLOCK x BLOCK block of lobe pairs (from
+// a caller-given list), one workgroup of WG lanes reduces one run of WG * run_iters
+// cells: lane l takes cells l, l + WG, ..., keeps 16 f32 accumulators in registers and
+// writes them out; the host sums lanes and runs in f64. No workgroup memory and no
+// barrier: on lavapipe a barrier turns the shader into coroutines and cost ~40 % of the
+// time. Every loop is bounded by run_iters <= MAX_RUN_ITERS (src/gpu/pairwise.rs), far
+// below lavapipe's 65,535-iteration limit.
 
 // Keep in sync with `PairParams` in src/gpu/pairwise.rs.
 struct PairParams {
@@ -26,9 +27,8 @@ struct PairParams {
 
 override OP: u32 = 0u;
 
-var<workgroup> red: array<vec4<f32>, 256>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let run = wid.x;
     let b = wid.y + p.block_offset;
@@ -63,18 +63,13 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
             acc3 = fma(a3, bv, acc3);
         }
     }
-    red[lid.x * 4u + 0u] = acc0;
-    red[lid.x * 4u + 1u] = acc1;
-    red[lid.x * 4u + 2u] = acc2;
-    red[lid.x * 4u + 3u] = acc3;
-    workgroupBarrier();
-    if (lid.x < 16u && b < p.n_blocks) {
-        let r = lid.x / 4u;
-        let q = lid.x % 4u;
-        var sum = 0.0;
-        for (var l = 0u; l < WG; l = l + 1u) {
-            sum = sum + red[l * 4u + r][q];
+    if (b < p.n_blocks) {
+        let o = ((b * p.n_runs + run) * WG + lid.x) * 16u;
+        for (var q = 0u; q < 4u; q = q + 1u) {
+            partial[o + q] = acc0[q];
+            partial[o + 4u + q] = acc1[q];
+            partial[o + 8u + q] = acc2[q];
+            partial[o + 12u + q] = acc3[q];
         }
-        partial[(b * p.n_runs + run) * 16u + lid.x] = sum;
     }
 }

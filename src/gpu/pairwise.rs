@@ -3,7 +3,7 @@
 //! The grid is streamed in chunks of cells: per chunk, the lobes are tabulated on the GPU
 //! straight into the value buffer (weights pre-multiplied, so `w |a - b| = |w a - w b|`),
 //! measured rows are uploaded, and one dispatch reduces every block pair over every run
-//! of cells. Partial sums (f32 over at most `64 x MAX_RUN_ITERS` cells) are read back per
+//! of cells. Per-lane partial sums (f32 over at most `MAX_RUN_ITERS` cells) are read back per
 //! chunk and accumulated in f64 on the host.
 
 use super::tabulate::TabulateKernel;
@@ -17,9 +17,9 @@ use crate::merl::{CellSet, GridTables};
 pub const SOURCE: &str = include_str!("../../shaders/pairwise.wgsl");
 pub use crate::backend::blocks::BLOCK;
 /// Lanes per workgroup; keep in sync with `WG` in common.wgsl.
-pub const WG: usize = 64;
+pub const WG: usize = 8;
 /// Most loop iterations of one invocation (lavapipe silently ends loops after 65,535).
-pub const MAX_RUN_ITERS: u32 = 256;
+pub const MAX_RUN_ITERS: u32 = 1024;
 /// Most cells per streamed chunk.
 pub const MAX_CHUNK: usize = 1 << 18;
 const _: () = assert!(MAX_RUN_ITERS < 65_535 && (WG as u32) < 65_535);
@@ -140,7 +140,7 @@ impl PairwiseKernel {
             wgpu::BufferUsages::empty(),
         );
         let vals = ctx.storage("values", (plan.n_pad * plan.chunk * 4) as u64);
-        let partial_bytes = (n_blocks * plan.n_runs * 16 * 4) as u64;
+        let partial_bytes = (n_blocks * plan.n_runs * WG * 16 * 4) as u64;
         if partial_bytes > ctx.max_binding() {
             return Err(GpuError::Limits(format!(
                 "{n} materials need {partial_bytes} bytes of partial sums, over the binding limit"
@@ -233,10 +233,13 @@ impl PairwiseKernel {
             let bytes = ctx.submit_and_read(enc, &partial, partial_bytes)?;
             let part: &[f32] = bytemuck::cast_slice(&bytes[..partial_bytes as usize]);
             for (b, s) in sums.chunks_mut(16).enumerate() {
-                for (e, v) in s.iter_mut().enumerate() {
-                    *v += (0..plan.n_runs)
-                        .map(|run| part[(b * plan.n_runs + run) * 16 + e] as f64)
-                        .sum::<f64>();
+                for run in 0..plan.n_runs {
+                    for lane in 0..WG {
+                        let o = ((b * plan.n_runs + run) * WG + lane) * 16;
+                        for (e, v) in s.iter_mut().enumerate() {
+                            *v += part[o + e] as f64;
+                        }
+                    }
                 }
             }
             done += len as u64;
