@@ -64,7 +64,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
         }
     }
     if (b < p.n_blocks) {
-        let o = ((b * p.n_runs + run) * WG + lid.x) * 16u;
+        let o = (((b - p.block_offset) * p.n_runs + run) * WG + lid.x) * 16u;
         for (var q = 0u; q < 4u; q = q + 1u) {
             partial[o + q] = acc0[q];
             partial[o + 4u + q] = acc1[q];

@@ -266,3 +266,36 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
     }
     eprintln!("gpu pgd (f32): worst objective excess {worst:e} x energy, worst f64 KKT {worst_kkt:e}, {over} of {} above the fallback level", 3 * targets.len());
 }
+
+#[test]
+fn pairwise_in_several_block_passes_matches_cpu() {
+    // 1,500 lobes (the Ngan lobes repeated, scaled): 70,500 block pairs, more than one
+    // dispatch dimension (65,535) or binding of per-lane partials allows in one pass.
+    let Some(gpu) = gpu("pairwise_in_several_block_passes_matches_cpu") else {
+        return;
+    };
+    let base = lobes_of(&ngan());
+    let lobes: Vec<Lobe> = (0..1500)
+        .map(|i| match &base[i % base.len()] {
+            Lobe::Analytic(p) => Lobe::Analytic(LobeParams {
+                ks: p.ks * (1.0 + i as f32 / 97.0),
+                ..*p
+            }),
+            other => other.clone(),
+        })
+        .collect();
+    let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 6);
+    let plan = gpu.plan(lobes.len(), cells.len()).expect("plan");
+    let per_block = plan.n_runs * WG * 16 * 4;
+    let blocks = 375 * 376 / 2;
+    assert!(
+        blocks > 65_535 || blocks * per_block > 128 << 20,
+        "the test must need several passes"
+    );
+    let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
+    let c = CpuBackend::new()
+        .pairwise_l1(&lobes, &cells, &|_, _| {})
+        .expect("cpu");
+    let r = max_rel(&g, &c, 1e-30);
+    assert!(r <= 1e-4, "gpu vs cpu relative {r:e}");
+}

@@ -140,12 +140,14 @@ impl PairwiseKernel {
             wgpu::BufferUsages::empty(),
         );
         let vals = ctx.storage("values", (plan.n_pad * plan.chunk * 4) as u64);
-        let partial_bytes = (n_blocks * plan.n_runs * WG * 16 * 4) as u64;
-        if partial_bytes > ctx.max_binding() {
-            return Err(GpuError::Limits(format!(
-                "{n} materials need {partial_bytes} bytes of partial sums, over the binding limit"
-            )));
-        }
+        // Bytes of per-lane partials of one block; blocks per pass so that they fit one
+        // binding and one dispatch dimension.
+        let per_block = plan.n_runs * WG * 16 * 4;
+        let max_dim = ctx.limits.max_compute_workgroups_per_dimension as usize;
+        let per_pass = ((ctx.max_binding() as usize / per_block).max(1))
+            .min(max_dim)
+            .min(n_blocks);
+        let partial_bytes = (per_pass * per_block) as u64;
         let partial = ctx.storage("partial sums", partial_bytes);
         let cell_buf = ctx.storage("cells", (plan.chunk * 4) as u64);
         let weight_buf = ctx.storage("weights", (plan.chunk * 4) as u64);
@@ -161,7 +163,6 @@ impl PairwiseKernel {
             .filter(|&i| matches!(lobes[i], Lobe::Measured { .. }))
             .collect();
         let tables = GridTables::new();
-        let max_dim = ctx.limits.max_compute_workgroups_per_dimension as usize;
         if plan.n_runs > max_dim {
             return Err(GpuError::Limits(format!(
                 "{} runs per chunk exceed the dispatch limit {max_dim}",
@@ -209,35 +210,41 @@ impl PairwiseKernel {
                     plan.chunk as u32,
                 );
             }
-            for off in (0..n_blocks).step_by(max_dim) {
+            // Block groups whose per-lane partials fit one binding; one readback each.
+            for off in (0..n_blocks).step_by(per_pass) {
+                let count = (n_blocks - off).min(per_pass);
                 let params = PairParams {
                     n_cells: len as u32,
                     row_stride: plan.chunk as u32,
                     run_iters: plan.run_iters,
                     n_runs: plan.n_runs as u32,
                     block_offset: off as u32,
-                    n_blocks: n_blocks as u32,
+                    n_blocks: (off + count) as u32,
                     _pad0: 0,
                     _pad1: 0,
                 };
                 let pbuf = ctx.uniform("pairwise params", &params);
                 let bind = ctx.bind(pipeline, &[&pbuf, &vals, &block_buf, &partial]);
-                let groups_y = (n_blocks - off).min(max_dim);
                 dispatch(
                     &mut enc,
                     pipeline,
                     &bind,
-                    (plan.n_runs as u32, groups_y as u32),
+                    (plan.n_runs as u32, count as u32),
                 );
-            }
-            let bytes = ctx.submit_and_read(enc, &partial, partial_bytes)?;
-            let part: &[f32] = bytemuck::cast_slice(&bytes[..partial_bytes as usize]);
-            for (b, s) in sums.chunks_mut(16).enumerate() {
-                for run in 0..plan.n_runs {
-                    for lane in 0..WG {
-                        let o = ((b * plan.n_runs + run) * WG + lane) * 16;
-                        for (e, v) in s.iter_mut().enumerate() {
-                            *v += part[o + e] as f64;
+                let used = (count * per_block) as u64;
+                let bytes = ctx.submit_and_read(
+                    std::mem::replace(&mut enc, ctx.encoder()),
+                    &partial,
+                    used,
+                )?;
+                let part: &[f32] = bytemuck::cast_slice(&bytes[..used as usize]);
+                for (k, s) in sums[off * 16..(off + count) * 16]
+                    .chunks_mut(16)
+                    .enumerate()
+                {
+                    for lane_run in part[k * per_block / 4..(k + 1) * per_block / 4].chunks(16) {
+                        for (v, &x) in s.iter_mut().zip(lane_run) {
+                            *v += x as f64;
                         }
                     }
                 }
