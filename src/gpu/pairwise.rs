@@ -169,6 +169,7 @@ impl PairwiseKernel {
                 plan.n_runs
             )));
         }
+        let prepared = tab.prepare(ctx, &analytic, &rows);
         let total = cells.len() as u64;
         let mut done = 0u64;
         for (cc, cw) in cells
@@ -201,8 +202,7 @@ impl PairwiseKernel {
                 tab.record(
                     ctx,
                     &mut enc,
-                    &analytic,
-                    &rows,
+                    &prepared,
                     &cell_buf,
                     Some(&weight_buf),
                     &vals,

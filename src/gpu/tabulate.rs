@@ -1,9 +1,12 @@
-//! Tabulation kernel (`shaders/tabulate.wgsl`): analytic lobes over a list of grid cells,
-//! optionally multiplied by cell weights, written as rows of an output buffer.
+//! Tabulation kernel (`shaders/tabulate.wgsl`): analytic lobes in separable form over a
+//! list of grid cells, optionally multiplied by cell weights, written as rows of an output
+//! buffer.
 
 use super::{dispatch, GpuContext};
 use crate::backend::LobeParams;
 use crate::error::GpuError;
+use crate::merl::GridTables;
+use crate::separable::SeparableLobe;
 
 /// WGSL source of the kernel.
 pub const SOURCE: &str = include_str!("../../shaders/tabulate.wgsl");
@@ -24,6 +27,11 @@ pub struct TabParams {
     pub row_stride: u32,
 }
 
+/// Lobes per invocation; keep in sync with `LPI` in the shader.
+pub const LPI: usize = 16;
+/// f32 of one lobe's beta table.
+pub const NIJ: usize = 8100;
+
 /// The compiled kernel and its grid tables.
 #[derive(Debug)]
 pub struct TabulateKernel {
@@ -31,11 +39,24 @@ pub struct TabulateKernel {
     tables: wgpu::Buffer,
 }
 
+/// Lobes uploaded once in separable form (alpha, beta tables, output rows), in groups that
+/// fit one binding and one dispatch dimension.
+#[derive(Debug)]
+pub struct TabLobes {
+    groups: Vec<(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, u32)>,
+}
+
+/// The f32 alpha and beta of a lobe, as uploaded (beta: f64 rounded once).
+pub fn separable_f32(t: &GridTables, l: &LobeParams) -> (f32, Vec<f32>) {
+    let s = SeparableLobe::new(t, l);
+    (s.alpha as f32, s.beta.iter().map(|&b| b as f32).collect())
+}
+
 impl TabulateKernel {
     /// Compiles the kernel and uploads the grid tables.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         let pipeline = ctx.pipeline("tabulate", SOURCE)?;
-        let t = super::grid_table_f32(&crate::merl::GridTables::new());
+        let t = super::grid_table_f32(&GridTables::new());
         let tables = ctx.storage_init(
             "grid tables",
             bytemuck::cast_slice(&t),
@@ -44,51 +65,79 @@ impl TabulateKernel {
         Ok(Self { pipeline, tables })
     }
 
-    /// Records the tabulation of `lobes` (lobe `l` into row `rows[l]`) over the `n_cells`
-    /// cells of `cells`, into `out[row * row_stride + c]`, times `weights[c]` if given.
+    /// Uploads `lobes` (lobe `l` goes to output row `rows[l]`).
+    pub fn prepare(&self, ctx: &GpuContext, lobes: &[LobeParams], rows: &[u32]) -> TabLobes {
+        assert_eq!(lobes.len(), rows.len());
+        let t = GridTables::new();
+        let by_binding = (ctx.max_binding() as usize / (NIJ * 4)).max(1);
+        let by_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1) as usize * LPI;
+        let per = by_binding.min(by_dim);
+        let groups = lobes
+            .chunks(per)
+            .zip(rows.chunks(per))
+            .map(|(lb, rb)| {
+                let mut alphas = Vec::with_capacity(lb.len());
+                let mut betas = Vec::with_capacity(lb.len() * NIJ);
+                for l in lb {
+                    let (a, b) = separable_f32(&t, l);
+                    alphas.push(a);
+                    betas.extend(b);
+                }
+                (
+                    ctx.storage_init(
+                        "alphas",
+                        bytemuck::cast_slice(&alphas),
+                        wgpu::BufferUsages::empty(),
+                    ),
+                    ctx.storage_init(
+                        "rows",
+                        bytemuck::cast_slice(rb),
+                        wgpu::BufferUsages::empty(),
+                    ),
+                    ctx.storage_init(
+                        "betas",
+                        bytemuck::cast_slice(&betas),
+                        wgpu::BufferUsages::empty(),
+                    ),
+                    lb.len() as u32,
+                )
+            })
+            .collect();
+        TabLobes { groups }
+    }
+
+    /// Records the tabulation of the prepared lobes over the `n_cells` cells of `cells`,
+    /// into `out[row * row_stride + c]`, times `weights[c]` if given.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        lobes: &[LobeParams],
-        rows: &[u32],
+        lobes: &TabLobes,
         cells: &wgpu::Buffer,
         weights: Option<&wgpu::Buffer>,
         out: &wgpu::Buffer,
         n_cells: u32,
         row_stride: u32,
     ) {
-        assert_eq!(lobes.len(), rows.len());
-        let max_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1) as usize;
-        for (lb, rb) in lobes.chunks(max_dim).zip(rows.chunks(max_dim)) {
+        for (alphas, rows, betas, count) in &lobes.groups {
             let params = TabParams {
                 n_cells,
-                n_lobes: lb.len() as u32,
+                n_lobes: *count,
                 weighted: u32::from(weights.is_some()),
                 row_stride,
             };
             let pbuf = ctx.uniform("tabulate params", &params);
-            let lbuf = ctx.storage_init(
-                "lobes",
-                bytemuck::cast_slice(lb),
-                wgpu::BufferUsages::empty(),
-            );
-            let rbuf = ctx.storage_init(
-                "rows",
-                bytemuck::cast_slice(rb),
-                wgpu::BufferUsages::empty(),
-            );
             let wbuf = weights.unwrap_or(cells);
             let bind = ctx.bind(
                 &self.pipeline,
-                &[&pbuf, &self.tables, &lbuf, &rbuf, cells, wbuf, out],
+                &[&pbuf, &self.tables, alphas, rows, cells, wbuf, out, betas],
             );
             dispatch(
                 encoder,
                 &self.pipeline,
                 &bind,
-                (n_cells.div_ceil(WORKGROUP), lb.len() as u32),
+                (n_cells.div_ceil(WORKGROUP), count.div_ceil(LPI as u32)),
             );
         }
     }
@@ -112,6 +161,7 @@ impl TabulateKernel {
         for (lb_idx, lb) in lobes.chunks(lobes_per_pass).enumerate() {
             let chunk = (per_lobe / lb.len()).min(max_dim).min(n).max(1);
             let rows: Vec<u32> = (0..lb.len() as u32).collect();
+            let prepared = self.prepare(ctx, lb, &rows);
             for start in (0..n).step_by(chunk) {
                 let cc = &cells[start..(start + chunk).min(n)];
                 let cbuf = ctx.storage_init(
@@ -125,8 +175,7 @@ impl TabulateKernel {
                 self.record(
                     ctx,
                     &mut enc,
-                    lb,
-                    &rows,
+                    &prepared,
                     &cbuf,
                     None,
                     &obuf,
@@ -145,9 +194,9 @@ impl TabulateKernel {
     }
 }
 
-/// CPU twin of `lobe_value` in `shaders/tabulate.wgsl`: the same f32 operations on the
-/// same f32 tables (used by tests to separate kernel bugs from rounding).
-pub fn lobe_value_twin(table: &[f32], l: &LobeParams, cell: u32) -> f32 {
+/// CPU twin of the shader: the same f32 operations on the same f32 tables (used by tests
+/// to separate kernel bugs from rounding).
+pub fn lobe_value_twin(table: &[f32], alpha: f32, beta: &[f32], cell: u32, w: f32) -> f32 {
     use super::*;
     let (i, j, k) = (
         (cell / 16200) as usize,
@@ -157,9 +206,6 @@ pub fn lobe_value_twin(table: &[f32], l: &LobeParams, cell: u32) -> f32 {
     let cos_d = table[TABLE_COS_D + j];
     let max_cos = table[TABLE_COS_H + i] * cos_d
         + table[TABLE_SIN_H + i] * table[TABLE_SIN_D + j] * table[TABLE_ABS_COS_P + k];
-    let fresnel = l.f0 + (1.0 - l.f0) * table[TABLE_SCHLICK_D + j];
-    let peak = (l.n * table[TABLE_LOG2_COS_H + i]).exp2();
-    let spec =
-        (l.n + 1.0) * peak * fresnel * (1.0 / (8.0 * std::f32::consts::PI)) / (cos_d * max_cos);
-    l.kd * std::f32::consts::FRAC_1_PI + l.ks * spec
+    let gw = w / (cos_d * max_cos);
+    alpha * w + beta[i * 90 + j] * gw
 }
