@@ -4,7 +4,7 @@
 
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
+use brdf_basis::backend::{Backend, Lobe};
 use brdf_basis::collection::{Collection, MaterialData};
 use brdf_basis::error::{CollectionError, MerlError};
 use brdf_basis::merl::binary::{read_binary, write_binary, FILE_BYTES};
@@ -253,16 +253,9 @@ fn synthetic(dir: &Path, names: &[&str], noise: f64, mask_row: Option<usize>) ->
     let cpu = CpuBackend::new();
     let mut state = 0x1234_5678u64;
     for n in names {
-        let a = *c.get(n).expect("name").analytic().expect("analytic");
+        let m = c.get(n).expect("name");
         let lobes: Vec<Lobe> = (0..3)
-            .map(|ch| {
-                Lobe::Analytic(LobeParams {
-                    kd: a.d[ch] as f32,
-                    ks: a.s[ch] as f32,
-                    f0: a.f0 as f32,
-                    n: a.n as f32,
-                })
-            })
+            .map(|ch| brdf_basis::fit::channel_lobe(&m.data, ch))
             .collect();
         let mut rgb = cpu.tabulate(&lobes, &cells).expect("tab");
         for cell in 0..N_CELLS {

@@ -3,7 +3,6 @@
 use super::Global;
 use brdf_basis::distance::{distance_matrix, DistanceParams, LobeKind, Metric};
 use brdf_basis::io::matrix::{write_csv, write_npy};
-use brdf_basis::merl::{Mask, Weighting};
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
@@ -17,19 +16,13 @@ pub struct DistanceArgs {
     /// brdf-it (the paper's Eq. 5) or euclidean (on F0, n).
     #[arg(long, default_value = "brdf-it")]
     pub metric: Metric,
-    /// uniform (Eq. 5) or solid-angle (exact bin measure).
-    #[arg(long, default_value = "uniform")]
-    pub weighting: Weighting,
-    /// evaluation (theta <= 80 deg, >= 3 deg from retroreflection) or valid.
-    #[arg(long, default_value = "evaluation")]
-    pub mask: Mask,
+    /// Grid cells and weights.
+    #[command(flatten)]
+    pub grid: super::GridArgs,
     /// specular (rho_s, analytic only) or full (mean of R, G, B); default: specular when
     /// every material is analytic.
     #[arg(long)]
     pub lobe: Option<LobeKind>,
-    /// Use every s-th cell on each grid axis (quick runs).
-    #[arg(long, default_value_t = 1)]
-    pub stride: usize,
     /// Output: .npy (float64 N x N) or .csv.
     #[arg(long)]
     pub out: PathBuf,
@@ -49,9 +42,9 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     let coll = super::load_collection(&a.collection)?;
     let mut p = DistanceParams::default()
         .metric(a.metric)
-        .mask(a.mask)
-        .weighting(a.weighting)
-        .stride(a.stride);
+        .mask(a.grid.mask)
+        .weighting(a.grid.weighting)
+        .stride(a.grid.stride);
     p.lobe = a.lobe;
     let p = p.check(&coll)?;
     let backend = super::backend(g)?;

@@ -5,7 +5,7 @@ use brdf_basis::collection::Collection;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
 use brdf_basis::io::json::write_json;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
-use brdf_basis::merl::{write_binary, Mask, Weighting};
+use brdf_basis::merl::write_binary;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -26,15 +26,9 @@ pub struct FitArgs {
     /// Fit every material not in the basis.
     #[arg(long)]
     pub all_others: bool,
-    /// Weighting.
-    #[arg(long, default_value = "uniform")]
-    pub weighting: Weighting,
-    /// Fit mask.
-    #[arg(long, default_value = "evaluation")]
-    pub mask: Mask,
-    /// Grid stride.
-    #[arg(long, default_value_t = 1)]
-    pub stride: usize,
+    /// Grid cells and weights.
+    #[command(flatten)]
+    pub grid: super::GridArgs,
     /// exact (Lawson-Hanson) or pgd (batched projected gradient, exact fallback).
     #[arg(long, default_value = "exact")]
     pub solver: String,
@@ -126,9 +120,9 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         g => anyhow::bail!("unknown gram mode `{g}` (expected auto or grid)"),
     };
     let p = FitParams {
-        mask: a.mask,
-        weighting: a.weighting,
-        stride: a.stride,
+        mask: a.grid.mask,
+        weighting: a.grid.weighting,
+        stride: a.grid.stride,
         solver,
         gram,
     };

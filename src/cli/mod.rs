@@ -42,6 +42,21 @@ pub struct Global {
     pub quiet: bool,
 }
 
+/// Which grid cells a reduction runs over and how they are weighted (shared by
+/// `distance`, `select` and `fit`).
+#[derive(Args, Debug, Clone)]
+pub struct GridArgs {
+    /// uniform (the paper's Eq. 5) or solid-angle (exact bin measure).
+    #[arg(long, default_value = "uniform")]
+    pub weighting: brdf_basis::merl::Weighting,
+    /// evaluation (theta <= 80 deg, >= 3 deg from retroreflection) or valid.
+    #[arg(long, default_value = "evaluation")]
+    pub mask: brdf_basis::merl::Mask,
+    /// Use every s-th cell on each grid axis (1 = full grid; larger for quick runs).
+    #[arg(long, default_value_t = 1)]
+    pub stride: usize,
+}
+
 /// Subcommands.
 #[derive(Subcommand, Debug)]
 pub enum Command {

@@ -5,7 +5,6 @@ use brdf_basis::cluster::{GcukParams, KMedoidsParams};
 use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
 use brdf_basis::fit::FitParams;
 use brdf_basis::io::json::write_json;
-use brdf_basis::merl::{Mask, Weighting};
 use brdf_basis::select::{empirical, EmpiricalParams};
 use serde_json::json;
 use std::path::PathBuf;
@@ -24,15 +23,9 @@ pub struct SelectArgs {
     /// Distance for clustering: brdf-it or euclidean.
     #[arg(long, default_value = "brdf-it")]
     pub metric: Metric,
-    /// Weighting of BRDF_it and of the fits.
-    #[arg(long, default_value = "uniform")]
-    pub weighting: Weighting,
-    /// Mask of BRDF_it and of the fits.
-    #[arg(long, default_value = "evaluation")]
-    pub mask: Mask,
-    /// Grid stride (1 = full grid).
-    #[arg(long, default_value_t = 1)]
-    pub stride: usize,
+    /// Grid cells and weights.
+    #[command(flatten)]
+    pub grid: super::GridArgs,
     /// k-medoids: number of clusters.
     #[arg(short = 'k')]
     pub k: Option<usize>,
@@ -148,9 +141,9 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
         "empirical" => {
             let p = EmpiricalParams {
                 fit: FitParams {
-                    mask: a.mask,
-                    weighting: a.weighting,
-                    stride: a.stride,
+                    mask: a.grid.mask,
+                    weighting: a.grid.weighting,
+                    stride: a.grid.stride,
                     ..Default::default()
                 },
                 more_than: a.more_than,
@@ -161,9 +154,9 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
         "kmedoids" | "gcuk" => {
             let dp = DistanceParams::default()
                 .metric(a.metric)
-                .mask(a.mask)
-                .weighting(a.weighting)
-                .stride(a.stride)
+                .mask(a.grid.mask)
+                .weighting(a.grid.weighting)
+                .stride(a.grid.stride)
                 .check(&coll)?;
             let d = distance_matrix(backend.as_ref(), &coll, &dp, &progress)?;
             let runs = if a.method == "kmedoids" {

@@ -2,8 +2,9 @@
 
 use super::Global;
 use anyhow::Context;
-use brdf_basis::backend::{Lobe, LobeParams};
+use brdf_basis::backend::Lobe;
 use brdf_basis::collection::MaterialData;
+use brdf_basis::fit::channel_lobe;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary;
 use std::path::PathBuf;
@@ -30,18 +31,9 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
     let m = coll.get(&a.material)?;
     let mut rgb = vec![0f32; 3 * N_CELLS];
     match &m.data {
-        MaterialData::Analytic(p) => {
+        MaterialData::Analytic(_) => {
             let backend = super::backend(g)?;
-            let lobes: Vec<Lobe> = (0..3)
-                .map(|c| {
-                    Lobe::Analytic(LobeParams {
-                        kd: p.d[c] as f32,
-                        ks: p.s[c] as f32,
-                        f0: p.f0 as f32,
-                        n: p.n as f32,
-                    })
-                })
-                .collect();
+            let lobes: Vec<Lobe> = (0..3).map(|c| channel_lobe(&m.data, c)).collect();
             let cells: Vec<u32> = (0..N_CELLS as u32).collect();
             rgb = backend.tabulate(&lobes, &cells).context("tabulating")?;
             for cell in 0..N_CELLS {
