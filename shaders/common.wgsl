@@ -24,7 +24,11 @@ const T_SCHLICK_D: u32 = 450u;
 const T_ABS_COS_P: u32 = 540u;
 const T_LEN: u32 = 720u;
 
-// Register block of material pairs owned by one pairwise invocation (BLOCK x BLOCK).
-// Keep in sync with `BLOCK` in src/gpu/pairwise.rs.
-const BLOCK: u32 = 4u;
-const WG: u32 = 8u;
+// Packed lobe values (src/gpu/pairwise.rs): texel k of an rgba32float texture of width
+// TEX_W holds rows 4b .. 4b + 3 at cell c of a chunk, k = b * chunk + c. Keep in sync with
+// `TEX_W` in src/gpu/pairwise.rs.
+const TEX_W: u32 = 4096u;
+
+fn texel_coord(k: u32) -> vec2<u32> {
+    return vec2<u32>(k % TEX_W, k / TEX_W);
+}

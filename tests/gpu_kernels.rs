@@ -5,7 +5,9 @@ use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::{Backend, Lobe, LobeParams};
 use brdf_basis::brdf::ashikhmin_shirley::rho_s_angles;
-use brdf_basis::gpu::pairwise::{PairPlan, MAX_RUN_ITERS, WG};
+use brdf_basis::gpu::pairwise::{
+    KernelShape, PairPlan, PlanLimits, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
+};
 use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS};
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use rayon::prelude::*;
@@ -140,8 +142,8 @@ fn pairwise_kernel_matches_cpu_at_full_run_length() {
     };
     let coll = ngan().subset(&(0..13).collect::<Vec<_>>());
     let cells = CellSet::new(Mask::Valid, Weighting::SolidAngle, 1);
-    let plan = gpu.plan(13, cells.len()).expect("plan");
-    assert!(plan.run_iters as usize * WG <= plan.chunk);
+    let plan = gpu.plan(13, 0, cells.len()).expect("plan");
+    assert!(plan.run_iters as usize * plan.shape.lanes <= plan.chunk);
     let lobes = lobes_of(&coll);
     let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
     let c = CpuBackend::new()
@@ -156,23 +158,80 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
     // The largest loop of any invocation, for the largest inputs the planner accepts.
     const LAVAPIPE_LOOP_LIMIT: u32 = 65_535;
     assert!(MAX_RUN_ITERS < LAVAPIPE_LOOP_LIMIT / 16);
-    for (n, software) in [
-        (2, true),
-        (100, true),
-        (1000, true),
-        (5000, false),
-        (100, false),
-    ] {
-        let plan = PairPlan::new(n, 1_096_216, 128 << 20, software).expect("plan");
-        assert!(plan.run_iters <= MAX_RUN_ITERS && (WG as u32) < LAVAPIPE_LOOP_LIMIT);
-        assert!(
-            plan.n_pad * plan.chunk * 4 <= 128 << 20,
-            "value buffer fits one binding"
-        );
-        assert!(
-            plan.n_runs * WG * plan.run_iters as usize >= plan.chunk,
-            "runs cover the chunk"
-        );
+    assert!(brdf_basis::gpu::tabulate::BPI * 4 < LAVAPIPE_LOOP_LIMIT as usize);
+    let limits = PlanLimits {
+        max_binding: 128 << 20,
+        max_texture_dim: 16_384,
+        max_dispatch: 65_535,
+    };
+    for rows in [2, 13, 100, 1000, 5000] {
+        for software in [true, false] {
+            let shape = KernelShape::choose(rows, software);
+            let plan = PairPlan::new(rows, 1_096_216, &limits, shape).expect("plan");
+            assert!(plan.run_iters <= MAX_RUN_ITERS && (shape.lanes as u32) < LAVAPIPE_LOOP_LIMIT);
+            assert!(plan.n_pad >= rows && plan.n_pad % shape.side() == 0);
+            assert!(
+                plan.texture_height() <= limits.max_texture_dim,
+                "texture side"
+            );
+            assert!(
+                plan.n_pad / 4 * plan.row_stride * 16 <= MAX_PACKED_BYTES,
+                "packed texture within budget"
+            );
+            assert!(plan.row_stride % TEX_W == 0 && plan.row_stride >= plan.chunk);
+            assert!(
+                plan.n_runs * shape.lanes * plan.run_iters as usize >= plan.chunk,
+                "runs cover the chunk"
+            );
+        }
+    }
+    // 100 rows on lavapipe: 20 x 20 blocks, no padding.
+    assert_eq!(KernelShape::choose(100, true).side(), 20);
+}
+
+#[test]
+fn every_kernel_shape_matches_cpu() {
+    // Each register-block shape the back-end may pick (whatever this adapter is), on 37
+    // lobes with 3 measured ones (packed on the host) among them; L1 and dot.
+    let Some(gpu) = gpu("every_kernel_shape_matches_cpu") else {
+        return;
+    };
+    use brdf_basis::backend::blocks::{all_blocks, PairOp};
+    use brdf_basis::gpu::pairwise::{PairwiseKernel, RowLayout};
+    use brdf_basis::gpu::tabulate::TabulateKernel;
+    let coll = ngan().subset(&(0..37).collect::<Vec<_>>());
+    let mut lobes = brdf_basis::distance::lobes(&coll, brdf_basis::distance::LobeKind::Full);
+    let cpu = CpuBackend::new();
+    let all: Vec<u32> = (0..N_CELLS as u32).collect();
+    for m in [1usize, 17, 36] {
+        let table = cpu.tabulate(&lobes[m..m + 1], &all).expect("tab");
+        lobes[m] = Lobe::Measured {
+            table: std::sync::Arc::new(brdf_basis::merl::MerlTable {
+                rgb: [table.clone(), table.clone(), table].concat(),
+            }),
+            channel: Some(1),
+        };
+    }
+    let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 7);
+    let ctx = gpu.context();
+    let tab = TabulateKernel::new(ctx).expect("tabulate kernel");
+    let kernel = PairwiseKernel::new();
+    let layout = RowLayout::new(&lobes);
+    assert_eq!((layout.measured_start, layout.n_rows), (36, 39));
+    let blocks = all_blocks(lobes.len());
+    for op in [PairOp::L1, PairOp::Dot] {
+        let want = cpu
+            .reduce_pairs(&lobes, &cells, &blocks, op, &|_, _| {})
+            .expect("cpu");
+        for shape in KernelShape::all() {
+            let plan = PairPlan::new(layout.n_rows, cells.len(), &PlanLimits::of(ctx), shape)
+                .expect("plan");
+            let got = kernel
+                .run(ctx, &tab, &lobes, &cells, &blocks, op, &plan, &|_, _| {})
+                .expect("gpu");
+            let r = max_rel(&got, &want, 1e-30);
+            assert!(r <= 1e-4, "{op:?} {shape:?}: gpu vs cpu relative {r:e}");
+        }
     }
 }
 
@@ -269,7 +328,7 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
 
 #[test]
 fn pairwise_in_several_block_passes_matches_cpu() {
-    // 1,500 lobes (the Ngan lobes repeated, scaled): 70,500 block pairs, more than one
+    // 1,500 lobes (the Ngan lobes repeated, scaled): more register blocks than one
     // dispatch dimension (65,535) or binding of per-lane partials allows in one pass.
     let Some(gpu) = gpu("pairwise_in_several_block_passes_matches_cpu") else {
         return;
@@ -284,13 +343,14 @@ fn pairwise_in_several_block_passes_matches_cpu() {
             other => other.clone(),
         })
         .collect();
-    let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 6);
-    let plan = gpu.plan(lobes.len(), cells.len()).expect("plan");
-    let per_block = plan.n_runs * WG * 16 * 4;
-    let blocks = 375 * 376 / 2;
+    let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 3);
+    let plan = gpu.plan(lobes.len(), 0, cells.len()).expect("plan");
+    let per_block = plan.partials_per_block() * 4;
+    let nb = plan.n_pad / plan.shape.side();
+    let blocks = nb * (nb + 1) / 2;
     assert!(
         blocks > 65_535 || blocks * per_block > 128 << 20,
-        "the test must need several passes"
+        "the test must need several passes: {plan:?}"
     );
     let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
     let c = CpuBackend::new()

@@ -2,7 +2,7 @@
 
 use brdf_basis::backend::LobeParams;
 use brdf_basis::gpu::pairwise::PairParams;
-use brdf_basis::gpu::tabulate::TabParams;
+use brdf_basis::gpu::tabulate::{PackParams, TabParams};
 use brdf_basis::gpu::{kernel_source, pairwise, pgd, tabulate};
 use std::mem::{offset_of, size_of};
 
@@ -50,6 +50,20 @@ fn tabulate_shader_validates_and_matches_rust_structs() {
     for ((n, o), (rn, ro)) in members.iter().zip(rust) {
         assert_eq!((n.as_str(), *o as usize), (rn, ro));
     }
+    let (span, members) = layout(&m, "PackParams");
+    assert_eq!(span as usize, size_of::<PackParams>());
+    let rust = [
+        ("n_cells", offset_of!(PackParams, n_cells)),
+        ("chunk", offset_of!(PackParams, chunk)),
+        ("first_block", offset_of!(PackParams, first_block)),
+        ("n_blocks", offset_of!(PackParams, n_blocks)),
+    ];
+    assert_eq!(members.len(), rust.len());
+    for ((n, o), (rn, ro)) in members.iter().zip(rust) {
+        assert_eq!((n.as_str(), *o as usize), (rn, ro));
+    }
+    assert!(tabulate::SOURCE.contains(&format!("const BPI: u32 = {}u;", tabulate::BPI)));
+    assert!(tabulate::SOURCE.contains(&format!("const LPI: u32 = {}u;", tabulate::LPI)));
     let (span, members) = layout(&m, "Lobe");
     assert_eq!(span as usize, size_of::<LobeParams>());
     let rust = [
@@ -65,7 +79,16 @@ fn tabulate_shader_validates_and_matches_rust_structs() {
 
 #[test]
 fn pairwise_shader_validates_and_matches_rust_structs() {
-    let (m, _) = module(pairwise::SOURCE);
+    // Every shape the back-end can pick, unrolled.
+    for shape in pairwise::KernelShape::all() {
+        let src = pairwise::kernel_source(shape);
+        assert!(
+            !src.lines().any(|l| l.trim_start().starts_with("//@")),
+            "every template line expanded"
+        );
+        module(&src);
+    }
+    let (m, _) = module(&pairwise::kernel_source(pairwise::KernelShape::HARDWARE));
     let (span, members) = layout(&m, "PairParams");
     assert_eq!(span as usize, size_of::<PairParams>());
     let rust = [
@@ -87,8 +110,7 @@ fn pairwise_shader_validates_and_matches_rust_structs() {
 #[test]
 fn shared_constants_agree() {
     let common = brdf_basis::gpu::COMMON_WGSL;
-    assert!(common.contains(&format!("const BLOCK: u32 = {}u;", pairwise::BLOCK)));
-    assert!(common.contains(&format!("const WG: u32 = {}u;", pairwise::WG)));
+    assert!(common.contains(&format!("const TEX_W: u32 = {}u;", pairwise::TEX_W)));
     assert!(common.contains(&format!(
         "const T_LOG2_COS_H: u32 = {}u;",
         brdf_basis::gpu::TABLE_LOG2_COS_H

@@ -1,6 +1,6 @@
 //! [`GpuBackend`]: the [`Backend`] trait on a wgpu device.
 
-use super::pairwise::{PairPlan, PairwiseKernel};
+use super::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits, RowLayout};
 use super::tabulate::TabulateKernel;
 use super::GpuContext;
 use crate::backend::{Backend, Lobe, LobeParams, PairOp, Progress};
@@ -27,7 +27,7 @@ impl GpuBackend {
     /// Uses a caller's context (device and queue), compiling the kernels on it.
     pub fn with_context(ctx: GpuContext) -> Result<Self, GpuError> {
         let tab = TabulateKernel::new(&ctx)?;
-        let pair = PairwiseKernel::new(&ctx)?;
+        let pair = PairwiseKernel::new();
         let pgd = super::pgd::PgdKernel::new(&ctx)?;
         Ok(Self {
             ctx,
@@ -42,9 +42,16 @@ impl GpuBackend {
         &self.ctx
     }
 
-    /// The pairwise plan this back-end would use for `n` materials over `cells` cells.
-    pub fn plan(&self, n: usize, cells: usize) -> Result<PairPlan, GpuError> {
-        PairPlan::new(n, cells, self.ctx.max_binding(), self.ctx.is_software())
+    /// The pairwise plan this back-end would use for `n` materials, `n_measured` of them
+    /// measured, over `cells` cells.
+    pub fn plan(&self, n: usize, n_measured: usize, cells: usize) -> Result<PairPlan, GpuError> {
+        let rows = RowLayout::rows_for(n - n_measured, n_measured);
+        PairPlan::new(
+            rows,
+            cells,
+            &PlanLimits::of(&self.ctx),
+            KernelShape::choose(rows, self.ctx.is_software()),
+        )
     }
 }
 
@@ -94,7 +101,11 @@ impl Backend for GpuBackend {
         op: PairOp,
         progress: Progress<'_>,
     ) -> Result<Vec<f64>, BackendError> {
-        let plan = self.plan(lobes.len(), cells.len())?;
+        let n_measured = lobes
+            .iter()
+            .filter(|l| matches!(l, Lobe::Measured { .. }))
+            .count();
+        let plan = self.plan(lobes.len(), n_measured, cells.len())?;
         Ok(self.pair.run(
             &self.ctx, &self.tab, lobes, cells, blocks, op, &plan, progress,
         )?)

@@ -135,6 +135,17 @@ impl GpuContext {
         source: &str,
         constants: &[(&str, f64)],
     ) -> Result<wgpu::ComputePipeline, GpuError> {
+        self.pipeline_entry(label, source, "main", constants)
+    }
+
+    /// [`Self::pipeline_with`] for the entry point `entry`.
+    pub fn pipeline_entry(
+        &self,
+        label: &str,
+        source: &str,
+        entry: &str,
+        constants: &[(&str, f64)],
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = self
             .device
@@ -148,7 +159,7 @@ impl GpuContext {
                 label: Some(label),
                 layout: None,
                 module: &module,
-                entry_point: Some("main"),
+                entry_point: Some(entry),
                 compilation_options: wgpu::PipelineCompilationOptions {
                     constants,
                     ..Default::default()
@@ -212,19 +223,82 @@ impl GpuContext {
             })
     }
 
+    /// A uniform buffer holding `data`.
+    pub fn uniform_slice<T: bytemuck::Pod>(&self, label: &str, data: &[T]) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::cast_slice(data),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+    }
+
+    /// An r32float (`channels` 1), rg32float (2) or rgba32float (4) texture of width
+    /// [`pairwise::TEX_W`] holding `data` linearly (texel `k` at `(k % TEX_W, k / TEX_W)`,
+    /// zero-padded to whole rows): a table the kernels fetch with vector gathers.
+    pub fn linear_texture(&self, label: &str, data: &[f32], channels: usize) -> wgpu::TextureView {
+        let w = pairwise::TEX_W;
+        let h = (data.len() / channels).div_ceil(w).max(1);
+        let mut padded = data.to_vec();
+        padded.resize(w * h * channels, 0.0);
+        let format = match channels {
+            1 => wgpu::TextureFormat::R32Float,
+            2 => wgpu::TextureFormat::Rg32Float,
+            4 => wgpu::TextureFormat::Rgba32Float,
+            _ => panic!("linear_texture: {channels} channels"),
+        };
+        let size = wgpu::Extent3d {
+            width: w as u32,
+            height: h as u32,
+            depth_or_array_layers: 1,
+        };
+        let tex = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        self.queue.write_texture(
+            tex.as_image_copy(),
+            bytemuck::cast_slice(&padded),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some((w * 4 * channels) as u32),
+                rows_per_image: None,
+            },
+            size,
+        );
+        tex.create_view(&wgpu::TextureViewDescriptor::default())
+    }
+
     /// A bind group over `buffers` bound at 0, 1, 2, ... of group 0 of `pipeline`.
     pub fn bind(
         &self,
         pipeline: &wgpu::ComputePipeline,
         buffers: &[&wgpu::Buffer],
     ) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
+        let entries: Vec<(u32, wgpu::BindingResource)> = buffers
             .iter()
             .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
+            .map(|(i, b)| (i as u32, b.as_entire_binding()))
+            .collect();
+        self.bind_at(pipeline, entries)
+    }
+
+    /// A bind group of group 0 of `pipeline` from `(binding, resource)` pairs.
+    pub fn bind_at(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        resources: Vec<(u32, wgpu::BindingResource<'_>)>,
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = resources
+            .into_iter()
+            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
             .collect();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,

@@ -27,8 +27,39 @@ pub struct TabParams {
     pub row_stride: u32,
 }
 
+/// Uniform parameters of the `pack` entry point; keep in sync with `PackParams` in
+/// `shaders/tabulate.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PackParams {
+    /// Cells in this chunk.
+    pub n_cells: u32,
+    /// Texels between consecutive row blocks of the packed texture (cells per chunk).
+    pub chunk: u32,
+    /// First row block of this dispatch.
+    pub first_block: u32,
+    /// Row blocks in this dispatch.
+    pub n_blocks: u32,
+}
+
 /// Lobes per invocation; keep in sync with `LPI` in the shader.
 pub const LPI: usize = 16;
+/// Row blocks (of 4 rows) per invocation of `pack`; keep in sync with `BPI` in the shader.
+pub const BPI: usize = 8;
+
+/// Row descriptors and beta tables uploaded for `pack`, in groups of row blocks that fit
+/// one binding and one dispatch dimension.
+#[derive(Debug)]
+pub struct PackRows {
+    groups: Vec<PackGroup>,
+}
+
+#[derive(Debug)]
+struct PackGroup {
+    first_block: u32,
+    n_blocks: u32,
+    betas: wgpu::TextureView,
+}
 /// f32 of one lobe's beta table.
 pub const NIJ: usize = 8100;
 
@@ -36,6 +67,7 @@ pub const NIJ: usize = 8100;
 #[derive(Debug)]
 pub struct TabulateKernel {
     pipeline: wgpu::ComputePipeline,
+    pack: wgpu::ComputePipeline,
     tables: wgpu::Buffer,
 }
 
@@ -56,13 +88,92 @@ impl TabulateKernel {
     /// Compiles the kernel and uploads the grid tables.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         let pipeline = ctx.pipeline("tabulate", SOURCE)?;
+        let pack = ctx.pipeline_entry("tabulate (pack)", SOURCE, "pack", &[])?;
         let t = super::grid_table_f32(&GridTables::new());
-        let tables = ctx.storage_init(
-            "grid tables",
-            bytemuck::cast_slice(&t),
-            wgpu::BufferUsages::empty(),
-        );
-        Ok(Self { pipeline, tables })
+        let tables = ctx.uniform_slice("grid tables", &t);
+        Ok(Self {
+            pipeline,
+            pack,
+            tables,
+        })
+    }
+
+    /// Uploads the analytic rows of a packed texture (`rows.len()` a multiple of 4; `None`:
+    /// a padding row of zeros).
+    pub fn prepare_packed(&self, ctx: &GpuContext, rows: &[Option<LobeParams>]) -> PackRows {
+        assert_eq!(rows.len() % 4, 0, "whole row blocks");
+        let t = GridTables::new();
+        use super::pairwise::TEX_W;
+        let tables = TEX_W * ctx.limits.max_texture_dimension_2d as usize / NIJ;
+        let by_texture = (tables / 4).max(1);
+        let by_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1) as usize * BPI;
+        let per = by_texture.min(by_dim);
+        let groups = rows
+            .chunks(4 * per)
+            .enumerate()
+            .map(|(g, blocks)| {
+                // (beta, alpha) texels, one table per row, zeros for padding rows.
+                let mut texels = vec![0f32; blocks.len() * NIJ * 2];
+                for (r, l) in blocks.iter().enumerate() {
+                    if let Some(l) = l {
+                        let (a, b) = separable_f32(&t, l);
+                        for (e, &beta) in b.iter().enumerate() {
+                            texels[2 * (r * NIJ + e)] = beta;
+                            texels[2 * (r * NIJ + e) + 1] = a;
+                        }
+                    }
+                }
+                PackGroup {
+                    first_block: (g * per) as u32,
+                    n_blocks: (blocks.len() / 4) as u32,
+                    betas: ctx.linear_texture("beta tables", &texels, 2),
+                }
+            })
+            .collect();
+        PackRows { groups }
+    }
+
+    /// Records the fill of the analytic row blocks of the packed texture `packed` for one
+    /// chunk of `n_cells` cells (`weights`: each cell's row scale; `chunk`: texels between
+    /// row blocks).
+    #[allow(clippy::too_many_arguments)]
+    pub fn record_pack(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        rows: &PackRows,
+        cells: &wgpu::Buffer,
+        weights: &wgpu::Buffer,
+        packed: &wgpu::TextureView,
+        n_cells: u32,
+        chunk: u32,
+    ) {
+        for g in &rows.groups {
+            let params = PackParams {
+                n_cells,
+                chunk,
+                first_block: g.first_block,
+                n_blocks: g.n_blocks,
+            };
+            let pbuf = ctx.uniform("pack params", &params);
+            let bind = ctx.bind_at(
+                &self.pack,
+                vec![
+                    (1, self.tables.as_entire_binding()),
+                    (4, cells.as_entire_binding()),
+                    (5, weights.as_entire_binding()),
+                    (8, pbuf.as_entire_binding()),
+                    (11, wgpu::BindingResource::TextureView(packed)),
+                    (12, wgpu::BindingResource::TextureView(&g.betas)),
+                ],
+            );
+            dispatch(
+                encoder,
+                &self.pack,
+                &bind,
+                (n_cells.div_ceil(WORKGROUP), g.n_blocks.div_ceil(BPI as u32)),
+            );
+        }
     }
 
     /// Uploads `lobes` (lobe `l` goes to output row `rows[l]`).
