@@ -6,8 +6,9 @@
 // Two entry points share the cell factor:
 // * `main` writes rows of a planar buffer (one invocation: one cell, LPI lobes);
 // * `pack` fills the analytic row blocks of the packed rgba32float texture the pairwise
-//   kernel reads (one invocation: one cell, BPI blocks of 4 rows; padding rows have alpha
-//   0 and an all-zero beta table). Measured rows are packed by the host.
+//   kernel reads (one invocation: one cell, BPI blocks of 4 rows, one texel fetch per
+//   block; padding rows have alpha 0 and an all-zero beta table). Measured rows are
+//   packed by the host.
 // Every loop runs at most LPI or BPI x 4 iterations, far below lavapipe's 65,535.
 
 // Keep in sync with `TabParams` in src/gpu/tabulate.rs.
@@ -41,11 +42,14 @@ const NIJ: u32 = 8100u;
 @group(0) @binding(7) var<storage, read> betas: array<f32>;
 @group(0) @binding(8) var<uniform> pp: PackParams;
 @group(0) @binding(11) var packed: texture_storage_2d<rgba32float, write>;
-// Row r of a group: texels r * NIJ + e of an rg32float texture of width TEX_W hold
-// (beta_r[e], alpha_r). Textures, not buffers: on lavapipe a texel fetch is vector code,
-// while a storage load, or a uniform load at an index it cannot prove uniform, is a
-// per-lane loop.
+// Row block b of a group (rows 4b .. 4b + 3): texel b * (NIJ + 1) + e of an rgba32float
+// texture of width TEX_W holds the four rows' beta[e], texel b * (NIJ + 1) + NIJ their
+// alphas. Textures, not buffers: on lavapipe a texel fetch is vector code, while a
+// storage load, or a uniform load at an index it cannot prove uniform, is a per-lane loop.
 @group(0) @binding(12) var beta_tex: texture_2d<f32>;
+
+// Whether any row has a non-zero alpha (diffuse term); without, no alpha fetch.
+override HAS_ALPHA: bool = true;
 
 fn table(t: u32) -> f32 {
     return tables[t / 4u][t % 4u];
@@ -88,10 +92,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-fn packed_value(r: u32, f: CellFactor) -> f32 {
-    let ba = textureLoad(beta_tex, texel_coord(r * NIJ + f.e), 0);
-    return ba.y * f.w + ba.x * f.g;
-}
 
 @compute @workgroup_size(64)
 fn pack(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
@@ -105,8 +105,11 @@ fn pack(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wi
         if (b >= pp.n_blocks) {
             break;
         }
-        let r = 4u * b;
-        let v = vec4<f32>(packed_value(r, f), packed_value(r + 1u, f), packed_value(r + 2u, f), packed_value(r + 3u, f));
+        let base = b * (NIJ + 1u);
+        var v = textureLoad(beta_tex, texel_coord(base + f.e), 0) * f.g;
+        if (HAS_ALPHA) {
+            v = fma(textureLoad(beta_tex, texel_coord(base + NIJ), 0), vec4<f32>(f.w), v);
+        }
         textureStore(packed, texel_coord((pp.first_block + b) * pp.chunk + c), v);
     }
 }

@@ -52,6 +52,7 @@ pub const BPI: usize = 8;
 #[derive(Debug)]
 pub struct PackRows {
     groups: Vec<PackGroup>,
+    alpha: bool,
 }
 
 #[derive(Debug)]
@@ -68,6 +69,7 @@ pub const NIJ: usize = 8100;
 pub struct TabulateKernel {
     pipeline: wgpu::ComputePipeline,
     pack: wgpu::ComputePipeline,
+    pack_specular: wgpu::ComputePipeline,
     tables: wgpu::Buffer,
 }
 
@@ -89,11 +91,18 @@ impl TabulateKernel {
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         let pipeline = ctx.pipeline("tabulate", SOURCE)?;
         let pack = ctx.pipeline_entry("tabulate (pack)", SOURCE, "pack", &[])?;
+        let pack_specular = ctx.pipeline_entry(
+            "tabulate (pack, no alpha)",
+            SOURCE,
+            "pack",
+            &[("HAS_ALPHA", 0.0)],
+        )?;
         let t = super::grid_table_f32(&GridTables::new());
         let tables = ctx.uniform_slice("grid tables", &t);
         Ok(Self {
             pipeline,
             pack,
+            pack_specular,
             tables,
         })
     }
@@ -104,33 +113,36 @@ impl TabulateKernel {
         assert_eq!(rows.len() % 4, 0, "whole row blocks");
         let t = GridTables::new();
         use super::pairwise::TEX_W;
-        let tables = TEX_W * ctx.limits.max_texture_dimension_2d as usize / NIJ;
-        let by_texture = (tables / 4).max(1);
+        let by_texture = (TEX_W * ctx.limits.max_texture_dimension_2d as usize / (NIJ + 1)).max(1);
         let by_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1) as usize * BPI;
         let per = by_texture.min(by_dim);
         let groups = rows
             .chunks(4 * per)
             .enumerate()
             .map(|(g, blocks)| {
-                // (beta, alpha) texels, one table per row, zeros for padding rows.
-                let mut texels = vec![0f32; blocks.len() * NIJ * 2];
+                // Per row block: NIJ texels of four betas, then one of four alphas; zeros
+                // for padding rows.
+                let mut texels = vec![0f32; blocks.len() / 4 * (NIJ + 1) * 4];
                 for (r, l) in blocks.iter().enumerate() {
                     if let Some(l) = l {
                         let (a, b) = separable_f32(&t, l);
+                        let (base, q) = (r / 4 * (NIJ + 1), r % 4);
                         for (e, &beta) in b.iter().enumerate() {
-                            texels[2 * (r * NIJ + e)] = beta;
-                            texels[2 * (r * NIJ + e) + 1] = a;
+                            texels[4 * (base + e) + q] = beta;
                         }
+                        texels[4 * (base + NIJ) + q] = a;
                     }
                 }
                 PackGroup {
                     first_block: (g * per) as u32,
                     n_blocks: (blocks.len() / 4) as u32,
-                    betas: ctx.linear_texture("beta tables", &texels, 2),
+                    betas: ctx.linear_texture("beta tables", &texels, 4),
                 }
             })
             .collect();
-        PackRows { groups }
+        // alpha = kd / pi (src/separable.rs).
+        let alpha = rows.iter().flatten().any(|l| l.kd != 0.0);
+        PackRows { groups, alpha }
     }
 
     /// Records the fill of the analytic row blocks of the packed texture `packed` for one
@@ -148,6 +160,11 @@ impl TabulateKernel {
         n_cells: u32,
         chunk: u32,
     ) {
+        let pipeline = if rows.alpha {
+            &self.pack
+        } else {
+            &self.pack_specular
+        };
         for g in &rows.groups {
             let params = PackParams {
                 n_cells,
@@ -157,7 +174,7 @@ impl TabulateKernel {
             };
             let pbuf = ctx.uniform("pack params", &params);
             let bind = ctx.bind_at(
-                &self.pack,
+                pipeline,
                 vec![
                     (1, self.tables.as_entire_binding()),
                     (4, cells.as_entire_binding()),
@@ -169,7 +186,7 @@ impl TabulateKernel {
             );
             dispatch(
                 encoder,
-                &self.pack,
+                pipeline,
                 &bind,
                 (n_cells.div_ceil(WORKGROUP), g.n_blocks.div_ceil(BPI as u32)),
             );
