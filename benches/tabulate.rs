@@ -1,5 +1,7 @@
 //! Tabulation of 100 materials (full RGB: 300 lobes) over the full grid (1,458,000 cells)
-//! on each back-end, printing cells/s (material-cells per second).
+//! on each back-end, printing cells/s (material-cells per second): into host memory
+//! (`Backend::tabulate`), and on the GPU into the packed texture the pairwise kernel reads
+//! (`pack`, never leaving the device).
 //!
 //! `cargo bench --bench tabulate`
 
@@ -47,4 +49,74 @@ fn main() {
     if results.len() == 2 {
         println!("tabulate: gpu / cpu ratio {:.2}", results[1] / results[0]);
     }
+    if let Ok(ctx) = brdf_basis::gpu::GpuContext::new() {
+        let params: Vec<LobeParams> = lobes
+            .iter()
+            .map(|l| match l {
+                Lobe::Analytic(p) => *p,
+                Lobe::Measured { .. } => unreachable!(),
+            })
+            .collect();
+        let rate = pack(&ctx, &params, &cells);
+        println!(
+            "tabulate gpu pack into the pairwise texture ({}): {:.1} M lobe-cells/s, {:.2} x the cpu",
+            ctx.info.name,
+            rate / 1e6,
+            rate / results[0]
+        );
+    }
+}
+
+/// Lobe-cells per second of the `pack` pass over `cells`, in chunks of 131,072 cells.
+fn pack(ctx: &brdf_basis::gpu::GpuContext, lobes: &[LobeParams], cells: &[u32]) -> f64 {
+    use brdf_basis::gpu::pairwise::TEX_W;
+    use brdf_basis::gpu::tabulate::TabulateKernel;
+    const CHUNK: usize = 1 << 17;
+    let tab = TabulateKernel::new(ctx).expect("kernel");
+    let rows: Vec<Option<LobeParams>> = lobes.iter().map(|&l| Some(l)).collect();
+    let prepared = tab.prepare_packed(ctx, &rows);
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("packed"),
+        size: wgpu::Extent3d {
+            width: TEX_W as u32,
+            height: (lobes.len().div_ceil(4) * CHUNK / TEX_W) as u32,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING,
+        view_formats: &[],
+    });
+    let view = texture.create_view(&Default::default());
+    let cbuf = ctx.storage("cells", (CHUNK * 4) as u64);
+    let weights = vec![1f32; CHUNK];
+    let wbuf = ctx.storage_init(
+        "weights",
+        bytemuck::cast_slice(&weights),
+        wgpu::BufferUsages::empty(),
+    );
+    let sync = ctx.storage("sync", 16);
+    let run = || {
+        for cc in cells.chunks(CHUNK) {
+            ctx.queue.write_buffer(&cbuf, 0, bytemuck::cast_slice(cc));
+            let mut enc = ctx.encoder();
+            tab.record_pack(
+                ctx,
+                &mut enc,
+                &prepared,
+                &cbuf,
+                &wbuf,
+                &view,
+                cc.len() as u32,
+                CHUNK as u32,
+            );
+            ctx.submit_and_read(enc, &sync, 4).expect("pack");
+        }
+    };
+    run();
+    let t = Instant::now();
+    run();
+    (lobes.len() * cells.len()) as f64 / t.elapsed().as_secs_f64()
 }

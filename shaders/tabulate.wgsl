@@ -1,23 +1,17 @@
-// Tabulation: value of lobe l at cell c of a list of grid cells, optionally multiplied by
-// the cell's weight. Lobes come in separable form (src/separable.rs): value =
-// alpha_l + G(c) beta_l[i][j], with beta tabulated in f64 on the host and rounded once
-// (no exp2 or pow on the GPU: (N.H)^n for n up to 1e5 is exact to f32 rounding).
+// Tabulation into the packed texture the pairwise kernel reads: texel b * chunk + c of an
+// rgba32float texture (width TEX_W, see texel_coord) holds rows 4b .. 4b + 3 at cell c.
+// Lobes come in separable form (src/separable.rs): value = w (alpha_l + G(c) beta_l[i][j])
+// with w the cell's row scale and beta tabulated in f64 on the host and rounded once (no
+// exp2 or pow on the GPU: (N.H)^n for n up to 1e5 is exact to f32 rounding).
 //
-// Two entry points share the cell factor:
-// * `main` writes rows of a planar buffer (one invocation: one cell, LPI lobes);
-// * `pack` fills the analytic row blocks of the packed rgba32float texture the pairwise
-//   kernel reads (one invocation: one cell, BPI blocks of 4 rows, one texel fetch per
-//   block; padding rows have alpha 0 and an all-zero beta table). Measured rows are
-//   packed by the host.
-// Every loop runs at most LPI or BPI x 4 iterations, far below lavapipe's 65,535.
-
-// Keep in sync with `TabParams` in src/gpu/tabulate.rs.
-struct TabParams {
-    n_cells: u32,
-    n_lobes: u32,
-    weighted: u32,
-    row_stride: u32,
-}
+// One invocation: one cell, BPI blocks of 4 rows, one texel fetch of four betas per block
+// (plus one of four alphas when a lobe has a diffuse term). Padding rows have alpha 0 and
+// an all-zero beta table; measured rows are packed by the host. Every loop runs at most
+// BPI iterations, far below lavapipe's 65,535.
+//
+// Tables live in textures and uniform buffers, not storage buffers: on lavapipe a texel
+// fetch is vector code, while a storage load, or a uniform load at an index it cannot
+// prove uniform, is a per-lane loop.
 
 // Keep in sync with `PackParams` in src/gpu/tabulate.rs.
 struct PackParams {
@@ -27,26 +21,17 @@ struct PackParams {
     n_blocks: u32,
 }
 
-const LPI: u32 = 16u;
 const BPI: u32 = 8u;
 const NIJ: u32 = 8100u;
 
-@group(0) @binding(0) var<uniform> p: TabParams;
-// A uniform buffer (lavapipe gathers divergent uniform loads with vector code).
+@group(0) @binding(0) var<uniform> pp: PackParams;
 @group(0) @binding(1) var<uniform> tables: array<vec4<f32>, 180>;
-@group(0) @binding(2) var<storage, read> alphas: array<f32>;
-@group(0) @binding(3) var<storage, read> rows: array<u32>;
-@group(0) @binding(4) var<storage, read> cells: array<u32>;
-@group(0) @binding(5) var<storage, read> weights: array<f32>;
-@group(0) @binding(6) var<storage, read_write> out: array<f32>;
-@group(0) @binding(7) var<storage, read> betas: array<f32>;
-@group(0) @binding(8) var<uniform> pp: PackParams;
-@group(0) @binding(11) var packed: texture_storage_2d<rgba32float, write>;
-// Row block b of a group (rows 4b .. 4b + 3): texel b * (NIJ + 1) + e of an rgba32float
-// texture of width TEX_W holds the four rows' beta[e], texel b * (NIJ + 1) + NIJ their
-// alphas. Textures, not buffers: on lavapipe a texel fetch is vector code, while a
-// storage load, or a uniform load at an index it cannot prove uniform, is a per-lane loop.
-@group(0) @binding(12) var beta_tex: texture_2d<f32>;
+@group(0) @binding(2) var<storage, read> cells: array<u32>;
+@group(0) @binding(3) var<storage, read> weights: array<f32>;
+@group(0) @binding(4) var packed: texture_storage_2d<rgba32float, write>;
+// Row block b of a group: texel b * (NIJ + 1) + e (width TEX_W) holds the four rows'
+// beta[e], texel b * (NIJ + 1) + NIJ their alphas.
+@group(0) @binding(5) var beta_tex: texture_2d<f32>;
 
 // Whether any row has a non-zero alpha (diffuse term); without, no alpha fetch.
 override HAS_ALPHA: bool = true;
@@ -72,29 +57,7 @@ fn cell_factor(cell: u32, w: f32) -> CellFactor {
 }
 
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let c = gid.x;
-    if (c >= p.n_cells) {
-        return;
-    }
-    var w = 1.0;
-    if (p.weighted != 0u) {
-        w = weights[c];
-    }
-    let f = cell_factor(cells[c], w);
-    let l0 = gid.y * LPI;
-    for (var t = 0u; t < LPI; t = t + 1u) {
-        let l = l0 + t;
-        if (l >= p.n_lobes) {
-            break;
-        }
-        out[rows[l] * p.row_stride + c] = alphas[l] * f.w + betas[l * NIJ + f.e] * f.g;
-    }
-}
-
-
-@compute @workgroup_size(64)
-fn pack(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let c = gid.x;
     if (c >= pp.n_cells) {
         return;

@@ -67,6 +67,9 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     /// The limits the device was opened with.
     pub limits: wgpu::Limits,
+    /// The readback buffer, reused while large enough (fresh mappable memory costs page
+    /// faults on every call).
+    staging: Arc<std::sync::Mutex<Option<wgpu::Buffer>>>,
 }
 
 impl GpuContext {
@@ -93,6 +96,7 @@ impl GpuContext {
             queue: Arc::new(queue),
             info,
             limits,
+            staging: Default::default(),
         })
     }
 
@@ -109,6 +113,7 @@ impl GpuContext {
             queue,
             info,
             limits,
+            staging: Default::default(),
         }
     }
 
@@ -316,12 +321,20 @@ impl GpuContext {
         size: u64,
     ) -> Result<Vec<u8>, GpuError> {
         let size = size.next_multiple_of(4).max(4);
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let mut slot = self.staging.lock().unwrap_or_else(|e| e.into_inner());
+        let staging = match slot.as_ref() {
+            Some(b) if b.size() >= size => b.clone(),
+            _ => {
+                let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("readback"),
+                    size,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                *slot = Some(b.clone());
+                b
+            }
+        };
         encoder.copy_buffer_to_buffer(src, 0, &staging, 0, size);
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.queue.submit(Some(encoder.finish()));
@@ -331,22 +344,32 @@ impl GpuContext {
                 message: e.to_string(),
             });
         }
-        let (tx, rx) = std::sync::mpsc::channel();
-        staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Map(e.to_string()))?;
-        rx.recv()
-            .map_err(|e| GpuError::Map(e.to_string()))?
-            .map_err(|e| GpuError::Map(e.to_string()))?;
-        let bytes = {
+        let read = || -> Result<Vec<u8>, GpuError> {
+            let (tx, rx) = std::sync::mpsc::channel();
+            staging
+                .slice(..size)
+                .map_async(wgpu::MapMode::Read, move |r| {
+                    let _ = tx.send(r);
+                });
+            self.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| GpuError::Map(e.to_string()))?;
+            rx.recv()
+                .map_err(|e| GpuError::Map(e.to_string()))?
+                .map_err(|e| GpuError::Map(e.to_string()))?;
             let view = staging
-                .slice(..)
+                .slice(..size)
                 .get_mapped_range()
                 .map_err(|e| GpuError::Map(e.to_string()))?;
-            view.to_vec()
+            Ok(view.to_vec())
+        };
+        let bytes = match read() {
+            Ok(b) => b,
+            Err(e) => {
+                // Never reuse a buffer left in an unknown mapping state.
+                *slot = None;
+                return Err(e);
+            }
         };
         staging.unmap();
         Ok(bytes)

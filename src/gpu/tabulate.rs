@@ -1,6 +1,7 @@
 //! Tabulation kernel (`shaders/tabulate.wgsl`): analytic lobes in separable form over a
-//! list of grid cells, optionally multiplied by cell weights, written as rows of an output
-//! buffer.
+//! list of grid cells, multiplied by per-cell row scales, packed four rows to a texel of
+//! the rgba32float texture the pairwise kernel reads ([`TabulateKernel::record_pack`]);
+//! [`TabulateKernel::tabulate`] reads such a texture back into planar rows.
 
 use super::{dispatch, GpuContext};
 use crate::backend::LobeParams;
@@ -13,21 +14,7 @@ pub const SOURCE: &str = include_str!("../../shaders/tabulate.wgsl");
 /// Workgroup size (cells per workgroup).
 pub const WORKGROUP: u32 = 64;
 
-/// Uniform parameters; keep in sync with `TabParams` in `shaders/tabulate.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct TabParams {
-    /// Cells in this dispatch.
-    pub n_cells: u32,
-    /// Lobes in this dispatch.
-    pub n_lobes: u32,
-    /// 1: multiply by `weights[c]`.
-    pub weighted: u32,
-    /// Distance in f32 between output rows.
-    pub row_stride: u32,
-}
-
-/// Uniform parameters of the `pack` entry point; keep in sync with `PackParams` in
+/// Uniform parameters of the kernel; keep in sync with `PackParams` in
 /// `shaders/tabulate.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -42,8 +29,6 @@ pub struct PackParams {
     pub n_blocks: u32,
 }
 
-/// Lobes per invocation; keep in sync with `LPI` in the shader.
-pub const LPI: usize = 16;
 /// Row blocks (of 4 rows) per invocation of `pack`; keep in sync with `BPI` in the shader.
 pub const BPI: usize = 8;
 
@@ -67,17 +52,9 @@ pub const NIJ: usize = 8100;
 /// The compiled kernel and its grid tables.
 #[derive(Debug)]
 pub struct TabulateKernel {
-    pipeline: wgpu::ComputePipeline,
     pack: wgpu::ComputePipeline,
     pack_specular: wgpu::ComputePipeline,
     tables: wgpu::Buffer,
-}
-
-/// Lobes uploaded once in separable form (alpha, beta tables, output rows), in groups that
-/// fit one binding and one dispatch dimension.
-#[derive(Debug)]
-pub struct TabLobes {
-    groups: Vec<(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, u32)>,
 }
 
 /// The f32 alpha and beta of a lobe, as uploaded (beta: f64 rounded once).
@@ -89,18 +66,12 @@ pub fn separable_f32(t: &GridTables, l: &LobeParams) -> (f32, Vec<f32>) {
 impl TabulateKernel {
     /// Compiles the kernel and uploads the grid tables.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let pipeline = ctx.pipeline("tabulate", SOURCE)?;
-        let pack = ctx.pipeline_entry("tabulate (pack)", SOURCE, "pack", &[])?;
-        let pack_specular = ctx.pipeline_entry(
-            "tabulate (pack, no alpha)",
-            SOURCE,
-            "pack",
-            &[("HAS_ALPHA", 0.0)],
-        )?;
+        let pack = ctx.pipeline("tabulate", SOURCE)?;
+        let pack_specular =
+            ctx.pipeline_with("tabulate (no alpha)", SOURCE, &[("HAS_ALPHA", 0.0)])?;
         let t = super::grid_table_f32(&GridTables::new());
         let tables = ctx.uniform_slice("grid tables", &t);
         Ok(Self {
-            pipeline,
             pack,
             pack_specular,
             tables,
@@ -176,12 +147,12 @@ impl TabulateKernel {
             let bind = ctx.bind_at(
                 pipeline,
                 vec![
+                    (0, pbuf.as_entire_binding()),
                     (1, self.tables.as_entire_binding()),
-                    (4, cells.as_entire_binding()),
-                    (5, weights.as_entire_binding()),
-                    (8, pbuf.as_entire_binding()),
-                    (11, wgpu::BindingResource::TextureView(packed)),
-                    (12, wgpu::BindingResource::TextureView(&g.betas)),
+                    (2, cells.as_entire_binding()),
+                    (3, weights.as_entire_binding()),
+                    (4, wgpu::BindingResource::TextureView(packed)),
+                    (5, wgpu::BindingResource::TextureView(&g.betas)),
                 ],
             );
             dispatch(
@@ -193,147 +164,96 @@ impl TabulateKernel {
         }
     }
 
-    /// Uploads `lobes` (lobe `l` goes to output row `rows[l]`).
-    pub fn prepare(&self, ctx: &GpuContext, lobes: &[LobeParams], rows: &[u32]) -> TabLobes {
-        assert_eq!(lobes.len(), rows.len());
-        let t = GridTables::new();
-        let by_binding = (ctx.max_binding() as usize / (NIJ * 4)).max(1);
-        let by_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1) as usize * LPI;
-        let per = by_binding.min(by_dim);
-        let groups = lobes
-            .chunks(per)
-            .zip(rows.chunks(per))
-            .map(|(lb, rb)| {
-                let mut alphas = Vec::with_capacity(lb.len());
-                let mut betas = Vec::with_capacity(lb.len() * NIJ);
-                for l in lb {
-                    let (a, b) = separable_f32(&t, l);
-                    alphas.push(a);
-                    betas.extend(b);
-                }
-                (
-                    ctx.storage_init(
-                        "alphas",
-                        bytemuck::cast_slice(&alphas),
-                        wgpu::BufferUsages::empty(),
-                    ),
-                    ctx.storage_init(
-                        "rows",
-                        bytemuck::cast_slice(rb),
-                        wgpu::BufferUsages::empty(),
-                    ),
-                    ctx.storage_init(
-                        "betas",
-                        bytemuck::cast_slice(&betas),
-                        wgpu::BufferUsages::empty(),
-                    ),
-                    lb.len() as u32,
-                )
-            })
-            .collect();
-        TabLobes { groups }
-    }
-
-    /// Records the tabulation of the prepared lobes over the `n_cells` cells of `cells`,
-    /// into `out[row * row_stride + c]`, times `weights[c]` if given.
-    #[allow(clippy::too_many_arguments)]
-    pub fn record(
-        &self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        lobes: &TabLobes,
-        cells: &wgpu::Buffer,
-        weights: Option<&wgpu::Buffer>,
-        out: &wgpu::Buffer,
-        n_cells: u32,
-        row_stride: u32,
-    ) {
-        for (alphas, rows, betas, count) in &lobes.groups {
-            let params = TabParams {
-                n_cells,
-                n_lobes: *count,
-                weighted: u32::from(weights.is_some()),
-                row_stride,
-            };
-            let pbuf = ctx.uniform("tabulate params", &params);
-            let wbuf = weights.unwrap_or(cells);
-            let bind = ctx.bind(
-                &self.pipeline,
-                &[&pbuf, &self.tables, alphas, rows, cells, wbuf, out, betas],
-            );
-            dispatch(
-                encoder,
-                &self.pipeline,
-                &bind,
-                (n_cells.div_ceil(WORKGROUP), count.div_ceil(LPI as u32)),
-            );
-        }
-    }
-
-    /// Tabulates `lobes` over `cells` and reads the values back (`out[l * cells.len() + c]`),
-    /// in chunks of cells that fit the device's storage-binding limit.
+    /// Tabulates `lobes` over `cells` and reads the values back (`out[l * cells.len() + c]`):
+    /// packed on the GPU in chunks of cells, copied out and unpacked on the host.
     pub fn tabulate(
         &self,
         ctx: &GpuContext,
         lobes: &[LobeParams],
         cells: &[u32],
     ) -> Result<Vec<f32>, GpuError> {
+        use super::pairwise::TEX_W;
         let n = cells.len();
         let mut out = vec![0f32; lobes.len() * n];
         if n == 0 || lobes.is_empty() {
             return Ok(out);
         }
-        let max_dim = ctx.limits.max_compute_workgroups_per_dimension as usize * WORKGROUP as usize;
-        let per_lobe = (ctx.max_binding() / 4) as usize;
-        let lobes_per_pass = lobes.len().min(per_lobe / 1024).max(1);
-        for (lb_idx, lb) in lobes.chunks(lobes_per_pass).enumerate() {
-            let chunk = (per_lobe / lb.len()).min(max_dim).min(n).max(1);
-            let rows: Vec<u32> = (0..lb.len() as u32).collect();
-            let prepared = self.prepare(ctx, lb, &rows);
-            for start in (0..n).step_by(chunk) {
-                let cc = &cells[start..(start + chunk).min(n)];
-                let cbuf = ctx.storage_init(
-                    "cells",
-                    bytemuck::cast_slice(cc),
-                    wgpu::BufferUsages::empty(),
-                );
-                let bytes = (lb.len() * cc.len() * 4) as u64;
-                let obuf = ctx.storage("tabulated", bytes);
+        // Batches of lobes and chunks of cells whose texture fits a small budget (the
+        // texture and readback buffers are reused chunk after chunk: fresh memory costs
+        // more in page faults than the kernel) and the largest texture side.
+        const BUDGET: usize = 16 << 20;
+        let max_dim = ctx.limits.max_texture_dimension_2d as usize;
+        let max_blocks = (BUDGET / (16 * TEX_W)).min(max_dim).max(1);
+        for (batch, lb) in lobes.chunks(4 * max_blocks).enumerate() {
+            let mut rows: Vec<Option<LobeParams>> = lb.iter().map(|&l| Some(l)).collect();
+            rows.resize(lb.len().div_ceil(4) * 4, None);
+            let blocks = rows.len() / 4;
+            let prepared = self.prepare_packed(ctx, &rows);
+            let chunk = ((BUDGET / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
+                .clamp(TEX_W, n.next_multiple_of(TEX_W));
+            let size = wgpu::Extent3d {
+                width: TEX_W as u32,
+                height: (blocks * chunk / TEX_W) as u32,
+                depth_or_array_layers: 1,
+            };
+            let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("tabulated (packed)"),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Float,
+                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+            let bytes = (blocks * chunk * 16) as u64;
+            let readback = ctx.storage("tabulated", bytes);
+            let cbuf = ctx.storage("cells", (chunk * 4) as u64);
+            let ones = vec![1f32; chunk];
+            let wbuf = ctx.storage_init(
+                "unit weights",
+                bytemuck::cast_slice(&ones),
+                wgpu::BufferUsages::empty(),
+            );
+            for (k, cc) in cells.chunks(chunk).enumerate() {
+                ctx.queue.write_buffer(&cbuf, 0, bytemuck::cast_slice(cc));
                 let mut enc = ctx.encoder();
-                self.record(
+                self.record_pack(
                     ctx,
                     &mut enc,
                     &prepared,
                     &cbuf,
-                    None,
-                    &obuf,
+                    &wbuf,
+                    &view,
                     cc.len() as u32,
-                    cc.len() as u32,
+                    chunk as u32,
                 );
-                let data = ctx.submit_and_read(enc, &obuf, bytes)?;
-                let vals: &[f32] = bytemuck::cast_slice(&data[..bytes as usize]);
-                for (r, row) in vals.chunks(cc.len()).enumerate() {
-                    let l = lb_idx * lobes_per_pass + r;
-                    out[l * n + start..l * n + start + cc.len()].copy_from_slice(row);
+                enc.copy_texture_to_buffer(
+                    texture.as_image_copy(),
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: &readback,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some((TEX_W * 16) as u32),
+                            rows_per_image: None,
+                        },
+                    },
+                    size,
+                );
+                let data = ctx.submit_and_read(enc, &readback, bytes)?;
+                let texels: &[[f32; 4]] = bytemuck::cast_slice(&data[..bytes as usize]);
+                let start = k * chunk;
+                for (r, _) in lb.iter().enumerate() {
+                    let (b, q) = (r / 4, r % 4);
+                    let l = batch * 4 * max_blocks + r;
+                    let row = &mut out[l * n + start..l * n + start + cc.len()];
+                    for (o, t) in row.iter_mut().zip(&texels[b * chunk..]) {
+                        *o = t[q];
+                    }
                 }
             }
         }
         Ok(out)
     }
-}
-
-/// CPU twin of the shader: the same f32 operations on the same f32 tables (used by tests
-/// to separate kernel bugs from rounding).
-pub fn lobe_value_twin(table: &[f32], alpha: f32, beta: &[f32], cell: u32, w: f32) -> f32 {
-    use super::*;
-    let (i, j, k) = (
-        (cell / 16200) as usize,
-        ((cell / 180) % 90) as usize,
-        (cell % 180) as usize,
-    );
-    let cos_d = table[TABLE_COS_D + j];
-    let max_cos = table[TABLE_COS_H + i] * cos_d
-        + table[TABLE_SIN_H + i] * table[TABLE_SIN_D + j] * table[TABLE_ABS_COS_P + k];
-    let gw = w / (cos_d * max_cos);
-    alpha * w + beta[i * 90 + j] * gw
 }
