@@ -75,20 +75,8 @@ fn pack(ctx: &brdf_basis::gpu::GpuContext, lobes: &[LobeParams], cells: &[u32]) 
     let tab = TabulateKernel::new(ctx).expect("kernel");
     let rows: Vec<Option<LobeParams>> = lobes.iter().map(|&l| Some(l)).collect();
     let prepared = tab.prepare_packed(ctx, &rows);
-    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("packed"),
-        size: wgpu::Extent3d {
-            width: TEX_W as u32,
-            height: (lobes.len().div_ceil(4) * CHUNK / TEX_W) as u32,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::STORAGE_BINDING,
-        view_formats: &[],
-    });
+    let height = (lobes.len().div_ceil(4) * CHUNK / TEX_W) as u32;
+    let texture = ctx.packed_texture("packed", height, wgpu::TextureUsages::empty());
     let view = texture.create_view(&Default::default());
     let cbuf = ctx.storage("cells", (CHUNK * 4) as u64);
     let weights = vec![1f32; CHUNK];

@@ -281,6 +281,30 @@ impl GpuContext {
         tex.create_view(&wgpu::TextureViewDescriptor::default())
     }
 
+    /// An rgba32float texture of width [`pairwise::TEX_W`] and `height` rows that kernels
+    /// write as storage and read (or copy) as `usage` says.
+    pub fn packed_texture(
+        &self,
+        label: &str,
+        height: u32,
+        usage: wgpu::TextureUsages,
+    ) -> wgpu::Texture {
+        self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: pairwise::TEX_W as u32,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING | usage,
+            view_formats: &[],
+        })
+    }
+
     /// A bind group over `buffers` bound at 0, 1, 2, ... of group 0 of `pipeline`.
     pub fn bind(
         &self,

@@ -394,22 +394,11 @@ impl PairwiseKernel {
                 return t.clone();
             }
         }
-        let t = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("packed values"),
-            size: wgpu::Extent3d {
-                width: TEX_W as u32,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
+        let t = ctx.packed_texture(
+            "packed values",
+            height,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
         *slot = Some((height, t.clone()));
         t
     }

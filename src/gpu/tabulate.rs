@@ -196,16 +196,11 @@ impl TabulateKernel {
                 height: (blocks * chunk / TEX_W) as u32,
                 depth_or_array_layers: 1,
             };
-            let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("tabulated (packed)"),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+            let texture = ctx.packed_texture(
+                "tabulated (packed)",
+                size.height,
+                wgpu::TextureUsages::COPY_SRC,
+            );
             let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
             let bytes = (blocks * chunk * 16) as u64;
             let readback = ctx.storage("tabulated", bytes);
