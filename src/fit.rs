@@ -199,8 +199,12 @@ pub fn gram_full(
     Ok(backend.gram(lobes, cells, basis, progress)?)
 }
 
+/// `(G, hs, bbs)`: see [`channel_gram`].
+pub type ChannelGram = (Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// Gram quantities of one channel: returns `(G, hs, bbs)` with `G` the `(k+1)^2` Gram of
 /// the Lambertian and basis columns, `hs[t]` and `bbs[t]` per target.
+#[allow(clippy::too_many_arguments)]
 pub fn channel_gram(
     backend: &dyn Backend,
     coll: &Collection,
@@ -210,7 +214,7 @@ pub fn channel_gram(
     c: usize,
     mode: GramMode,
     progress: Progress<'_>,
-) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), FitError> {
+) -> Result<ChannelGram, FitError> {
     let m = basis.len() + 1;
     let mut lobes = vec![LAMBERTIAN];
     lobes.extend(

@@ -15,6 +15,9 @@
 //! println!("{} x {}", d.names().len(), d.names().len());
 //! ```
 #![warn(missing_docs)]
+// Errors carry the file, line, column and material they name; they are cold paths, so
+// their size is not worth boxing.
+#![allow(clippy::result_large_err)]
 
 pub mod backend;
 pub mod brdf;

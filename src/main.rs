@@ -1,5 +1,8 @@
 //! The `brdf-basis` command line: parse, run, print the error chain once, exit code.
 
+// Errors carry the file, line and material they name (cold paths).
+#![allow(clippy::result_large_err)]
+
 mod cli;
 
 use clap::Parser;

@@ -157,8 +157,8 @@ fn pairwise_kernel_matches_cpu_at_full_run_length() {
 fn no_kernel_invocation_approaches_the_loop_limit() {
     // The largest loop of any invocation, for the largest inputs the planner accepts.
     const LAVAPIPE_LOOP_LIMIT: u32 = 65_535;
-    assert!(MAX_RUN_ITERS < LAVAPIPE_LOOP_LIMIT / 16);
-    assert!(brdf_basis::gpu::tabulate::BPI * 4 < LAVAPIPE_LOOP_LIMIT as usize);
+    const { assert!(MAX_RUN_ITERS < LAVAPIPE_LOOP_LIMIT / 16) };
+    const { assert!(brdf_basis::gpu::tabulate::BPI * 4 < LAVAPIPE_LOOP_LIMIT as usize) };
     let limits = PlanLimits {
         max_binding: 128 << 20,
         max_texture_dim: 16_384,

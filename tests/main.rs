@@ -3,6 +3,8 @@
 //! GPU tests run on any wgpu adapter (lavapipe in CI), print `SKIP (no adapter)` when
 //! there is none, and fail when `BRDF_BASIS_REQUIRE_GPU=1` is set and no adapter is found.
 
+#![allow(clippy::result_large_err)]
+
 mod common;
 
 mod cli;

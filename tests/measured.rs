@@ -284,10 +284,10 @@ fn analytic_basis_reproduces_its_own_members_measured() {
     let names = ["gold-metallic-paint", "blue-acrylic", "steel"];
     let d = tmp();
     let dir = synthetic(d.path(), &names, 0.0, None);
-    let mut paths = vec![shared("ngan2005_ashikhmin_shirley.csv")];
+    let paths = vec![shared("ngan2005_ashikhmin_shirley.csv")];
     // Measured copies are renamed by their directory stem: load them one by one.
     let measured = Collection::load(&dir).expect("measured");
-    let mut coll = Collection::load_many(&paths.drain(..).collect::<Vec<_>>()).expect("ngan");
+    let mut coll = Collection::load_many(&paths).expect("ngan");
     for m in measured.materials() {
         let mut m = m.clone();
         m.name = format!("measured-{}", m.name);

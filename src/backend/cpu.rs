@@ -46,11 +46,11 @@ impl Factors {
         let (f0, n) = (l.f0 as f64, l.n as f64);
         let mut p = [0.0; N_TH];
         let mut f = [0.0; N_TD];
-        for i in 0..N_TH {
-            p[i] = (n * t.ln_cos_h[i]).exp();
+        for (p, &ln) in p.iter_mut().zip(&t.ln_cos_h) {
+            *p = (n * ln).exp();
         }
-        for j in 0..N_TD {
-            f[j] = f0 + (1.0 - f0) * t.schlick_d[j];
+        for (f, &s) in f.iter_mut().zip(&t.schlick_d) {
+            *f = f0 + (1.0 - f0) * s;
         }
         let coef = l.ks as f64 * (n + 1.0) / (8.0 * std::f64::consts::PI);
         Self {

@@ -1,10 +1,14 @@
 //! `brdf-basis reproduce`: the paper's section VI end to end.
 //!
-//! 1. distances (BRDF_it and Euclidean); 2. empirical selection (Algorithm 1);
+//! 1. distances (BRDF_it and Euclidean);
+//! 2. empirical selection (Algorithm 1);
 //! 3. k-medoids (k in [k_min, k_max], R runs each) and GCUK (R runs), both metrics, judged
-//! by the Davies-Bouldin index; 4. Friedman + Nemenyi over methods, Wilcoxon and
-//! Mann-Whitney between GCUK with Euclidean and with BRDF_it; 5. bases; 6. NNLS fits of
-//! the materials in no basis, MAE on reflectance; 7. renders and normalised image errors;
+//!    by the Davies-Bouldin index;
+//! 4. Friedman + Nemenyi over methods, Wilcoxon and Mann-Whitney between GCUK with
+//!    Euclidean and with BRDF_it;
+//! 5. bases;
+//! 6. NNLS fits of the materials in no basis, MAE on reflectance;
+//! 7. renders and normalised image errors;
 //! 8. `report.md`.
 
 use super::select::{best, gcuk_runs, kmedoids_runs};

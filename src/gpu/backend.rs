@@ -117,8 +117,8 @@ impl Backend for GpuBackend {
         params: &PgdParams,
     ) -> Result<Vec<NnlsSolution>, BackendError> {
         if batch.m() > crate::nnls::pgd::PGD_KERNEL_COLUMNS {
-            return Ok(crate::nnls::pgd::solve_batch(batch, params)
-                .map_err(|e| BackendError::Invalid(e.to_string()))?);
+            return crate::nnls::pgd::solve_batch(batch, params)
+                .map_err(|e| BackendError::Invalid(e.to_string()));
         }
         Ok(self.pgd.solve_batch(&self.ctx, batch, params)?)
     }
