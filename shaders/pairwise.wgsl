@@ -1,20 +1,27 @@
-// Pairwise reductions over grid cells. OP = 0: weighted L1 (rows pre-multiplied by the
-// cell weights, so w |a - b| = |w a - w b|); OP = 1: weighted dot products for Gram
-// matrices (rows pre-multiplied by sqrt(w)).
+// Pairwise reductions over grid cells. OP = 0: weighted L1 (rows scaled by the cell
+// weights, so w |a - b| = |w a - w b|); OP = 1: weighted dot products for Gram matrices
+// (rows scaled by sqrt(w)).
 //
-// The lobe values come packed four rows to a texel of an rgba32float texture (filled by
-// `pack` in tabulate.wgsl): one texel fetch gives four rows at one cell. One workgroup of
-// LANES lanes owns one register block of (4 R) x (4 R) lobe pairs (from a caller-given
-// list of block pairs) and one run of LANES x run_iters cells: lane l takes cells l,
-// l + LANES, ..., fetches 2 R texels per cell, keeps 4 R x R vec4 accumulators in
-// registers and writes them out; the host sums lanes and runs in f64.
+// Rows come four to a texel ("row block") of an rgba32float texture `vals` (width TEX_W,
+// see texel_coord). An analytic row block is tabulated in registers, cell by cell, from
+// its separable form (src/separable.rs): texel b * (NIJ + 1) + e holds the four rows'
+// beta[e] and texel b * (NIJ + 1) + NIJ their alphas, so the rows at a cell are
+// beta[e] g + alpha w, with (e, g, w) read from the `cell_info` texel of the cell (g =
+// w / (cos theta_d max(N.wi, N.wo)), computed in f64 by the host). A measured row block
+// holds its rows' scaled values per cell of the chunk (packed by the host). Padding
+// blocks read an all-zero table.
+//
+// One workgroup of LANES lanes owns one register block of (4 R) x (4 R) lobe pairs (from
+// a caller-given list of block pairs) and one run of LANES x run_iters cells: lane l takes
+// cells l, l + LANES, ..., fetches 1 + 2 R texels per cell, keeps 4 R x R vec4
+// accumulators in registers and writes them out; the host sums lanes and runs in f64.
 //
 // Why textures: lavapipe compiles each storage-buffer load into a per-lane scalar loop
-// with bounds checks, but a texel fetch into one vector gather, and a 4-channel texel
-// gives 4 rows per fetch. No workgroup memory and no barrier (on lavapipe a barrier turns
-// the shader into coroutines). The body is unrolled by the host (src/gpu/pairwise.rs,
-// `kernel_source`), which prepends `const R` and `const LANES` and expands the `//@`
-// lines; every loop is bounded by run_iters <= MAX_RUN_ITERS, far below lavapipe's
+// with bounds checks, but a texel fetch into vector code, and one rgba texel gives four
+// rows. No workgroup memory and no barrier (on lavapipe a barrier turns the shader into
+// coroutines). The body is unrolled by the host (src/gpu/pairwise.rs, `kernel_source`),
+// which prepends `const R` and `const LANES` and expands the lines that start with a
+// marker; every loop is bounded by run_iters <= MAX_RUN_ITERS, far below lavapipe's
 // 65,535-iteration limit.
 
 // Keep in sync with `PairParams` in src/gpu/pairwise.rs.
@@ -25,19 +32,48 @@ struct PairParams {
     n_runs: u32,
     block_offset: u32,
     n_blocks: u32,
+    analytic_blocks: u32,
+    measured_blocks: u32,
+    measured_base: u32,
+    zero_base: u32,
     _pad0: u32,
     _pad1: u32,
 }
+
+const NIJ: u32 = 8100u;
 
 @group(0) @binding(0) var<uniform> p: PairParams;
 @group(0) @binding(1) var vals: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read> blocks: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read_write> partial: array<f32>;
+@group(0) @binding(4) var cell_info: texture_2d<f32>;
 
 override OP: u32 = 0u;
 
-fn fetch(block: u32, c: u32) -> vec4<f32> {
-    return textureLoad(vals, texel_coord(block * p.row_stride + c), 0);
+// Where a row block's values come from: texel of its table (per_cell = 0, indexed by e)
+// or of its cell 0 (per_cell = 1, indexed by c); alphas of its rows.
+struct Source {
+    base: u32,
+    per_cell: u32,
+    alpha: vec4<f32>,
+}
+
+fn source(b: u32) -> Source {
+    if (b < p.analytic_blocks) {
+        let base = b * (NIJ + 1u);
+        return Source(base, 0u, textureLoad(vals, texel_coord(base + NIJ), 0));
+    }
+    if (b - p.analytic_blocks < p.measured_blocks) {
+        return Source(p.measured_base + (b - p.analytic_blocks) * p.row_stride, 1u, vec4<f32>(0.0));
+    }
+    return Source(p.zero_base, 0u, vec4<f32>(0.0));
+}
+
+// The four rows of a block at cell c, whose cell info is (e, g, w).
+fn rows(s: Source, c: u32, e: u32, g: f32, w: f32) -> vec4<f32> {
+    let m = s.per_cell != 0u;
+    let t = textureLoad(vals, texel_coord(s.base + select(e, c, m)), 0);
+    return fma(t, vec4<f32>(select(g, 1.0, m)), s.alpha * w);
 }
 
 // One row's value `a` against four column values `b`.
@@ -56,12 +92,15 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
     let ra = blk.x * R;
     let rb = blk.y * R;
     let start = run * p.run_iters * LANES + lid.x;
+    //@SOURCES
     //@DECLARE
     for (var t = 0u; t < p.run_iters; t = t + 1u) {
         let c = start + t * LANES;
         if (c >= p.n_cells) {
             break;
         }
+        let info = textureLoad(cell_info, texel_coord(c), 0);
+        let e = u32(info.x);
         //@FETCH
         //@ACCUMULATE
     }

@@ -167,17 +167,20 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
     for rows in [2, 13, 100, 1000, 5000] {
         for software in [true, false] {
             let shape = KernelShape::choose(rows, software);
-            let plan = PairPlan::new(rows, 1_096_216, &limits, shape).expect("plan");
+            let plan = PairPlan::new(rows, 0, 1_096_216, &limits, shape).expect("plan");
             assert!(plan.run_iters <= MAX_RUN_ITERS && (shape.lanes as u32) < LAVAPIPE_LOOP_LIMIT);
             assert!(plan.n_pad >= rows && plan.n_pad % shape.side() == 0);
             assert!(
                 plan.texture_height() <= limits.max_texture_dim,
                 "texture side"
             );
+            // With measured rows instead, their texture rows stay within the budget.
+            let measured = PairPlan::new(0, rows, 1_096_216, &limits, shape).expect("plan");
             assert!(
-                plan.n_pad / 4 * plan.row_stride * 16 <= MAX_PACKED_BYTES,
-                "packed texture within budget"
+                measured.measured_blocks * measured.row_stride * 16 <= MAX_PACKED_BYTES,
+                "measured texture within budget"
             );
+            assert!(measured.texture_height() <= limits.max_texture_dim);
             assert!(plan.row_stride % TEX_W == 0 && plan.row_stride >= plan.chunk);
             assert!(
                 plan.n_runs * shape.lanes * plan.run_iters as usize >= plan.chunk,
@@ -198,7 +201,6 @@ fn every_kernel_shape_matches_cpu() {
     };
     use brdf_basis::backend::blocks::{all_blocks, PairOp};
     use brdf_basis::gpu::pairwise::{PairwiseKernel, RowLayout};
-    use brdf_basis::gpu::tabulate::TabulateKernel;
     let coll = ngan().subset(&(0..37).collect::<Vec<_>>());
     let mut lobes = brdf_basis::distance::lobes(&coll, brdf_basis::distance::LobeKind::Full);
     let cpu = CpuBackend::new();
@@ -214,7 +216,6 @@ fn every_kernel_shape_matches_cpu() {
     }
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 7);
     let ctx = gpu.context();
-    let tab = TabulateKernel::new(ctx).expect("tabulate kernel");
     let kernel = PairwiseKernel::new();
     let layout = RowLayout::new(&lobes);
     assert_eq!((layout.measured_start, layout.n_rows), (36, 39));
@@ -224,10 +225,10 @@ fn every_kernel_shape_matches_cpu() {
             .reduce_pairs(&lobes, &cells, &blocks, op, &|_, _| {})
             .expect("cpu");
         for shape in KernelShape::all() {
-            let plan = PairPlan::new(layout.n_rows, cells.len(), &PlanLimits::of(ctx), shape)
-                .expect("plan");
+            let plan =
+                PairPlan::new(34, 3, cells.len(), &PlanLimits::of(ctx), shape).expect("plan");
             let got = kernel
-                .run(ctx, &tab, &lobes, &cells, &blocks, op, &plan, &|_, _| {})
+                .run(ctx, &lobes, &cells, &blocks, op, &plan, &|_, _| {})
                 .expect("gpu");
             let r = max_rel(&got, &want, 1e-30);
             assert!(r <= 1e-4, "{op:?} {shape:?}: gpu vs cpu relative {r:e}");
@@ -358,4 +359,38 @@ fn pairwise_in_several_block_passes_matches_cpu() {
         .expect("cpu");
     let r = max_rel(&g, &c, 1e-30);
     assert!(r <= 1e-4, "gpu vs cpu relative {r:e}");
+}
+
+#[test]
+fn concurrent_calls_on_one_backend_match_cpu() {
+    // One back-end shared by threads (as the tests share it): each call must own its
+    // textures and buffers while it runs.
+    let Some(gpu) = gpu("concurrent_calls_on_one_backend_match_cpu") else {
+        return;
+    };
+    let coll = ngan();
+    let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 5);
+    let sets: Vec<Vec<Lobe>> = (0..4)
+        .map(|k| lobes_of(&coll.subset(&(k * 20..k * 20 + 9 + 3 * k).collect::<Vec<_>>())))
+        .collect();
+    let cpu = CpuBackend::new();
+    std::thread::scope(|s| {
+        let runs: Vec<_> = sets
+            .iter()
+            .map(|l| {
+                s.spawn(|| {
+                    (0..3)
+                        .map(|_| gpu.pairwise_l1(l, &cells, &|_, _| {}).expect("gpu"))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for (run, l) in runs.into_iter().zip(&sets) {
+            let want = cpu.pairwise_l1(l, &cells, &|_, _| {}).expect("cpu");
+            for got in run.join().expect("thread") {
+                let r = max_rel(&got, &want, 1e-30);
+                assert!(r <= 1e-4, "{} lobes: gpu vs cpu relative {r:e}", l.len());
+            }
+        }
+    });
 }

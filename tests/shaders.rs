@@ -52,6 +52,8 @@ fn tabulate_shader_validates_and_matches_rust_structs() {
         assert_eq!((n.as_str(), *o as usize), (rn, ro));
     }
     assert!(tabulate::SOURCE.contains(&format!("const BPI: u32 = {}u;", tabulate::BPI)));
+    assert!(tabulate::SOURCE.contains(&format!("const NIJ: u32 = {}u;", tabulate::NIJ)));
+    assert!(pairwise::SOURCE.contains(&format!("const NIJ: u32 = {}u;", tabulate::NIJ)));
     let (span, members) = layout(&m, "Lobe");
     assert_eq!(span as usize, size_of::<LobeParams>());
     let rust = [
@@ -86,6 +88,10 @@ fn pairwise_shader_validates_and_matches_rust_structs() {
         ("n_runs", offset_of!(PairParams, n_runs)),
         ("block_offset", offset_of!(PairParams, block_offset)),
         ("n_blocks", offset_of!(PairParams, n_blocks)),
+        ("analytic_blocks", offset_of!(PairParams, analytic_blocks)),
+        ("measured_blocks", offset_of!(PairParams, measured_blocks)),
+        ("measured_base", offset_of!(PairParams, measured_base)),
+        ("zero_base", offset_of!(PairParams, zero_base)),
         ("_pad0", offset_of!(PairParams, _pad0)),
         ("_pad1", offset_of!(PairParams, _pad1)),
     ];

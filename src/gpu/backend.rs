@@ -47,7 +47,8 @@ impl GpuBackend {
     pub fn plan(&self, n: usize, n_measured: usize, cells: usize) -> Result<PairPlan, GpuError> {
         let rows = RowLayout::rows_for(n - n_measured, n_measured);
         PairPlan::new(
-            rows,
+            n - n_measured,
+            n_measured,
             cells,
             &PlanLimits::of(&self.ctx),
             KernelShape::choose(rows, self.ctx.is_software()),
@@ -106,9 +107,9 @@ impl Backend for GpuBackend {
             .filter(|l| matches!(l, Lobe::Measured { .. }))
             .count();
         let plan = self.plan(lobes.len(), n_measured, cells.len())?;
-        Ok(self.pair.run(
-            &self.ctx, &self.tab, lobes, cells, blocks, op, &plan, progress,
-        )?)
+        Ok(self
+            .pair
+            .run(&self.ctx, lobes, cells, blocks, op, &plan, progress)?)
     }
 
     fn nnls_pgd(

@@ -1,11 +1,13 @@
 //! Pairwise reduction kernel (`shaders/pairwise.wgsl`) and its chunked driver.
 //!
-//! The grid is streamed in chunks of cells. Per chunk, `pack` (tabulate.wgsl) fills an
-//! rgba32float texture with every row's weighted values, four rows to a texel: analytic
-//! lobes are tabulated on the GPU straight into it, measured rows are uploaded once per
-//! chunk. One dispatch then reduces every requested register block of `4R x 4R` lobe pairs
-//! over every run of cells. Per-lane partial sums (f32 over at most `MAX_RUN_ITERS` cells)
-//! are read back and accumulated in f64 on the host.
+//! Rows live four to a texel ("row block") of one rgba32float value texture. Analytic
+//! lobes are never stored per cell: their row blocks hold the separable form's tables
+//! (8,100 betas and the alphas, uploaded once), and the kernel tabulates them in registers
+//! at each cell from a per-cell texel `(e, g, w)` the host computes in f64. Measured lobes
+//! are packed per chunk of cells by the host. One dispatch per chunk reduces every
+//! requested register block of `4R x 4R` lobe pairs over every run of cells. Per-lane
+//! partial sums (f32 over at most `MAX_RUN_ITERS` cells) are read back and accumulated in
+//! f64 on the host.
 //!
 //! The kernel body is unrolled here ([`kernel_source`]) for a [`KernelShape`]: on lavapipe
 //! large blocks (R = 4 to 6: up to 24 x 24 pairs from 12 texel fetches per cell) amortise
@@ -13,13 +15,13 @@
 //! on a hardware GPU R = 2 keeps the 64 accumulators in registers.
 //!
 //! Rows are laid out by [`RowLayout`] (analytic lobes first, then measured ones, so that
-//! no texel mixes GPU-tabulated and host-packed rows); [`covering_blocks`] maps the
-//! caller's `BLOCK x BLOCK` block pairs onto the register blocks that hold them.
+//! no row block mixes tables and per-cell values); [`covering_blocks`] maps the caller's
+//! `BLOCK x BLOCK` block pairs onto the register blocks that hold them.
 
-use super::tabulate::TabulateKernel;
+use super::tabulate::{separable_f32, NIJ};
 use super::{dispatch, GpuContext};
 use crate::backend::blocks::{add_block, PairOp};
-use crate::backend::{Lobe, LobeParams, Progress};
+use crate::backend::{Lobe, Progress};
 use crate::error::GpuError;
 use crate::merl::{CellSet, GridTables};
 
@@ -115,9 +117,13 @@ pub fn kernel_source(shape: KernelShape) -> String {
             "//@DECLARE" => (0..side).for_each(|i| {
                 (0..r).for_each(|j| emit(format!("var acc_{i}_{j} = vec4<f32>(0.0);")))
             }),
+            "//@SOURCES" => {
+                (0..r).for_each(|j| emit(format!("let sb{j} = source(rb + {j}u);")));
+                (0..r).for_each(|i| emit(format!("let sa{i} = source(ra + {i}u);")));
+            }
             "//@FETCH" => {
-                (0..r).for_each(|j| emit(format!("let b{j} = fetch(rb + {j}u, c);")));
-                (0..r).for_each(|i| emit(format!("let a{i} = fetch(ra + {i}u, c);")));
+                (0..r).for_each(|j| emit(format!("let b{j} = rows(sb{j}, c, e, info.y, info.z);")));
+                (0..r).for_each(|i| emit(format!("let a{i} = rows(sa{i}, c, e, info.y, info.z);")));
             }
             "//@ACCUMULATE" => (0..side).for_each(|i| {
                 (0..r).for_each(|j| {
@@ -154,7 +160,7 @@ pub fn kernel_source(shape: KernelShape) -> String {
 pub struct PairParams {
     /// Cells in this chunk.
     pub n_cells: u32,
-    /// Texels between consecutive row blocks of the packed texture (cells per chunk).
+    /// Texels between consecutive measured row blocks (cells per chunk, whole rows).
     pub row_stride: u32,
     /// Loop iterations per lane.
     pub run_iters: u32,
@@ -164,6 +170,14 @@ pub struct PairParams {
     pub block_offset: u32,
     /// Block pairs in total.
     pub n_blocks: u32,
+    /// Analytic row blocks (tables at `b * (NIJ + 1)`).
+    pub analytic_blocks: u32,
+    /// Measured row blocks after them.
+    pub measured_blocks: u32,
+    /// Texel of the first measured block's cell 0.
+    pub measured_base: u32,
+    /// Texel of the all-zero table read by padding blocks.
+    pub zero_base: u32,
     /// Padding.
     pub _pad0: u32,
     /// Padding.
@@ -245,17 +259,24 @@ impl RowLayout {
     }
 }
 
-/// How a pairwise reduction is cut into chunks, runs and dispatches.
+/// f32 per row block of an analytic table: 8,100 betas and the alphas, four rows each.
+const TABLE_TEXELS: usize = NIJ + 1;
+
+/// How a pairwise reduction is cut into chunks, runs and dispatches, and where its rows
+/// sit in the value texture.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PairPlan {
     /// Register block and workgroup.
     pub shape: KernelShape,
     /// Packed rows padded to a multiple of the block side `4R`.
     pub n_pad: usize,
+    /// Analytic row blocks (4 rows each; the last one may be part padding).
+    pub analytic_blocks: usize,
+    /// Measured row blocks.
+    pub measured_blocks: usize,
     /// Cells per chunk (a multiple of `lanes x run_iters` unless the whole set is smaller).
     pub chunk: usize,
-    /// Texels between row blocks of the packed texture: `chunk` rounded up to whole
-    /// texture rows.
+    /// Texels between measured row blocks: `chunk` rounded up to whole texture rows.
     pub row_stride: usize,
     /// Loop iterations per lane.
     pub run_iters: u32,
@@ -264,27 +285,41 @@ pub struct PairPlan {
 }
 
 impl PairPlan {
-    /// Plans `n_rows` packed rows (see [`RowLayout::rows_for`]) over `cells` cells.
+    /// Plans `n_analytic` analytic and `n_measured` measured lobes over `cells` cells.
     pub fn new(
-        n_rows: usize,
+        n_analytic: usize,
+        n_measured: usize,
         cells: usize,
         limits: &PlanLimits,
         shape: KernelShape,
     ) -> Result<Self, GpuError> {
+        let n_rows = RowLayout::rows_for(n_analytic, n_measured);
         let side = shape.side();
         let n_pad = n_rows.max(1).div_ceil(side) * side;
         let n_super = n_pad / side;
-        let texel_blocks = n_pad / 4;
-        let by_texture = (MAX_PACKED_BYTES / (16 * texel_blocks))
-            .min(TEX_W * limits.max_texture_dim as usize / texel_blocks)
-            / TEX_W
-            * TEX_W;
+        let analytic_blocks = n_analytic.div_ceil(4);
+        let measured_blocks = n_measured.div_ceil(4);
+        let max_dim = limits.max_texture_dim as usize;
+        let table_rows = table_rows(analytic_blocks);
+        if table_rows > max_dim {
+            return Err(GpuError::Limits(format!(
+                "{n_analytic} analytic lobes need {table_rows} texture rows of tables; the \
+                 adapter allows {max_dim}"
+            )));
+        }
+        let by_texture = if measured_blocks == 0 {
+            MAX_CHUNK
+        } else {
+            (MAX_PACKED_BYTES / (16 * measured_blocks))
+                .min((max_dim - table_rows) * TEX_W / measured_blocks)
+                / TEX_W
+                * TEX_W
+        };
         let mut chunk = by_texture.min(MAX_CHUNK).min(cells.max(1));
         if chunk < shape.lanes.min(cells.max(1)) {
             return Err(GpuError::Limits(format!(
-                "{n_rows} rows do not fit a packed texture of {MAX_PACKED_BYTES} bytes and \
-                 side {} even {TEX_W} cells at a time",
-                limits.max_texture_dim
+                "{n_measured} measured lobes do not fit a texture of {MAX_PACKED_BYTES} bytes \
+                 and side {max_dim} even {TEX_W} cells at a time"
             )));
         }
         let run_iters = if shape.is_software() {
@@ -308,6 +343,8 @@ impl PairPlan {
         Ok(Self {
             shape,
             n_pad,
+            analytic_blocks,
+            measured_blocks,
             chunk,
             row_stride: chunk.next_multiple_of(TEX_W),
             run_iters,
@@ -315,15 +352,76 @@ impl PairPlan {
         })
     }
 
-    /// Height of the packed texture (width [`TEX_W`]).
+    /// Texel of the all-zero table (after the analytic tables).
+    pub fn zero_base(&self) -> usize {
+        self.analytic_blocks * TABLE_TEXELS
+    }
+
+    /// Texel of the first measured block's cell 0 (after the tables, on a whole row).
+    pub fn measured_base(&self) -> usize {
+        table_rows(self.analytic_blocks) * TEX_W
+    }
+
+    /// Height of the value texture (width [`TEX_W`]).
     pub fn texture_height(&self) -> u32 {
-        (self.n_pad / 4 * self.row_stride / TEX_W) as u32
+        (table_rows(self.analytic_blocks) + self.measured_blocks * self.row_stride / TEX_W) as u32
     }
 
     /// f32 of per-lane partial sums one register block writes per chunk.
     pub fn partials_per_block(&self) -> usize {
         self.n_runs * self.shape.lanes * self.shape.side() * self.shape.side()
     }
+}
+
+/// Texture rows of `blocks` analytic tables and the zero table.
+fn table_rows(blocks: usize) -> usize {
+    ((blocks + 1) * TABLE_TEXELS).div_ceil(TEX_W)
+}
+
+/// The value texture's table region: per analytic row block, 8,100 texels of four betas
+/// then one of four alphas (f32 of the f64 separable form), then an all-zero table.
+fn table_texels(lobes: &[Lobe], layout: &RowLayout, blocks: usize) -> Vec<f32> {
+    let t = GridTables::new();
+    let mut texels = vec![0f32; table_rows(blocks) * TEX_W * 4];
+    for (k, &i) in layout.analytic.iter().enumerate() {
+        if let Lobe::Analytic(l) = &lobes[i] {
+            let (a, b) = separable_f32(&t, l);
+            let (base, q) = (k / 4 * TABLE_TEXELS, k % 4);
+            for (e, &beta) in b.iter().enumerate() {
+                texels[4 * (base + e) + q] = beta;
+            }
+            texels[4 * (base + NIJ) + q] = a;
+        }
+    }
+    texels
+}
+
+/// Writes `texels` (rgba) into whole rows of `texture` from row `first_row`.
+fn write_rows(ctx: &GpuContext, texture: &wgpu::Texture, first_row: usize, texels: &[f32]) {
+    let rows = texels.len() / (4 * TEX_W);
+    ctx.queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d {
+                x: 0,
+                y: first_row as u32,
+                z: 0,
+            },
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytemuck::cast_slice(texels),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some((TEX_W * 16) as u32),
+            rows_per_image: None,
+        },
+        wgpu::Extent3d {
+            width: TEX_W as u32,
+            height: rows as u32,
+            depth_or_array_layers: 1,
+        },
+    );
 }
 
 /// The register blocks `(I <= J)` (in units of `4R` packed rows) that hold every lobe pair
@@ -386,35 +484,44 @@ impl PairwiseKernel {
         Ok(p)
     }
 
-    /// A packed texture of at least `height` rows (reused when the last one is as tall).
-    fn packed_texture(&self, ctx: &GpuContext, height: u32) -> wgpu::Texture {
-        let mut slot = self.texture.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((h, t)) = slot.as_ref() {
-            if *h >= height {
-                return t.clone();
-            }
-        }
-        let t = ctx.packed_texture(
-            "packed values",
-            height,
-            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        );
-        *slot = Some((height, t.clone()));
-        t
+    /// A value texture of at least `height` rows: the cached one when it is as tall, taken
+    /// out of the cache so that concurrent calls never share it (see `put_back`).
+    fn value_texture(&self, ctx: &GpuContext, height: u32) -> (u32, wgpu::Texture) {
+        let cached = self
+            .texture
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take_if(|(h, _)| *h >= height);
+        cached.unwrap_or_else(|| {
+            let t = ctx.packed_texture(
+                "values",
+                height,
+                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            );
+            (height, t)
+        })
     }
 
-    /// Drops the cached packed texture (up to [`MAX_PACKED_BYTES`]).
+    /// Returns a value texture to the cache, keeping the taller one.
+    fn put_back(&self, texture: (u32, wgpu::Texture)) {
+        let mut slot = self.texture.lock().unwrap_or_else(|e| e.into_inner());
+        if slot.as_ref().is_none_or(|(h, _)| *h < texture.0) {
+            *slot = Some(texture);
+        }
+    }
+
+    /// Drops the cached value texture (tables and up to [`MAX_PACKED_BYTES`] of measured
+    /// rows).
     pub fn release_memory(&self) {
         *self.texture.lock().unwrap_or_else(|e| e.into_inner()) = None;
     }
 
     /// Reduces `op` of `lobes` over `cells` for the listed `BLOCK x BLOCK` block pairs:
-    /// full `n x n`, f64.
+    /// full `n x n`, f64. `plan` must be made for these lobes and cells.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,
         ctx: &GpuContext,
-        tab: &TabulateKernel,
         lobes: &[Lobe],
         cells: &CellSet,
         blocks: &[[u32; 2]],
@@ -428,6 +535,14 @@ impl PairwiseKernel {
         let mut out = vec![0f64; n * n];
         let pipeline = &self.pipeline(ctx, shape, op)?;
         let layout = RowLayout::new(lobes);
+        assert_eq!(
+            (
+                layout.analytic.len().div_ceil(4),
+                layout.measured.len().div_ceil(4)
+            ),
+            (plan.analytic_blocks, plan.measured_blocks),
+            "plan made for other lobes"
+        );
         let supers = covering_blocks(blocks, &layout, shape);
         let n_blocks = supers.len();
         let mut sums = vec![0f64; n_blocks * side * side];
@@ -444,17 +559,21 @@ impl PairwiseKernel {
             .min(max_dim)
             .min(n_blocks.max(1));
         let partial = ctx.storage("partial sums", (per_pass * per_block) as u64);
-        let cell_buf = ctx.storage("cells", (plan.chunk * 4) as u64);
-        let weight_buf = ctx.storage("row scales", (plan.chunk * 4) as u64);
-        let analytic_rows: Vec<Option<LobeParams>> = (0..layout.measured_start)
-            .map(|k| match layout.analytic.get(k).map(|&i| &lobes[i]) {
-                Some(Lobe::Analytic(p)) => Some(*p),
-                _ => None,
-            })
-            .collect();
-        let packed_rows = tab.prepare_packed(ctx, &analytic_rows);
-        let texture = self.packed_texture(ctx, plan.texture_height());
+        let (height, texture) = self.value_texture(ctx, plan.texture_height());
+        write_rows(
+            ctx,
+            &texture,
+            0,
+            &table_texels(lobes, &layout, plan.analytic_blocks),
+        );
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let info_rows = plan.row_stride / TEX_W;
+        let info = ctx.packed_texture(
+            "cell info",
+            info_rows as u32,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
+        let info_view = info.create_view(&wgpu::TextureViewDescriptor::default());
         let tables = GridTables::new();
         let total = cells.len() as u64;
         let mut done = 0u64;
@@ -464,59 +583,32 @@ impl PairwiseKernel {
             .zip(cells.weights.chunks(plan.chunk))
         {
             let len = cc.len();
-            let w32: Vec<f32> = cw.iter().map(|&w| op.row_scale(w) as f32).collect();
-            ctx.queue
-                .write_buffer(&cell_buf, 0, bytemuck::cast_slice(cc));
-            ctx.queue
-                .write_buffer(&weight_buf, 0, bytemuck::cast_slice(&w32));
-            // Measured rows: packed on the host, four rows to a texel, whole texture rows.
-            let texture_rows = plan.row_stride / TEX_W;
-            for (tb, group) in layout.measured.chunks(4).enumerate() {
-                let mut texels = vec![0f32; plan.row_stride * 4];
-                for (q, &m) in group.iter().enumerate() {
+            // Per cell (e, g, w, 0): table index, separable factor times the row scale,
+            // row scale; f64 rounded once.
+            let mut texels = vec![0f32; plan.row_stride * 4];
+            for ((t, &c), &w) in texels.chunks_exact_mut(4).zip(cc).zip(cw) {
+                let (e, g) = tables.cell_factor(c as usize);
+                let w = op.row_scale(w);
+                t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
+            }
+            write_rows(ctx, &info, 0, &texels);
+            // Measured rows: scaled and packed on the host, four rows to a texel.
+            for (m, group) in layout.measured.chunks(4).enumerate() {
+                texels.fill(0.0);
+                for (q, &i) in group.iter().enumerate() {
                     for (c, (&cell, &w)) in cc.iter().zip(cw).enumerate() {
                         texels[4 * c + q] =
-                            (op.row_scale(w) * lobes[m].eval_f64(&tables, cell as usize)) as f32;
+                            (op.row_scale(w) * lobes[i].eval_f64(&tables, cell as usize)) as f32;
                     }
                 }
-                let block = layout.measured_start / 4 + tb;
-                ctx.queue.write_texture(
-                    wgpu::TexelCopyTextureInfo {
-                        texture: &texture,
-                        mip_level: 0,
-                        origin: wgpu::Origin3d {
-                            x: 0,
-                            y: (block * texture_rows) as u32,
-                            z: 0,
-                        },
-                        aspect: wgpu::TextureAspect::All,
-                    },
-                    bytemuck::cast_slice(&texels),
-                    wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some((TEX_W * 16) as u32),
-                        rows_per_image: None,
-                    },
-                    wgpu::Extent3d {
-                        width: TEX_W as u32,
-                        height: texture_rows as u32,
-                        depth_or_array_layers: 1,
-                    },
+                write_rows(
+                    ctx,
+                    &texture,
+                    plan.measured_base() / TEX_W + m * info_rows,
+                    &texels,
                 );
             }
             let mut enc = ctx.encoder();
-            if !layout.analytic.is_empty() {
-                tab.record_pack(
-                    ctx,
-                    &mut enc,
-                    &packed_rows,
-                    &cell_buf,
-                    &weight_buf,
-                    &view,
-                    len as u32,
-                    plan.row_stride as u32,
-                );
-            }
             // Register-block groups whose per-lane partials fit one binding; one readback
             // each.
             for off in (0..n_blocks).step_by(per_pass) {
@@ -528,6 +620,10 @@ impl PairwiseKernel {
                     n_runs: plan.n_runs as u32,
                     block_offset: off as u32,
                     n_blocks: (off + count) as u32,
+                    analytic_blocks: plan.analytic_blocks as u32,
+                    measured_blocks: plan.measured_blocks as u32,
+                    measured_base: plan.measured_base() as u32,
+                    zero_base: plan.zero_base() as u32,
                     _pad0: 0,
                     _pad1: 0,
                 };
@@ -539,6 +635,7 @@ impl PairwiseKernel {
                         (1, wgpu::BindingResource::TextureView(&view)),
                         (2, block_buf.as_entire_binding()),
                         (3, partial.as_entire_binding()),
+                        (4, wgpu::BindingResource::TextureView(&info_view)),
                     ],
                 );
                 dispatch(
@@ -569,6 +666,7 @@ impl PairwiseKernel {
             done += len as u64;
             progress(done, total);
         }
+        self.put_back((height, texture));
         let value = |i: usize, j: usize| {
             let (mut a, mut b) = (layout.row[i], layout.row[j]);
             if a / side > b / side {

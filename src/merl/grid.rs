@@ -365,6 +365,15 @@ impl GridTables {
         self.cos_h[i] * self.cos_d[j] + self.sin_h[i] * self.sin_d[j] * self.abs_cos_p[k]
     }
 
+    /// The separable form's cell factor (src/separable.rs): `(i * 90 + j, 1 / (cos theta_d
+    /// max(N.wi, N.wo)))` of `cell`, so that an analytic lobe is
+    /// `alpha + factor * beta[i * 90 + j]`.
+    #[inline]
+    pub fn cell_factor(&self, cell: usize) -> (usize, f64) {
+        let (i, j, k) = (cell / (N_TD * N_PD), (cell / N_PD) % N_TD, cell % N_PD);
+        (i * N_TD + j, 1.0 / (self.cos_d[j] * self.max_cos(i, j, k)))
+    }
+
     /// `rho_s` of `(F0, n)` at cell `(i, j, k)`, in f64.
     #[inline]
     pub fn rho_s(&self, i: usize, j: usize, k: usize, f0: f64, n: f64) -> f64 {
