@@ -2,7 +2,9 @@
 //! (evaluation mask, 894,396 cells), each back-end. Prints G abs-diffs/s
 //! (N (N - 1) / 2 x cells / s) and the peak resident memory of the process.
 //!
-//! `cargo bench --bench distance` (set BENCH_N=100 or 1000 to run one size).
+//! `cargo bench --bench distance` (set BENCH_N=100 or 1000 to run one size;
+//! BENCH_SHAPES=1 also times every register-block shape of the GPU kernel at N = 100 and
+//! N = 240, the figures behind `KernelShape::choose`).
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::{Backend, Lobe, LobeParams};
@@ -62,6 +64,40 @@ fn run(name: &str, b: &dyn Backend, n: usize, cells: &CellSet, reps: usize) -> f
     g
 }
 
+/// Raw rate (evaluated pairs x cells / s, padding and diagonal blocks included) of each
+/// kernel shape on `n` lobes, and the shape `KernelShape::choose` picks.
+fn shapes(g: &GpuBackend, n: usize, cells: &CellSet) {
+    use brdf_basis::backend::blocks::{all_blocks, PairOp};
+    use brdf_basis::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
+    let l = lobes(n);
+    let ctx = g.context();
+    let kernel = PairwiseKernel::new();
+    let blocks = all_blocks(n);
+    let software = ctx.is_software();
+    for shape in KernelShape::all() {
+        let plan = PairPlan::new(n, 0, cells.len(), &PlanLimits::of(ctx), shape).expect("plan");
+        let go = || {
+            kernel
+                .run(ctx, &l, cells, &blocks, PairOp::L1, &plan, &|_, _| {})
+                .expect("run")
+        };
+        go();
+        let t = Instant::now();
+        std::hint::black_box(go());
+        let s = t.elapsed().as_secs_f64();
+        let nb = plan.n_pad / shape.side();
+        let evaluated = (nb * (nb + 1) / 2 * shape.side() * shape.side()) as f64;
+        println!(
+            "shape {0}x{0} lanes {1:<3} N={n:<4} {s:.3} s: {2:.2} G abs-diffs/s, raw {3:.2} G pair-cells/s{4}",
+            shape.side(),
+            shape.lanes,
+            (n * (n - 1) / 2) as f64 * cells.len() as f64 / s / 1e9,
+            evaluated * cells.len() as f64 / s / 1e9,
+            if KernelShape::choose(n, software) == shape { "  <- chosen" } else { "" }
+        );
+    }
+}
+
 fn main() {
     let only: Option<usize> = std::env::var("BENCH_N").ok().and_then(|v| v.parse().ok());
     let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 1);
@@ -72,6 +108,11 @@ fn main() {
     } else {
         GpuBackend::new().ok()
     };
+    if let (Some(g), true) = (&gpu, std::env::var("BENCH_SHAPES").is_ok_and(|v| v == "1")) {
+        for n in [100, 240] {
+            shapes(g, n, &cells);
+        }
+    }
     for n in [100usize, 1000] {
         if only.is_some_and(|o| o != n) {
             continue;
