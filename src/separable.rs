@@ -16,7 +16,7 @@
 //! cell costs one multiply-add from the per-(i, j) tables of the fit and of the target.
 
 use crate::backend::LobeParams;
-use crate::merl::grid::{unflat, N_TD, N_TH};
+use crate::merl::grid::{N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
 use rayon::prelude::*;
 
@@ -93,9 +93,7 @@ impl CellMoments {
         let mut g = Vec::with_capacity(cells.len());
         let mut ij = Vec::with_capacity(cells.len());
         for (&c, &w) in cells.cells.iter().zip(&cells.weights) {
-            let (i, j, k) = unflat(c as usize);
-            let gc = 1.0 / (t.cos_d[j] * t.max_cos(i, j, k));
-            let e = i * N_TD + j;
+            let (e, gc) = t.cell_factor(c as usize);
             m1[e] += w * gc;
             m2[e] += w * gc * gc;
             g.push(gc);

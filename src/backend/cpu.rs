@@ -12,6 +12,7 @@ use super::{Backend, Lobe, LobeParams, Progress};
 use crate::error::BackendError;
 use crate::merl::grid::{unflat, N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
+use crate::separable::SeparableLobe;
 use rayon::prelude::*;
 
 /// Cells per streamed chunk: a row of a chunk is 16 KiB, so the 6 rows a 4 x 2 sub-block
@@ -334,6 +335,17 @@ impl Backend for CpuBackend {
         let mut out = vec![0f64; n * n];
         let mut sums = vec![[[0f64; BLOCK]; BLOCK]; blocks.len()];
         let mut buf = vec![0f32; n_pad * CHUNK_CELLS];
+        // Analytic lobes in separable form (alpha + G(c) beta[i][j], f64), built once: a
+        // value is then one multiply-add per cell.
+        let seps: Vec<Option<SeparableLobe>> = self.install(|| {
+            lobes
+                .par_iter()
+                .map(|l| match l {
+                    Lobe::Analytic(p) => Some(SeparableLobe::new(&self.tables, p)),
+                    Lobe::Measured { .. } => None,
+                })
+                .collect()
+        });
         let total = cells.len() as u64;
         let mut done = 0u64;
         for (cc, cw) in cells
@@ -343,12 +355,26 @@ impl Backend for CpuBackend {
         {
             let len = cc.len();
             let scale: Vec<f64> = cw.iter().map(|&w| op.row_scale(w)).collect();
+            // Per cell: (i * 90 + j, G(c) x row scale).
+            let factors: Vec<(usize, f64)> = cc
+                .iter()
+                .zip(&scale)
+                .map(|(&c, &s)| {
+                    let (e, g) = self.tables.cell_factor(c as usize);
+                    (e, g * s)
+                })
+                .collect();
             self.install(|| {
                 buf[..n * len]
                     .par_chunks_mut(len)
-                    .zip(lobes.par_iter())
-                    .for_each(|(row, lobe)| {
-                        self.tabulate_into(lobe, cc, Some(&scale), row);
+                    .zip(lobes.par_iter().zip(&seps))
+                    .for_each(|(row, (lobe, sep))| match sep {
+                        Some(sp) => {
+                            for ((o, &(e, g)), &s) in row.iter_mut().zip(&factors).zip(&scale) {
+                                *o = (sp.alpha * s + sp.beta[e] * g) as f32;
+                            }
+                        }
+                        None => self.tabulate_into(lobe, cc, Some(&scale), row),
                     });
                 buf[n * len..n_pad * len].fill(0.0);
                 let rows: Vec<&[f32]> = buf[..n_pad * len].chunks(len).collect();
