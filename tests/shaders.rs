@@ -71,14 +71,19 @@ fn tabulate_shader_validates_and_matches_rust_structs() {
 fn pairwise_shader_validates_and_matches_rust_structs() {
     // Every shape the back-end can pick, unrolled.
     for shape in pairwise::KernelShape::all() {
-        let src = pairwise::kernel_source(shape);
-        assert!(
-            !src.lines().any(|l| l.trim_start().starts_with("//@")),
-            "every template line expanded"
-        );
-        module(&src);
+        for diagonal in [false, true] {
+            let src = pairwise::kernel_source(shape, diagonal);
+            assert!(
+                !src.lines().any(|l| l.trim_start().starts_with("//@")),
+                "every template line expanded"
+            );
+            module(&src);
+        }
     }
-    let (m, _) = module(&pairwise::kernel_source(pairwise::KernelShape::HARDWARE));
+    let (m, _) = module(&pairwise::kernel_source(
+        pairwise::KernelShape::HARDWARE,
+        false,
+    ));
     let (span, members) = layout(&m, "PairParams");
     assert_eq!(span as usize, size_of::<PairParams>());
     let rust = [

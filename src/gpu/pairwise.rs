@@ -47,13 +47,15 @@ pub struct KernelShape {
     pub lanes: usize,
 }
 
-/// lavapipe shapes and their kernel-only rates (G pair-cells/s, measured on 2 cores of an
-/// AMD EPYC with lavapipe 22.3: 4 x 4 pairs per invocation ran at 4.7, 8 x 8 at 10.7,
-/// 12 x 12 at 15.5): one 8-wide SIMD row per workgroup.
+/// lavapipe shapes and their rates (G evaluated pair-cells/s, best of three, measured by
+/// `BENCH_SHAPES=1 cargo bench --bench distance` on 2 cores of an AMD EPYC with lavapipe
+/// 22.3 at N = 100 and 240; one 8-wide SIMD row per workgroup). Smaller blocks re-fetch
+/// too often (4 x 4 pairs per invocation ran at 4.7, 8 x 8 at 10.7 in a first probe);
+/// 24 x 24 spills.
 const SOFTWARE_SHAPES: [(KernelShape, f64); 3] = [
-    (KernelShape { r: 4, lanes: 8 }, 16.4),
-    (KernelShape { r: 5, lanes: 8 }, 20.1),
-    (KernelShape { r: 6, lanes: 8 }, 20.9),
+    (KernelShape { r: 4, lanes: 8 }, 15.4),
+    (KernelShape { r: 5, lanes: 8 }, 17.3),
+    (KernelShape { r: 6, lanes: 8 }, 14.6),
 ];
 
 impl KernelShape {
@@ -67,15 +69,21 @@ impl KernelShape {
         if !software {
             return Self::HARDWARE;
         }
-        let cost = |(s, rate): &(KernelShape, f64)| {
-            let nb = n_rows.max(1).div_ceil(s.side());
-            (nb * (nb + 1) / 2 * s.side() * s.side()) as f64 / rate
-        };
+        let cost = |(s, rate): &(KernelShape, f64)| s.evaluated_pairs(n_rows) / rate;
         SOFTWARE_SHAPES
             .iter()
             .min_by(|a, b| cost(a).total_cmp(&cost(b)))
             .map(|s| s.0)
             .unwrap_or(Self::HARDWARE)
+    }
+
+    /// Lobe pairs the kernel evaluates per cell for `n_rows` rows (padding included; a
+    /// diagonal register block evaluates its texel pairs `i <= j`).
+    pub fn evaluated_pairs(&self, n_rows: usize) -> f64 {
+        let nb = n_rows.max(1).div_ceil(self.side()) as f64;
+        let block = (self.side() * self.side()) as f64;
+        let diagonal = block * (self.r + 1) as f64 / (2 * self.r) as f64;
+        nb * (nb - 1.0) / 2.0 * block + nb * diagonal
     }
 
     /// Every shape [`Self::choose`] can return.
@@ -98,10 +106,14 @@ impl KernelShape {
 }
 
 /// The kernel for `shape`: the template with `R` and `LANES` defined and its `//@` lines
-/// expanded into the unrolled register block.
-pub fn kernel_source(shape: KernelShape) -> String {
+/// expanded into the unrolled register block. `diagonal`: the variant for register blocks
+/// on the diagonal (`I = J`), which fetches the `R` texels once and accumulates only the
+/// texel pairs `(i <= j)` (the rest mirror them).
+pub fn kernel_source(shape: KernelShape, diagonal: bool) -> String {
     let (r, side) = (shape.r, shape.side());
     const XYZW: [char; 4] = ['x', 'y', 'z', 'w'];
+    // Accumulator (row i of the block, texel j of the columns) is computed?
+    let live = |i: usize, j: usize| !diagonal || i / 4 <= j;
     let mut out = format!(
         "const R: u32 = {r}u;\nconst LANES: u32 = {}u;\n",
         shape.lanes
@@ -113,36 +125,41 @@ pub fn kernel_source(shape: KernelShape) -> String {
             out.push_str(&s);
             out.push('\n');
         };
+        let pairs = || (0..side).flat_map(|i| (0..r).map(move |j| (i, j)));
         match line.trim() {
-            "//@DECLARE" => (0..side).for_each(|i| {
-                (0..r).for_each(|j| emit(format!("var acc_{i}_{j} = vec4<f32>(0.0);")))
-            }),
+            "//@DECLARE" => pairs()
+                .filter(|&(i, j)| live(i, j))
+                .for_each(|(i, j)| emit(format!("var acc_{i}_{j} = vec4<f32>(0.0);"))),
             "//@SOURCES" => {
-                (0..r).for_each(|j| emit(format!("let sb{j} = source(rb + {j}u);")));
                 (0..r).for_each(|i| emit(format!("let sa{i} = source(ra + {i}u);")));
+                if !diagonal {
+                    (0..r).for_each(|j| emit(format!("let sb{j} = source(rb + {j}u);")));
+                }
             }
             "//@FETCH" => {
-                (0..r).for_each(|j| emit(format!("let b{j} = rows(sb{j}, c, e, info.y, info.z);")));
                 (0..r).for_each(|i| emit(format!("let a{i} = rows(sa{i}, c, e, info.y, info.z);")));
-            }
-            "//@ACCUMULATE" => (0..side).for_each(|i| {
                 (0..r).for_each(|j| {
-                    emit(format!(
-                        "acc_{i}_{j} = step(acc_{i}_{j}, a{}.{}, b{j});",
-                        i / 4,
-                        XYZW[i % 4]
-                    ))
-                })
-            }),
-            "//@STORE" => (0..side).for_each(|i| {
-                (0..r).for_each(|j| {
-                    (0..4).for_each(|q| {
-                        emit(format!(
-                            "partial[o + {}u] = acc_{i}_{j}.{};",
-                            i * side + 4 * j + q,
-                            XYZW[q]
-                        ))
+                    emit(if diagonal {
+                        format!("let b{j} = a{j};")
+                    } else {
+                        format!("let b{j} = rows(sb{j}, c, e, info.y, info.z);")
                     })
+                });
+            }
+            "//@ACCUMULATE" => pairs().filter(|&(i, j)| live(i, j)).for_each(|(i, j)| {
+                emit(format!(
+                    "acc_{i}_{j} = step(acc_{i}_{j}, a{}.{}, b{j});",
+                    i / 4,
+                    XYZW[i % 4]
+                ))
+            }),
+            "//@STORE" => pairs().filter(|&(i, j)| live(i, j)).for_each(|(i, j)| {
+                (0..4).for_each(|q| {
+                    emit(format!(
+                        "partial[o + {}u] = acc_{i}_{j}.{};",
+                        i * side + 4 * j + q,
+                        XYZW[q]
+                    ))
                 })
             }),
             _ => {
@@ -449,11 +466,14 @@ pub fn covering_blocks(
     v.dedup();
     v
 }
+/// A compiled variant: shape, operation, diagonal or not.
+type PipelineKey = (KernelShape, PairOp, bool);
+
 /// The pairwise kernel: pipelines compiled on first use per shape and operation, and the
 /// packed texture kept between calls (a fresh texture would be cleared by wgpu first).
 #[derive(Debug, Default)]
 pub struct PairwiseKernel {
-    pipelines: std::sync::Mutex<Vec<((KernelShape, PairOp), wgpu::ComputePipeline)>>,
+    pipelines: std::sync::Mutex<Vec<(PipelineKey, wgpu::ComputePipeline)>>,
     texture: std::sync::Mutex<Option<(u32, wgpu::Texture)>>,
 }
 
@@ -463,24 +483,31 @@ impl PairwiseKernel {
         Self::default()
     }
 
-    /// The pipeline for `shape` and `op`, compiled on first use.
+    /// The pipeline for `shape`, `op` and diagonal or not, compiled on first use.
     pub fn pipeline(
         &self,
         ctx: &GpuContext,
         shape: KernelShape,
         op: PairOp,
+        diagonal: bool,
     ) -> Result<wgpu::ComputePipeline, GpuError> {
+        let key = (shape, op, diagonal);
         let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, p)) = cache.iter().find(|(k, _)| *k == (shape, op)) {
+        if let Some((_, p)) = cache.iter().find(|(k, _)| *k == key) {
             return Ok(p.clone());
         }
-        let label = format!("pairwise ({op:?}, {0}x{0})", shape.side());
+        let label = format!(
+            "pairwise ({op:?}, {0}x{0}{1})",
+            shape.side(),
+            if diagonal { ", diagonal" } else { "" }
+        );
         let code = match op {
             PairOp::L1 => 0.0,
             PairOp::Dot => 1.0,
         };
-        let p = ctx.pipeline_with(&label, &kernel_source(shape), &[("OP", code)])?;
-        cache.push(((shape, op), p.clone()));
+        let src = kernel_source(shape, diagonal);
+        let p = ctx.pipeline_with(&label, &src, &[("OP", code)])?;
+        cache.push((key, p.clone()));
         Ok(p)
     }
 
@@ -533,7 +560,10 @@ impl PairwiseKernel {
         let shape = plan.shape;
         let side = shape.side();
         let mut out = vec![0f64; n * n];
-        let pipeline = &self.pipeline(ctx, shape, op)?;
+        let pipelines = [
+            self.pipeline(ctx, shape, op, true)?,
+            self.pipeline(ctx, shape, op, false)?,
+        ];
         let layout = RowLayout::new(lobes);
         assert_eq!(
             (
@@ -543,7 +573,11 @@ impl PairwiseKernel {
             (plan.analytic_blocks, plan.measured_blocks),
             "plan made for other lobes"
         );
-        let supers = covering_blocks(blocks, &layout, shape);
+        // Diagonal register blocks first (their own kernel variant), then the others.
+        let mut supers = covering_blocks(blocks, &layout, shape);
+        let key = |b: &[u32; 2]| (b[0] != b[1], b[0], b[1]);
+        supers.sort_by_key(key);
+        let n_diagonal = supers.iter().filter(|b| b[0] == b[1]).count();
         let n_blocks = supers.len();
         let mut sums = vec![0f64; n_blocks * side * side];
         let block_buf = ctx.storage_init(
@@ -611,8 +645,15 @@ impl PairwiseKernel {
             let mut enc = ctx.encoder();
             // Register-block groups whose per-lane partials fit one binding; one readback
             // each.
-            for off in (0..n_blocks).step_by(per_pass) {
-                let count = (n_blocks - off).min(per_pass);
+            let groups = [(0, n_diagonal), (n_diagonal, n_blocks)]
+                .into_iter()
+                .zip(&pipelines)
+                .flat_map(|((lo, hi), p)| {
+                    (lo..hi)
+                        .step_by(per_pass)
+                        .map(move |off| (off, (hi - off).min(per_pass), p))
+                });
+            for (off, count, pipeline) in groups {
                 let params = PairParams {
                     n_cells: len as u32,
                     row_stride: plan.row_stride as u32,
@@ -668,12 +709,13 @@ impl PairwiseKernel {
         }
         self.put_back((height, texture));
         let value = |i: usize, j: usize| {
-            let (mut a, mut b) = (layout.row[i], layout.row[j]);
-            if a / side > b / side {
-                std::mem::swap(&mut a, &mut b);
-            }
+            // a <= b: the entry a diagonal block's kernel computes.
+            let (a, b) = (
+                layout.row[i].min(layout.row[j]),
+                layout.row[i].max(layout.row[j]),
+            );
             let s = supers
-                .binary_search(&[(a / side) as u32, (b / side) as u32])
+                .binary_search_by_key(&key(&[(a / side) as u32, (b / side) as u32]), key)
                 .expect("covering block");
             sums[s * side * side + (a % side) * side + b % side]
         };
