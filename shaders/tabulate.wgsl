@@ -1,5 +1,6 @@
-// Tabulation into the packed texture the pairwise kernel reads: texel b * chunk + c of an
-// rgba32float texture (width TEX_W, see texel_coord) holds rows 4b .. 4b + 3 at cell c.
+// Tabulation into a packed texture (read back by Backend::tabulate): texel b * chunk + c
+// of an rgba32float texture (width TEX_W, see texel_coord) holds rows 4b .. 4b + 3 at cell
+// c, the layout of the pairwise kernel's measured row blocks.
 // Lobes come in separable form (src/separable.rs): value = w (alpha_l + G(c) beta_l[i][j])
 // with w the cell's row scale and beta tabulated in f64 on the host and rounded once (no
 // exp2 or pow on the GPU: (N.H)^n for n up to 1e5 is exact to f32 rounding).

@@ -18,10 +18,10 @@
 //! no row block mixes tables and per-cell values); [`covering_blocks`] maps the caller's
 //! `BLOCK x BLOCK` block pairs onto the register blocks that hold them.
 
-use super::tabulate::{separable_f32, NIJ};
+use super::tabulate::{separable_texels, NIJ};
 use super::{dispatch, GpuContext};
 use crate::backend::blocks::{add_block, PairOp};
-use crate::backend::{Lobe, Progress};
+use crate::backend::{Lobe, LobeParams, Progress};
 use crate::error::GpuError;
 use crate::merl::{CellSet, GridTables};
 
@@ -223,8 +223,9 @@ impl PlanLimits {
     }
 }
 
-/// Where each lobe sits in the packed texture: analytic lobes first (tabulated on the
-/// GPU by `pack`), padded to a whole texel, then measured lobes (packed on the host), so
+/// Where each lobe sits in the value texture: analytic lobes first (tabulated in
+/// registers from their tables), padded to a whole texel, then measured lobes (packed per
+/// cell by the host), so
 /// that no texel mixes the two.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RowLayout {
@@ -398,18 +399,18 @@ fn table_rows(blocks: usize) -> usize {
 /// The value texture's table region: per analytic row block, 8,100 texels of four betas
 /// then one of four alphas (f32 of the f64 separable form), then an all-zero table.
 fn table_texels(lobes: &[Lobe], layout: &RowLayout, blocks: usize) -> Vec<f32> {
-    let t = GridTables::new();
-    let mut texels = vec![0f32; table_rows(blocks) * TEX_W * 4];
-    for (k, &i) in layout.analytic.iter().enumerate() {
-        if let Lobe::Analytic(l) = &lobes[i] {
-            let (a, b) = separable_f32(&t, l);
-            let (base, q) = (k / 4 * TABLE_TEXELS, k % 4);
-            for (e, &beta) in b.iter().enumerate() {
-                texels[4 * (base + e) + q] = beta;
-            }
-            texels[4 * (base + NIJ) + q] = a;
-        }
-    }
+    // The analytic rows padded to whole blocks, then one block of padding: the zero table.
+    let mut rows: Vec<Option<LobeParams>> = layout
+        .analytic
+        .iter()
+        .map(|&i| match &lobes[i] {
+            Lobe::Analytic(l) => Some(*l),
+            Lobe::Measured { .. } => None,
+        })
+        .collect();
+    rows.resize(4 * (blocks + 1), None);
+    let mut texels = separable_texels(&GridTables::new(), &rows);
+    texels.resize(table_rows(blocks) * TEX_W * 4, 0.0);
     texels
 }
 
@@ -470,7 +471,7 @@ pub fn covering_blocks(
 type PipelineKey = (KernelShape, PairOp, bool);
 
 /// The pairwise kernel: pipelines compiled on first use per shape and operation, and the
-/// packed texture kept between calls (a fresh texture would be cleared by wgpu first).
+/// value texture kept between calls (a fresh texture would be cleared by wgpu first).
 #[derive(Debug, Default)]
 pub struct PairwiseKernel {
     pipelines: std::sync::Mutex<Vec<(PipelineKey, wgpu::ComputePipeline)>>,

@@ -1,7 +1,8 @@
 //! Tabulation kernel (`shaders/tabulate.wgsl`): analytic lobes in separable form over a
-//! list of grid cells, multiplied by per-cell row scales, packed four rows to a texel of
-//! the rgba32float texture the pairwise kernel reads ([`TabulateKernel::record_pack`]);
-//! [`TabulateKernel::tabulate`] reads such a texture back into planar rows.
+//! list of grid cells, multiplied by per-cell row scales, packed four rows to a texel of an
+//! rgba32float texture ([`TabulateKernel::record_pack`]; the layout of the pairwise
+//! kernel's measured row blocks); [`TabulateKernel::tabulate`] reads it back into planar
+//! rows. (The pairwise kernel itself tabulates analytic lobes in registers.)
 
 use super::{dispatch, GpuContext};
 use crate::backend::LobeParams;
@@ -32,8 +33,8 @@ pub struct PackParams {
 /// Row blocks (of 4 rows) per invocation of `pack`; keep in sync with `BPI` in the shader.
 pub const BPI: usize = 8;
 
-/// Row descriptors and beta tables uploaded for `pack`, in groups of row blocks that fit
-/// one binding and one dispatch dimension.
+/// Beta and alpha tables uploaded for `pack`, in groups of row blocks that fit one
+/// texture and one dispatch dimension.
 #[derive(Debug)]
 pub struct PackRows {
     groups: Vec<PackGroup>,
@@ -46,6 +47,25 @@ struct PackGroup {
     n_blocks: u32,
     betas: wgpu::TextureView,
 }
+/// The separable tables of rows (`rows.len()` a multiple of 4) as rgba texels: per block
+/// of four rows, NIJ texels of their four betas, then one of their four alphas (f64
+/// rounded once); zeros for padding rows (`None`). The pairwise kernel and `pack` read
+/// this layout.
+pub fn separable_texels(t: &GridTables, rows: &[Option<LobeParams>]) -> Vec<f32> {
+    let mut texels = vec![0f32; rows.len() / 4 * (NIJ + 1) * 4];
+    for (r, l) in rows.iter().enumerate() {
+        if let Some(l) = l {
+            let (a, b) = separable_f32(t, l);
+            let (base, q) = (r / 4 * (NIJ + 1), r % 4);
+            for (e, &beta) in b.iter().enumerate() {
+                texels[4 * (base + e) + q] = beta;
+            }
+            texels[4 * (base + NIJ) + q] = a;
+        }
+    }
+    texels
+}
+
 /// f32 of one lobe's beta table.
 pub const NIJ: usize = 8100;
 
@@ -91,19 +111,7 @@ impl TabulateKernel {
             .chunks(4 * per)
             .enumerate()
             .map(|(g, blocks)| {
-                // Per row block: NIJ texels of four betas, then one of four alphas; zeros
-                // for padding rows.
-                let mut texels = vec![0f32; blocks.len() / 4 * (NIJ + 1) * 4];
-                for (r, l) in blocks.iter().enumerate() {
-                    if let Some(l) = l {
-                        let (a, b) = separable_f32(&t, l);
-                        let (base, q) = (r / 4 * (NIJ + 1), r % 4);
-                        for (e, &beta) in b.iter().enumerate() {
-                            texels[4 * (base + e) + q] = beta;
-                        }
-                        texels[4 * (base + NIJ) + q] = a;
-                    }
-                }
+                let texels = separable_texels(&t, blocks);
                 PackGroup {
                     first_block: (g * per) as u32,
                     n_blocks: (blocks.len() / 4) as u32,
