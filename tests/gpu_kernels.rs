@@ -146,6 +146,10 @@ fn pairwise_kernel_matches_cpu_at_full_run_length() {
     assert!(plan.run_iters as usize * plan.shape.lanes <= plan.chunk);
     let lobes = lobes_of(&coll);
     let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
+    // The same after the cached device memory is dropped (a fresh texture).
+    gpu.release_memory();
+    let again = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
+    assert_eq!(g, again, "deterministic, cache or not");
     let c = CpuBackend::new()
         .pairwise_l1(&lobes, &cells, &|_, _| {})
         .expect("cpu");

@@ -37,6 +37,11 @@ impl GpuBackend {
         })
     }
 
+    /// Drops device memory kept between calls (the pairwise kernel's value texture).
+    pub fn release_memory(&self) {
+        self.pair.release_memory();
+    }
+
     /// The context.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
