@@ -29,7 +29,9 @@ const S_DONE: u32 = 130u;
 const S_LEN: u32 = 132u;
 
 @group(0) @binding(0) var<uniform> p: PgdUniforms;
-@group(0) @binding(1) var<storage, read> gs: array<f32>;
+// The scaled Gram matrix, row-major M x M. A uniform buffer: with M a constant every
+// loop below unrolls, every index is a constant, and lavapipe reads one scalar.
+@group(0) @binding(1) var<uniform> gs: array<vec4<f32>, 256>;
 @group(0) @binding(2) var<storage, read> hs: array<f32>;
 @group(0) @binding(3) var<storage, read_write> state: array<f32>;
 
@@ -43,14 +45,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (state[base + S_DONE] != 0.0) {
         return;
     }
-    let m = p.m;
-    var x: array<f32, 32>;
-    var gx: array<f32, 32>;
-    var v: array<f32, 32>;
-    var gv: array<f32, 32>;
-    var h: array<f32, 32>;
-    var xn: array<f32, 32>;
-    var gxn: array<f32, 32>;
+    let m = M;
+    var x: array<f32, M>;
+    var gx: array<f32, M>;
+    var v: array<f32, M>;
+    var gv: array<f32, M>;
+    var h: array<f32, M>;
+    var xn: array<f32, M>;
+    var gxn: array<f32, M>;
     for (var i = 0u; i < m; i = i + 1u) {
         x[i] = state[base + S_X + i];
         gx[i] = state[base + S_GX + i];
@@ -78,7 +80,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var i = 0u; i < m; i = i + 1u) {
             var acc = 0.0;
             for (var j = 0u; j < m; j = j + 1u) {
-                acc = fma(gs[i * m + j], xn[j], acc);
+                let k = i * m + j;
+                acc = fma(gs[k / 4u][k % 4u], xn[j], acc);
             }
             gxn[i] = acc;
             s = s + xn[i];

@@ -398,3 +398,44 @@ fn concurrent_calls_on_one_backend_match_cpu() {
         }
     });
 }
+
+#[test]
+fn gpu_pgd_at_the_column_limit_reaches_the_exact_optimum() {
+    // 32 columns (the kernel's limit, loops too long to unroll fully) against
+    // Lawson-Hanson on random well-posed problems.
+    use brdf_basis::nnls::pgd::{PgdParams, PGD_KERNEL_COLUMNS};
+    use brdf_basis::nnls::{lawson_hanson, GramBatch};
+    let Some(gpu) = gpu("gpu_pgd_at_the_column_limit_reaches_the_exact_optimum") else {
+        return;
+    };
+    let (m, rows, targets) = (PGD_KERNEL_COLUMNS, 96, 40);
+    let mut s = 7u64;
+    let mut rnd = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let a: Vec<f64> = (0..rows * m).map(|_| rnd()).collect();
+    let g: Vec<f64> = (0..m * m)
+        .map(|k| (0..rows).map(|r| a[r * m + k / m] * a[r * m + k % m]).sum())
+        .collect();
+    let (mut hs, mut bbs) = (Vec::new(), Vec::new());
+    for _ in 0..targets {
+        let b: Vec<f64> = (0..rows).map(|_| rnd() - 0.3).collect();
+        hs.extend((0..m).map(|k| (0..rows).map(|r| a[r * m + k] * b[r]).sum::<f64>()));
+        bbs.push(b.iter().map(|v| v * v).sum::<f64>());
+    }
+    let batch = GramBatch::new(m, &g, &hs, &bbs).expect("batch");
+    let ctx = gpu.context();
+    let kernel = brdf_basis::gpu::pgd::PgdKernel::new(ctx).expect("kernel");
+    let sols = kernel
+        .solve_batch(ctx, &batch, &PgdParams::default())
+        .expect("gpu pgd");
+    let exact = lawson_hanson::solve_batch(&batch, &Default::default()).expect("lh");
+    for ((s, e), &bb) in sols.iter().zip(&exact).zip(&bbs) {
+        let excess = (s.objective - e.objective) / bb;
+        // SPEC 5: within 1e-6 x the target's energy of the exact optimum.
+        assert!(excess <= 1e-6, "objective excess {excess:e}");
+    }
+}

@@ -126,7 +126,10 @@ fn shared_constants_agree() {
 
 #[test]
 fn pgd_shader_validates_and_matches_rust_structs() {
-    let (m, _) = module(pgd::SOURCE);
+    for columns in [1, 6, 32] {
+        module(&pgd::kernel_source(columns));
+    }
+    let (m, _) = module(&pgd::kernel_source(6));
     let (span, members) = layout(&m, "PgdUniforms");
     assert_eq!(span as usize, size_of::<pgd::PgdUniforms>());
     let rust = [

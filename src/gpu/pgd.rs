@@ -10,8 +10,14 @@ use crate::error::GpuError;
 use crate::nnls::pgd::{PgdParams, Prepared, PGD_KERNEL_COLUMNS};
 use crate::nnls::{GramBatch, NnlsSolution};
 
-/// WGSL source.
+/// WGSL template (see [`kernel_source`]).
 pub const SOURCE: &str = include_str!("../../shaders/pgd.wgsl");
+
+/// The kernel for `m` columns: the template with `const M` defined, so that every loop
+/// has a constant trip count (unrolled, arrays in registers, constant Gram indices).
+pub fn kernel_source(m: usize) -> String {
+    format!("const M: u32 = {m}u;\n{SOURCE}")
+}
 /// Steps per dispatch: at most `STEPS x (32^2 + 4 x 32)` loop iterations per invocation.
 pub const STEPS: u32 = 16;
 /// Dispatches between two convergence checks.
@@ -44,18 +50,27 @@ pub struct PgdUniforms {
     pub _pad1: u32,
 }
 
-/// The compiled kernel.
-#[derive(Debug)]
+/// The kernel, compiled on first use per number of columns.
+#[derive(Debug, Default)]
 pub struct PgdKernel {
-    pipeline: wgpu::ComputePipeline,
+    pipelines: std::sync::Mutex<Vec<(usize, wgpu::ComputePipeline)>>,
 }
 
 impl PgdKernel {
-    /// Compiles the kernel.
-    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
-        Ok(Self {
-            pipeline: ctx.pipeline("pgd", SOURCE)?,
-        })
+    /// An empty cache (`ctx` is kept in the signature for callers that compile eagerly).
+    pub fn new(_ctx: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self::default())
+    }
+
+    /// The pipeline for `m` columns.
+    fn pipeline(&self, ctx: &GpuContext, m: usize) -> Result<wgpu::ComputePipeline, GpuError> {
+        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, p)) = cache.iter().find(|(k, _)| *k == m) {
+            return Ok(p.clone());
+        }
+        let p = ctx.pipeline(&format!("pgd ({m} columns)"), &kernel_source(m))?;
+        cache.push((m, p.clone()));
+        Ok(p)
     }
 
     /// Solves every target of `batch` (at most 32 columns) on the GPU.
@@ -95,11 +110,10 @@ impl PgdKernel {
                 "{n} targets need {bytes} bytes of solver state, over the binding limit"
             )));
         }
-        let gbuf = ctx.storage_init(
-            "pgd gram",
-            bytemuck::cast_slice(&gs),
-            wgpu::BufferUsages::empty(),
-        );
+        let mut gs = gs;
+        gs.resize(32 * 32, 0.0);
+        let gbuf = ctx.uniform_slice("pgd gram", &gs);
+        let pipeline = &self.pipeline(ctx, m)?;
         let hbuf = ctx.storage_init(
             "pgd h",
             bytemuck::cast_slice(&hs),
@@ -121,7 +135,7 @@ impl PgdKernel {
             _pad1: 0,
         };
         let ubuf = ctx.uniform("pgd params", &u);
-        let bind = ctx.bind(&self.pipeline, &[&ubuf, &gbuf, &hbuf, &sbuf]);
+        let bind = ctx.bind(pipeline, &[&ubuf, &gbuf, &hbuf, &sbuf]);
         let groups = n.div_ceil(64);
         let (gx, gy) = (groups.min(65_535) as u32, groups.div_ceil(65_535) as u32);
         let max_dispatches = (params.max_iter as u32).div_ceil(STEPS);
@@ -129,7 +143,7 @@ impl PgdKernel {
         loop {
             let mut enc = ctx.encoder();
             for _ in 0..DISPATCHES_PER_CHECK.min(max_dispatches - dispatched) {
-                dispatch(&mut enc, &self.pipeline, &bind, (gx, gy));
+                dispatch(&mut enc, pipeline, &bind, (gx, gy));
                 dispatched += 1;
             }
             let data = ctx.submit_and_read(enc, &sbuf, bytes)?;
