@@ -3,7 +3,9 @@
 // invocation, the CPU twin is `fista` in src/nnls/pgd.rs. Each dispatch advances every
 // unfinished target by at most STEPS steps; state lives in `state` between dispatches, so
 // no invocation runs more than STEPS x (m^2 + 4m) loop iterations (far below lavapipe's
-// 65,535).
+// 65,535). The host prepends `const M` (= m, see `kernel_source` in src/gpu/pgd.rs):
+// constant trip counts let the loops unroll, so the arrays stay in registers instead of
+// lavapipe's per-lane memory emulation.
 
 // Keep in sync with `PgdParams` in src/gpu/pgd.rs.
 struct PgdUniforms {
@@ -17,7 +19,6 @@ struct PgdUniforms {
     _pad1: u32,
 }
 
-const MAXM: u32 = 32u;
 // Per-target state layout (f32): x[32], gx[32], v[32], gv[32], t, iterations, done, pad.
 const S_X: u32 = 0u;
 const S_GX: u32 = 32u;
