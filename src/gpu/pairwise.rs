@@ -34,7 +34,10 @@ pub const TEX_W: usize = 4096;
 pub const MAX_RUN_ITERS: u32 = 1024;
 /// Most cells per streamed chunk.
 pub const MAX_CHUNK: usize = 1 << 18;
-/// Most bytes of the packed value texture (bounds the chunk for large collections).
+/// Workgroups per dispatch the hardware plan aims at.
+pub const HARDWARE_WORKGROUPS: usize = 4096;
+/// Most bytes of measured rows in the value texture (bounds the chunk for large measured
+/// collections).
 pub const MAX_PACKED_BYTES: usize = 256 << 20;
 const _: () = assert!(MAX_RUN_ITERS < 65_535);
 
@@ -343,8 +346,11 @@ impl PairPlan {
         let run_iters = if shape.is_software() {
             MAX_RUN_ITERS
         } else {
+            // About HARDWARE_WORKGROUPS workgroups per dispatch: enough to fill a large GPU
+            // (4,096 x 64 lanes is ~30 warps per SM of an H100), while the per-lane
+            // partials the host sums in f64 stay few (they scale with the run count).
             let pairs = n_super * (n_super + 1) / 2;
-            let want_runs = 16_384usize.div_ceil(pairs).max(1);
+            let want_runs = HARDWARE_WORKGROUPS.div_ceil(pairs).max(1);
             ((chunk / shape.lanes / want_runs) as u32).clamp(8, MAX_RUN_ITERS)
         };
         let run = shape.lanes * run_iters as usize;
