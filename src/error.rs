@@ -200,7 +200,7 @@ pub enum DistanceError {
         /// The value.
         value: f64,
     },
-    /// D[i][j] != D[j][i].
+    /// `D[i][j] != D[j][i]`.
     #[error("distance matrix is not symmetric at (`{row}`, `{col}`)")]
     Asymmetric {
         /// Row material.

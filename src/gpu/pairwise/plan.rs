@@ -1,0 +1,296 @@
+//! Where a pairwise reduction's rows sit in the value texture, how the grid is cut into
+//! chunks and runs, and which register blocks cover the requested block pairs.
+
+use super::{
+    KernelShape, BLOCK, HARDWARE_WORKGROUPS, MAX_CHUNK, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
+};
+use crate::backend::Lobe;
+use crate::error::GpuError;
+use crate::gpu::tabulate::NIJ;
+use crate::gpu::GpuContext;
+
+/// The device limits a plan must respect.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlanLimits {
+    /// Largest storage binding in bytes.
+    pub max_binding: u64,
+    /// Largest 2D texture side.
+    pub max_texture_dim: u32,
+    /// Largest dispatch dimension.
+    pub max_dispatch: u32,
+}
+
+impl PlanLimits {
+    /// The limits of a context.
+    pub fn of(ctx: &GpuContext) -> Self {
+        Self {
+            max_binding: ctx.max_binding(),
+            max_texture_dim: ctx.limits.max_texture_dimension_2d,
+            max_dispatch: ctx.limits.max_compute_workgroups_per_dimension,
+        }
+    }
+}
+
+/// Where each lobe sits in the value texture: analytic lobes first (tabulated in
+/// registers from their tables), padded to a whole texel, then measured lobes (packed per
+/// cell by the host), so
+/// that no texel mixes the two.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RowLayout {
+    /// Packed row of each lobe.
+    pub row: Vec<usize>,
+    /// Analytic lobes, in order.
+    pub analytic: Vec<usize>,
+    /// Measured lobes, in order; they start at row `measured_start`.
+    pub measured: Vec<usize>,
+    /// First measured row (a multiple of 4).
+    pub measured_start: usize,
+    /// Rows in use.
+    pub n_rows: usize,
+}
+
+impl RowLayout {
+    /// The layout of `lobes`.
+    pub fn new(lobes: &[Lobe]) -> Self {
+        let measured: Vec<usize> = (0..lobes.len())
+            .filter(|&i| matches!(lobes[i], Lobe::Measured { .. }))
+            .collect();
+        let analytic: Vec<usize> = (0..lobes.len())
+            .filter(|&i| matches!(lobes[i], Lobe::Analytic(_)))
+            .collect();
+        Self::of_counts(analytic, measured, lobes.len())
+    }
+
+    fn of_counts(analytic: Vec<usize>, measured: Vec<usize>, n: usize) -> Self {
+        let measured_start = analytic.len().div_ceil(4) * 4;
+        let mut row = vec![0; n];
+        for (k, &i) in analytic.iter().enumerate() {
+            row[i] = k;
+        }
+        for (k, &i) in measured.iter().enumerate() {
+            row[i] = measured_start + k;
+        }
+        Self {
+            row,
+            n_rows: measured_start + measured.len(),
+            analytic,
+            measured,
+            measured_start,
+        }
+    }
+
+    /// Rows of `n_analytic` analytic then `n_measured` measured lobes.
+    pub fn rows_for(n_analytic: usize, n_measured: usize) -> usize {
+        n_analytic.div_ceil(4) * 4 + n_measured
+    }
+}
+
+/// f32 per row block of an analytic table: 8,100 betas and the alphas, four rows each.
+pub(super) const TABLE_TEXELS: usize = NIJ + 1;
+
+/// How a pairwise reduction is cut into chunks, runs and dispatches, and where its rows
+/// sit in the value texture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PairPlan {
+    /// Register block and workgroup.
+    pub shape: KernelShape,
+    /// Packed rows padded to a multiple of the block side `4R`.
+    pub n_pad: usize,
+    /// Analytic row blocks (4 rows each; the last one may be part padding).
+    pub analytic_blocks: usize,
+    /// Measured row blocks.
+    pub measured_blocks: usize,
+    /// Cells per chunk (a multiple of `lanes x run_iters` unless the whole set is smaller).
+    pub chunk: usize,
+    /// Texels between measured row blocks: `chunk` rounded up to whole texture rows.
+    pub row_stride: usize,
+    /// Loop iterations per lane.
+    pub run_iters: u32,
+    /// Runs per chunk.
+    pub n_runs: usize,
+}
+
+impl PairPlan {
+    /// Plans `n_analytic` analytic and `n_measured` measured lobes over `cells` cells.
+    pub fn new(
+        n_analytic: usize,
+        n_measured: usize,
+        cells: usize,
+        limits: &PlanLimits,
+        shape: KernelShape,
+    ) -> Result<Self, GpuError> {
+        let n_rows = RowLayout::rows_for(n_analytic, n_measured);
+        let side = shape.side();
+        let n_pad = n_rows.max(1).div_ceil(side) * side;
+        let n_super = n_pad / side;
+        let analytic_blocks = n_analytic.div_ceil(4);
+        let measured_blocks = n_measured.div_ceil(4);
+        let max_dim = limits.max_texture_dim as usize;
+        let table_rows = table_rows(analytic_blocks);
+        if table_rows > max_dim {
+            return Err(GpuError::Limits(format!(
+                "{n_analytic} analytic lobes need {table_rows} texture rows of tables; the \
+                 adapter allows {max_dim}"
+            )));
+        }
+        let by_texture = if measured_blocks == 0 {
+            MAX_CHUNK
+        } else {
+            (MAX_PACKED_BYTES / (16 * measured_blocks))
+                .min((max_dim - table_rows) * TEX_W / measured_blocks)
+                / TEX_W
+                * TEX_W
+        };
+        let mut chunk = by_texture.min(MAX_CHUNK).min(cells.max(1));
+        if chunk < shape.lanes.min(cells.max(1)) {
+            return Err(GpuError::Limits(format!(
+                "{n_measured} measured lobes do not fit a texture of {MAX_PACKED_BYTES} bytes \
+                 and side {max_dim} even {TEX_W} cells at a time"
+            )));
+        }
+        let run_iters = if shape.is_software() {
+            MAX_RUN_ITERS
+        } else {
+            // About HARDWARE_WORKGROUPS workgroups per dispatch: enough to fill a large GPU
+            // (4,096 x 64 lanes is ~30 warps per SM of an H100), while the per-lane
+            // partials the host sums in f64 stay few (they scale with the run count).
+            let pairs = n_super * (n_super + 1) / 2;
+            let want_runs = HARDWARE_WORKGROUPS.div_ceil(pairs).max(1);
+            ((chunk / shape.lanes / want_runs) as u32).clamp(8, MAX_RUN_ITERS)
+        };
+        let run = shape.lanes * run_iters as usize;
+        if chunk > run {
+            chunk = chunk / run * run;
+        }
+        let n_runs = chunk.div_ceil(run);
+        if n_runs > limits.max_dispatch as usize {
+            return Err(GpuError::Limits(format!(
+                "{n_runs} runs per chunk exceed the dispatch limit {}",
+                limits.max_dispatch
+            )));
+        }
+        Ok(Self {
+            shape,
+            n_pad,
+            analytic_blocks,
+            measured_blocks,
+            chunk,
+            row_stride: chunk.next_multiple_of(TEX_W),
+            run_iters,
+            n_runs,
+        })
+    }
+
+    /// Texel of the all-zero table (after the analytic tables).
+    pub fn zero_base(&self) -> usize {
+        self.analytic_blocks * TABLE_TEXELS
+    }
+
+    /// Texel of the first measured block's cell 0 (after the tables, on a whole row).
+    pub fn measured_base(&self) -> usize {
+        table_rows(self.analytic_blocks) * TEX_W
+    }
+
+    /// Height of the value texture (width [`TEX_W`]).
+    pub fn texture_height(&self) -> u32 {
+        (table_rows(self.analytic_blocks) + self.measured_blocks * self.row_stride / TEX_W) as u32
+    }
+
+    /// f32 of per-lane partial sums one register block writes per chunk.
+    pub fn partials_per_block(&self) -> usize {
+        self.n_runs * self.shape.lanes * self.shape.side() * self.shape.side()
+    }
+}
+
+/// Texture rows of `blocks` analytic tables and the zero table.
+pub(super) fn table_rows(blocks: usize) -> usize {
+    ((blocks + 1) * TABLE_TEXELS).div_ceil(TEX_W)
+}
+
+/// The register blocks `(I <= J)` (in units of `4R` packed rows) that hold every lobe pair
+/// of the requested `BLOCK x BLOCK` block pairs, sorted.
+pub fn covering_blocks(
+    blocks: &[[u32; 2]],
+    layout: &RowLayout,
+    shape: KernelShape,
+) -> Vec<[u32; 2]> {
+    let side = shape.side();
+    let n = layout.row.len();
+    let mut v = Vec::new();
+    for &[bi, bj] in blocks {
+        for r in 0..BLOCK {
+            for q in 0..BLOCK {
+                let (i, j) = (bi as usize * BLOCK + r, bj as usize * BLOCK + q);
+                if i < n && j < n {
+                    let (a, b) = (layout.row[i] / side, layout.row[j] / side);
+                    v.push([a.min(b) as u32, a.max(b) as u32]);
+                }
+            }
+        }
+    }
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::blocks::all_blocks;
+    use crate::backend::LobeParams;
+    use crate::merl::MerlTable;
+    use std::sync::Arc;
+
+    fn lobes(kinds: &str) -> Vec<Lobe> {
+        kinds
+            .chars()
+            .map(|k| match k {
+                'a' => Lobe::Analytic(LobeParams {
+                    kd: 0.0,
+                    ks: 1.0,
+                    f0: 0.5,
+                    n: 10.0,
+                }),
+                _ => Lobe::Measured {
+                    table: Arc::new(MerlTable { rgb: Vec::new() }),
+                    channel: None,
+                },
+            })
+            .collect()
+    }
+
+    #[test]
+    fn analytic_rows_come_first_and_measured_start_on_a_texel() {
+        let l = RowLayout::new(&lobes("amaam"));
+        assert_eq!(l.analytic, [0, 2, 3]);
+        assert_eq!(l.measured, [1, 4]);
+        assert_eq!(l.measured_start, 4);
+        assert_eq!(l.row, [0, 4, 1, 2, 5]);
+        assert_eq!(l.n_rows, 6);
+        assert_eq!(RowLayout::rows_for(3, 2), 6);
+    }
+
+    #[test]
+    fn covering_blocks_hold_every_requested_pair_in_row_order() {
+        // Rows 0, 4, 1, 2 | 5 for lobes a m a a | m; register blocks of 4 rows (R = 1).
+        let l = RowLayout::new(&lobes("amaam"));
+        let r1 = KernelShape { r: 1, lanes: 8 };
+        // Lobes 0..3 sit in rows 0, 1, 2 (block 0) and 4 (block 1).
+        assert_eq!(covering_blocks(&[[0, 0]], &l, r1), [[0, 0], [0, 1], [1, 1]]);
+        assert_eq!(
+            covering_blocks(&all_blocks(5), &l, r1),
+            [[0, 0], [0, 1], [1, 1]]
+        );
+        // Blocks of 8 rows hold them all.
+        let r2 = KernelShape { r: 2, lanes: 8 };
+        assert_eq!(covering_blocks(&all_blocks(5), &l, r2), [[0, 0]]);
+    }
+
+    #[test]
+    fn diagonal_blocks_evaluate_the_upper_texel_pairs() {
+        let s = KernelShape { r: 5, lanes: 8 };
+        // 100 rows: 5 blocks of 20; 10 off the diagonal (400 pairs), 5 on it (15 of 25
+        // texel pairs of 16 lobe pairs).
+        assert_eq!(s.evaluated_pairs(100), 10.0 * 400.0 + 5.0 * 15.0 * 16.0);
+    }
+}

@@ -1,0 +1,137 @@
+//! Register-block shapes of the pairwise kernel, the cost model that picks one, and the
+//! WGSL unrolled for each.
+
+use super::SOURCE;
+
+/// Register block and workgroup of the pairwise kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KernelShape {
+    /// Texels (of 4 rows) per side of an invocation's register block: `4R x 4R` pairs.
+    pub r: usize,
+    /// Lanes per workgroup.
+    pub lanes: usize,
+}
+
+/// lavapipe shapes and their rates (G evaluated pair-cells/s, best of three, measured by
+/// `BENCH_SHAPES=1 cargo bench --bench distance` on 2 cores of an AMD EPYC with lavapipe
+/// 22.3 at N = 100 and 240; one 8-wide SIMD row per workgroup). Smaller blocks re-fetch
+/// too often (4 x 4 pairs per invocation ran at 4.7, 8 x 8 at 10.7 in a first probe);
+/// 24 x 24 spills.
+const SOFTWARE_SHAPES: [(KernelShape, f64); 3] = [
+    (KernelShape { r: 4, lanes: 8 }, 15.4),
+    (KernelShape { r: 5, lanes: 8 }, 17.3),
+    (KernelShape { r: 6, lanes: 8 }, 14.6),
+];
+
+impl KernelShape {
+    /// Hardware GPUs: 8 x 8 pairs (64 f32 accumulators), 64 lanes.
+    pub const HARDWARE: Self = Self { r: 2, lanes: 64 };
+
+    /// The shape for `n_rows` packed rows: on a software adapter, the one with the least
+    /// modelled time (padded pairs / rate), so that e.g. 100 rows use 20 x 20 blocks
+    /// without padding.
+    pub fn choose(n_rows: usize, software: bool) -> Self {
+        if !software {
+            return Self::HARDWARE;
+        }
+        let cost = |(s, rate): &(KernelShape, f64)| s.evaluated_pairs(n_rows) / rate;
+        SOFTWARE_SHAPES
+            .iter()
+            .min_by(|a, b| cost(a).total_cmp(&cost(b)))
+            .map(|s| s.0)
+            .unwrap_or(Self::HARDWARE)
+    }
+
+    /// Lobe pairs the kernel evaluates per cell for `n_rows` rows (padding included; a
+    /// diagonal register block evaluates its texel pairs `i <= j`).
+    pub fn evaluated_pairs(&self, n_rows: usize) -> f64 {
+        let nb = n_rows.max(1).div_ceil(self.side()) as f64;
+        let block = (self.side() * self.side()) as f64;
+        let diagonal = block * (self.r + 1) as f64 / (2 * self.r) as f64;
+        nb * (nb - 1.0) / 2.0 * block + nb * diagonal
+    }
+
+    /// Every shape [`Self::choose`] can return.
+    pub fn all() -> impl Iterator<Item = Self> {
+        SOFTWARE_SHAPES
+            .iter()
+            .map(|s| s.0)
+            .chain(std::iter::once(Self::HARDWARE))
+    }
+
+    /// Whether this shape is tuned for a software adapter (longest runs).
+    pub fn is_software(&self) -> bool {
+        SOFTWARE_SHAPES.iter().any(|s| s.0 == *self)
+    }
+
+    /// Lobes per side of a register block (`4R`).
+    pub fn side(&self) -> usize {
+        4 * self.r
+    }
+}
+
+/// The kernel for `shape`: the template with `R` and `LANES` defined and its `//@` lines
+/// expanded into the unrolled register block. `diagonal`: the variant for register blocks
+/// on the diagonal (`I = J`), which fetches the `R` texels once and accumulates only the
+/// texel pairs `(i <= j)` (the rest mirror them).
+pub fn kernel_source(shape: KernelShape, diagonal: bool) -> String {
+    let (r, side) = (shape.r, shape.side());
+    const XYZW: [char; 4] = ['x', 'y', 'z', 'w'];
+    // Accumulator (row i of the block, texel j of the columns) is computed?
+    let live = |i: usize, j: usize| !diagonal || i / 4 <= j;
+    let mut out = format!(
+        "const R: u32 = {r}u;\nconst LANES: u32 = {}u;\n",
+        shape.lanes
+    );
+    for line in SOURCE.lines() {
+        let indent = &line[..line.len() - line.trim_start().len()];
+        let mut emit = |s: String| {
+            out.push_str(indent);
+            out.push_str(&s);
+            out.push('\n');
+        };
+        let pairs = || (0..side).flat_map(|i| (0..r).map(move |j| (i, j)));
+        match line.trim() {
+            "//@DECLARE" => pairs()
+                .filter(|&(i, j)| live(i, j))
+                .for_each(|(i, j)| emit(format!("var acc_{i}_{j} = vec4<f32>(0.0);"))),
+            "//@SOURCES" => {
+                (0..r).for_each(|i| emit(format!("let sa{i} = source(ra + {i}u);")));
+                if !diagonal {
+                    (0..r).for_each(|j| emit(format!("let sb{j} = source(rb + {j}u);")));
+                }
+            }
+            "//@FETCH" => {
+                (0..r).for_each(|i| emit(format!("let a{i} = rows(sa{i}, c, e, info.y, info.z);")));
+                (0..r).for_each(|j| {
+                    emit(if diagonal {
+                        format!("let b{j} = a{j};")
+                    } else {
+                        format!("let b{j} = rows(sb{j}, c, e, info.y, info.z);")
+                    })
+                });
+            }
+            "//@ACCUMULATE" => pairs().filter(|&(i, j)| live(i, j)).for_each(|(i, j)| {
+                emit(format!(
+                    "acc_{i}_{j} = step(acc_{i}_{j}, a{}.{}, b{j});",
+                    i / 4,
+                    XYZW[i % 4]
+                ))
+            }),
+            "//@STORE" => pairs().filter(|&(i, j)| live(i, j)).for_each(|(i, j)| {
+                (0..4).for_each(|q| {
+                    emit(format!(
+                        "partial[o + {}u] = acc_{i}_{j}.{};",
+                        i * side + 4 * j + q,
+                        XYZW[q]
+                    ))
+                })
+            }),
+            _ => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    out
+}
