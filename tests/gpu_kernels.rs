@@ -409,13 +409,9 @@ fn gpu_pgd_at_the_column_limit_reaches_the_exact_optimum() {
         return;
     };
     let (m, rows, targets) = (PGD_KERNEL_COLUMNS, 96, 40);
-    let mut s = 7u64;
-    let mut rnd = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut rnd = || rng.random::<f64>();
     let a: Vec<f64> = (0..rows * m).map(|_| rnd()).collect();
     let g: Vec<f64> = (0..m * m)
         .map(|k| (0..rows).map(|r| a[r * m + k / m] * a[r * m + k % m]).sum())
