@@ -76,7 +76,7 @@ fn pack(ctx: &brdf_basis::gpu::GpuContext, lobes: &[LobeParams], cells: &[u32]) 
     let rows: Vec<Option<LobeParams>> = lobes.iter().map(|&l| Some(l)).collect();
     let prepared = tab.prepare_packed(ctx, &rows);
     let height = (lobes.len().div_ceil(4) * CHUNK / TEX_W) as u32;
-    let texture = ctx.packed_texture("packed", height, wgpu::TextureUsages::empty());
+    let texture = ctx.packed_texture("packed", height, wgpu::TextureUsages::STORAGE_BINDING);
     let view = texture.create_view(&Default::default());
     let cbuf = ctx.storage("cells", (CHUNK * 4) as u64);
     let weights = vec![1f32; CHUNK];

@@ -283,8 +283,8 @@ impl GpuContext {
         tex.create_view(&wgpu::TextureViewDescriptor::default())
     }
 
-    /// An rgba32float texture of width [`pairwise::TEX_W`] and `height` rows that kernels
-    /// write as storage and read (or copy) as `usage` says.
+    /// An rgba32float texture of width [`pairwise::TEX_W`] and `height` rows, used as
+    /// `usage` says.
     pub fn packed_texture(
         &self,
         label: &str,
@@ -302,7 +302,7 @@ impl GpuContext {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | usage,
+            usage,
             view_formats: &[],
         })
     }

@@ -207,7 +207,7 @@ impl TabulateKernel {
             let texture = ctx.packed_texture(
                 "tabulated (packed)",
                 size.height,
-                wgpu::TextureUsages::COPY_SRC,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
             );
             let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
             let bytes = (blocks * chunk * 16) as u64;
