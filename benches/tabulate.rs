@@ -1,7 +1,7 @@
 //! Tabulation of 100 materials (full RGB: 300 lobes) over the full grid (1,458,000 cells)
 //! on each back-end, printing cells/s (material-cells per second): into host memory
-//! (`Backend::tabulate`), and on the GPU into the packed texture the pairwise kernel reads
-//! (`pack`, never leaving the device).
+//! (`Backend::tabulate`), and on the GPU into a packed texture (`pack`, the kernel behind
+//! the GPU `Backend::tabulate`, without its readback).
 //!
 //! `cargo bench --bench tabulate`
 
@@ -59,7 +59,7 @@ fn main() {
             .collect();
         let rate = pack(&ctx, &params, &cells);
         println!(
-            "tabulate gpu pack into the pairwise texture ({}): {:.1} M lobe-cells/s, {:.2} x the cpu",
+            "tabulate gpu pack into a texture, no readback ({}): {:.1} M lobe-cells/s, {:.2} x the cpu",
             ctx.info.name,
             rate / 1e6,
             rate / results[0]
