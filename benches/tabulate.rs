@@ -69,37 +69,21 @@ fn main() {
 
 /// Lobe-cells per second of the `pack` pass over `cells`, in chunks of 131,072 cells.
 fn pack(ctx: &brdf_basis::gpu::GpuContext, lobes: &[LobeParams], cells: &[u32]) -> f64 {
-    use brdf_basis::gpu::pairwise::TEX_W;
-    use brdf_basis::gpu::tabulate::TabulateKernel;
+    use brdf_basis::gpu::tabulate::{PackTarget, TabulateKernel};
     const CHUNK: usize = 1 << 17;
     let tab = TabulateKernel::new(ctx).expect("kernel");
     let rows: Vec<Option<LobeParams>> = lobes.iter().map(|&l| Some(l)).collect();
     let prepared = tab.prepare_packed(ctx, &rows);
-    let height = (lobes.len().div_ceil(4) * CHUNK / TEX_W) as u32;
-    let texture = ctx.packed_texture("packed", height, wgpu::TextureUsages::STORAGE_BINDING);
-    let view = texture.create_view(&Default::default());
-    let cbuf = ctx.storage("cells", (CHUNK * 4) as u64);
-    let weights = vec![1f32; CHUNK];
-    let wbuf = ctx.storage_init(
-        "weights",
-        bytemuck::cast_slice(&weights),
-        wgpu::BufferUsages::empty(),
+    let target = PackTarget::new(
+        ctx,
+        lobes.len().div_ceil(4),
+        CHUNK,
+        wgpu::TextureUsages::empty(),
     );
     let sync = ctx.storage("sync", 16);
     let run = || {
         for cc in cells.chunks(CHUNK) {
-            ctx.queue.write_buffer(&cbuf, 0, bytemuck::cast_slice(cc));
-            let mut enc = ctx.encoder();
-            tab.record_pack(
-                ctx,
-                &mut enc,
-                &prepared,
-                &cbuf,
-                &wbuf,
-                &view,
-                cc.len() as u32,
-                CHUNK as u32,
-            );
+            let enc = tab.encode_pack(ctx, &prepared, &target, cc);
             ctx.submit_and_read(enc, &sync, 4).expect("pack");
         }
     };

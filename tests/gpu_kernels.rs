@@ -129,6 +129,33 @@ fn cpu_tabulation_matches_gpu_twin_and_model() {
     }
 }
 
+/// A measured copy of an analytic lobe: its CPU tabulation in all three channels.
+fn measured_copy(lobe: &Lobe, channel: Option<usize>) -> Lobe {
+    let all: Vec<u32> = (0..N_CELLS as u32).collect();
+    let table = CpuBackend::new()
+        .tabulate(std::slice::from_ref(lobe), &all)
+        .expect("tab");
+    Lobe::Measured {
+        table: std::sync::Arc::new(brdf_basis::merl::MerlTable {
+            rgb: [table.clone(), table.clone(), table].concat(),
+        }),
+        channel,
+    }
+}
+
+/// BRDF_it from the GPU against the CPU back-end: 1e-4 relative.
+fn assert_l1_matches_cpu(got: &[f64], lobes: &[Lobe], cells: &CellSet) {
+    let want = CpuBackend::new()
+        .pairwise_l1(lobes, cells, &|_, _| {})
+        .expect("cpu");
+    let r = max_rel(got, &want, 1e-30);
+    assert!(
+        r <= 1e-4,
+        "{} lobes: gpu vs cpu relative {r:e}",
+        lobes.len()
+    );
+}
+
 fn lobes_of(coll: &brdf_basis::collection::Collection) -> Vec<Lobe> {
     brdf_basis::distance::lobes(coll, brdf_basis::distance::LobeKind::Specular)
 }
@@ -150,11 +177,7 @@ fn pairwise_kernel_matches_cpu_at_full_run_length() {
     gpu.release_memory();
     let again = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
     assert_eq!(g, again, "deterministic, cache or not");
-    let c = CpuBackend::new()
-        .pairwise_l1(&lobes, &cells, &|_, _| {})
-        .expect("cpu");
-    let r = max_rel(&g, &c, 1e-30);
-    assert!(r <= 1e-4, "gpu vs cpu relative {r:e}");
+    assert_l1_matches_cpu(&g, &lobes, &cells);
 }
 
 #[test]
@@ -208,15 +231,8 @@ fn every_kernel_shape_matches_cpu() {
     let coll = ngan().subset(&(0..37).collect::<Vec<_>>());
     let mut lobes = brdf_basis::distance::lobes(&coll, brdf_basis::distance::LobeKind::Full);
     let cpu = CpuBackend::new();
-    let all: Vec<u32> = (0..N_CELLS as u32).collect();
     for m in [1usize, 17, 36] {
-        let table = cpu.tabulate(&lobes[m..m + 1], &all).expect("tab");
-        lobes[m] = Lobe::Measured {
-            table: std::sync::Arc::new(brdf_basis::merl::MerlTable {
-                rgb: [table.clone(), table.clone(), table].concat(),
-            }),
-            channel: Some(1),
-        };
+        lobes[m] = measured_copy(&lobes[m], Some(1));
     }
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 7);
     let ctx = gpu.context();
@@ -249,16 +265,7 @@ fn pairwise_handles_padding_measured_rows_and_tiny_sets() {
     let coll = ngan().subset(&[0, 10, 20, 30, 40]);
     let mut lobes = brdf_basis::distance::lobes(&coll, brdf_basis::distance::LobeKind::Full);
     let cpu = CpuBackend::new();
-    let all: Vec<u32> = (0..N_CELLS as u32).collect();
-    let table = cpu.tabulate(&lobes[2..3], &all).expect("tab");
-    let mut rgb = vec![0f32; 3 * N_CELLS];
-    for ch in 0..3 {
-        rgb[ch * N_CELLS..(ch + 1) * N_CELLS].copy_from_slice(&table);
-    }
-    lobes[2] = Lobe::Measured {
-        table: std::sync::Arc::new(brdf_basis::merl::MerlTable { rgb }),
-        channel: None,
-    };
+    lobes[2] = measured_copy(&lobes[2], None);
     for stride in [1usize, 13] {
         let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, stride);
         let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
@@ -358,11 +365,7 @@ fn pairwise_in_several_block_passes_matches_cpu() {
         "the test must need several passes: {plan:?}"
     );
     let g = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
-    let c = CpuBackend::new()
-        .pairwise_l1(&lobes, &cells, &|_, _| {})
-        .expect("cpu");
-    let r = max_rel(&g, &c, 1e-30);
-    assert!(r <= 1e-4, "gpu vs cpu relative {r:e}");
+    assert_l1_matches_cpu(&g, &lobes, &cells);
 }
 
 #[test]
@@ -377,7 +380,6 @@ fn concurrent_calls_on_one_backend_match_cpu() {
     let sets: Vec<Vec<Lobe>> = (0..4)
         .map(|k| lobes_of(&coll.subset(&(k * 20..k * 20 + 9 + 3 * k).collect::<Vec<_>>())))
         .collect();
-    let cpu = CpuBackend::new();
     std::thread::scope(|s| {
         let runs: Vec<_> = sets
             .iter()
@@ -390,10 +392,8 @@ fn concurrent_calls_on_one_backend_match_cpu() {
             })
             .collect();
         for (run, l) in runs.into_iter().zip(&sets) {
-            let want = cpu.pairwise_l1(l, &cells, &|_, _| {}).expect("cpu");
             for got in run.join().expect("thread") {
-                let r = max_rel(&got, &want, 1e-30);
-                assert!(r <= 1e-4, "{} lobes: gpu vs cpu relative {r:e}", l.len());
+                assert_l1_matches_cpu(&got, l, &cells);
             }
         }
     });

@@ -32,47 +32,25 @@ fn select_methods_write_the_spec_json() {
     assert_eq!(v["runs"].as_array().expect("runs").len(), 3);
     assert_eq!(v["best"]["medoids"].as_array().expect("medoids").len(), 5);
     assert_eq!(v["best"]["labels"].as_array().expect("labels").len(), 100);
+    // GCUK with seed 7, written to `out`.
+    let gcuk = |out: &std::path::Path| {
+        bin()
+            .args(["--seed", "7", "select", "--method", "gcuk"])
+            .args(["--metric", "euclidean", "--runs", "2", "--json"])
+            .arg(out)
+            .status()
+            .expect("run")
+            .success()
+    };
     let gc = d.path().join("gc.json");
-    assert!(bin()
-        .args([
-            "--seed",
-            "7",
-            "select",
-            "--method",
-            "gcuk",
-            "--metric",
-            "euclidean",
-            "--runs",
-            "2",
-            "--json"
-        ])
-        .arg(&gc)
-        .status()
-        .expect("run")
-        .success());
+    assert!(gcuk(&gc));
     let v = json(&gc);
     assert_eq!(v["runs"][0]["seed"], 7);
     let k = v["best"]["k"].as_u64().expect("k");
     assert!((5..=20).contains(&k));
     // Same seed, same result.
     let gc2 = d.path().join("gc2.json");
-    assert!(bin()
-        .args([
-            "--seed",
-            "7",
-            "select",
-            "--method",
-            "gcuk",
-            "--metric",
-            "euclidean",
-            "--runs",
-            "2",
-            "--json"
-        ])
-        .arg(&gc2)
-        .status()
-        .expect("run")
-        .success());
+    assert!(gcuk(&gc2));
     assert_eq!(json(&gc), json(&gc2));
     let em = d.path().join("em.json");
     assert!(bin()

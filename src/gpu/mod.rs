@@ -221,16 +221,10 @@ impl GpuContext {
 
     /// A uniform buffer holding `data`.
     pub fn uniform<T: bytemuck::Pod>(&self, label: &str, data: &T) -> wgpu::Buffer {
-        use wgpu::util::DeviceExt;
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytemuck::bytes_of(data),
-                usage: wgpu::BufferUsages::UNIFORM,
-            })
+        self.uniform_slice(label, std::slice::from_ref(data))
     }
 
-    /// A uniform buffer holding `data`.
+    /// A uniform buffer holding the elements of `data`.
     pub fn uniform_slice<T: bytemuck::Pod>(&self, label: &str, data: &[T]) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
         self.device
@@ -241,46 +235,49 @@ impl GpuContext {
             })
     }
 
-    /// An r32float (`channels` 1), rg32float (2) or rgba32float (4) texture of width
-    /// [`pairwise::TEX_W`] holding `data` linearly (texel `k` at `(k % TEX_W, k / TEX_W)`,
-    /// zero-padded to whole rows): a table the kernels fetch with vector gathers.
-    pub fn linear_texture(&self, label: &str, data: &[f32], channels: usize) -> wgpu::TextureView {
+    /// An rgba32float texture of width [`pairwise::TEX_W`] holding `texels` (rgba)
+    /// linearly (texel `k` at `(k % TEX_W, k / TEX_W)`, zero-padded to whole rows): a table
+    /// the kernels fetch with vector gathers.
+    pub fn linear_texture(&self, label: &str, texels: &[f32]) -> wgpu::TextureView {
+        let row = 4 * pairwise::TEX_W;
+        let mut padded = texels.to_vec();
+        padded.resize(texels.len().div_ceil(row).max(1) * row, 0.0);
+        let tex = self.packed_texture(
+            label,
+            (padded.len() / row) as u32,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
+        self.write_texel_rows(&tex, 0, &padded);
+        tex.create_view(&wgpu::TextureViewDescriptor::default())
+    }
+
+    /// Writes `texels` (rgba, whole rows of [`pairwise::TEX_W`]) into `texture` from row
+    /// `first_row`.
+    pub fn write_texel_rows(&self, texture: &wgpu::Texture, first_row: usize, texels: &[f32]) {
         let w = pairwise::TEX_W;
-        let h = (data.len() / channels).div_ceil(w).max(1);
-        let mut padded = data.to_vec();
-        padded.resize(w * h * channels, 0.0);
-        let format = match channels {
-            1 => wgpu::TextureFormat::R32Float,
-            2 => wgpu::TextureFormat::Rg32Float,
-            4 => wgpu::TextureFormat::Rgba32Float,
-            _ => panic!("linear_texture: {channels} channels"),
-        };
-        let size = wgpu::Extent3d {
-            width: w as u32,
-            height: h as u32,
-            depth_or_array_layers: 1,
-        };
-        let tex = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
         self.queue.write_texture(
-            tex.as_image_copy(),
-            bytemuck::cast_slice(&padded),
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: first_row as u32,
+                    z: 0,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(texels),
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some((w * 4 * channels) as u32),
+                bytes_per_row: Some((w * 16) as u32),
                 rows_per_image: None,
             },
-            size,
+            wgpu::Extent3d {
+                width: w as u32,
+                height: (texels.len() / (4 * w)) as u32,
+                depth_or_array_layers: 1,
+            },
         );
-        tex.create_view(&wgpu::TextureViewDescriptor::default())
     }
 
     /// An rgba32float texture of width [`pairwise::TEX_W`] and `height` rows, used as
@@ -405,6 +402,38 @@ impl GpuContext {
     pub fn encoder(&self) -> wgpu::CommandEncoder {
         self.device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None })
+    }
+}
+
+/// Compute pipelines compiled on first use, by key (kernel variants generated per shape,
+/// column count, ...).
+#[derive(Debug)]
+pub struct PipelineCache<K> {
+    compiled: std::sync::Mutex<Vec<(K, wgpu::ComputePipeline)>>,
+}
+
+impl<K> Default for PipelineCache<K> {
+    fn default() -> Self {
+        Self {
+            compiled: Default::default(),
+        }
+    }
+}
+
+impl<K: PartialEq + Copy> PipelineCache<K> {
+    /// The pipeline for `key`, compiled by `compile` the first time.
+    pub fn get(
+        &self,
+        key: K,
+        compile: impl FnOnce() -> Result<wgpu::ComputePipeline, GpuError>,
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
+        let mut cache = self.compiled.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, p)) = cache.iter().find(|(k, _)| *k == key) {
+            return Ok(p.clone());
+        }
+        let p = compile()?;
+        cache.push((key, p.clone()));
+        Ok(p)
     }
 }
 

@@ -5,7 +5,7 @@
 //! target has converged or reached `max_iter`. Objective and KKT are then recomputed in
 //! f64 on the host.
 
-use super::{dispatch, GpuContext};
+use super::{dispatch, GpuContext, PipelineCache};
 use crate::error::GpuError;
 use crate::nnls::pgd::{PgdParams, Prepared, PGD_KERNEL_COLUMNS};
 use crate::nnls::{GramBatch, NnlsSolution};
@@ -53,7 +53,7 @@ pub struct PgdUniforms {
 /// The kernel, compiled on first use per number of columns.
 #[derive(Debug, Default)]
 pub struct PgdKernel {
-    pipelines: std::sync::Mutex<Vec<(usize, wgpu::ComputePipeline)>>,
+    pipelines: PipelineCache<usize>,
 }
 
 impl PgdKernel {
@@ -64,13 +64,9 @@ impl PgdKernel {
 
     /// The pipeline for `m` columns.
     fn pipeline(&self, ctx: &GpuContext, m: usize) -> Result<wgpu::ComputePipeline, GpuError> {
-        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, p)) = cache.iter().find(|(k, _)| *k == m) {
-            return Ok(p.clone());
-        }
-        let p = ctx.pipeline(&format!("pgd ({m} columns)"), &kernel_source(m))?;
-        cache.push((m, p.clone()));
-        Ok(p)
+        self.pipelines.get(m, || {
+            ctx.pipeline(&format!("pgd ({m} columns)"), &kernel_source(m))
+        })
     }
 
     /// Solves every target of `batch` (at most 32 columns) on the GPU.

@@ -41,6 +41,44 @@ pub struct PackRows {
     alpha: bool,
 }
 
+/// Where `pack` writes: a packed texture of row blocks `chunk` texels apart, and the
+/// chunk's cells with unit row scales.
+#[derive(Debug)]
+pub struct PackTarget {
+    /// The texture (storage, plus the caller's usage).
+    pub texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    cells: wgpu::Buffer,
+    weights: wgpu::Buffer,
+    /// Texels between row blocks (a multiple of `TEX_W`).
+    pub chunk: usize,
+}
+
+impl PackTarget {
+    /// A target for `blocks` row blocks of `chunk` cells (`chunk` a multiple of `TEX_W`).
+    pub fn new(ctx: &GpuContext, blocks: usize, chunk: usize, usage: wgpu::TextureUsages) -> Self {
+        use super::pairwise::TEX_W;
+        assert_eq!(chunk % TEX_W, 0, "whole texture rows per row block");
+        let texture = ctx.packed_texture(
+            "packed rows",
+            (blocks * chunk / TEX_W) as u32,
+            wgpu::TextureUsages::STORAGE_BINDING | usage,
+        );
+        let ones = vec![1f32; chunk];
+        Self {
+            view: texture.create_view(&wgpu::TextureViewDescriptor::default()),
+            texture,
+            cells: ctx.storage("cells", (chunk * 4) as u64),
+            weights: ctx.storage_init(
+                "unit weights",
+                bytemuck::cast_slice(&ones),
+                wgpu::BufferUsages::empty(),
+            ),
+            chunk,
+        }
+    }
+}
+
 #[derive(Debug)]
 struct PackGroup {
     first_block: u32,
@@ -115,7 +153,7 @@ impl TabulateKernel {
                 PackGroup {
                     first_block: (g * per) as u32,
                     n_blocks: (blocks.len() / 4) as u32,
-                    betas: ctx.linear_texture("beta tables", &texels, 4),
+                    betas: ctx.linear_texture("beta tables", &texels),
                 }
             })
             .collect();
@@ -124,30 +162,28 @@ impl TabulateKernel {
         PackRows { groups, alpha }
     }
 
-    /// Records the fill of the analytic row blocks of the packed texture `packed` for one
-    /// chunk of `n_cells` cells (`weights`: each cell's row scale; `chunk`: texels between
-    /// row blocks).
-    #[allow(clippy::too_many_arguments)]
-    pub fn record_pack(
+    /// Uploads `cells` (at most `target.chunk`) and records the fill of the analytic row
+    /// blocks of `target`'s texture, with unit row scales.
+    pub fn encode_pack(
         &self,
         ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
         rows: &PackRows,
-        cells: &wgpu::Buffer,
-        weights: &wgpu::Buffer,
-        packed: &wgpu::TextureView,
-        n_cells: u32,
-        chunk: u32,
-    ) {
+        target: &PackTarget,
+        cells: &[u32],
+    ) -> wgpu::CommandEncoder {
+        ctx.queue
+            .write_buffer(&target.cells, 0, bytemuck::cast_slice(cells));
+        let mut encoder = ctx.encoder();
         let pipeline = if rows.alpha {
             &self.pack
         } else {
             &self.pack_specular
         };
+        let n_cells = cells.len() as u32;
         for g in &rows.groups {
             let params = PackParams {
                 n_cells,
-                chunk,
+                chunk: target.chunk as u32,
                 first_block: g.first_block,
                 n_blocks: g.n_blocks,
             };
@@ -157,19 +193,20 @@ impl TabulateKernel {
                 vec![
                     (0, pbuf.as_entire_binding()),
                     (1, self.tables.as_entire_binding()),
-                    (2, cells.as_entire_binding()),
-                    (3, weights.as_entire_binding()),
-                    (4, wgpu::BindingResource::TextureView(packed)),
+                    (2, target.cells.as_entire_binding()),
+                    (3, target.weights.as_entire_binding()),
+                    (4, wgpu::BindingResource::TextureView(&target.view)),
                     (5, wgpu::BindingResource::TextureView(&g.betas)),
                 ],
             );
             dispatch(
-                encoder,
+                &mut encoder,
                 pipeline,
                 &bind,
                 (n_cells.div_ceil(WORKGROUP), g.n_blocks.div_ceil(BPI as u32)),
             );
         }
+        encoder
     }
 
     /// Tabulates `lobes` over `cells` and reads the values back (`out[l * cells.len() + c]`):
@@ -199,41 +236,13 @@ impl TabulateKernel {
             let prepared = self.prepare_packed(ctx, &rows);
             let chunk = ((BUDGET / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
                 .clamp(TEX_W, n.next_multiple_of(TEX_W));
-            let size = wgpu::Extent3d {
-                width: TEX_W as u32,
-                height: (blocks * chunk / TEX_W) as u32,
-                depth_or_array_layers: 1,
-            };
-            let texture = ctx.packed_texture(
-                "tabulated (packed)",
-                size.height,
-                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            );
-            let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+            let target = PackTarget::new(ctx, blocks, chunk, wgpu::TextureUsages::COPY_SRC);
             let bytes = (blocks * chunk * 16) as u64;
             let readback = ctx.storage("tabulated", bytes);
-            let cbuf = ctx.storage("cells", (chunk * 4) as u64);
-            let ones = vec![1f32; chunk];
-            let wbuf = ctx.storage_init(
-                "unit weights",
-                bytemuck::cast_slice(&ones),
-                wgpu::BufferUsages::empty(),
-            );
             for (k, cc) in cells.chunks(chunk).enumerate() {
-                ctx.queue.write_buffer(&cbuf, 0, bytemuck::cast_slice(cc));
-                let mut enc = ctx.encoder();
-                self.record_pack(
-                    ctx,
-                    &mut enc,
-                    &prepared,
-                    &cbuf,
-                    &wbuf,
-                    &view,
-                    cc.len() as u32,
-                    chunk as u32,
-                );
+                let mut enc = self.encode_pack(ctx, &prepared, &target, cc);
                 enc.copy_texture_to_buffer(
-                    texture.as_image_copy(),
+                    target.texture.as_image_copy(),
                     wgpu::TexelCopyBufferInfo {
                         buffer: &readback,
                         layout: wgpu::TexelCopyBufferLayout {
@@ -242,7 +251,7 @@ impl TabulateKernel {
                             rows_per_image: None,
                         },
                     },
-                    size,
+                    target.texture.size(),
                 );
                 let data = ctx.submit_and_read(enc, &readback, bytes)?;
                 let texels: &[[f32; 4]] = bytemuck::cast_slice(&data[..bytes as usize]);

@@ -25,7 +25,7 @@ pub use plan::{covering_blocks, PairPlan, PlanLimits, RowLayout};
 pub use shape::{kernel_source, KernelShape};
 
 use super::tabulate::separable_texels;
-use super::{dispatch, GpuContext};
+use super::{dispatch, GpuContext, PipelineCache};
 use crate::backend::blocks::{add_block, PairOp};
 use crate::backend::{Lobe, LobeParams, Progress};
 use crate::error::GpuError;
@@ -96,33 +96,6 @@ fn table_texels(lobes: &[Lobe], layout: &RowLayout, blocks: usize) -> Vec<f32> {
     texels
 }
 
-/// Writes `texels` (rgba) into whole rows of `texture` from row `first_row`.
-fn write_rows(ctx: &GpuContext, texture: &wgpu::Texture, first_row: usize, texels: &[f32]) {
-    let rows = texels.len() / (4 * TEX_W);
-    ctx.queue.write_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture,
-            mip_level: 0,
-            origin: wgpu::Origin3d {
-                x: 0,
-                y: first_row as u32,
-                z: 0,
-            },
-            aspect: wgpu::TextureAspect::All,
-        },
-        bytemuck::cast_slice(texels),
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some((TEX_W * 16) as u32),
-            rows_per_image: None,
-        },
-        wgpu::Extent3d {
-            width: TEX_W as u32,
-            height: rows as u32,
-            depth_or_array_layers: 1,
-        },
-    );
-}
 /// A compiled variant: shape, operation, diagonal or not.
 type PipelineKey = (KernelShape, PairOp, bool);
 
@@ -130,7 +103,7 @@ type PipelineKey = (KernelShape, PairOp, bool);
 /// value texture kept between calls (a fresh texture would be cleared by wgpu first).
 #[derive(Debug, Default)]
 pub struct PairwiseKernel {
-    pipelines: std::sync::Mutex<Vec<(PipelineKey, wgpu::ComputePipeline)>>,
+    pipelines: PipelineCache<PipelineKey>,
     texture: std::sync::Mutex<Option<(u32, wgpu::Texture)>>,
 }
 
@@ -148,24 +121,18 @@ impl PairwiseKernel {
         op: PairOp,
         diagonal: bool,
     ) -> Result<wgpu::ComputePipeline, GpuError> {
-        let key = (shape, op, diagonal);
-        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, p)) = cache.iter().find(|(k, _)| *k == key) {
-            return Ok(p.clone());
-        }
-        let label = format!(
-            "pairwise ({op:?}, {0}x{0}{1})",
-            shape.side(),
-            if diagonal { ", diagonal" } else { "" }
-        );
-        let code = match op {
-            PairOp::L1 => 0.0,
-            PairOp::Dot => 1.0,
-        };
-        let src = kernel_source(shape, diagonal);
-        let p = ctx.pipeline_with(&label, &src, &[("OP", code)])?;
-        cache.push((key, p.clone()));
-        Ok(p)
+        self.pipelines.get((shape, op, diagonal), || {
+            let label = format!(
+                "pairwise ({op:?}, {0}x{0}{1})",
+                shape.side(),
+                if diagonal { ", diagonal" } else { "" }
+            );
+            let code = match op {
+                PairOp::L1 => 0.0,
+                PairOp::Dot => 1.0,
+            };
+            ctx.pipeline_with(&label, &kernel_source(shape, diagonal), &[("OP", code)])
+        })
     }
 
     /// A value texture of at least `height` rows: the cached one when it is as tall, taken
@@ -251,8 +218,7 @@ impl PairwiseKernel {
             .min(n_blocks.max(1));
         let partial = ctx.storage("partial sums", (per_pass * per_block) as u64);
         let (height, texture) = self.value_texture(ctx, plan.texture_height());
-        write_rows(
-            ctx,
+        ctx.write_texel_rows(
             &texture,
             0,
             &table_texels(lobes, &layout, plan.analytic_blocks),
@@ -282,7 +248,7 @@ impl PairwiseKernel {
                 let w = op.row_scale(w);
                 t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
             }
-            write_rows(ctx, &info, 0, &texels);
+            ctx.write_texel_rows(&info, 0, &texels);
             // Measured rows: scaled and packed on the host, four rows to a texel.
             for (m, group) in layout.measured.chunks(4).enumerate() {
                 texels.fill(0.0);
@@ -292,8 +258,7 @@ impl PairwiseKernel {
                             (op.row_scale(w) * lobes[i].eval_f64(&tables, cell as usize)) as f32;
                     }
                 }
-                write_rows(
-                    ctx,
+                ctx.write_texel_rows(
                     &texture,
                     plan.measured_base() / TEX_W + m * info_rows,
                     &texels,

@@ -52,18 +52,10 @@ pub struct RowLayout {
 impl RowLayout {
     /// The layout of `lobes`.
     pub fn new(lobes: &[Lobe]) -> Self {
-        let measured: Vec<usize> = (0..lobes.len())
-            .filter(|&i| matches!(lobes[i], Lobe::Measured { .. }))
-            .collect();
-        let analytic: Vec<usize> = (0..lobes.len())
-            .filter(|&i| matches!(lobes[i], Lobe::Analytic(_)))
-            .collect();
-        Self::of_counts(analytic, measured, lobes.len())
-    }
-
-    fn of_counts(analytic: Vec<usize>, measured: Vec<usize>, n: usize) -> Self {
+        let (measured, analytic): (Vec<usize>, Vec<usize>) =
+            (0..lobes.len()).partition(|&i| matches!(lobes[i], Lobe::Measured { .. }));
         let measured_start = analytic.len().div_ceil(4) * 4;
-        let mut row = vec![0; n];
+        let mut row = vec![0; lobes.len()];
         for (k, &i) in analytic.iter().enumerate() {
             row[i] = k;
         }
@@ -72,7 +64,7 @@ impl RowLayout {
         }
         Self {
             row,
-            n_rows: measured_start + measured.len(),
+            n_rows: Self::rows_for(analytic.len(), measured.len()),
             analytic,
             measured,
             measured_start,
