@@ -1,11 +1,15 @@
 //! `brdf-basis select`.
 
 use super::Global;
-use brdf_basis::cluster::{GcukParams, KMedoidsParams};
+use brdf_basis::cluster::{
+    clearly_lower, ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams,
+    TIE_TOLERANCE,
+};
 use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
 use brdf_basis::fit::FitParams;
 use brdf_basis::io::json::write_json;
 use brdf_basis::select::{empirical, EmpiricalParams};
+use rayon::prelude::*;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -35,9 +39,13 @@ pub struct SelectArgs {
     /// Largest k (k-medoids range: 12 when no -k; GCUK k_max: 20).
     #[arg(long)]
     pub k_max: Option<usize>,
-    /// Runs per k (k-medoids) or GCUK runs, seeds seed, seed + 1, ...
+    /// Runs per k (k-medoids) or GCUK runs, seeds seed, seed + 1, ... (at least 1).
     #[arg(long, default_value_t = 30)]
     pub runs: usize,
+    /// k-medoids local search: fasterpam (Schubert & Rousseeuw 2021) or pam (BUILD-free
+    /// PAM SWAP, best improvement).
+    #[arg(long, default_value = "fasterpam")]
+    pub algorithm: KMedoidsAlgorithm,
     /// GCUK population.
     #[arg(long, default_value_t = 20)]
     pub population: usize,
@@ -71,32 +79,47 @@ pub fn run_json(
     })
 }
 
-/// Runs k-medoids for every k of `ks`, `runs` seeded runs each.
+/// Runs k-medoids (the library's default algorithm, FasterPAM) for every k of `ks`,
+/// `runs` seeded runs each.
 pub fn kmedoids_runs(
     d: &DistanceMatrix,
     ks: &[usize],
     runs: usize,
     seed: u64,
 ) -> anyhow::Result<Vec<serde_json::Value>> {
-    let mut out = Vec::new();
-    for &k in ks {
-        for r in 0..runs {
-            let s = seed + r as u64;
+    kmedoids_runs_with(d, ks, runs, seed, KMedoidsAlgorithm::default())
+}
+
+/// Runs k-medoids with `algorithm` for every k of `ks`, `runs` seeded runs each (in
+/// parallel; the list is in (k, run) order whatever the thread count).
+pub fn kmedoids_runs_with(
+    d: &DistanceMatrix,
+    ks: &[usize],
+    runs: usize,
+    seed: u64,
+    algorithm: KMedoidsAlgorithm,
+) -> anyhow::Result<Vec<serde_json::Value>> {
+    let jobs: Vec<(usize, u64)> = ks
+        .iter()
+        .flat_map(|&k| (0..runs).map(move |r| (k, seed + r as u64)))
+        .collect();
+    jobs.par_iter()
+        .map(|&(k, s)| {
             let km = KMedoidsParams::new(k)
+                .algorithm(algorithm)
                 .seed(s)
-                .init(brdf_basis::cluster::KMedoidsInit::Random)
+                .init(KMedoidsInit::Random)
                 .fit(d)?;
-            out.push(run_json(
+            Ok(run_json(
                 d,
                 s,
                 &km.medoids,
                 &km.labels,
                 km.loss,
                 km.db_index,
-            ));
-        }
-    }
-    Ok(out)
+            ))
+        })
+        .collect()
 }
 
 /// Runs GCUK `runs` times.
@@ -107,6 +130,7 @@ pub fn gcuk_runs(
     seed: u64,
 ) -> anyhow::Result<Vec<serde_json::Value>> {
     (0..runs)
+        .into_par_iter()
         .map(|r| {
             let s = seed + r as u64;
             let g = p.clone().seed(s).fit(d)?;
@@ -115,22 +139,89 @@ pub fn gcuk_runs(
         .collect()
 }
 
-/// The run with the lowest DB index (ties: first).
+/// The run with the lowest DB index; runs within [`TIE_TOLERANCE`] (relative) of each
+/// other tie, and ties go to the first.
 pub fn best(runs: &[serde_json::Value]) -> serde_json::Value {
-    runs.iter()
-        .min_by(|a, b| {
-            a["db_index"]
-                .as_f64()
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&b["db_index"].as_f64().unwrap_or(f64::INFINITY))
-        })
-        .cloned()
-        .unwrap_or(serde_json::Value::Null)
+    let db = |v: &serde_json::Value| v["db_index"].as_f64().unwrap_or(f64::INFINITY);
+    let mut best: Option<&serde_json::Value> = None;
+    for r in runs {
+        if best.is_none_or(|b| clearly_lower(db(r), db(b), TIE_TOLERANCE)) {
+            best = Some(r);
+        }
+    }
+    best.cloned().unwrap_or(serde_json::Value::Null)
+}
+
+/// The k values of a k-medoids selection, checked (before any distance is computed).
+fn kmedoids_ks(a: &SelectArgs) -> Result<Vec<usize>, ClusterError> {
+    if a.runs == 0 {
+        return Err(ClusterError::ZeroRuns);
+    }
+    let ks: Vec<usize> = match a.k {
+        Some(k) => vec![k],
+        None => {
+            let k_max = a.k_max.unwrap_or(12);
+            if a.k_min > k_max {
+                return Err(ClusterError::EmptyKRange {
+                    k_min: a.k_min,
+                    k_max,
+                });
+            }
+            (a.k_min..=k_max).collect()
+        }
+    };
+    for &k in &ks {
+        KMedoidsParams::new(k).algorithm(a.algorithm).check()?;
+    }
+    Ok(ks)
+}
+
+/// The GCUK parameters of a selection, checked.
+fn gcuk_params(a: &SelectArgs) -> Result<GcukParams, ClusterError> {
+    if a.runs == 0 {
+        return Err(ClusterError::ZeroRuns);
+    }
+    let p = GcukParams::default()
+        .k_range(a.k_min, a.k_max.unwrap_or(20))
+        .population(a.population)
+        .generations(a.generations);
+    p.clone().check()?;
+    Ok(p)
+}
+
+/// Checks the clustering flags before any long work: a clear error naming the flags.
+fn check_clustering(a: &SelectArgs, n: usize) -> anyhow::Result<()> {
+    let flags = "check --runs, -k, --k-min and --k-max";
+    match a.method.as_str() {
+        "kmedoids" => {
+            let ks = kmedoids_ks(a).map_err(|e| anyhow::anyhow!("select: {e} ({flags})"))?;
+            if let Some(&k) = ks.iter().find(|&&k| k > n) {
+                anyhow::bail!(
+                    "select: {} ({flags}; the collection has {n} materials)",
+                    ClusterError::KOutOfRange { k, n }
+                );
+            }
+        }
+        "gcuk" => {
+            let p = gcuk_params(a).map_err(|e| {
+                anyhow::anyhow!("select: {e} ({flags}, --population and --generations)")
+            })?;
+            if p.k_max > n {
+                anyhow::bail!(
+                    "select: {} ({flags}; the collection has {n} materials)",
+                    ClusterError::KMaxTooLarge { k_max: p.k_max, n }
+                );
+            }
+        }
+        _ => {}
+    }
+    Ok(())
 }
 
 /// Runs the selection.
 pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
     let coll = super::load_collection(&a.collection)?;
+    check_clustering(&a, coll.len())?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, &a.method);
     let progress = |done: u64, total: u64| {
@@ -159,20 +250,14 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
                 .stride(a.grid.stride)
                 .check(&coll)?;
             let d = distance_matrix(backend.as_ref(), &coll, &dp, &progress)?;
-            let runs = if a.method == "kmedoids" {
-                let ks: Vec<usize> = match a.k {
-                    Some(k) => vec![k],
-                    None => (a.k_min..=a.k_max.unwrap_or(12)).collect(),
-                };
-                kmedoids_runs(&d, &ks, a.runs, g.seed)?
+            if a.method == "kmedoids" {
+                let ks = kmedoids_ks(&a)?;
+                let runs = kmedoids_runs_with(&d, &ks, a.runs, g.seed, a.algorithm)?;
+                json!({"method": a.method, "algorithm": a.algorithm.to_string(), "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
             } else {
-                let p = GcukParams::default()
-                    .k_range(a.k_min, a.k_max.unwrap_or(20))
-                    .population(a.population)
-                    .generations(a.generations);
-                gcuk_runs(&d, &p, a.runs, g.seed)?
-            };
-            json!({"method": a.method, "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
+                let runs = gcuk_runs(&d, &gcuk_params(&a)?, a.runs, g.seed)?;
+                json!({"method": a.method, "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
+            }
         }
         other => anyhow::bail!("unknown method `{other}` (expected empirical, kmedoids or gcuk)"),
     };

@@ -40,8 +40,10 @@
 //!    `mutation_prob`, is redrawn: a filled slot is emptied with probability 1/2 or else
 //!    gets a uniform item; an empty slot gets a uniform item. An invalid mutant keeps its
 //!    pre-mutation chromosome.
-//! 5. The best individual ever seen (strictly lowest `DB`, first found on ties, scanning
-//!    each population in order) is returned.
+//! 5. The best individual ever seen (lowest `DB`, scanning each population in order) is
+//!    returned: an individual replaces the best only when its `DB` is lower by more than
+//!    `tolerance x DB` (default [`TIE_TOLERANCE`]), so near-ties go to the first found and
+//!    the choice never hinges on the last bits of the distances.
 //!
 //! All draws come from one [`ChaCha8Rng`] seeded with `seed_from_u64(seed)`.
 
@@ -51,7 +53,7 @@ use rand_chacha::ChaCha8Rng;
 use super::validity::{
     assign_unchecked, check_distances, db_unchecked, loss_unchecked, medoid_unchecked,
 };
-use super::ClusterError;
+use super::{ClusterError, TIE_TOLERANCE};
 use crate::distance::Distances;
 
 /// Draws per individual before initialisation gives up.
@@ -74,6 +76,9 @@ pub struct GcukParams {
     pub mutation_prob: f64,
     /// Seed of the run (default 0).
     pub seed: u64,
+    /// Relative margin of the best-individual comparison, in `[0, 1)` (default
+    /// [`TIE_TOLERANCE`]; 0: strict).
+    pub tolerance: f64,
 }
 
 impl Default for GcukParams {
@@ -86,6 +91,7 @@ impl Default for GcukParams {
             crossover_prob: 1.0,
             mutation_prob: 0.0,
             seed: 0,
+            tolerance: TIE_TOLERANCE,
         }
     }
 }
@@ -128,6 +134,12 @@ impl GcukParams {
         self
     }
 
+    /// Sets the relative tie margin of the best-individual comparison (0: strict).
+    pub fn tolerance(mut self, tolerance: f64) -> Self {
+        self.tolerance = tolerance;
+        self
+    }
+
     /// Validates the parameters that do not depend on the data; `k_max <= n` is checked by
     /// [`ValidGcukParams::fit`].
     pub fn check(self) -> Result<ValidGcukParams, ClusterError> {
@@ -152,6 +164,9 @@ impl GcukParams {
             if !(0.0..=1.0).contains(&value) {
                 return Err(ClusterError::ProbabilityOutOfRange { name, value });
             }
+        }
+        if !(0.0..1.0).contains(&self.tolerance) {
+            return Err(ClusterError::BadTolerance(self.tolerance));
         }
         Ok(ValidGcukParams(self))
     }
@@ -260,10 +275,11 @@ fn roulette(rng: &mut ChaCha8Rng, pop: &[Individual]) -> usize {
     last
 }
 
-/// Makes `best` the first individual of `pop` with the lowest `DB`, if strictly below `best`.
-fn keep_best(pop: &[Individual], best: &mut Individual) {
+/// Makes `best` the first individual of `pop` with the lowest `DB`, if below `best` by
+/// more than `tolerance x DB`.
+fn keep_best(pop: &[Individual], best: &mut Individual, tolerance: f64) {
     for ind in pop {
-        if ind.db < best.db {
+        if super::clearly_lower(ind.db, best.db, tolerance) {
             *best = ind.clone();
         }
     }
@@ -302,7 +318,7 @@ impl ValidGcukParams {
             pop.push(self.draw(d, &mut rng)?);
         }
         let mut best = pop[0].clone();
-        keep_best(&pop, &mut best);
+        keep_best(&pop, &mut best, p.tolerance);
         let mut history = vec![best.db];
         for _ in 0..p.generations {
             let selected: Vec<Individual> = (0..p.population)
@@ -333,7 +349,7 @@ impl ValidGcukParams {
                     }
                 }
             }
-            keep_best(&pop, &mut best);
+            keep_best(&pop, &mut best, p.tolerance);
             history.push(best.db);
         }
         let loss = loss_unchecked(d, &best.medoids, &best.labels);

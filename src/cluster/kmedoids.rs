@@ -1,21 +1,38 @@
-//! k-medoids by PAM (Partitioning Around Medoids; Kaufman & Rousseeuw 1990, "Finding
-//! Groups in Data", ch. 2, doi:10.1002/9780470316801.ch2) with seeded random restarts.
+//! k-medoids: FasterPAM (the default; Schubert & Rousseeuw 2021, "Fast and eager k-medoids
+//! clustering: O(k) runtime improvement of the PAM, CLARA, and CLARANS algorithms",
+//! Information Systems 101, doi:10.1016/j.is.2021.101804) and PAM (Partitioning Around
+//! Medoids; Kaufman & Rousseeuw 1990, "Finding Groups in Data", ch. 2,
+//! doi:10.1002/9780470316801.ch2), with seeded random restarts.
 //!
-//! Minimises the loss `sum_x D[x][m_{l(x)}]` over sets of `k` medoids, each item assigned
-//! to its nearest medoid (ties to the lowest cluster index):
+//! Both minimise the loss `sum_x D[x][m_{l(x)}]` over sets of `k` medoids, each item
+//! assigned to its nearest medoid (ties to the lowest cluster index), by swapping a medoid
+//! with a non-medoid while that lowers the loss:
 //!
-//! * **BUILD** (deterministic): the first medoid minimises the sum of distances to all
-//!   items; each next one maximises the loss decrease `sum_x max(0, d_x - D[x][c])`, where
-//!   `d_x` is the distance of `x` to its nearest medoid so far (ties to the lowest index).
-//! * **SWAP**, best improvement: every iteration evaluates all `k (n - k)` exchanges of a
-//!   medoid with a non-medoid (using nearest and second-nearest distances, `O(k n^2)`)
-//!   and applies the one with the most negative loss change. It stops when no exchange
-//!   lowers the loss (recomputed exactly after each swap, so float noise cannot make it
-//!   cycle) or after `max_iter` swaps.
+//! * **FasterPAM** (default), eager: candidates `j = 0, 1, ..., n - 1, 0, 1, ...` in turn;
+//!   for each non-medoid `j` one `O(n)` pass gives the loss change of swapping `j` with
+//!   *every* medoid (from each item's nearest and second-nearest medoid and each medoid's
+//!   removal loss), and the best of them is applied at once when it lowers the loss. It
+//!   stops after a full cycle of candidates without a swap, or after `max_iter` passes
+//!   over the candidates. An `O(n^2)` pass per sweep instead of PAM's `O(k n^2)` per swap.
+//!   This implementation follows the published algorithm (and the `kmedoids` package's
+//!   candidate order and tie rules: the first medoid with the least change), written for
+//!   this project.
+//! * **PAM**: BUILD (deterministic: the first medoid minimises the sum of distances to all
+//!   items; each next one maximises the loss decrease `sum_x max(0, d_x - D[x][c])`, ties
+//!   to the lowest index) and SWAP with best improvement: every step evaluates all
+//!   `k (n - k)` exchanges (`O(k n^2)`) and applies the one with the most negative loss
+//!   change; it stops when none lowers the loss (recomputed exactly after each swap, so
+//!   float noise cannot make it cycle) or after `max_iter` swaps.
+//! * **Ties** (`tolerance`, default [`TIE_TOLERANCE`]): loss changes are compared with a
+//!   margin of `tolerance x loss`: a swap is made only when it lowers the loss by more
+//!   than that, and two swaps whose changes differ by less count as a tie, broken in
+//!   favour of the earlier one (lower medoid position, then lower item). So a decision
+//!   never hinges on differences far below the accuracy of the distances (f32 sums on the
+//!   back-ends, about 1e-7 relative); `tolerance = 0` gives strict comparisons.
 //! * **Restarts**: run `r` in `0..restarts` starts from BUILD (run 0 with
 //!   [`KMedoidsInit::Build`]) or from `k` distinct medoids drawn uniformly by a
 //!   [`ChaCha8Rng`] seeded with `seed + r` (`seed_from_u64`, wrapping). The run with the
-//!   lowest loss is returned; ties go to the earliest run.
+//!   lowest loss is returned; ties (within the tolerance) go to the earliest run.
 //!
 //! The result lists the medoids in increasing item order; cluster `i` is `medoids[i]` and
 //! `labels[x]` indexes into `medoids` (nearest-medoid assignment, ties to the lowest `i`).
@@ -24,7 +41,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::validity::{assign_unchecked, check_distances, db_unchecked, loss_unchecked};
-use super::ClusterError;
+use super::{ClusterError, TIE_TOLERANCE};
 use crate::distance::Distances;
 
 /// How the runs of k-medoids choose their initial medoids.
@@ -37,12 +54,46 @@ pub enum KMedoidsInit {
     Random,
 }
 
+/// The local search of k-medoids.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum KMedoidsAlgorithm {
+    /// FasterPAM (Schubert & Rousseeuw 2021): eager swaps, `O(n^2)` per sweep.
+    #[default]
+    FasterPam,
+    /// PAM SWAP with best improvement, `O(k n^2)` per swap.
+    Pam,
+}
+
+impl std::str::FromStr for KMedoidsAlgorithm {
+    type Err = ClusterError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "fasterpam" => Ok(Self::FasterPam),
+            "pam" => Ok(Self::Pam),
+            _ => Err(ClusterError::UnknownAlgorithm(s.to_string())),
+        }
+    }
+}
+
+impl std::fmt::Display for KMedoidsAlgorithm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::FasterPam => "fasterpam",
+            Self::Pam => "pam",
+        })
+    }
+}
+
 /// Parameters of [`KMedoids`] (builder; validate with [`KMedoidsParams::check`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct KMedoidsParams {
     /// Number of clusters, `2 <= k <= n`. No default.
     pub k: usize,
-    /// Maximum number of SWAP steps per run (default 100; 0 keeps the initial medoids).
+    /// Local search (default [`KMedoidsAlgorithm::FasterPam`]).
+    pub algorithm: KMedoidsAlgorithm,
+    /// Most passes over the candidates (FasterPAM) or swaps (PAM) per run (default 100;
+    /// 0 keeps the initial medoids).
     pub max_iter: usize,
     /// Number of runs, at least 1 (default 1).
     pub restarts: usize,
@@ -50,21 +101,32 @@ pub struct KMedoidsParams {
     pub seed: u64,
     /// Initialisation (default [`KMedoidsInit::Build`]).
     pub init: KMedoidsInit,
+    /// Relative margin of the loss comparisons (module docs; default [`TIE_TOLERANCE`]).
+    pub tolerance: f64,
 }
 
 impl KMedoidsParams {
-    /// Parameters for `k` clusters with the defaults: 100 SWAP steps, 1 run, seed 0, BUILD.
+    /// Parameters for `k` clusters with the defaults: FasterPAM, 100 iterations, 1 run,
+    /// seed 0, BUILD, tolerance [`TIE_TOLERANCE`].
     pub fn new(k: usize) -> Self {
         Self {
             k,
+            algorithm: KMedoidsAlgorithm::FasterPam,
             max_iter: 100,
             restarts: 1,
             seed: 0,
             init: KMedoidsInit::Build,
+            tolerance: TIE_TOLERANCE,
         }
     }
 
-    /// Sets the maximum number of SWAP steps per run.
+    /// Sets the local search.
+    pub fn algorithm(mut self, algorithm: KMedoidsAlgorithm) -> Self {
+        self.algorithm = algorithm;
+        self
+    }
+
+    /// Sets the most passes (FasterPAM) or swaps (PAM) per run.
     pub fn max_iter(mut self, max_iter: usize) -> Self {
         self.max_iter = max_iter;
         self
@@ -88,14 +150,23 @@ impl KMedoidsParams {
         self
     }
 
-    /// Validates the parameters that do not depend on the data (`k >= 2`, `restarts >= 1`);
-    /// `k <= n` is checked by [`ValidKMedoidsParams::fit`].
+    /// Sets the relative tie margin of loss comparisons (0: strict).
+    pub fn tolerance(mut self, tolerance: f64) -> Self {
+        self.tolerance = tolerance;
+        self
+    }
+
+    /// Validates the parameters that do not depend on the data (`k >= 2`, `restarts >= 1`,
+    /// `0 <= tolerance < 1`); `k <= n` is checked by [`ValidKMedoidsParams::fit`].
     pub fn check(self) -> Result<ValidKMedoidsParams, ClusterError> {
         if self.k < 2 {
             return Err(ClusterError::KTooSmall { k: self.k });
         }
         if self.restarts == 0 {
             return Err(ClusterError::ZeroRuns);
+        }
+        if !(0.0..1.0).contains(&self.tolerance) {
+            return Err(ClusterError::BadTolerance(self.tolerance));
         }
         Ok(ValidKMedoidsParams(self))
     }
@@ -116,7 +187,7 @@ impl ValidKMedoidsParams {
         &self.0
     }
 
-    /// Runs PAM on `d`. Fails when `k > n` or a distance is negative or not finite.
+    /// Runs k-medoids on `d`. Fails when `k > n` or a distance is negative or not finite.
     pub fn fit<D: Distances + ?Sized>(&self, d: &D) -> Result<KMedoids, ClusterError> {
         let p = &self.0;
         let n = d.len();
@@ -126,29 +197,68 @@ impl ValidKMedoidsParams {
         check_distances(d)?;
         let mut best: Option<KMedoids> = None;
         for run in 0..p.restarts {
-            let mut medoids = if run == 0 && p.init == KMedoidsInit::Build {
+            let medoids = if run == 0 && p.init == KMedoidsInit::Build {
                 build(d, p.k)
             } else {
                 let mut rng = ChaCha8Rng::seed_from_u64(p.seed.wrapping_add(run as u64));
                 rand::seq::index::sample(&mut rng, n, p.k).into_vec()
             };
-            let iterations = swap(d, &mut medoids, p.max_iter);
-            medoids.sort_unstable();
-            let labels = assign_unchecked(d, &medoids);
-            let loss = loss_unchecked(d, &medoids, &labels);
-            if best.as_ref().is_none_or(|b| loss < b.loss) {
-                let db_index = db_unchecked(d, &medoids, &labels);
-                best = Some(KMedoids {
-                    medoids,
-                    labels,
-                    loss,
-                    iterations,
-                    db_index,
-                });
+            let r = self.search(d, medoids);
+            if best
+                .as_ref()
+                .is_none_or(|b| super::clearly_lower(r.loss, b.loss, p.tolerance))
+            {
+                best = Some(r);
             }
         }
         // `restarts >= 1` was checked, so at least one run was made.
         best.ok_or(ClusterError::ZeroRuns)
+    }
+
+    /// Runs the local search from the given initial medoids (distinct items, `k` of them).
+    pub fn fit_from<D: Distances + ?Sized>(
+        &self,
+        d: &D,
+        initial: &[usize],
+    ) -> Result<KMedoids, ClusterError> {
+        let n = d.len();
+        if initial.len() != self.0.k {
+            return Err(ClusterError::MedoidCount {
+                expected: self.0.k,
+                found: initial.len(),
+            });
+        }
+        let mut seen = vec![false; n];
+        for &m in initial {
+            if m >= n {
+                return Err(ClusterError::IndexOutOfRange { index: m, n });
+            }
+            if std::mem::replace(&mut seen[m], true) {
+                return Err(ClusterError::DuplicateMedoid(m));
+            }
+        }
+        check_distances(d)?;
+        Ok(self.search(d, initial.to_vec()))
+    }
+
+    /// The local search from `medoids` and the result.
+    fn search<D: Distances + ?Sized>(&self, d: &D, mut medoids: Vec<usize>) -> KMedoids {
+        let p = &self.0;
+        let iterations = match p.algorithm {
+            KMedoidsAlgorithm::FasterPam => faster_pam(d, &mut medoids, p.max_iter, p.tolerance),
+            KMedoidsAlgorithm::Pam => swap(d, &mut medoids, p.max_iter, p.tolerance),
+        };
+        medoids.sort_unstable();
+        let labels = assign_unchecked(d, &medoids);
+        let loss = loss_unchecked(d, &medoids, &labels);
+        let db_index = db_unchecked(d, &medoids, &labels);
+        KMedoids {
+            medoids,
+            labels,
+            loss,
+            iterations,
+            db_index,
+        }
     }
 }
 
@@ -161,7 +271,7 @@ pub struct KMedoids {
     pub labels: Vec<usize>,
     /// `sum_x D[x][medoids[labels[x]]]`.
     pub loss: f64,
-    /// Number of SWAP steps made by the returned run.
+    /// Number of swaps made by the returned run.
     pub iterations: usize,
     /// Medoid Davies-Bouldin index of the partition.
     pub db_index: f64,
@@ -192,45 +302,146 @@ fn build<D: Distances + ?Sized>(d: &D, k: usize) -> Vec<usize> {
     medoids
 }
 
+/// Nearest medoid (position in the medoid list, ties to the lowest), its distance and the
+/// second-nearest distance of every item.
+struct Nearest {
+    near: Vec<usize>,
+    first: Vec<f64>,
+    second: Vec<f64>,
+}
+
+impl Nearest {
+    fn new<D: Distances + ?Sized>(d: &D, medoids: &[usize]) -> Self {
+        let n = d.len();
+        let mut s = Self {
+            near: vec![0; n],
+            first: vec![f64::INFINITY; n],
+            second: vec![f64::INFINITY; n],
+        };
+        for x in 0..n {
+            for (i, &m) in medoids.iter().enumerate() {
+                let dx = d.dist(x, m);
+                if dx < s.first[x] {
+                    s.second[x] = s.first[x];
+                    s.first[x] = dx;
+                    s.near[x] = i;
+                } else if dx < s.second[x] {
+                    s.second[x] = dx;
+                }
+            }
+        }
+        s
+    }
+
+    /// `sum_x D[x][nearest medoid]`.
+    fn loss(&self) -> f64 {
+        self.first.iter().sum()
+    }
+
+    /// Loss increase of removing each medoid (its members go to their second-nearest).
+    fn removal_loss(&self, k: usize) -> Vec<f64> {
+        let mut r = vec![0.0; k];
+        for ((&i, &a), &b) in self.near.iter().zip(&self.first).zip(&self.second) {
+            r[i] += b - a;
+        }
+        r
+    }
+}
+
+/// FasterPAM; returns the number of swaps made.
+fn faster_pam<D: Distances + ?Sized>(
+    d: &D,
+    medoids: &mut [usize],
+    max_passes: usize,
+    tolerance: f64,
+) -> usize {
+    let n = d.len();
+    let k = medoids.len();
+    let mut is_medoid = vec![false; n];
+    medoids.iter().for_each(|&m| is_medoid[m] = true);
+    let mut nb = Nearest::new(d, medoids);
+    let mut loss = nb.loss();
+    let mut removal = nb.removal_loss(k);
+    let mut change = vec![0.0; k];
+    let (mut swaps, mut last_swap) = (0, None);
+    'passes: for _ in 0..max_passes {
+        let before = swaps;
+        for j in 0..n {
+            if last_swap == Some(j) {
+                // A full cycle of candidates without a swap: a local optimum.
+                break 'passes;
+            }
+            if is_medoid[j] {
+                continue;
+            }
+            // change[i]: loss change of swapping medoid i with j, less `gain` (shared).
+            change.copy_from_slice(&removal);
+            let mut gain = 0.0;
+            for o in 0..n {
+                let djo = d.dist(j, o);
+                let (a, b) = (nb.first[o], nb.second[o]);
+                if djo < a {
+                    gain += djo - a;
+                    change[nb.near[o]] += a - b;
+                } else if djo < b {
+                    change[nb.near[o]] += djo - b;
+                }
+            }
+            let margin = tolerance * loss;
+            let mut best = 0;
+            for i in 1..k {
+                if change[i] < change[best] - margin {
+                    best = i;
+                }
+            }
+            if change[best] + gain < -margin {
+                is_medoid[medoids[best]] = false;
+                medoids[best] = j;
+                is_medoid[j] = true;
+                nb = Nearest::new(d, medoids);
+                loss = nb.loss();
+                removal = nb.removal_loss(k);
+                swaps += 1;
+                last_swap = Some(j);
+            }
+        }
+        if swaps == before {
+            break;
+        }
+    }
+    swaps
+}
+
 /// PAM's SWAP with best improvement; returns the number of swaps made.
-fn swap<D: Distances + ?Sized>(d: &D, medoids: &mut [usize], max_iter: usize) -> usize {
+fn swap<D: Distances + ?Sized>(
+    d: &D,
+    medoids: &mut [usize],
+    max_iter: usize,
+    tolerance: f64,
+) -> usize {
     let n = d.len();
     let k = medoids.len();
     let mut loss = loss_unchecked(d, medoids, &assign_unchecked(d, medoids));
     let mut iterations = 0;
     while iterations < max_iter {
-        // Nearest cluster, its distance and the second-nearest distance of every item.
-        let mut near = vec![0usize; n];
-        let mut first = vec![f64::INFINITY; n];
-        let mut second = vec![f64::INFINITY; n];
-        for x in 0..n {
-            for (i, &m) in medoids.iter().enumerate() {
-                let dx = d.dist(x, m);
-                if dx < first[x] {
-                    second[x] = first[x];
-                    first[x] = dx;
-                    near[x] = i;
-                } else if dx < second[x] {
-                    second[x] = dx;
-                }
-            }
-        }
+        let nb = Nearest::new(d, medoids);
         let mut is_medoid = vec![false; n];
         medoids.iter().for_each(|&m| is_medoid[m] = true);
+        let margin = tolerance * loss;
         let mut best: Option<(f64, usize, usize)> = None;
         for i in 0..k {
             for h in (0..n).filter(|&h| !is_medoid[h]) {
                 let delta: f64 = (0..n)
                     .map(|x| {
                         let dh = d.dist(x, h);
-                        if near[x] == i {
-                            dh.min(second[x]) - first[x]
+                        if nb.near[x] == i {
+                            dh.min(nb.second[x]) - nb.first[x]
                         } else {
-                            (dh - first[x]).min(0.0)
+                            (dh - nb.first[x]).min(0.0)
                         }
                     })
                     .sum();
-                if delta < best.map_or(0.0, |b| b.0) {
+                if delta < best.map_or(0.0, |b| b.0) - margin {
                     best = Some((delta, i, h));
                 }
             }
@@ -294,45 +505,142 @@ mod tests {
 
     #[test]
     fn reaches_brute_force_optimum_on_tiny_sets() {
-        for seed in 0..6 {
-            let d = random_points(8, seed);
-            for k in 2..=5 {
-                let r = KMedoidsParams::new(k)
-                    .restarts(10)
-                    .seed(seed)
-                    .fit(&d)
-                    .unwrap();
-                let opt = brute_force(&d, k);
-                assert!(
-                    (r.loss - opt).abs() <= 1e-12 * opt,
-                    "seed {seed} k {k}: {} vs {opt}",
-                    r.loss
-                );
+        for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+            for seed in 0..6 {
+                let d = random_points(8, seed);
+                for k in 2..=5 {
+                    let r = KMedoidsParams::new(k)
+                        .algorithm(algorithm)
+                        .restarts(10)
+                        .seed(seed)
+                        .fit(&d)
+                        .unwrap();
+                    let opt = brute_force(&d, k);
+                    assert!(
+                        (r.loss - opt).abs() <= 1e-12 * opt,
+                        "{algorithm} seed {seed} k {k}: {} vs {opt}",
+                        r.loss
+                    );
+                }
             }
+        }
+    }
+
+    #[test]
+    fn fasterpam_from_every_start_of_a_tiny_set_is_a_pam_local_optimum() {
+        // Every 3-subset of 9 points as a start: FasterPAM ends where no single swap
+        // lowers the loss (PAM's SWAP from there makes no swap), and from some start it
+        // reaches the enumerated optimum.
+        let d = random_points(9, 5);
+        let opt = brute_force(&d, 3);
+        let fp = KMedoidsParams::new(3).check().unwrap();
+        let pam = KMedoidsParams::new(3)
+            .algorithm(KMedoidsAlgorithm::Pam)
+            .check()
+            .unwrap();
+        let mut best = f64::INFINITY;
+        for mask in (0u32..1 << 9).filter(|m| m.count_ones() == 3) {
+            let start: Vec<usize> = (0..9).filter(|&i| mask & (1 << i) != 0).collect();
+            let r = fp.fit_from(&d, &start).unwrap();
+            let again = pam.fit_from(&d, &r.medoids).unwrap();
+            assert_eq!(again.iterations, 0, "start {start:?}");
+            assert_eq!(again.medoids, r.medoids);
+            assert!(r.loss >= opt - 1e-12);
+            best = best.min(r.loss);
+        }
+        assert_eq!(best, opt);
+    }
+
+    #[test]
+    fn algorithm_names_round_trip() {
+        for a in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+            assert_eq!(a.to_string().parse::<KMedoidsAlgorithm>(), Ok(a));
+        }
+        assert_eq!(
+            "clara".parse::<KMedoidsAlgorithm>(),
+            Err(ClusterError::UnknownAlgorithm("clara".into()))
+        );
+    }
+
+    #[test]
+    fn rejects_bad_starts_and_tolerances() {
+        let d = Line(vec![0.0, 1.0, 2.0, 3.0]);
+        let p = KMedoidsParams::new(2).check().unwrap();
+        assert_eq!(
+            p.fit_from(&d, &[1, 1]),
+            Err(ClusterError::DuplicateMedoid(1))
+        );
+        assert_eq!(
+            p.fit_from(&d, &[1, 7]),
+            Err(ClusterError::IndexOutOfRange { index: 7, n: 4 })
+        );
+        assert_eq!(
+            p.fit_from(&d, &[1]),
+            Err(ClusterError::MedoidCount {
+                expected: 2,
+                found: 1
+            })
+        );
+        for t in [-1e-6, 1.0, f64::NAN] {
+            assert!(matches!(
+                KMedoidsParams::new(2).tolerance(t).check(),
+                Err(ClusterError::BadTolerance(_))
+            ));
+        }
+    }
+
+    #[test]
+    fn a_gain_within_the_tolerance_is_not_a_swap() {
+        // Item 0 far from the group {1, 2, 3}; as the group's medoid, item 1 costs 2 and
+        // items 2 and 3 cost 2 + 1e-9.
+        let e = 1e-9;
+        #[rustfmt::skip]
+        let d = Matrix(4, vec![
+            0.0, 100.0, 100.0, 100.0,
+            100.0, 0.0, 1.0, 1.0,
+            100.0, 1.0, 0.0, 1.0 + e,
+            100.0, 1.0, 1.0 + e, 0.0,
+        ]);
+        for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+            let p = KMedoidsParams::new(2).algorithm(algorithm);
+            // From {0, 2}: the swap 2 -> 1 gains 1e-9 (5e-10 of the loss).
+            let strict = p.clone().tolerance(0.0).check().unwrap();
+            assert_eq!(strict.fit_from(&d, &[0, 2]).unwrap().medoids, vec![0, 1]);
+            let tol = p.check().unwrap().fit_from(&d, &[0, 2]).unwrap();
+            assert_eq!((tol.medoids, tol.iterations), (vec![0, 2], 0));
         }
     }
 
     #[test]
     fn same_seed_same_result() {
         let d = random_points(40, 7);
-        let p = KMedoidsParams::new(5)
-            .restarts(4)
-            .seed(11)
-            .init(KMedoidsInit::Random);
-        let a = p.fit(&d).unwrap();
-        assert_eq!(a, p.fit(&d).unwrap());
-        // Restarts never do worse than run 0 alone (same seed for run 0).
-        assert!(a.loss <= p.clone().restarts(1).fit(&d).unwrap().loss);
+        for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+            let p = KMedoidsParams::new(5)
+                .algorithm(algorithm)
+                .restarts(4)
+                .seed(11)
+                .init(KMedoidsInit::Random);
+            let a = p.fit(&d).unwrap();
+            assert_eq!(a, p.fit(&d).unwrap());
+            // Restarts never do worse than run 0 alone (same seed for run 0).
+            assert!(a.loss <= p.clone().restarts(1).fit(&d).unwrap().loss);
+        }
     }
 
     #[test]
     fn max_iter_zero_keeps_build() {
         let d = random_points(20, 3);
-        let r = KMedoidsParams::new(3).max_iter(0).fit(&d).unwrap();
-        assert_eq!(r.iterations, 0);
         let mut b = build(&d, 3);
         b.sort_unstable();
-        assert_eq!(r.medoids, b);
+        for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+            let r = KMedoidsParams::new(3)
+                .algorithm(algorithm)
+                .max_iter(0)
+                .fit(&d)
+                .unwrap();
+            assert_eq!(r.iterations, 0);
+            assert_eq!(r.medoids, b);
+        }
     }
 
     #[test]

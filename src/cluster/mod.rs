@@ -9,8 +9,9 @@
 //!
 //! * [`validity`]: medoid of a cluster, nearest-medoid assignment, k-medoids loss and the
 //!   medoid Davies-Bouldin index (Davies & Bouldin 1979, doi:10.1109/TPAMI.1979.4766909).
-//! * [`kmedoids`]: PAM, BUILD + SWAP (Kaufman & Rousseeuw 1990,
-//!   doi:10.1002/9780470316801.ch2) with seeded random restarts.
+//! * [`kmedoids`]: FasterPAM (Schubert & Rousseeuw 2021, doi:10.1016/j.is.2021.101804,
+//!   the default) and PAM, BUILD + SWAP (Kaufman & Rousseeuw 1990,
+//!   doi:10.1002/9780470316801.ch2), with seeded random restarts.
 //! * [`gcuk`]: Genetic Clustering for Unknown K (Bandyopadhyay & Maulik 2002,
 //!   doi:10.1016/S0031-3203(01)00108-X) as modified by the paper (no mutation, medoids).
 
@@ -19,7 +20,26 @@ pub mod kmedoids;
 pub mod validity;
 
 pub use gcuk::{Gcuk, GcukParams, ValidGcukParams};
-pub use kmedoids::{KMedoids, KMedoidsInit, KMedoidsParams, ValidKMedoidsParams};
+pub use kmedoids::{
+    KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams, ValidKMedoidsParams,
+};
+
+/// Default relative margin of the loss and fitness comparisons of the clustering
+/// algorithms: two values `a < b` with `b - a <= TIE_TOLERANCE x |b|` count as a tie,
+/// broken by index (earlier swap, slot, run). The back-ends' distances agree far more
+/// closely than this (bit for bit between the CPU and lavapipe; the f32 sums behind them
+/// are accurate to about 1e-7 relative), so no decision hinges on how a back-end rounds.
+pub const TIE_TOLERANCE: f64 = 1e-6;
+
+/// Whether `a` is lower than `b` by more than `tolerance x |b|` (the comparison behind
+/// every best-of choice; an infinite `b` is beaten by any lower `a`).
+pub fn clearly_lower(a: f64, b: f64, tolerance: f64) -> bool {
+    if b.is_finite() {
+        a < b - tolerance * b.abs()
+    } else {
+        a < b
+    }
+}
 pub use validity::{assign, check_distances, davies_bouldin, loss, medoid_of};
 
 /// Errors of the clustering algorithms and validity indices.
@@ -139,6 +159,23 @@ pub enum ClusterError {
         index: usize,
         /// Number of items.
         n: usize,
+    },
+    /// An unknown k-medoids algorithm name.
+    #[error("unknown k-medoids algorithm `{0}` (expected fasterpam or pam)")]
+    UnknownAlgorithm(String),
+    /// The tie tolerance is not in `[0, 1)`.
+    #[error("tolerance = {0} is not in [0, 1)")]
+    BadTolerance(f64),
+    /// The initial medoids repeat an item.
+    #[error("item {0} appears twice among the initial medoids")]
+    DuplicateMedoid(usize),
+    /// The number of initial medoids is not `k`.
+    #[error("expected {expected} initial medoids (k), found {found}")]
+    MedoidCount {
+        /// `k`.
+        expected: usize,
+        /// Medoids given.
+        found: usize,
     },
     /// GCUK could not draw a valid initial individual (every draw had fewer than `k_min`
     /// non-empty clusters, which needs many items at distance 0 from each other).

@@ -1,0 +1,217 @@
+//! FasterPAM against the `kmedoids` package, against PAM, and the clustering flags of
+//! `select`.
+
+use crate::common::*;
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::cluster::{KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
+use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams};
+use std::process::Command;
+
+/// The synthetic matrix of the reference below: points
+/// `((1 + i % 7) frac(i G), frac(i S))`, Euclidean, f64.
+fn synthetic(n: usize) -> DistanceMatrix {
+    let (g, s) = (0.6180339887498949f64, 0.41421356237309503f64);
+    let p: Vec<(f64, f64)> = (0..n)
+        .map(|i| {
+            let (x, y) = (i as f64 * g, i as f64 * s);
+            ((1 + i % 7) as f64 * (x - x.floor()), y - y.floor())
+        })
+        .collect();
+    let data = (0..n * n)
+        .map(|ij| {
+            let (a, b) = (p[ij / n], p[ij % n]);
+            let (dx, dy) = (a.0 - b.0, a.1 - b.1);
+            (dx * dx + dy * dy).sqrt()
+        })
+        .collect();
+    DistanceMatrix::from_full((0..n).map(|i| format!("m{i}")).collect(), data).expect("matrix")
+}
+
+/// Start `r` of the reference: items `(r 7919 + i 104729) mod n`, `i < k`.
+fn start(n: usize, k: usize, r: usize) -> Vec<usize> {
+    (0..k).map(|i| (r * 7919 + i * 104_729) % n).collect()
+}
+
+/// `(k, start, loss, sorted medoids, swaps)` from the `kmedoids` Python package 0.5.5
+/// (GPL-3.0; run once outside the project, never a dependency):
+/// `kmedoids.fasterpam(D, start(200, k, r), max_iter=100, n_cpu=1)` on `synthetic(200)`
+/// built in NumPy with the same formula (`-> res.loss, sorted(res.medoids), res.n_swap`).
+#[rustfmt::skip]
+const REFERENCE: [(usize, usize, f64, &[usize], usize); 12] = [
+    (3, 0, 112.86865452663051, &[11, 52, 117], 12),
+    (3, 1, 112.86865452663051, &[11, 52, 117], 10),
+    (3, 2, 112.86865452663051, &[11, 52, 117], 12),
+    (3, 3, 112.86865452663051, &[11, 52, 117], 11),
+    (5, 0, 85.04328648082553, &[73, 110, 117, 124, 161], 19),
+    (5, 1, 85.04328648082553, &[73, 110, 117, 124, 161], 21),
+    (5, 2, 81.95591802826381, &[100, 110, 122, 182, 199], 20),
+    (5, 3, 81.95591802826381, &[100, 110, 122, 182, 199], 22),
+    (12, 0, 50.160179632479704, &[4, 6, 9, 11, 21, 26, 85, 102, 109, 119, 139, 158], 37),
+    (12, 1, 51.05952030286291, &[9, 11, 26, 33, 42, 49, 76, 110, 155, 158, 165, 184], 26),
+    (12, 2, 50.498838628543716, &[6, 9, 11, 14, 25, 49, 79, 138, 139, 148, 149, 158], 33),
+    (12, 3, 50.160179632479704, &[4, 6, 9, 11, 21, 26, 85, 102, 109, 119, 139, 158], 28),
+];
+
+#[test]
+fn fasterpam_matches_the_kmedoids_package() {
+    let d = synthetic(200);
+    for &(k, r, loss, medoids, swaps) in &REFERENCE {
+        // Strict comparisons, as the package: the same swaps, medoids and loss, bit for bit.
+        let strict = KMedoidsParams::new(k)
+            .tolerance(0.0)
+            .check()
+            .expect("params");
+        let got = strict.fit_from(&d, &start(200, k, r)).expect("fit");
+        assert_eq!(
+            (got.loss, got.medoids.as_slice(), got.iterations),
+            (loss, medoids, swaps),
+            "k {k} start {r}"
+        );
+        // The default tie margin ends at the same local optimum here.
+        let def = KMedoidsParams::new(k).check().expect("params");
+        let got = def.fit_from(&d, &start(200, k, r)).expect("fit");
+        assert_eq!((got.loss, got.medoids.as_slice()), (loss, medoids));
+    }
+}
+
+fn ngan_brdf_it() -> DistanceMatrix {
+    let coll = ngan();
+    let p = DistanceParams::default().check(&coll).expect("params");
+    distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("distances")
+}
+
+#[test]
+fn fasterpam_and_pam_on_seeded_starts_of_the_ngan_matrix() {
+    // 30 seeded random starts x k = 5..12 (the paper's protocol) on BRDF_it of the Ngan
+    // table: from every start FasterPAM ends where PAM's SWAP finds no improving swap, and
+    // the best of the 30 runs has the same loss for both algorithms at every k. FasterPAM
+    // may end lower or higher than PAM from one start (another neighbourhood order).
+    let d = ngan_brdf_it();
+    let (mut lower, mut higher, mut same) = (0, 0, 0);
+    for k in 5..=12 {
+        let fp = KMedoidsParams::new(k).check().expect("params");
+        let pam = KMedoidsParams::new(k)
+            .algorithm(KMedoidsAlgorithm::Pam)
+            .check()
+            .expect("params");
+        let (mut best_fp, mut best_pam) = (f64::INFINITY, f64::INFINITY);
+        for seed in 0..30u64 {
+            let init = KMedoidsParams::new(k)
+                .seed(seed)
+                .init(KMedoidsInit::Random)
+                .max_iter(0)
+                .fit(&d)
+                .expect("start");
+            let a = fp.fit_from(&d, &init.medoids).expect("fasterpam");
+            let b = pam.fit_from(&d, &init.medoids).expect("pam");
+            let again = pam.fit_from(&d, &a.medoids).expect("pam after fasterpam");
+            assert_eq!(again.iterations, 0, "k {k} seed {seed}");
+            assert_eq!(again.medoids, a.medoids);
+            let rel = (a.loss - b.loss) / b.loss;
+            if rel < -1e-12 {
+                lower += 1;
+            } else if rel > 1e-12 {
+                higher += 1;
+            } else {
+                same += 1;
+            }
+            best_fp = best_fp.min(a.loss);
+            best_pam = best_pam.min(b.loss);
+        }
+        assert!(
+            (best_fp - best_pam).abs() <= 1e-12 * best_pam,
+            "k {k}: best FasterPAM {best_fp}, best PAM {best_pam}"
+        );
+    }
+    eprintln!(
+        "FasterPAM vs PAM from the same 240 starts: {lower} lower, {same} equal, {higher} higher"
+    );
+}
+
+#[test]
+fn same_seed_gives_byte_identical_results() {
+    let d = synthetic(300);
+    for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+        let p = KMedoidsParams::new(8)
+            .algorithm(algorithm)
+            .restarts(3)
+            .seed(42)
+            .init(KMedoidsInit::Random);
+        let a = serde_json::to_string(&p.fit(&d).expect("fit")).expect("json");
+        let b = serde_json::to_string(&p.fit(&d).expect("fit")).expect("json");
+        assert_eq!(a, b, "{algorithm}");
+    }
+}
+
+fn select(args: &[&str]) -> (bool, String, Option<serde_json::Value>) {
+    let dir = tmp();
+    let out = dir.path().join("s.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+        .args(["--quiet", "--backend", "cpu", "select"])
+        .args(args)
+        .args(["--stride", "8", "--json"])
+        .arg(&out)
+        .output()
+        .expect("run");
+    let json = std::fs::read_to_string(&out)
+        .ok()
+        .map(|s| serde_json::from_str(&s).expect("json"));
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        json,
+    )
+}
+
+#[test]
+fn select_rejects_zero_runs_and_empty_k_ranges() {
+    for method in ["kmedoids", "gcuk"] {
+        let (ok, err, json) = select(&["--method", method, "--runs", "0"]);
+        assert!(!ok && json.is_none(), "{method} --runs 0 succeeded");
+        assert!(err.contains("runs"), "{err}");
+        let (ok, err, json) = select(&["--method", method, "--k-min", "10", "--k-max", "5"]);
+        assert!(
+            !ok && json.is_none(),
+            "{method} --k-min 10 --k-max 5 succeeded"
+        );
+        assert!(
+            err.contains("k_min = 10") && err.contains("k_max = 5"),
+            "{err}"
+        );
+    }
+    let (ok, err, _) = select(&["--method", "kmedoids", "-k", "1"]);
+    assert!(!ok && err.contains("k = 1"), "{err}");
+    let (ok, err, _) = select(&["--method", "kmedoids", "-k", "500"]);
+    assert!(
+        !ok && err.contains("500") && err.contains("58 materials"),
+        "{err}"
+    );
+    let (ok, err, _) = select(&["--method", "kmedoids", "--algorithm", "clara"]);
+    assert!(!ok && err.contains("clara"), "{err}");
+}
+
+#[test]
+fn select_runs_pam_and_fasterpam() {
+    let mut best = Vec::new();
+    for algorithm in ["pam", "fasterpam"] {
+        let (ok, err, json) = select(&[
+            "--method",
+            "kmedoids",
+            "--algorithm",
+            algorithm,
+            "--k-min",
+            "4",
+            "--k-max",
+            "5",
+            "--runs",
+            "3",
+        ]);
+        assert!(ok, "{err}");
+        let v = json.expect("json");
+        assert_eq!(v["algorithm"], algorithm);
+        assert_eq!(v["runs"].as_array().expect("runs").len(), 6);
+        assert_eq!(v["runs"][3]["k"], 5);
+        best.push(v["best"]["db_index"].as_f64().expect("db"));
+    }
+    assert!(best.iter().all(|b| b.is_finite() && *b > 0.0));
+}
