@@ -274,16 +274,43 @@ mod avx2 {
 }
 
 /// `acc[r][q] += sum_c op(a_r(c), b_q(c))` with the fastest code path of this processor.
+///
+/// Every row of `a` and `b` must have the same length; otherwise nothing is added and an
+/// error names the lengths (the vector kernel reads every row up to the first row's
+/// length).
 pub fn block_reduce(
     op: PairOp,
     a: [&[f32]; BLOCK],
     b: [&[f32]; BLOCK],
     acc: &mut [[f64; BLOCK]; BLOCK],
+) -> Result<(), BackendError> {
+    let len = a[0].len();
+    if a.iter().chain(&b).any(|r| r.len() != len) {
+        let lens = |rows: &[&[f32]; BLOCK]| rows.map(|r| r.len());
+        return Err(BackendError::Invalid(format!(
+            "block_reduce: rows of one length needed, found a: {:?}, b: {:?}",
+            lens(&a),
+            lens(&b)
+        )));
+    }
+    block_reduce_same_len(op, a, b, acc);
+    Ok(())
+}
+
+/// [`block_reduce`] for rows already known to share one length.
+fn block_reduce_same_len(
+    op: PairOp,
+    a: [&[f32]; BLOCK],
+    b: [&[f32]; BLOCK],
+    acc: &mut [[f64; BLOCK]; BLOCK],
 ) {
+    debug_assert!(a.iter().chain(&b).all(|r| r.len() == a[0].len()));
     #[cfg(target_arch = "x86_64")]
     {
         if is_avx2() {
-            // SAFETY: AVX2 and FMA were detected on this processor; rows share one length.
+            // SAFETY: AVX2 and FMA were detected on this processor; the callers
+            // (`block_reduce` checks, `reduce_pairs` slices one buffer into rows of one
+            // length) pass rows of one length.
             unsafe {
                 match op {
                     PairOp::L1 => avx2::block::<false>(a, b, acc),
@@ -383,7 +410,7 @@ impl Backend for CpuBackend {
                     .for_each(|(acc, &[bi, bj])| {
                         let a = std::array::from_fn(|r| rows[bi as usize * BLOCK + r]);
                         let b = std::array::from_fn(|q| rows[bj as usize * BLOCK + q]);
-                        block_reduce(op, a, b, acc);
+                        block_reduce_same_len(op, a, b, acc);
                     });
             });
             done += len as u64;
@@ -424,7 +451,7 @@ mod tests {
         let b: [&[f32]; BLOCK] = std::array::from_fn(|q| rows[4 + q].as_slice());
         for op in [PairOp::L1, PairOp::Dot] {
             let mut fast = [[0f64; BLOCK]; BLOCK];
-            block_reduce(op, a, b, &mut fast);
+            block_reduce(op, a, b, &mut fast).expect("same lengths");
             let mut port = [[0f64; BLOCK]; BLOCK];
             match op {
                 PairOp::L1 => block_portable::<false>(a, b, &mut port),
@@ -449,5 +476,28 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn rows_of_different_lengths_are_an_error_not_a_read_past_the_end() {
+        let long = vec![1f32; 4096];
+        let short = vec![2f32; 8];
+        for op in [PairOp::L1, PairOp::Dot] {
+            for bad in 0..2 * BLOCK {
+                let rows: [&[f32]; 2 * BLOCK] =
+                    std::array::from_fn(|i| if i == bad { &short[..] } else { &long[..] });
+                let (a, b) = (
+                    std::array::from_fn(|r| rows[r]),
+                    std::array::from_fn(|q| rows[BLOCK + q]),
+                );
+                let mut acc = [[0f64; BLOCK]; BLOCK];
+                let err = block_reduce(op, a, b, &mut acc).unwrap_err();
+                assert!(err.to_string().contains("4096") && err.to_string().contains('8'));
+                assert_eq!(acc, [[0f64; BLOCK]; BLOCK], "nothing added");
+            }
+        }
+        // Rows of one length, even empty ones, are fine.
+        let mut acc = [[0f64; BLOCK]; BLOCK];
+        block_reduce(PairOp::L1, [&[][..]; BLOCK], [&[][..]; BLOCK], &mut acc).expect("empty");
     }
 }
