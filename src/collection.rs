@@ -111,7 +111,10 @@ impl Collection {
             path: path.to_path_buf(),
             source,
         };
-        if path.is_dir() {
+        // The file type first, from metadata (never opening a FIFO, which would block, or
+        // a device): directories are listed, regular files read, anything else refused.
+        let meta = std::fs::metadata(path).map_err(io)?;
+        if meta.is_dir() {
             let mut files: Vec<PathBuf> = std::fs::read_dir(path)
                 .map_err(io)?
                 .filter_map(|e| e.ok().map(|e| e.path()))
@@ -119,7 +122,7 @@ impl Collection {
                 .collect();
             files.sort();
             if files.is_empty() {
-                return Err(CollectionError::Empty {
+                return Err(CollectionError::EmptyDir {
                     path: path.to_path_buf(),
                 });
             }
@@ -131,17 +134,13 @@ impl Collection {
         match path.extension().and_then(|e| e.to_str()) {
             Some("binary") => self.push_measured(path),
             Some("csv") => {
-                let bytes = std::fs::read(path).map_err(io)?;
+                let bytes = read_regular(path, MAX_CSV_BYTES)?;
                 let parsed = parse_csv(&bytes, path)?;
                 for (m, line) in parsed.materials.into_iter().zip(2u64..) {
                     self.push(m, path, line)?;
                 }
                 Ok(())
             }
-            _ if !path.exists() => Err(io(std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                "no such file or directory",
-            ))),
             _ => Err(CollectionError::UnknownKind {
                 path: path.to_path_buf(),
             }),
@@ -154,6 +153,11 @@ impl Collection {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
+        check_name(&name).map_err(|message| CollectionError::BadName {
+            path: f.to_path_buf(),
+            name: name.clone(),
+            message,
+        })?;
         self.push(
             Material {
                 name,
@@ -187,6 +191,9 @@ impl Collection {
 
     /// Index of a material by name, with close-name suggestions on failure.
     pub fn index_of(&self, name: &str) -> Result<usize, CollectionError> {
+        if name.trim().is_empty() {
+            return Err(CollectionError::EmptyName);
+        }
         self.index
             .get(name)
             .copied()
@@ -248,6 +255,56 @@ fn edit_distance(a: &str, b: &str) -> usize {
     prev[b.len()]
 }
 
+/// Largest analytic CSV read (a table of 10,000 materials is about 1 MB).
+pub const MAX_CSV_BYTES: u64 = 256 << 20;
+
+/// Reads a regular file of at most `max` bytes. Anything else (a FIFO, a device, a
+/// socket) is refused from its metadata, before it is opened, so that reading never blocks.
+pub fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, CollectionError> {
+    let io = |source| CollectionError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(CollectionError::NotRegular {
+            path: path.to_path_buf(),
+            kind: crate::merl::binary::file_kind(&meta),
+        });
+    }
+    if meta.len() > max {
+        return Err(CollectionError::TooLarge {
+            path: path.to_path_buf(),
+            bytes: meta.len(),
+            max,
+        });
+    }
+    std::fs::read(path).map_err(io)
+}
+
+/// Checks a material name: not empty, no control character (names are printed in
+/// messages, reports and JSON), no comma (flags take comma-separated lists of names).
+/// Names never choose a path (see `cli::fit` for exported files), so `/` and `..` are
+/// allowed. Returns what is wrong.
+pub fn check_name(name: &str) -> Result<(), String> {
+    if name.trim().is_empty() {
+        return Err("empty material name".into());
+    }
+    if name.chars().any(char::is_control) {
+        return Err("material names may not contain control characters".into());
+    }
+    if name.contains(',') {
+        return Err(
+            "material names may not contain commas (flags such as --basis take comma-separated names)"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
+/// Largest magnitude accepted for a parameter: computations on the grid run in f32.
+pub const MAX_PARAMETER: f64 = f32::MAX as f64;
+
 /// Parses an analytic CSV (SPEC 1) from bytes; `path` names the source in errors.
 pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionError> {
     let mut rdr = csv::ReaderBuilder::new()
@@ -288,14 +345,14 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionErro
             continue;
         }
         let material = rec.get(col[0]).unwrap_or("").to_string();
-        if material.is_empty() {
+        if let Err(message) = check_name(&material) {
             return Err(CollectionError::BadValue {
                 path: path.to_path_buf(),
                 line,
                 column: "material".into(),
-                material,
-                value: String::new(),
-                message: "empty material name".into(),
+                value: material.escape_debug().to_string(),
+                material: material.escape_debug().to_string(),
+                message,
             });
         }
         let mut v = [0f64; 8];
@@ -313,6 +370,11 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionErro
             let x: f64 = text.parse().map_err(|_| bad("not a number"))?;
             if !x.is_finite() {
                 return Err(bad("not a finite number"));
+            }
+            if x.abs() > MAX_PARAMETER {
+                return Err(bad(
+                    "too large: grid computations run in f32 (at most 3.4e38)",
+                ));
             }
             match column {
                 "F0" if !(0.0..=1.0).contains(&x) => return Err(bad("F0 must lie in [0, 1]")),

@@ -80,6 +80,43 @@ pub enum CollectionError {
     /// A measured file could not be read.
     #[error(transparent)]
     Merl(#[from] MerlError),
+    /// A directory given as a collection holds no `.binary` file.
+    #[error("{path}: a directory with no MERL .binary file in it (a collection is an analytic .csv file, a .binary file or a directory of .binary files)")]
+    EmptyDir {
+        /// The directory.
+        path: PathBuf,
+    },
+    /// The path is a FIFO, a device or another non-regular file.
+    #[error("{path}: is {kind}, not a regular file; a collection is read from a regular .csv or .binary file or a directory of .binary files")]
+    NotRegular {
+        /// The path.
+        path: PathBuf,
+        /// What it is.
+        kind: &'static str,
+    },
+    /// The file is larger than any collection file of its kind.
+    #[error("{path}: {bytes} bytes, larger than the {max} bytes accepted for this kind of file")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+        /// The limit.
+        max: u64,
+    },
+    /// A material name that cannot be used.
+    #[error("{path}: material name `{}`: {message}", .name.escape_debug())]
+    BadName {
+        /// The measured file whose stem is the name.
+        path: PathBuf,
+        /// The name.
+        name: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// An empty material name was asked for (e.g. `--basis ""` or `--basis a,,b`).
+    #[error("empty material name (a name list such as --basis takes names separated by single commas, e.g. `--basis a,b`)")]
+    EmptyName,
     /// The path is neither a CSV, a `.binary` file nor a directory.
     #[error("{path}: not a collection (expected an analytic .csv, a MERL .binary file or a directory of .binary files)")]
     UnknownKind {
@@ -143,6 +180,14 @@ pub enum MerlError {
         cell: usize,
         /// The value.
         value: f64,
+    },
+    /// The path is a FIFO, a device, a directory or another non-regular file.
+    #[error("{path}: is {kind}, not a regular MERL .binary file")]
+    NotRegular {
+        /// The path.
+        path: PathBuf,
+        /// What it is.
+        kind: &'static str,
     },
     /// No cell of the file holds a valid (non-negative, above-horizon) value.
     #[error("{path}: no valid cell (every cell is negative or below the horizon)")]

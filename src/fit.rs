@@ -47,6 +47,15 @@ pub enum FitError {
         /// Channel.
         channel: usize,
     },
+    /// The fit mask holds no cell valid in every material involved (measured tables
+    /// with disjoint valid cells, or a grid stride that skips every valid cell).
+    #[error("no cell of the {mask} mask (stride {stride}) is valid in every material of the fit; use a smaller --stride, --mask valid, or materials measured over common cells")]
+    NoCells {
+        /// The mask.
+        mask: Mask,
+        /// The stride.
+        stride: usize,
+    },
     /// Back-end failure.
     #[error(transparent)]
     Backend(#[from] BackendError),
@@ -116,6 +125,12 @@ pub struct TargetFit {
     pub residual: [f64; 3],
     /// Weighted mean of |fit - target| over the mask, averaged over channels.
     pub mae: f64,
+    /// Relative residual (SPEC 8): `sum_c residual_c^2 / sum_c sum_s w_s b_c(s)^2`; 0 is
+    /// a perfect fit, 1 a fit that explains nothing of the target.
+    pub relative_residual: f64,
+    /// `mae` divided by the weighted mean of |target| over the mask (averaged over the
+    /// channels likewise): above 1 the fit is further from the target than the zero BRDF.
+    pub relative_mae: f64,
     /// Largest scaled KKT violation per channel.
     pub kkt: [f64; 3],
     /// Solver iterations per channel.
@@ -320,6 +335,12 @@ pub fn fit(
     let mut all: Vec<usize> = basis.to_vec();
     all.extend_from_slice(targets);
     let cells = fit_cells(coll, &all, p);
+    if cells.cells.is_empty() {
+        return Err(FitError::NoCells {
+            mask: p.mask,
+            stride: p.stride,
+        });
+    }
     let m = basis.len() + 1;
     let mut fits: Vec<TargetFit> = targets
         .iter()
@@ -328,6 +349,8 @@ pub fn fit(
             coefficients: vec![[0.0; 3]; m],
             residual: [0.0; 3],
             mae: 0.0,
+            relative_residual: 0.0,
+            relative_mae: 0.0,
             kkt: [0.0; 3],
             iterations: [0; 3],
         })
@@ -338,9 +361,15 @@ pub fn fit(
         .all(|&i| coll.materials()[i].analytic().is_some());
     let moments = (p.gram == GramMode::Auto && all_analytic)
         .then(|| CellMoments::new(&GridTables::new(), &cells));
+    let mut target_norms = vec![0.0; targets.len()];
+    let mut target_l1 = vec![0.0; targets.len()];
     for c in 0..3 {
         let (g, hs, bbs) =
             channel_gram(backend, coll, basis, targets, &cells, c, p.gram, progress)?;
+        target_norms
+            .iter_mut()
+            .zip(&bbs)
+            .for_each(|(n, &b)| *n += b);
         let sols = solve_channel(backend, m, &g, &hs, &bbs, p.solver)?;
         let mut lobes = vec![LAMBERTIAN];
         lobes.extend(
@@ -348,7 +377,7 @@ pub fn fit(
                 .iter()
                 .map(|&b| channel_lobe(&coll.materials()[b].data, c)),
         );
-        let errs: Vec<(f64, f64)> = match (moments.as_ref(), separable_lobes(&lobes)) {
+        let errs: Vec<(f64, f64, f64)> = match (moments.as_ref(), separable_lobes(&lobes)) {
             (Some(mom), Some(cols)) => {
                 // Every lobe analytic: one multiply-add per cell from per-(i, j) tables.
                 let refs: Vec<&SeparableLobe> = cols.iter().collect();
@@ -365,7 +394,8 @@ pub fn fit(
                         };
                         let (sq, ab) =
                             mom.errors(&SeparableLobe::combination(&refs, &s.x), &target);
-                        (sq.sqrt(), ab)
+                        let (_, l1) = mom.errors(&SeparableLobe::combination(&[], &[]), &target);
+                        (sq.sqrt(), ab, l1)
                     })
                     .collect()
             }
@@ -381,19 +411,23 @@ pub fn fit(
                     .map(|(&t, s)| {
                         let b = cpu
                             .values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
-                        let (mut sq, mut ab) = (0.0, 0.0);
+                        let (mut sq, mut ab, mut l1) = (0.0, 0.0, 0.0);
                         for (i, (&bv, &w)) in b.iter().zip(&cells.weights).enumerate() {
                             let fitv: f64 = cols.iter().zip(&s.x).map(|(col, &a)| a * col[i]).sum();
                             let r = fitv - bv;
                             sq += w * r * r;
                             ab += w * r.abs();
+                            l1 += w * bv.abs();
                         }
-                        (sq.sqrt(), ab)
+                        (sq.sqrt(), ab, l1)
                     })
                     .collect()
             }
         };
-        for ((f, s), (res, mae)) in fits.iter_mut().zip(&sols).zip(errs) {
+        for (((f, s), (res, mae, l1)), tl1) in
+            fits.iter_mut().zip(&sols).zip(errs).zip(&mut target_l1)
+        {
+            *tl1 += l1;
             for (k, &a) in s.x.iter().enumerate() {
                 f.coefficients[k][c] = a;
             }
@@ -402,6 +436,13 @@ pub fn fit(
             f.kkt[c] = s.max_kkt_violation;
             f.iterations[c] = s.iterations;
         }
+    }
+    for (f, &norm) in fits.iter_mut().zip(&target_norms) {
+        let sq: f64 = f.residual.iter().map(|r| r * r).sum();
+        f.relative_residual = if norm > 0.0 { sq / norm } else { 0.0 };
+    }
+    for (f, &l1) in fits.iter_mut().zip(&target_l1) {
+        f.relative_mae = if l1 > 0.0 { 3.0 * f.mae / l1 } else { 0.0 };
     }
     Ok(fits)
 }

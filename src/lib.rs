@@ -19,6 +19,7 @@
 // their size is not worth boxing.
 #![allow(clippy::result_large_err)]
 
+pub mod atomic;
 pub mod backend;
 pub mod brdf;
 pub mod cluster;

@@ -8,13 +8,64 @@ mod cli;
 use clap::Parser;
 
 fn main() -> std::process::ExitCode {
+    let runtime_dir = private_runtime_dir();
+    // SIGINT, SIGTERM, SIGHUP: remove the temporary files of outputs being written (and
+    // the directories created for them), then exit 130 as shells expect after Ctrl-C.
+    let handler_dir = runtime_dir.clone();
+    let _ = ctrlc::set_handler(move || {
+        brdf_basis::atomic::remove_pending();
+        if let Some(d) = &handler_dir {
+            let _ = std::fs::remove_dir_all(d);
+        }
+        eprintln!("error: interrupted; no output written");
+        std::process::exit(130);
+    });
     let args = cli::Cli::parse();
-    match cli::run(args) {
+    let code = match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-            eprintln!("error: {}", chain.join(": "));
+            eprintln!("error: {}", error_message(&e));
             std::process::ExitCode::FAILURE
         }
+    };
+    if let Some(d) = &runtime_dir {
+        let _ = std::fs::remove_dir_all(d);
     }
+    code
+}
+
+/// The error chain as one line. A message that already ends with its cause's text (an
+/// error formatting `{source}` and also returning it as its source) is not repeated.
+fn error_message(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for c in e.chain() {
+        let s = c.to_string();
+        if out.ends_with(&s) || s.is_empty() {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&s);
+    }
+    out
+}
+
+/// When `XDG_RUNTIME_DIR` is unset or not an absolute path to a directory, the Vulkan
+/// loader's Wayland probe prints `error: XDG_RUNTIME_DIR is invalid or not set` (twice)
+/// on every GPU start, `--quiet` or not. Point it, for this process only, at a private
+/// (mode 0700) directory under the temporary directory, removed at exit. Runs first in
+/// `main`, before any thread exists. Returns the directory created.
+fn private_runtime_dir() -> Option<std::path::PathBuf> {
+    let current = std::env::var_os("XDG_RUNTIME_DIR").map(std::path::PathBuf::from);
+    if current.is_some_and(|d| d.is_absolute() && d.is_dir()) {
+        return None;
+    }
+    let dir = std::env::temp_dir().join(format!("brdf-basis-runtime-{}", std::process::id()));
+    let mut builder = std::fs::DirBuilder::new();
+    #[cfg(unix)]
+    std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+    builder.create(&dir).ok()?;
+    std::env::set_var("XDG_RUNTIME_DIR", &dir);
+    Some(dir)
 }

@@ -3,11 +3,11 @@
 use super::Global;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
-use brdf_basis::io::json::write_json;
+use brdf_basis::io::atomic::{check_output_path, OutputSet};
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
-use brdf_basis::merl::write_binary;
+use brdf_basis::merl::write_binary_to;
 use serde_json::json;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
@@ -39,7 +39,9 @@ pub struct FitArgs {
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
-    /// Also write each fitted combination as DIR/<target>.binary.
+    /// Also write each fitted combination as a MERL .binary file in DIR, named after the
+    /// target (sanitised: letters, digits, `-`, `_`, `.`; made unique), with DIR/index.csv
+    /// mapping material names to files.
     #[arg(long)]
     pub export: Option<PathBuf>,
 }
@@ -70,13 +72,9 @@ pub fn fits_json(
     json!({"basis": names, "weighting": p.weighting.to_string(), "mask": p.mask.to_string(), "targets": targets})
 }
 
-/// Writes the fitted combination on the full grid as a MERL file.
-pub fn export(
-    coll: &Collection,
-    basis: &[usize],
-    f: &TargetFit,
-    path: &Path,
-) -> anyhow::Result<()> {
+/// The fitted combination on the full grid, channel-planar (invalid cells -1), as
+/// `write_binary` takes it.
+pub fn combination_grid(coll: &Collection, basis: &[usize], f: &TargetFit) -> Vec<f32> {
     let cells: Vec<u32> = (0..N_CELLS as u32).collect();
     let mut rgb = vec![-1f32; 3 * N_CELLS];
     for c in 0..3 {
@@ -87,8 +85,120 @@ pub fn export(
             }
         }
     }
-    write_binary(path, &rgb)?;
-    Ok(())
+    rgb
+}
+
+/// A file name for material `name` that no name can turn into another path: ASCII
+/// letters, digits, `-`, `_` and `.` are kept, anything else (`/`, `\`, spaces, control
+/// characters, non-ASCII) becomes `_`; leading dots are dropped (no `..`, no hidden
+/// file); at most 100 characters; an empty result becomes `material`.
+pub fn file_stem_for(name: &str) -> String {
+    let mut s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    s = s.trim_start_matches('.').chars().take(100).collect();
+    if s.is_empty() {
+        s = "material".into();
+    }
+    s
+}
+
+/// File names (`<stem>.binary`) for the targets, sanitised by [`file_stem_for`] and made
+/// unique (case-insensitively, for case-insensitive file systems) by a `-2`, `-3`, ...
+/// suffix, in target order.
+pub fn export_file_names(names: &[&str]) -> Vec<String> {
+    let mut taken = std::collections::HashSet::new();
+    names
+        .iter()
+        .map(|n| {
+            let stem = file_stem_for(n);
+            let mut cand = stem.clone();
+            let mut k = 2;
+            while !taken.insert(cand.to_lowercase()) {
+                cand = format!("{stem}-{k}");
+                k += 1;
+            }
+            format!("{cand}.binary")
+        })
+        .collect()
+}
+
+/// Relative residual above which a fit is reported as meaningless: the basis explains
+/// less than half of the target's weighted energy.
+pub const WARN_RELATIVE_RESIDUAL: f64 = 0.5;
+
+/// Relative MAE above which a fit is reported as meaningless: its mean absolute error is
+/// close to the target's own mean (a black material would do about as well).
+pub const WARN_RELATIVE_MAE: f64 = 0.75;
+
+/// Warnings printed one per line; the rest are counted.
+pub const MAX_WARNINGS: usize = 8;
+
+/// Diffuse albedo above which a fitted combination is reported as unphysical.
+pub const WARN_ALBEDO: f64 = 1.0;
+
+/// Warnings about a fit that ran but whose numbers may mean little.
+pub fn fit_warnings(
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    fits: &[TargetFit],
+) -> Vec<String> {
+    let mut w = Vec::new();
+    for &t in targets {
+        if basis.contains(&t) {
+            w.push(format!(
+                "target `{}` is in the basis: its fit is exact and says nothing about the basis",
+                coll.materials()[t].name
+            ));
+        }
+    }
+    for f in fits {
+        // Diffuse albedo of the combination (analytic basis): above 1 it reflects more
+        // light than it receives, a sign that the basis was stretched to mimic the target.
+        let analytic: Option<Vec<_>> = basis
+            .iter()
+            .map(|&b| coll.materials()[b].analytic())
+            .collect();
+        if let Some(ps) = analytic {
+            let albedo: Vec<f64> = (0..3)
+                .map(|c| {
+                    f.coefficients[0][c]
+                        + ps.iter()
+                            .zip(&f.coefficients[1..])
+                            .map(|(p, a)| a[c] * p.d[c])
+                            .sum::<f64>()
+                })
+                .collect();
+            let worst = albedo.iter().cloned().fold(0.0, f64::max);
+            if worst > WARN_ALBEDO {
+                w.push(format!(
+                    "the fit of `{}` has a diffuse albedo of {worst:.3} (above 1: it reflects more light than it receives); the basis cannot represent it and its numbers mean little",
+                    f.material
+                ));
+                continue;
+            }
+        }
+        if f.relative_mae > WARN_RELATIVE_MAE {
+            w.push(format!(
+                "the fit of `{}` is almost as far from it as a black material (relative MAE {:.2}, relative residual {:.2}): this basis cannot represent it",
+                f.material, f.relative_mae, f.relative_residual
+            ));
+        } else if f.relative_residual > WARN_RELATIVE_RESIDUAL {
+            w.push(format!(
+                "the fit of `{}` explains little of it (relative residual {:.2}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
+                f.material, f.relative_residual
+            ));
+        }
+    }
+    w
 }
 
 /// Runs the fits.
@@ -109,6 +219,19 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
             .map(|n| coll.index_of(n.trim()))
             .collect::<Result<_, _>>()?
     };
+    for (i, &t) in targets.iter().enumerate() {
+        if targets[..i].contains(&t) {
+            anyhow::bail!(
+                "--targets: material `{}` is given twice",
+                coll.materials()[t].name
+            );
+        }
+    }
+    if targets.is_empty() {
+        anyhow::bail!(
+            "--all-others: every material of the collection is in the basis; nothing to fit"
+        );
+    }
     let solver = match a.solver.as_str() {
         "exact" => Solver::Exact,
         "pgd" => Solver::Pgd,
@@ -119,6 +242,13 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         "grid" => GramMode::Grid,
         g => anyhow::bail!("unknown gram mode `{g}` (expected auto or grid)"),
     };
+    // Output paths before the work: a typo costs no computation.
+    check_output_path(&a.json, "--json")?;
+    if let Some(dir) = &a.export {
+        if dir.exists() && !dir.is_dir() {
+            anyhow::bail!("--export {}: exists and is not a directory", dir.display());
+        }
+    }
     let p = FitParams {
         mask: a.grid.mask,
         weighting: a.grid.weighting,
@@ -133,25 +263,70 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         pb.set_position(d);
     })?;
     pb.finish_and_clear();
-    write_json(&a.json, &fits_json(&coll, &basis, &fits, &p))?;
+    let warnings = fit_warnings(&coll, &basis, &targets, &fits);
+    for w in warnings.iter().take(MAX_WARNINGS) {
+        eprintln!("warning: {w}");
+    }
+    if warnings.len() > MAX_WARNINGS {
+        eprintln!(
+            "warning: ... and {} more targets this basis cannot represent",
+            warnings.len() - MAX_WARNINGS
+        );
+    }
+    // Every file is staged and renamed into place only when all are written: a failed
+    // export leaves neither the JSON nor the other exports (nor a created directory).
+    let mut out = OutputSet::new();
     if let Some(dir) = &a.export {
-        std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
-        for f in &fits {
-            export(
-                &coll,
-                &basis,
-                f,
-                &dir.join(format!("{}.binary", f.material)),
-            )?;
+        out.create_dir_all(dir)?;
+        let names: Vec<&str> = fits.iter().map(|f| f.material.as_str()).collect();
+        let files = export_file_names(&names);
+        for (f, file) in fits.iter().zip(&files) {
+            let rgb = combination_grid(&coll, &basis, f);
+            out.stage(&dir.join(file), |w| write_binary_to(w, &rgb))?;
+        }
+        let mut index = Vec::new();
+        {
+            let mut wr = csv::Writer::from_writer(&mut index);
+            wr.write_record(["material", "file"])?;
+            for (n, file) in names.iter().zip(&files) {
+                wr.write_record([*n, file.as_str()])?;
+            }
+            wr.flush()?;
+        }
+        out.stage(&dir.join(EXPORT_INDEX), |w| w.write_all(&index))?;
+        if !g.quiet {
+            for (n, file) in names.iter().zip(&files) {
+                if format!("{n}.binary") != *file {
+                    eprintln!("export: `{}` -> {file}", n.escape_debug());
+                }
+            }
         }
     }
+    let text = serde_json::to_string_pretty(&fits_json(&coll, &basis, &fits, &p))?;
+    out.stage(&a.json, |w| {
+        w.write_all(text.as_bytes())?;
+        w.write_all(b"\n")
+    })?;
+    out.commit()?;
     if !g.quiet {
         let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
+        let rho = fits.iter().map(|f| f.relative_residual).sum::<f64>() / fits.len() as f64;
+        let rmae = fits.iter().map(|f| f.relative_mae).sum::<f64>() / fits.len() as f64;
         eprintln!(
-            "wrote {} ({} targets, mean MAE {mean:.4e})",
+            "wrote {} ({} targets, mean MAE {mean:.4e}, mean relative residual {rho:.3}, mean relative MAE {rmae:.3})",
             a.json.display(),
             fits.len()
         );
+        if let Some(dir) = &a.export {
+            eprintln!(
+                "wrote {} fitted .binary files and {EXPORT_INDEX} to {}",
+                fits.len(),
+                dir.display()
+            );
+        }
     }
     Ok(())
 }
+
+/// Name of the CSV (`material,file`) that `--export` writes beside the `.binary` files.
+pub const EXPORT_INDEX: &str = "index.csv";

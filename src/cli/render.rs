@@ -5,7 +5,8 @@ use anyhow::Context;
 use brdf_basis::eval::image_error::{heatmap, normalized_image_error, DisplayParams, HeatmapScale};
 use brdf_basis::eval::render::{render_sphere, RenderParams};
 use brdf_basis::eval::shade::{combination_brdf, material_brdf};
-use brdf_basis::io::image::{write_exr, write_png, write_rgb8_image};
+use brdf_basis::io::atomic::{check_output_path, OutputSet};
+use brdf_basis::io::image::{exr_bytes, png_bytes, rgb8_png_bytes};
 use std::path::PathBuf;
 
 /// Arguments of `render`.
@@ -29,11 +30,11 @@ pub struct RenderArgs {
     #[arg(long)]
     pub png: Option<PathBuf>,
     /// With --fit: heatmap PNG of the error against the original material.
-    #[arg(long)]
+    #[arg(long, requires = "fit")]
     pub heatmap: Option<PathBuf>,
-    /// Light direction THETA,PHI in degrees.
-    #[arg(long, default_value = "45,45", value_delimiter = ',', num_args = 2)]
-    pub light: Vec<f64>,
+    /// Light direction THETA,PHI in degrees (theta from the normal, in [0, 180]).
+    #[arg(long, default_value = "45,45", value_name = "THETA,PHI", value_parser = parse_light)]
+    pub light: (f64, f64),
     /// Exposure E (scale 2^E) for PNG and error.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f64,
@@ -45,13 +46,58 @@ pub struct RenderArgs {
     pub size: u32,
 }
 
+/// Parses `THETA,PHI` (degrees, finite).
+fn parse_light(s: &str) -> Result<(f64, f64), String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let bad = || format!("expected THETA,PHI in degrees (e.g. 45,45), got `{s}`");
+    if parts.len() != 2 {
+        return Err(bad());
+    }
+    let t: f64 = parts[0].parse().map_err(|_| bad())?;
+    let p: f64 = parts[1].parse().map_err(|_| bad())?;
+    if !(t.is_finite() && p.is_finite()) {
+        return Err(bad());
+    }
+    Ok((t, p))
+}
+
+/// Checks an output path before the work: its directory exists and its extension is the
+/// format written (`ext`, case-insensitive).
+pub fn check_image_path(path: &std::path::Path, flag: &str, ext: &str) -> anyhow::Result<()> {
+    check_output_path(path, flag)?;
+    let found = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if !found.eq_ignore_ascii_case(ext) {
+        anyhow::bail!(
+            "{flag} {}: writes {} and its name must end in .{ext}",
+            path.display(),
+            if ext == "exr" { "OpenEXR" } else { "PNG" }
+        );
+    }
+    Ok(())
+}
+
 /// Renders.
 pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
+    check_image_path(&a.out, "--out", "exr")?;
+    let mut paths = vec![a.out.clone()];
+    for (p, flag) in [(&a.png, "--png"), (&a.heatmap, "--heatmap")] {
+        if let Some(p) = p {
+            check_image_path(p, flag, "png")?;
+            if paths.contains(p) {
+                anyhow::bail!(
+                    "{flag} {}: the same file is given for two outputs",
+                    p.display()
+                );
+            }
+            paths.push(p.clone());
+        }
+    }
     let coll = super::load_collection(&a.collection)?;
     let target = coll.index_of(&a.material)?;
     let params = RenderParams::default()
         .with_size(a.size)
-        .with_light(a.light[0], a.light[1]);
+        .with_light(a.light.0, a.light.1);
+    params.check()?;
     let display = DisplayParams::default()
         .with_exposure(a.exposure)
         .with_gamma(a.gamma);
@@ -87,18 +133,25 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
             render_sphere(&params, &combination_brdf(&coll, &basis, &coef))?
         }
     };
-    write_exr(&a.out, &image)?;
+    // All outputs staged, then renamed into place together: a failure leaves none.
+    let mut out = OutputSet::new();
+    let exr = exr_bytes(&a.out, &image)?;
+    out.stage(&a.out, |w| w.write_all(&exr))?;
     if let Some(p) = &a.png {
-        write_png(p, &image, &display)?;
+        let png = png_bytes(p, &image, &display)?;
+        out.stage(p, |w| w.write_all(&png))?;
     }
+    let mut err = None;
     if a.fit.is_some() {
-        let err = normalized_image_error(&original, &image, &display)?;
+        err = Some(normalized_image_error(&original, &image, &display)?);
         if let Some(h) = &a.heatmap {
-            write_rgb8_image(
-                h,
-                &heatmap(&original, &image, &display, HeatmapScale::MaxError)?,
-            )?;
+            let map = heatmap(&original, &image, &display, HeatmapScale::MaxError)?;
+            let png = rgb8_png_bytes(h, map.width, map.height, &map.data)?;
+            out.stage(h, |w| w.write_all(&png))?;
         }
+    }
+    out.commit()?;
+    if let Some(err) = err {
         println!("normalized image error: {err:.6}");
     }
     if !g.quiet {

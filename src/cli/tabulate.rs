@@ -5,6 +5,7 @@ use anyhow::Context;
 use brdf_basis::backend::Lobe;
 use brdf_basis::collection::MaterialData;
 use brdf_basis::fit::channel_lobe;
+use brdf_basis::io::atomic::check_output_path;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary;
 use std::path::PathBuf;
@@ -12,7 +13,7 @@ use std::path::PathBuf;
 /// Arguments of `tabulate`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  brdf-basis tabulate ../shared/data/ngan2005_ashikhmin_shirley.csv --material gold-metallic-paint --out g.binary"
+    after_help = "Example:\n  brdf-basis tabulate --material polished-gold --out gold.binary\n  brdf-basis tabulate ngan2005_ashikhmin_shirley.csv --material gold-metallic-paint --out g.binary"
 )]
 pub struct TabulateArgs {
     /// Collection(s): analytic .csv, .binary file or directory (none: embedded default).
@@ -27,6 +28,7 @@ pub struct TabulateArgs {
 
 /// Writes the material on the full MERL grid (invalid cells = -1).
 pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
+    check_output_path(&a.out, "--out")?;
     let coll = super::load_collection(&a.collection)?;
     let m = coll.get(&a.material)?;
     let mut rgb = vec![0f32; 3 * N_CELLS];
@@ -36,12 +38,24 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
             let lobes: Vec<Lobe> = (0..3).map(|c| channel_lobe(&m.data, c)).collect();
             let cells: Vec<u32> = (0..N_CELLS as u32).collect();
             rgb = backend.tabulate(&lobes, &cells).context("tabulating")?;
+            let mut overflow = 0usize;
             for cell in 0..N_CELLS {
                 if !cell_info(cell).valid {
                     for c in 0..3 {
                         rgb[c * N_CELLS + cell] = -1.0;
                     }
+                } else if (0..3).any(|c| !rgb[c * N_CELLS + cell].is_finite()) {
+                    overflow += 1;
                 }
+            }
+            if overflow > 0 {
+                anyhow::bail!(
+                    "material `{}` ({}): its reflectance is not a finite f32 number in {overflow} valid cells (parameters too large: n = {}, s = {:?}); nothing written",
+                    m.name,
+                    m.origin,
+                    m.analytic().map_or(0.0, |p| p.n),
+                    m.analytic().map_or([0.0; 3], |p| p.s),
+                );
             }
         }
         MaterialData::Measured(t) => rgb.copy_from_slice(&t.rgb),

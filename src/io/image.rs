@@ -44,8 +44,24 @@ fn encode_exr(image: &Image) -> Result<Vec<u8>, String> {
 /// not stored: off-sphere pixels are 0).
 pub fn write_exr(path: impl AsRef<Path>, image: &Image) -> Result<(), OutputError> {
     let path = path.as_ref();
-    let bytes = encode_exr(image).map_err(|m| encode_error(path, m))?;
+    let bytes = exr_bytes(path, image)?;
     write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// The bytes [`write_exr`] writes (`path` names the file in errors), for callers that
+/// stage several outputs together ([`crate::atomic::OutputSet`]).
+pub fn exr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, OutputError> {
+    encode_exr(image).map_err(|m| encode_error(path, m))
+}
+
+/// The bytes [`write_png`] writes.
+pub fn png_bytes(
+    path: &Path,
+    image: &Image,
+    display: &DisplayParams,
+) -> Result<Vec<u8>, OutputError> {
+    let rgb = display_image(image, display).map_err(|e| encode_error(path, e.to_string()))?;
+    rgb8_png_bytes(path, rgb.width, rgb.height, &rgb.data)
 }
 
 /// Reads an OpenEXR file's first RGB(A) layer as a render (channels converted to f32,
@@ -112,6 +128,17 @@ pub fn write_png_rgb8(
     data: &[u8],
 ) -> Result<(), OutputError> {
     let path = path.as_ref();
+    let bytes = rgb8_png_bytes(path, width, height, data)?;
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// The bytes [`write_png_rgb8`] writes.
+pub fn rgb8_png_bytes(
+    path: &Path,
+    width: u32,
+    height: u32,
+    data: &[u8],
+) -> Result<Vec<u8>, OutputError> {
     let expected = 3 * width as usize * height as usize;
     if width == 0 || height == 0 || data.len() != expected {
         let message = format!(
@@ -127,7 +154,7 @@ pub fn write_png_rgb8(
             .write_image(data, width, height, ::image::ExtendedColorType::Rgb8)
             .map_err(|e| encode_error(path, format!("cannot encode PNG: {e}")))?;
     }
-    write_atomic(path, |w| w.write_all(&bytes))
+    Ok(bytes)
 }
 
 #[cfg(test)]

@@ -44,19 +44,60 @@ impl MerlTable {
 /// Reads and validates a MERL `.binary` file. Cells that are negative in any channel, or
 /// below the horizon on the grid, become invalid (all channels -1).
 pub fn read_binary(path: &Path) -> Result<MerlTable, MerlError> {
-    let bytes = std::fs::read(path).map_err(|source| MerlError::Io {
+    let io = |source| MerlError::Io {
         path: path.to_path_buf(),
         source,
-    })?;
+    };
+    // From metadata first: a FIFO or a device is never opened (reading one could block
+    // forever), and a file of the wrong size is never read into memory.
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(MerlError::NotRegular {
+            path: path.to_path_buf(),
+            kind: file_kind(&meta),
+        });
+    }
+    if meta.len() != FILE_BYTES {
+        // Read the header (if any) for the more telling message about dimensions.
+        let mut head = Vec::with_capacity(12);
+        std::io::Read::read_to_end(
+            &mut std::io::Read::take(std::fs::File::open(path).map_err(io)?, 12),
+            &mut head,
+        )
+        .map_err(io)?;
+        parse_header(&head, meta.len(), path)?;
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
     parse_binary(&bytes, path)
 }
 
-/// Parses and validates the bytes of a MERL `.binary` file (`path` names it in errors).
-pub fn parse_binary(bytes: &[u8], path: &Path) -> Result<MerlTable, MerlError> {
-    let len = bytes.len() as u64;
-    if len >= 12 {
+/// What a non-regular file is, in words (for messages).
+pub fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if t.is_char_device() || t.is_block_device() {
+            return "a device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "not a regular file"
+}
+
+/// Checks the dimensions in the first 12 bytes (when present) and the total length.
+fn parse_header(head: &[u8], len: u64, path: &Path) -> Result<(), MerlError> {
+    if head.len() >= 12 {
         let dims = [0, 1, 2]
-            .map(|i| i32::from_le_bytes(bytes[4 * i..4 * i + 4].try_into().unwrap_or([0; 4])));
+            .map(|i| i32::from_le_bytes(head[4 * i..4 * i + 4].try_into().unwrap_or([0; 4])));
         if dims != [N_TH as i32, N_TD as i32, N_PD as i32] {
             return Err(MerlError::Dims {
                 path: path.to_path_buf(),
@@ -71,6 +112,12 @@ pub fn parse_binary(bytes: &[u8], path: &Path) -> Result<MerlTable, MerlError> {
             found: len,
         });
     }
+    Ok(())
+}
+
+/// Parses and validates the bytes of a MERL `.binary` file (`path` names it in errors).
+pub fn parse_binary(bytes: &[u8], path: &Path) -> Result<MerlTable, MerlError> {
+    parse_header(&bytes[..bytes.len().min(12)], bytes.len() as u64, path)?;
     let raw = &bytes[12..];
     let mut rgb = vec![0f32; 3 * N_CELLS];
     for c in 0..3 {
@@ -117,23 +164,31 @@ pub fn write_binary(path: &Path, rgb: &[f32]) -> Result<(), OutputError> {
         3 * N_CELLS,
         "write_binary needs 3 x 1,458,000 values"
     );
-    crate::io::atomic::write_atomic(path, |w| {
-        for d in [N_TH as i32, N_TD as i32, N_PD as i32] {
-            w.write_all(&d.to_le_bytes())?;
+    crate::atomic::write_atomic(path, |w| write_binary_to(w, rgb))
+}
+
+/// Writes the bytes of a MERL `.binary` file to `w` (see [`write_binary`]).
+pub fn write_binary_to(w: &mut dyn std::io::Write, rgb: &[f32]) -> std::io::Result<()> {
+    assert_eq!(
+        rgb.len(),
+        3 * N_CELLS,
+        "write_binary_to needs 3 x 1,458,000 values"
+    );
+    for d in [N_TH as i32, N_TD as i32, N_PD as i32] {
+        w.write_all(&d.to_le_bytes())?;
+    }
+    let mut buf = Vec::with_capacity(8 * N_CELLS);
+    for c in 0..3 {
+        buf.clear();
+        for &v in &rgb[c * N_CELLS..(c + 1) * N_CELLS] {
+            let s = if v.is_finite() && v >= 0.0 {
+                v as f64 / SCALE[c]
+            } else {
+                -1.0
+            };
+            buf.extend_from_slice(&s.to_le_bytes());
         }
-        let mut buf = Vec::with_capacity(8 * N_CELLS);
-        for c in 0..3 {
-            buf.clear();
-            for &v in &rgb[c * N_CELLS..(c + 1) * N_CELLS] {
-                let s = if v.is_finite() && v >= 0.0 {
-                    v as f64 / SCALE[c]
-                } else {
-                    -1.0
-                };
-                buf.extend_from_slice(&s.to_le_bytes());
-            }
-            w.write_all(&buf)?;
-        }
-        Ok(())
-    })
+        w.write_all(&buf)?;
+    }
+    Ok(())
 }

@@ -3,5 +3,5 @@
 pub mod binary;
 pub mod grid;
 
-pub use binary::{parse_binary, read_binary, write_binary, MerlTable};
+pub use binary::{parse_binary, read_binary, write_binary, write_binary_to, MerlTable};
 pub use grid::{CellSet, GridTables, Mask, Weighting};
