@@ -33,5 +33,6 @@ pub mod io;
 pub mod merl;
 pub mod nnls;
 pub mod select;
+pub mod selection;
 pub mod separable;
 pub mod stats;

@@ -12,12 +12,12 @@ use std::path::PathBuf;
 /// Arguments of `select`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis select --method gcuk --json gcuk.json\n  brdf-basis select ../shared/data/ngan2005_ashikhmin_shirley.csv --method kmedoids -k 5 --runs 30 --json km5.json\n  brdf-basis select --method empirical --json empirical.json"
+    after_help = "Examples:\n  brdf-basis select --method gcuk --json gcuk.json\n  brdf-basis select ../shared/data/ngan2005_ashikhmin_shirley.csv --method kmedoids -k 5 --runs 30 --json km5.json\n  brdf-basis select --method empirical --json empirical.json\n  brdf-basis select --method swap -k 5 --json swap5.json\n  brdf-basis select --method greedy -k 3 --candidates polished-gold,mirror-silver,matte-white-paint,red-acrylic-sheet --json mine.json"
 )]
 pub struct SelectArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
-    /// empirical (Algorithm 1), kmedoids or gcuk.
+    /// empirical (Algorithm 1), kmedoids or gcuk; greedy, swap or ga (by fitting error, SPEC 8).
     #[arg(long)]
     pub method: String,
     /// Distance for clustering: brdf-it or euclidean.
@@ -50,6 +50,9 @@ pub struct SelectArgs {
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
+    /// Flags of the error-driven methods (greedy, swap, ga).
+    #[command(flatten)]
+    pub error: super::select_error::ErrorArgs,
 }
 
 /// One clustering run as JSON.
@@ -130,6 +133,9 @@ pub fn best(runs: &[serde_json::Value]) -> serde_json::Value {
 
 /// Runs the selection.
 pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
+    if matches!(a.method.as_str(), "greedy" | "swap" | "ga") {
+        return super::select_error::run(g, &a);
+    }
     let coll = super::load_collection(&a.collection)?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, &a.method);
@@ -174,7 +180,9 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
             };
             json!({"method": a.method, "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
         }
-        other => anyhow::bail!("unknown method `{other}` (expected empirical, kmedoids or gcuk)"),
+        other => anyhow::bail!(
+            "unknown method `{other}` (expected empirical, kmedoids, gcuk, greedy, swap or ga)"
+        ),
     };
     pb.finish_and_clear();
     write_json(&a.json, &value)?;
