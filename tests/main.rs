@@ -14,5 +14,6 @@ mod fit;
 mod gpu_kernels;
 mod grid;
 mod measured;
+mod selection;
 mod shaders;
 mod workflow;

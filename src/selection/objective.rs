@@ -468,7 +468,7 @@ impl Objective {
 
     /// `S(B + c; T)` for every `c` of `candidates` (`c` not in `basis`), from the states of
     /// `basis` (the mean excludes `basis` and `c` from the targets; 0 when none remains).
-    pub(crate) fn scores_adding(
+    pub fn scores_adding(
         &self,
         basis: &[usize],
         targets: &[usize],
