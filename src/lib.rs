@@ -34,5 +34,6 @@ pub mod io;
 pub mod merl;
 pub mod nnls;
 pub mod select;
+pub mod selection;
 pub mod separable;
 pub mod stats;

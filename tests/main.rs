@@ -15,5 +15,6 @@ mod gpu_kernels;
 mod grid;
 mod kmedoids;
 mod measured;
+mod selection;
 mod shaders;
 mod workflow;

@@ -1,11 +1,13 @@
 //! The command line: clap arguments -> library parameters, one module per subcommand.
 
+pub mod cv;
 pub mod distance;
 pub mod fit;
 pub mod info;
 pub mod render;
 pub mod reproduce;
 pub mod select;
+pub mod select_error;
 pub mod tabulate;
 
 use brdf_basis::backend::Backend;
@@ -74,6 +76,8 @@ pub enum Command {
     Render(render::RenderArgs),
     /// Re-run the paper's experiments (section VI) end to end into a directory.
     Reproduce(reproduce::ReproduceArgs),
+    /// Cross-validated comparison of basis-selection methods (SPEC 8).
+    Cv(cv::CvArgs),
 }
 
 /// Runs the parsed command line.
@@ -86,6 +90,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(a) => fit::run(&cli.global, a),
         Command::Render(a) => render::run(&cli.global, a),
         Command::Reproduce(a) => reproduce::run(&cli.global, a),
+        Command::Cv(a) => cv::run(&cli.global, a),
     }
 }
 

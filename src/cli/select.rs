@@ -16,12 +16,12 @@ use std::path::PathBuf;
 /// Arguments of `select`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis select --method gcuk --json gcuk.json\n  brdf-basis select ../shared/data/ngan2005_ashikhmin_shirley.csv --method kmedoids -k 5 --runs 30 --json km5.json\n  brdf-basis select --method empirical --json empirical.json"
+    after_help = "Examples:\n  brdf-basis select --method gcuk --json gcuk.json\n  brdf-basis select ../shared/data/ngan2005_ashikhmin_shirley.csv --method kmedoids -k 5 --runs 30 --json km5.json\n  brdf-basis select --method empirical --json empirical.json\n  brdf-basis select --method swap -k 5 --json swap5.json\n  brdf-basis select --method greedy -k 3 --candidates polished-gold,mirror-silver,matte-white-paint,red-acrylic-sheet --json mine.json"
 )]
 pub struct SelectArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
-    /// empirical (Algorithm 1), kmedoids or gcuk.
+    /// empirical (Algorithm 1), kmedoids or gcuk; greedy, swap or ga (by fitting error, SPEC 8).
     #[arg(long)]
     pub method: String,
     /// Distance for clustering: brdf-it or euclidean.
@@ -58,6 +58,9 @@ pub struct SelectArgs {
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
+    /// Flags of the error-driven methods (greedy, swap, ga).
+    #[command(flatten)]
+    pub error: super::select_error::ErrorArgs,
 }
 
 /// One clustering run as JSON.
@@ -220,6 +223,9 @@ fn check_clustering(a: &SelectArgs, n: usize) -> anyhow::Result<()> {
 
 /// Runs the selection.
 pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
+    if matches!(a.method.as_str(), "greedy" | "swap" | "ga") {
+        return super::select_error::run(g, &a);
+    }
     let coll = super::load_collection(&a.collection)?;
     check_clustering(&a, coll.len())?;
     let backend = super::backend(g)?;
@@ -259,7 +265,9 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
                 json!({"method": a.method, "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
             }
         }
-        other => anyhow::bail!("unknown method `{other}` (expected empirical, kmedoids or gcuk)"),
+        other => anyhow::bail!(
+            "unknown method `{other}` (expected empirical, kmedoids, gcuk, greedy, swap or ga)"
+        ),
     };
     pb.finish_and_clear();
     write_json(&a.json, &value)?;
