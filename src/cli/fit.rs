@@ -2,11 +2,11 @@
 
 use super::Global;
 use brdf_basis::collection::Collection;
+use brdf_basis::experiment::files::FitFile;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
 use brdf_basis::io::json::write_json;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary;
-use serde_json::json;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `fit`.
@@ -42,32 +42,6 @@ pub struct FitArgs {
     /// Also write each fitted combination as DIR/<target>.binary.
     #[arg(long)]
     pub export: Option<PathBuf>,
-}
-
-/// `fit` results as the SPEC-cli JSON.
-pub fn fits_json(
-    coll: &Collection,
-    basis: &[usize],
-    fits: &[TargetFit],
-    p: &FitParams,
-) -> serde_json::Value {
-    let names: Vec<String> = basis
-        .iter()
-        .map(|&b| coll.materials()[b].name.clone())
-        .collect();
-    let targets: Vec<serde_json::Value> = fits
-        .iter()
-        .map(|f| {
-            let mut coef = serde_json::Map::new();
-            coef.insert("lambertian".into(), json!(f.coefficients[0]));
-            for (k, n) in names.iter().enumerate() {
-                coef.insert(n.clone(), json!(f.coefficients[k + 1]));
-            }
-            json!({"material": f.material, "coefficients": coef, "mae": f.mae, "residual": f.residual,
-                   "kkt": f.kkt, "iterations": f.iterations})
-        })
-        .collect();
-    json!({"basis": names, "weighting": p.weighting.to_string(), "mask": p.mask.to_string(), "targets": targets})
 }
 
 /// Writes the fitted combination on the full grid as a MERL file.
@@ -133,7 +107,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         pb.set_position(d);
     })?;
     pb.finish_and_clear();
-    write_json(&a.json, &fits_json(&coll, &basis, &fits, &p))?;
+    write_json(&a.json, &FitFile::new(&coll, &basis, &fits, &p))?;
     if let Some(dir) = &a.export {
         std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
         for f in &fits {
