@@ -8,102 +8,31 @@
 //! 1-30 (<https://jmlr.org/papers/v7/demsar06a.html>), and agree with
 //! `scipy.stats` (`friedmanchisquare`, `wilcoxon`, `mannwhitneyu`) on their defaults.
 //!
-//! The special functions (log-gamma, regularised incomplete gamma and beta functions,
-//! `erfc`, the studentized range distribution) are implemented here, in f64, with about
-//! 1e-13 relative accuracy: see [`special`].
+//! The special functions and distributions (log-gamma, regularised incomplete gamma and
+//! beta functions, `erfc`, normal, chi-square and F tails) come from `statrs`; only the
+//! studentized range distribution (for Nemenyi), which `statrs` lacks, is integrated here:
+//! see [`special`].
 
-/// Special functions in f64: log-gamma, regularised incomplete gamma and beta functions,
-/// `erfc`, and the tail functions of the normal, chi-square, F and studentized range
-/// (infinite degrees of freedom) distributions.
+/// Special functions in f64 and the tail functions of the normal, chi-square, F and
+/// studentized range (infinite degrees of freedom) distributions.
 ///
-/// Algorithms: Lanczos' log-gamma (g = 7, 9 terms; Lanczos 1964, doi:10.1137/0701008),
-/// the series and Lentz continued fractions of Press et al., *Numerical Recipes* 3rd ed.,
-/// sections 6.2 and 6.4 (incomplete gamma and beta), `erfc(x) = Q(1/2, x^2)`.
+/// Everything but the studentized range delegates to `statrs` (`function::gamma`,
+/// `function::beta`, `function::erf`, `distribution`); these thin wrappers keep the names
+/// the tests check against published values.
 pub mod special {
-    const EPS: f64 = 1e-16;
-    const TINY: f64 = 1e-300;
-    const MAX_TERMS: usize = 10_000;
+    use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
-    /// `ln Gamma(x)` for `x > 0` (relative error ~1e-15).
+    /// `ln Gamma(x)` for `x > 0`.
     pub fn ln_gamma(x: f64) -> f64 {
-        const C: [f64; 9] = [
-            0.999_999_999_999_809_9,
-            676.520_368_121_885_1,
-            -1_259.139_216_722_402_8,
-            771.323_428_777_653_1,
-            -176.615_029_162_140_6,
-            12.507_343_278_686_905,
-            -0.138_571_095_265_720_12,
-            9.984_369_578_019_572e-6,
-            1.505_632_735_149_311_6e-7,
-        ];
-        if x < 0.5 {
-            // Reflection: Gamma(x) Gamma(1 - x) = pi / sin(pi x).
-            return (std::f64::consts::PI / (std::f64::consts::PI * x).sin())
-                .abs()
-                .ln()
-                - ln_gamma(1.0 - x);
-        }
-        let x = x - 1.0;
-        let a = C[1..]
-            .iter()
-            .enumerate()
-            .fold(C[0], |a, (i, c)| a + c / (x + i as f64 + 1.0));
-        let t = x + 7.5;
-        0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
-    }
-
-    /// `exp(-x + a ln x - ln Gamma(a))`, the common prefactor of `P` and `Q`.
-    fn gamma_prefactor(a: f64, x: f64) -> f64 {
-        (-x + a * x.ln() - ln_gamma(a)).exp()
-    }
-
-    /// Series for `P(a, x)`, good for `x < a + 1`.
-    fn gamma_p_series(a: f64, x: f64) -> f64 {
-        let (mut ap, mut del) = (a, 1.0 / a);
-        let mut sum = del;
-        for _ in 0..MAX_TERMS {
-            ap += 1.0;
-            del *= x / ap;
-            sum += del;
-            if del.abs() < sum.abs() * EPS {
-                break;
-            }
-        }
-        sum * gamma_prefactor(a, x)
-    }
-
-    /// Continued fraction for `Q(a, x)`, good for `x >= a + 1` (modified Lentz).
-    fn gamma_q_fraction(a: f64, x: f64) -> f64 {
-        let mut b = x + 1.0 - a;
-        let mut c = 1.0 / TINY;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..MAX_TERMS {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            d = if d.abs() < TINY { TINY } else { d };
-            c = b + an / c;
-            c = if c.abs() < TINY { TINY } else { c };
-            d = 1.0 / d;
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < EPS {
-                break;
-            }
-        }
-        gamma_prefactor(a, x) * h
+        statrs::function::gamma::ln_gamma(x)
     }
 
     /// Regularised lower incomplete gamma `P(a, x) = gamma(a, x) / Gamma(a)`, `a > 0`.
     pub fn gamma_p(a: f64, x: f64) -> f64 {
         if x <= 0.0 {
             0.0
-        } else if x < a + 1.0 {
-            gamma_p_series(a, x)
         } else {
-            1.0 - gamma_q_fraction(a, x)
+            statrs::function::gamma::gamma_lr(a, x)
         }
     }
 
@@ -111,20 +40,14 @@ pub mod special {
     pub fn gamma_q(a: f64, x: f64) -> f64 {
         if x <= 0.0 {
             1.0
-        } else if x < a + 1.0 {
-            1.0 - gamma_p_series(a, x)
         } else {
-            gamma_q_fraction(a, x)
+            statrs::function::gamma::gamma_ur(a, x)
         }
     }
 
     /// Complementary error function `erfc(x) = 2/sqrt(pi) int_x^inf exp(-t^2) dt`.
     pub fn erfc(x: f64) -> f64 {
-        if x >= 0.0 {
-            gamma_q(0.5, x * x)
-        } else {
-            1.0 + gamma_p(0.5, x * x)
-        }
+        statrs::function::erf::erfc(x)
     }
 
     /// Upper tail `1 - Phi(z)` of the standard normal distribution.
@@ -137,53 +60,20 @@ pub mod special {
         0.5 * erfc(-z / std::f64::consts::SQRT_2)
     }
 
-    /// Upper tail `P(chi2_dof >= x) = Q(dof / 2, x / 2)` of the chi-square distribution.
+    /// Upper tail `P(chi2_dof >= x)` of the chi-square distribution (`dof > 0`).
     pub fn chi2_sf(x: f64, dof: f64) -> f64 {
-        gamma_q(0.5 * dof, 0.5 * x)
-    }
-
-    /// Continued fraction of the incomplete beta function (modified Lentz).
-    fn beta_fraction(a: f64, b: f64, x: f64) -> f64 {
-        let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
-        let clamp = |v: f64| if v.abs() < TINY { TINY } else { v };
-        let mut c = 1.0;
-        let mut d = 1.0 / clamp(1.0 - qab * x / qap);
-        let mut h = d;
-        for m in 1..MAX_TERMS {
-            let (m, m2) = (m as f64, 2.0 * m as f64);
-            let aa = m * (b - m) * x / ((qam + m2) * (a + m2));
-            d = 1.0 / clamp(1.0 + aa * d);
-            c = clamp(1.0 + aa / c);
-            h *= d * c;
-            let aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
-            d = 1.0 / clamp(1.0 + aa * d);
-            c = clamp(1.0 + aa / c);
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < EPS {
-                break;
-            }
+        if x <= 0.0 {
+            return 1.0;
         }
-        h
+        ChiSquared::new(dof).map_or(f64::NAN, |d| d.sf(x))
     }
 
     /// Regularised incomplete beta function `I_x(a, b)`, `a, b > 0`, `0 <= x <= 1`.
     pub fn beta_inc(a: f64, b: f64, x: f64) -> f64 {
-        if x <= 0.0 {
-            return 0.0;
-        }
-        if x >= 1.0 {
-            return 1.0;
-        }
-        let ln_front = ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (-x).ln_1p();
-        if x < (a + 1.0) / (a + b + 2.0) {
-            ln_front.exp() * beta_fraction(a, b, x) / a
-        } else {
-            1.0 - ln_front.exp() * beta_fraction(b, a, 1.0 - x) / b
-        }
+        statrs::function::beta::beta_reg(a, b, x.clamp(0.0, 1.0))
     }
 
-    /// Upper tail `P(F_{d1, d2} >= x) = I_{d2 / (d2 + d1 x)}(d2 / 2, d1 / 2)`.
+    /// Upper tail `P(F_{d1, d2} >= x)` of the F distribution.
     pub fn f_sf(x: f64, d1: f64, d2: f64) -> f64 {
         if x <= 0.0 {
             return 1.0;
@@ -191,7 +81,7 @@ pub mod special {
         if x == f64::INFINITY {
             return 0.0;
         }
-        beta_inc(0.5 * d2, 0.5 * d1, d2 / (d2 + d1 * x))
+        FisherSnedecor::new(d1, d2).map_or(f64::NAN, |d| d.sf(x))
     }
 
     /// CDF of the range of `k` independent standard normals (the studentized range with
@@ -338,7 +228,7 @@ fn average_ranks(values: &[f64]) -> (Vec<f64>, f64) {
 }
 
 /// Result of [`friedman`].
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FriedmanResult {
     /// Tie-corrected Friedman chi-square statistic `Q`.
     pub statistic: f64,
@@ -357,7 +247,7 @@ pub struct FriedmanResult {
 /// Iman & Davenport's F statistic (1980, doi:10.1080/03610928008827904), less
 /// conservative than `Q`: `F = (N - 1) Q / (N (k - 1) - Q)` with `(k - 1, (k - 1)(N - 1))`
 /// degrees of freedom (`F = +inf`, `p = 0` when the rankings agree perfectly).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImanDavenport {
     /// The F statistic.
     pub statistic: f64,
@@ -441,7 +331,7 @@ pub fn friedman<R: AsRef<[f64]>>(blocks: &[R]) -> Result<FriedmanResult, StatsEr
 }
 
 /// Result of [`nemenyi`].
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NemenyiResult {
     /// Significance level.
     pub alpha: f64,
@@ -504,7 +394,8 @@ pub fn nemenyi(friedman: &FriedmanResult, alpha: f64) -> Result<NemenyiResult, S
 }
 
 /// How a p-value was computed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum PMethod {
     /// Exact null distribution.
     Exact,
@@ -512,8 +403,22 @@ pub enum PMethod {
     Normal,
 }
 
+impl std::fmt::Display for PMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            PMethod::Exact => "exact",
+            PMethod::Normal => "normal approximation with continuity correction",
+        })
+    }
+}
+
+/// The signed-rank p-value is exact below this many non-zero differences (when there are
+/// no ties and no zeros), as R's `wilcox.test` and `scipy.stats.wilcoxon`: the exact counts
+/// of `n = 49` (`2^49` subsets) are still exact integers in f64.
+pub const WILCOXON_EXACT_BELOW: usize = 50;
+
 /// Result of [`wilcoxon_signed_rank`].
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WilcoxonResult {
     /// Number of non-zero differences (the sample size of the test).
     pub n: usize,
@@ -537,10 +442,12 @@ pub struct WilcoxonResult {
 /// two-sided, on the differences `x_i - y_i`.
 ///
 /// Zero differences are dropped (Wilcoxon's convention); the `n` others are ranked by
-/// absolute value with average ranks for ties. With `n <= 25` and no ties the p-value is
-/// exact, `min(1, 2 P(W <= T))` for `T = min(W+, W-)`, from the distribution of the rank
-/// sum of a random subset of `1..=n`. Otherwise `z = (T - n(n+1)/4 + 1/2) / sigma` with
-/// `sigma^2 = n(n+1)(2n+1)/24 - sum_t (t^3 - t)/48`, `p = min(1, 2 Phi(z))`.
+/// absolute value with average ranks for ties. As R's `wilcox.test` and
+/// `scipy.stats.wilcoxon` (`method="auto"`): with `n <` [`WILCOXON_EXACT_BELOW`], no ties
+/// and no zero difference the p-value is exact, `min(1, 2 P(W <= T))` for `T = min(W+,
+/// W-)`, from the distribution of the rank sum of a random subset of `1..=n`. Otherwise
+/// the normal approximation with continuity correction: `z = (T - n(n+1)/4 + 1/2) /
+/// sigma` with `sigma^2 = n(n+1)(2n+1)/24 - sum_t (t^3 - t)/48`, `p = min(1, 2 Phi(z))`.
 pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64]) -> Result<WilcoxonResult, StatsError> {
     if x.len() != y.len() {
         return Err(StatsError::LengthMismatch {
@@ -567,10 +474,13 @@ pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64]) -> Result<WilcoxonResult, Stat
         .filter(|(d, _)| **d > 0.0)
         .map(|(_, r)| r)
         .sum();
+    // `+ 0.0`: an empty f64 sum is -0.0, which would print as "-0".
+    let w_plus = w_plus + 0.0;
     let nf = n as f64;
-    let w_minus = nf * (nf + 1.0) / 2.0 - w_plus;
+    let w_minus = nf * (nf + 1.0) / 2.0 - w_plus + 0.0;
     let t = w_plus.min(w_minus);
-    let (z, p_value, method) = if n <= 25 && ties == 0.0 {
+    let zeros = x.len() - n;
+    let (z, p_value, method) = if n < WILCOXON_EXACT_BELOW && ties == 0.0 && zeros == 0 {
         // counts[s] = number of subsets of 1..=n with rank sum s.
         let max = n * (n + 1) / 2;
         let mut counts = vec![0.0f64; max + 1];
@@ -591,7 +501,7 @@ pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64]) -> Result<WilcoxonResult, Stat
     };
     Ok(WilcoxonResult {
         n,
-        zeros: x.len() - n,
+        zeros,
         w_plus,
         w_minus,
         statistic: t,
@@ -602,7 +512,7 @@ pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64]) -> Result<WilcoxonResult, Stat
 }
 
 /// Result of [`mann_whitney_u`].
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MannWhitneyResult {
     /// `U` of `x`: `R_x - n_x (n_x + 1) / 2` (as `scipy.stats.mannwhitneyu`).
     pub u: f64,
@@ -862,12 +772,40 @@ mod tests {
             6.0, 8.0, 14.0, 16.0, 23.0, 24.0, 28.0, 29.0, 41.0, -48.0, 49.0, 56.0, 60.0, -67.0,
             75.0,
         ];
+        // n = 50 without ties: the normal approximation (R's threshold; scipy 1.17
+        // `method="approx", correction=True`: 0.9077798683161526).
+        let alternating: Vec<f64> = (0..50).map(|i| (-1f64).powi(i) * (i + 1) as f64).collect();
+        let w = wilcoxon_signed_rank(&alternating, &[0.0; 50]).unwrap();
+        assert_eq!((w.statistic, w.method), (625.0, PMethod::Normal));
+        assert!(close(w.p_value, 0.9077798683161526, 1e-11));
+    }
+
+    /// Exact p-values below 50 differences, reference scipy 1.17 `scipy.stats.wilcoxon`
+    /// (`method="auto"`, exact here).
+    #[test]
+    fn wilcoxon_exact_below_fifty() {
+        // 30 paired runs, every difference positive: W = 0, p = 2 / 2^30 (the case of
+        // `reproduce`'s GCUK comparison; the normal approximation gave 1.8e-6).
+        let x: Vec<f64> = (1..=30).map(f64::from).collect();
+        let w = wilcoxon_signed_rank(&x, &[0.0; 30]).unwrap();
+        assert_eq!((w.statistic, w.method), (0.0, PMethod::Exact));
+        assert!(w.statistic.is_sign_positive(), "W prints as 0, not -0");
+        assert!(close(w.p_value, 1.862645149230957e-09, 1e-14));
+        // Darwin's differences and the same scaled by 100 plus 0.5: n = 30, W = 78.
+        let d = [
+            6.0, 8.0, 14.0, 16.0, 23.0, 24.0, 28.0, 29.0, 41.0, -48.0, 49.0, 56.0, 60.0, -67.0,
+            75.0,
+        ];
         let mut long = d.to_vec();
-        long.extend(d.iter().map(|v| v * 100.0 + 0.5)); // n = 30 > 25: normal.
-        assert_eq!(
-            wilcoxon_signed_rank(&long, &[0.0; 30]).unwrap().method,
-            PMethod::Normal
-        );
+        long.extend(d.iter().map(|v| v * 100.0 + 0.5));
+        let w = wilcoxon_signed_rank(&long, &[0.0; 30]).unwrap();
+        assert_eq!((w.statistic, w.method), (78.0, PMethod::Exact));
+        assert!(close(w.p_value, 0.0009517744183540344, 1e-12));
+        // n = 49, alternating signs: W = 600, p = 0.9058435571951513.
+        let alternating: Vec<f64> = (0..49).map(|i| (-1f64).powi(i) * (i + 1) as f64).collect();
+        let w = wilcoxon_signed_rank(&alternating, &[0.0; 49]).unwrap();
+        assert_eq!((w.statistic, w.method), (600.0, PMethod::Exact));
+        assert!(close(w.p_value, 0.9058435571951513, 1e-12));
     }
 
     #[test]

@@ -2,11 +2,11 @@
 
 use super::Global;
 use brdf_basis::collection::Collection;
+use brdf_basis::experiment::files::FitFile;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
 use brdf_basis::io::atomic::{check_output_path, OutputSet};
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary_to;
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Arguments of `fit`.
@@ -44,32 +44,6 @@ pub struct FitArgs {
     /// mapping material names to files.
     #[arg(long)]
     pub export: Option<PathBuf>,
-}
-
-/// `fit` results as the SPEC-cli JSON.
-pub fn fits_json(
-    coll: &Collection,
-    basis: &[usize],
-    fits: &[TargetFit],
-    p: &FitParams,
-) -> serde_json::Value {
-    let names: Vec<String> = basis
-        .iter()
-        .map(|&b| coll.materials()[b].name.clone())
-        .collect();
-    let targets: Vec<serde_json::Value> = fits
-        .iter()
-        .map(|f| {
-            let mut coef = serde_json::Map::new();
-            coef.insert("lambertian".into(), json!(f.coefficients[0]));
-            for (k, n) in names.iter().enumerate() {
-                coef.insert(n.clone(), json!(f.coefficients[k + 1]));
-            }
-            json!({"material": f.material, "coefficients": coef, "mae": f.mae, "residual": f.residual,
-                   "kkt": f.kkt, "iterations": f.iterations})
-        })
-        .collect();
-    json!({"basis": names, "weighting": p.weighting.to_string(), "mask": p.mask.to_string(), "targets": targets})
 }
 
 /// The fitted combination on the full grid, channel-planar (invalid cells -1), as
@@ -302,7 +276,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
             }
         }
     }
-    let text = serde_json::to_string_pretty(&fits_json(&coll, &basis, &fits, &p))?;
+    let text = serde_json::to_string_pretty(&FitFile::new(&coll, &basis, &fits, &p))?;
     out.stage(&a.json, |w| {
         w.write_all(text.as_bytes())?;
         w.write_all(b"\n")

@@ -4,6 +4,7 @@ pub mod cv;
 pub mod distance;
 pub mod fit;
 pub mod info;
+pub mod plot;
 pub mod render;
 pub mod reproduce;
 pub mod select;
@@ -78,6 +79,8 @@ pub enum Command {
     Reproduce(reproduce::ReproduceArgs),
     /// Cross-validated comparison of basis-selection methods (SPEC 8).
     Cv(cv::CvArgs),
+    /// Specular-lobe polar plots of a material and its fits (SVG or PNG).
+    Plot(plot::PlotArgs),
 }
 
 /// Runs the parsed command line.
@@ -91,6 +94,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(a) => render::run(&cli.global, a),
         Command::Reproduce(a) => reproduce::run(&cli.global, a),
         Command::Cv(a) => cv::run(&cli.global, a),
+        Command::Plot(a) => plot::run(&cli.global, a),
     }
 }
 

@@ -5,6 +5,7 @@ use anyhow::Context;
 use brdf_basis::eval::image_error::{heatmap, normalized_image_error, DisplayParams, HeatmapScale};
 use brdf_basis::eval::render::{render_sphere, RenderParams};
 use brdf_basis::eval::shade::{combination_brdf, material_brdf};
+use brdf_basis::experiment::files::FitFile;
 use brdf_basis::io::atomic::{check_output_path, OutputSet};
 use brdf_basis::io::image::{exr_bytes, png_bytes, rgb8_png_bytes};
 use std::path::PathBuf;
@@ -106,30 +107,14 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     let image = match &a.fit {
         None => original.clone(),
         Some(path) => {
-            let text =
-                std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-            let v: serde_json::Value = serde_json::from_str(&text)
-                .with_context(|| format!("{}: not JSON", path.display()))?;
-            let basis_names: Vec<String> = serde_json::from_value(v["basis"].clone())
-                .with_context(|| format!("{}: no `basis` list", path.display()))?;
-            let basis: Vec<usize> = basis_names
+            let file = FitFile::read(path)?;
+            let (_, coef) = file.columns_of(&a.material, path)?;
+            let basis: Vec<usize> = file
+                .basis
                 .iter()
                 .map(|n| coll.index_of(n))
-                .collect::<Result<_, _>>()?;
-            let t = v["targets"]
-                .as_array()
-                .and_then(|ts| ts.iter().find(|t| t["material"] == a.material.as_str()))
-                .with_context(|| format!("{}: no fit of `{}`", path.display(), a.material))?;
-            let mut coef = vec![[0.0; 3]; basis.len() + 1];
-            let get = |k: &str| -> anyhow::Result<[f64; 3]> {
-                serde_json::from_value(t["coefficients"][k].clone()).with_context(|| {
-                    format!("{}: coefficient `{k}` of `{}`", path.display(), a.material)
-                })
-            };
-            coef[0] = get("lambertian")?;
-            for (k, n) in basis_names.iter().enumerate() {
-                coef[k + 1] = get(n)?;
-            }
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("{}: basis material", path.display()))?;
             render_sphere(&params, &combination_brdf(&coll, &basis, &coef))?
         }
     };

@@ -16,6 +16,7 @@
 //!   doi:10.1016/S0031-3203(01)00108-X) as modified by the paper (no mutation, medoids).
 
 pub mod gcuk;
+pub mod indices;
 pub mod kmedoids;
 pub mod validity;
 

@@ -1,0 +1,311 @@
+//! `report.md`: the run's settings, results, figures and the paper's claims checked.
+//!
+//! The report is the concatenation of [`SECTIONS`]; to add a section, write a function
+//! `fn(&Experiment, &ReportContext, &mut String)` and list it there.
+
+use super::claims::check;
+use super::statistics::median;
+use super::{Experiment, StageTiming};
+use std::fmt::Write as _;
+
+/// What the caller adds to the report: the figures written (by stem), notes and the
+/// timings of stages run outside [`super::run`] (figures, files).
+#[derive(Clone, Debug, Default)]
+pub struct ReportContext {
+    /// Figure files by stem, relative to the report (e.g. `("fig2-contributions",
+    /// "figures/fig2-contributions.png")`); a section shows the figures it knows.
+    pub figures: Vec<(String, String)>,
+    /// Notes shown at the top (e.g. no font found).
+    pub notes: Vec<String>,
+    /// Extra stage timings.
+    pub timings: Vec<StageTiming>,
+}
+
+impl ReportContext {
+    fn figure(&self, out: &mut String, stem: &str, caption: &str) {
+        for (s, path) in &self.figures {
+            if s == stem {
+                let _ = writeln!(
+                    out,
+                    "\n![{caption}]({path})\n\n*{caption}* ([SVG]({}))\n",
+                    path.replace(".png", ".svg")
+                );
+            }
+        }
+    }
+}
+
+/// A report section.
+pub type Section = fn(&Experiment, &ReportContext, &mut String);
+
+/// The sections, in order.
+pub const SECTIONS: &[Section] = &[
+    header, empirical, clustering, statistics, bases, fits, lobes, claims, timings,
+];
+
+/// The whole report.
+pub fn markdown(e: &Experiment, ctx: &ReportContext) -> String {
+    let mut s = String::new();
+    for section in SECTIONS {
+        section(e, ctx, &mut s);
+    }
+    s
+}
+
+/// Formats a value with 4 significant digits.
+pub fn sig(v: f64) -> String {
+    if !v.is_finite() {
+        return "inf".into();
+    }
+    if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+fn header(e: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let st = &e.settings;
+    let _ = writeln!(s, "# brdf-basis reproduce\n");
+    let _ = writeln!(
+        s,
+        "Collection: {} materials; back-end: {}; seeds {}..{}; {} runs per configuration; grid stride {}; k-medoids k = {}..{}; GCUK k = {}..{}, population {}, {} generations; empirical threshold: more than {} fits; image errors on {}x{} px renders (gamma 2.2, exposure 0, light (45, 45) deg).\n",
+        st.materials, st.backend, st.seed, st.seed + st.runs as u64 - 1, st.runs, st.stride,
+        st.k_min, st.k_max, st.k_min, st.gcuk_k_max, st.population, st.generations, st.more_than,
+        st.render_size, st.render_size
+    );
+    let _ = writeln!(
+        s,
+        "Distances: {}.\n",
+        st.metrics
+            .iter()
+            .map(|m| if m.lobe.is_empty() {
+                format!("`{}` (raw (F0, n))", m.label)
+            } else {
+                format!(
+                    "`{}` ({} weights, {} lobe, evaluation mask)",
+                    m.label, m.weighting, m.lobe
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for n in &ctx.notes {
+        let _ = writeln!(s, "> **Note.** {n}\n");
+    }
+}
+
+fn empirical(e: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let emp = &e.empirical;
+    let max = emp
+        .contributors
+        .values()
+        .map(|v| v.len())
+        .max()
+        .unwrap_or(0);
+    let zero = emp.counts.iter().filter(|&&c| c == 0).count();
+    let _ = writeln!(s, "## Empirical selection (Algorithm 1)\n");
+    let _ = writeln!(s, "Most materials used by one leave-one-out fit: {max}. Materials contributing to no fit: {zero}. Materials contributing to more than {} fits: {} ({}).", e.settings.more_than, emp.basis.len(), emp.basis.join(", "));
+    ctx.figure(
+        s,
+        "fig2-contributions",
+        "Fig. 2: materials by number of fits they contribute to",
+    );
+}
+
+fn clustering(e: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let _ = writeln!(s, "## Clustering\n\nDavies-Bouldin (DB, lower is better), silhouette (higher is better) and Dunn (higher is better) of every run; medians over the {} runs, and the best run by DB.\n", e.settings.runs);
+    let _ = writeln!(s, "| metric | method | median DB | best DB | k of best | median silhouette | median Dunn |\n|---|---|---|---|---|---|---|");
+    for c in &e.clustering {
+        let sil: Vec<f64> = c.runs.iter().map(|r| r.silhouette).collect();
+        let dunn: Vec<f64> = c.runs.iter().filter_map(|r| r.dunn).collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            c.metric,
+            c.method,
+            sig(median(&c.db_values())),
+            sig(c.best.db_index),
+            c.best.k,
+            sig(median(&sil)),
+            if dunn.is_empty() {
+                "-".into()
+            } else {
+                sig(median(&dunn))
+            }
+        );
+    }
+    let _ = writeln!(s, "\n### Best k by each index (k-medoids, best run per k)\n\n| metric | DB (min) | silhouette (max) | Dunn (max) | agree with DB |\n|---|---|---|---|---|");
+    for m in &e.settings.metrics {
+        let km: Vec<_> = e
+            .clustering
+            .iter()
+            .filter(|c| c.metric == m.label && c.method.starts_with("kmedoids"))
+            .collect();
+        let pick = |f: &dyn Fn(&super::clustering::ClusteringSet) -> f64| {
+            km.iter()
+                .map(|c| (f(c), c.best.k))
+                .max_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|x| x.1)
+        };
+        let db = pick(&|c| -c.best.db_index);
+        let sil = pick(&|c| {
+            c.runs
+                .iter()
+                .map(|r| r.silhouette)
+                .fold(f64::NEG_INFINITY, f64::max)
+        });
+        let dunn = pick(&|c| {
+            c.runs
+                .iter()
+                .filter_map(|r| r.dunn)
+                .fold(f64::NEG_INFINITY, f64::max)
+        });
+        let show = |k: Option<usize>| k.map_or("-".into(), |k| k.to_string());
+        let agree = match (db, sil, dunn) {
+            (Some(a), Some(b), Some(c)) => format!(
+                "silhouette {}, Dunn {}",
+                if a == b { "yes" } else { "no" },
+                if a == c { "yes" } else { "no" }
+            ),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            m.label,
+            show(db),
+            show(sil),
+            show(dunn),
+            agree
+        );
+    }
+    ctx.figure(
+        s,
+        "fig3-db-boxplots",
+        "Fig. 3: DB index of every run, per method and metric",
+    );
+    ctx.figure(
+        s,
+        "db-vs-k",
+        "DB index against k (k-medoids: every run; GCUK: every run at the k it found)",
+    );
+}
+
+fn statistics(e: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let st = &e.statistics;
+    let _ = writeln!(s, "## Statistics\n");
+    for (key, f) in &st.friedman {
+        let _ = writeln!(s, "**{key}** ({} methods x {} runs): chi2 = {}, p = {}; Iman-Davenport F = {}, p = {}; Nemenyi critical difference (alpha 0.05) = {}. Mean ranks: {}.\n", f.methods.len(), f.blocks, sig(f.statistic), sig(f.p_value), f.iman_davenport_f.map_or("inf".into(), sig), sig(f.iman_davenport_p), sig(f.nemenyi_cd), f.methods.iter().zip(&f.mean_ranks).map(|(m, r)| format!("{m} {r:.2}")).collect::<Vec<_>>().join(", "));
+        ctx.figure(
+            s,
+            &format!("cd-{}", key.trim_start_matches("friedman-")),
+            &format!(
+                "Nemenyi critical-difference diagram ({})",
+                key.trim_start_matches("friedman-")
+            ),
+        );
+    }
+    if let Some(c) = &st.gcuk_euclidean_vs_brdf_it {
+        let _ = writeln!(s, "**GCUK Euclidean vs GCUK BRDF_it** ({} runs, paired by run): median DB {} vs {}; Wilcoxon signed-rank W = {}, p = {} ({}); Mann-Whitney U = {}, p = {} (normal approximation with continuity correction). With {} paired runs the smallest attainable two-sided signed-rank p is {}.\n", c.runs, sig(c.median_a), sig(c.median_b), c.wilcoxon_w, sig(c.wilcoxon_p), c.wilcoxon_method, c.mann_whitney_u, sig(c.mann_whitney_p), c.runs, sig(2.0 * 0.5f64.powi(c.runs as i32)));
+    }
+    for n in &st.not_computed {
+        let _ = writeln!(s, "Not computed: {n}.\n");
+    }
+}
+
+fn bases(e: &Experiment, _: &ReportContext, s: &mut String) {
+    let _ = writeln!(s, "## Bases\n");
+    for b in &e.bases {
+        let same = if b.same_as.is_empty() {
+            String::new()
+        } else {
+            format!(" (= {})", b.same_as.join(", "))
+        };
+        let note = b
+            .note
+            .as_ref()
+            .map_or(String::new(), |n| format!(" Note: {n}."));
+        let _ = writeln!(
+            s,
+            "* **{}**{same} ({}): {}.{note}",
+            b.name,
+            b.materials.len(),
+            b.materials.join(", ")
+        );
+    }
+}
+
+fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let ev = &e.evaluation;
+    let _ = writeln!(s, "\n## Fits of the {} materials in no basis\n\nEvery basis fits the same targets (the materials in none of the bases above). MAE: weighted mean |fit - target| over the evaluation mask, mean over RGB; image error: normalised mean absolute difference of {0}x{0} px sphere renders after display mapping; per material in `fit_errors.csv`.\n", ev.targets.len());
+    let _ = writeln!(s, "| basis | size | mean MAE | median MAE | mean image error | median image error | {} image error |\n|---|---|---|---|---|---|---|", ev.showcase.material);
+    for (b, a) in ev.errors.iter().zip(&ev.showcase.approximations) {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            b.basis,
+            b.size,
+            sig(b.mean_mae),
+            sig(b.median_mae),
+            sig(b.mean_image_error),
+            sig(b.median_image_error),
+            sig(a.3)
+        );
+    }
+    ctx.figure(
+        s,
+        "fig4a-mae",
+        "Fig. 4a: MAE on reflectance per material, sorted by the first basis",
+    );
+    ctx.figure(
+        s,
+        "fig4b-image-error",
+        "Fig. 4b: normalised image error per material, sorted by the first basis",
+    );
+    ctx.figure(s, "fig5-showcase", &format!("Fig. 5: {} (top: target and each basis's approximation; bottom: per-pixel error heatmaps on a common scale)", ev.showcase.material));
+}
+
+fn lobes(e: &Experiment, ctx: &ReportContext, s: &mut String) {
+    if ctx.figures.iter().any(|f| f.0 == "lobes-showcase") {
+        let _ = writeln!(s, "## Specular lobes\n\nBRDF in the plane of incidence (mean over RGB, log scale) of `{}` and its fit by each basis, at several incident angles.", e.evaluation.showcase.material);
+        ctx.figure(
+            s,
+            "lobes-showcase",
+            "Specular lobes in the plane of incidence",
+        );
+    }
+}
+
+fn claims(e: &Experiment, _: &ReportContext, s: &mut String) {
+    let _ = writeln!(s, "## The paper's claims (section VI)\n\n| section | paper | ours | agree | why not |\n|---|---|---|---|---|");
+    for c in check(e) {
+        let agree = match c.agree {
+            Some(true) => "yes",
+            Some(false) => "no",
+            None => "n/a",
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {agree} | {} |",
+            c.section,
+            c.paper,
+            c.ours.replace('|', "/"),
+            c.why
+        );
+    }
+    s.push('\n');
+}
+
+fn timings(e: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let _ = writeln!(s, "## Timings\n\n| stage | seconds |\n|---|---|");
+    let all: Vec<&StageTiming> = e.timings.iter().chain(&ctx.timings).collect();
+    for t in &all {
+        let _ = writeln!(s, "| {} | {:.2} |", t.stage, t.seconds);
+    }
+    let _ = writeln!(
+        s,
+        "| total | {:.2} |",
+        all.iter().map(|t| t.seconds).sum::<f64>()
+    );
+}
