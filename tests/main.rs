@@ -14,5 +14,7 @@ mod fit;
 mod gpu_kernels;
 mod grid;
 mod measured;
+mod saved_matrix;
 mod shaders;
+mod tiles;
 mod workflow;

@@ -3,6 +3,7 @@
 pub mod distance;
 pub mod fit;
 pub mod info;
+pub mod merge;
 pub mod render;
 pub mod reproduce;
 pub mod select;
@@ -74,6 +75,8 @@ pub enum Command {
     Render(render::RenderArgs),
     /// Re-run the paper's experiments (section VI) end to end into a directory.
     Reproduce(reproduce::ReproduceArgs),
+    /// Assemble the tiles of `distance --tile I/N` into the whole matrix.
+    Merge(merge::MergeArgs),
 }
 
 /// Runs the parsed command line.
@@ -86,6 +89,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(a) => fit::run(&cli.global, a),
         Command::Render(a) => render::run(&cli.global, a),
         Command::Reproduce(a) => reproduce::run(&cli.global, a),
+        Command::Merge(a) => merge::run(&cli.global, a),
     }
 }
 

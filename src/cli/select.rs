@@ -50,6 +50,10 @@ pub struct SelectArgs {
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
+    /// Cluster a saved matrix instead of computing one: a .npy written by `distance` (read
+    /// with its .names.json sidecar) or a .csv (`material,<names...>` header).
+    #[arg(long, value_name = "FILE")]
+    pub distances: Option<PathBuf>,
 }
 
 /// One clustering run as JSON.
@@ -130,6 +134,9 @@ pub fn best(runs: &[serde_json::Value]) -> serde_json::Value {
 
 /// Runs the selection.
 pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
+    if a.distances.is_some() && (!a.collection.is_empty() || a.method == "empirical") {
+        anyhow::bail!("--distances clusters a saved matrix (--method kmedoids or gcuk) and takes no COLLECTION");
+    }
     let coll = super::load_collection(&a.collection)?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, &a.method);
@@ -156,9 +163,21 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
                 .metric(a.metric)
                 .mask(a.grid.mask)
                 .weighting(a.grid.weighting)
-                .stride(a.grid.stride)
-                .check(&coll)?;
-            let d = distance_matrix(backend.as_ref(), &coll, &dp, &progress)?;
+                .stride(a.grid.stride);
+            let (d, metric) = match &a.distances {
+                Some(path) => {
+                    let saved = brdf_basis::io::matrix::load_saved_matrix(path)?;
+                    let metric = saved
+                        .sidecar
+                        .map_or(a.metric.to_string(), |s| s.settings.metric);
+                    (saved.matrix, metric)
+                }
+                None => {
+                    let dp = dp.check(&coll)?;
+                    let d = distance_matrix(backend.as_ref(), &coll, &dp, &progress)?;
+                    (d, a.metric.to_string())
+                }
+            };
             let runs = if a.method == "kmedoids" {
                 let ks: Vec<usize> = match a.k {
                     Some(k) => vec![k],
@@ -172,7 +191,7 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
                     .generations(a.generations);
                 gcuk_runs(&d, &p, a.runs, g.seed)?
             };
-            json!({"method": a.method, "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
+            json!({"method": a.method, "metric": metric, "runs": runs, "best": best(&runs)})
         }
         other => anyhow::bail!("unknown method `{other}` (expected empirical, kmedoids or gcuk)"),
     };
