@@ -16,5 +16,7 @@ mod grid;
 mod kmedoids;
 mod measured;
 mod selection;
+mod saved_matrix;
 mod shaders;
+mod tiles;
 mod workflow;

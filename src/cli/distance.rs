@@ -1,14 +1,27 @@
 //! `brdf-basis distance`.
 
 use super::Global;
-use brdf_basis::distance::{distance_matrix, DistanceParams, LobeKind, Metric};
-use brdf_basis::io::matrix::{write_csv, write_npy};
+use brdf_basis::distance::{
+    collection_fingerprint, distance_matrix_banded, distance_tile, DistanceParams, LobeKind,
+    Metric, DEFAULT_BAND_ROWS,
+};
+use brdf_basis::io::matrix::{write_csv, write_npy_with_sidecar, write_tile, MatrixSettings};
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis distance --out d.csv\n  brdf-basis distance ../shared/data/ngan2005_ashikhmin_shirley.csv --metric brdf-it --weighting solid-angle --out d.npy"
+    after_help = "A .npy output gets a JSON sidecar beside it (d.npy -> d.names.json) holding the \
+material names, the settings, a fingerprint of the collection and the size and checksum of \
+the .npy; `select --distances d.npy` reads the pair and refuses a mismatched one. A .csv holds \
+the names in its header.\n\n\
+--tile I/N computes the I-th of N bands of rows (1-based) into a tile (.npy + sidecar); \
+`brdf-basis merge` assembles the N tiles into the matrix, byte-identical to computing it at \
+once with the same --band-rows.\n\n\
+Examples:\n  brdf-basis distance --out d.csv\n  brdf-basis distance --out d.npy\n  \
+brdf-basis distance --stride 2 --band-rows 16 --tile 1/2 --out t1.npy\n  \
+brdf-basis distance --stride 2 --band-rows 16 --tile 2/2 --out t2.npy\n  \
+brdf-basis merge t1.npy t2.npy --out d.npy"
 )]
 pub struct DistanceArgs {
     /// Collection(s): analytic .csv, .binary file or directory (none: embedded default).
@@ -23,12 +36,30 @@ pub struct DistanceArgs {
     /// every material is analytic.
     #[arg(long)]
     pub lobe: Option<LobeKind>,
-    /// Output: .npy (float64 N x N) or .csv.
+    /// Compute only band I of N (1-based) into a tile file (.npy + sidecar) for `merge`.
+    #[arg(long, value_name = "I/N")]
+    pub tile: Option<String>,
+    /// Materials per super-block of the banded computation (a multiple of 4); tiles are
+    /// whole super-block rows, and tiles merge only with tiles of the same value.
+    #[arg(long, default_value_t = DEFAULT_BAND_ROWS)]
+    pub band_rows: usize,
+    /// Output: .npy (float64 N x N, with a .names.json sidecar) or .csv.
     #[arg(long)]
     pub out: PathBuf,
 }
 
-/// Computes and writes the matrix.
+/// Parses `I/N`.
+fn parse_tile(s: &str) -> anyhow::Result<(usize, usize)> {
+    let parsed = s
+        .split_once('/')
+        .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)));
+    match parsed {
+        Some((i, n)) if i >= 1 && i <= n => Ok((i, n)),
+        _ => anyhow::bail!("--tile `{s}`: expected I/N with 1 <= I <= N (e.g. --tile 3/8)"),
+    }
+}
+
+/// Computes and writes the matrix (or one tile of it).
 pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     let ext = a
         .out
@@ -39,6 +70,11 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     if ext != "npy" && ext != "csv" {
         anyhow::bail!("{}: output must end in .npy or .csv", a.out.display());
     }
+    let tile = a.tile.as_deref().map(parse_tile).transpose()?;
+    if tile.is_some() && ext != "npy" {
+        anyhow::bail!("{}: a tile (--tile) is written as .npy", a.out.display());
+    }
+    brdf_basis::distance::band::check_band_rows(a.band_rows)?;
     let coll = super::load_collection(&a.collection)?;
     let mut p = DistanceParams::default()
         .metric(a.metric)
@@ -47,23 +83,56 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
         .stride(a.grid.stride);
     p.lobe = a.lobe;
     let p = p.check(&coll)?;
+    if let Some((i, n)) = tile {
+        brdf_basis::distance::band::tile_blocks(coll.len(), a.band_rows, i, n)?;
+    }
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "distance");
-    let d = distance_matrix(backend.as_ref(), &coll, &p, &|done, total| {
+    let progress = |done, total| {
         pb.set_length(total);
         pb.set_position(done);
-    })?;
+    };
+    let settings = MatrixSettings::of(&p, a.band_rows);
+    let n = coll.len();
+    if let Some((i, count)) = tile {
+        let t = distance_tile(
+            backend.as_ref(),
+            &coll,
+            &p,
+            a.band_rows,
+            i,
+            count,
+            &progress,
+        )?;
+        pb.finish_and_clear();
+        write_tile(
+            &a.out,
+            &t,
+            &coll.names(),
+            &settings,
+            &collection_fingerprint(&coll),
+        )?;
+        if !g.quiet {
+            eprintln!(
+                "wrote {} (tile {i}/{count}: rows {}..{} of {n} x {n} {})",
+                a.out.display(),
+                t.rows.start,
+                t.rows.end,
+                p.metric
+            );
+        }
+        return Ok(());
+    }
+    let d = distance_matrix_banded(backend.as_ref(), &coll, &p, a.band_rows, &progress)?;
     pb.finish_and_clear();
     match ext.as_str() {
-        "npy" => write_npy(&a.out, &d)?,
+        "npy" => write_npy_with_sidecar(&a.out, &d, &settings, &collection_fingerprint(&coll))?,
         _ => write_csv(&a.out, &d)?,
     }
     if !g.quiet {
         eprintln!(
-            "wrote {} ({} x {} {}, lobe {}, mask {}, weighting {})",
+            "wrote {} ({n} x {n} {}, lobe {}, mask {}, weighting {})",
             a.out.display(),
-            d.names().len(),
-            d.names().len(),
             p.metric,
             p.lobe,
             p.mask,

@@ -5,6 +5,7 @@ pub mod distance;
 pub mod fit;
 pub mod info;
 pub mod plot;
+pub mod merge;
 pub mod render;
 pub mod reproduce;
 pub mod select;
@@ -81,6 +82,8 @@ pub enum Command {
     Cv(cv::CvArgs),
     /// Specular-lobe polar plots of a material and its fits (SVG or PNG).
     Plot(plot::PlotArgs),
+    /// Assemble the tiles of `distance --tile I/N` into the whole matrix.
+    Merge(merge::MergeArgs),
 }
 
 /// Runs the parsed command line.
@@ -95,6 +98,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Reproduce(a) => reproduce::run(&cli.global, a),
         Command::Cv(a) => cv::run(&cli.global, a),
         Command::Plot(a) => plot::run(&cli.global, a),
+        Command::Merge(a) => merge::run(&cli.global, a),
     }
 }
 

@@ -61,6 +61,10 @@ pub struct SelectArgs {
     /// Flags of the error-driven methods (greedy, swap, ga).
     #[command(flatten)]
     pub error: super::select_error::ErrorArgs,
+    /// Cluster a saved matrix instead of computing one: a .npy written by `distance` (read
+    /// with its .names.json sidecar) or a .csv (`material,<names...>` header).
+    #[arg(long, value_name = "FILE")]
+    pub distances: Option<PathBuf>,
 }
 
 /// One clustering run as JSON.
@@ -223,6 +227,9 @@ fn check_clustering(a: &SelectArgs, n: usize) -> anyhow::Result<()> {
 
 /// Runs the selection.
 pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
+    if let Some(path) = &a.distances {
+        return run_saved(g, &a, path);
+    }
     if matches!(a.method.as_str(), "greedy" | "swap" | "ga") {
         return super::select_error::run(g, &a);
     }
@@ -256,14 +263,7 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
                 .stride(a.grid.stride)
                 .check(&coll)?;
             let d = distance_matrix(backend.as_ref(), &coll, &dp, &progress)?;
-            if a.method == "kmedoids" {
-                let ks = kmedoids_ks(&a)?;
-                let runs = kmedoids_runs_with(&d, &ks, a.runs, g.seed, a.algorithm)?;
-                json!({"method": a.method, "algorithm": a.algorithm.to_string(), "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
-            } else {
-                let runs = gcuk_runs(&d, &gcuk_params(&a)?, a.runs, g.seed)?;
-                json!({"method": a.method, "metric": a.metric.to_string(), "runs": runs, "best": best(&runs)})
-            }
+            cluster_json(&a, &d, &a.metric.to_string(), g.seed)?
         }
         other => anyhow::bail!(
             "unknown method `{other}` (expected empirical, kmedoids, gcuk, greedy, swap or ga)"
@@ -275,4 +275,42 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
         eprintln!("wrote {}", a.json.display());
     }
     Ok(())
+}
+
+/// Clusters a saved matrix (`--distances`): no collection, no back-end.
+fn run_saved(g: &Global, a: &SelectArgs, path: &std::path::Path) -> anyhow::Result<()> {
+    if !a.collection.is_empty() || !matches!(a.method.as_str(), "kmedoids" | "gcuk") {
+        anyhow::bail!(
+            "--distances clusters a saved matrix (--method kmedoids or gcuk) and takes no COLLECTION"
+        );
+    }
+    brdf_basis::io::atomic::check_output_path(&a.json, "--json")?;
+    let saved = brdf_basis::io::matrix::load_saved_matrix(path)?;
+    check_clustering(a, saved.matrix.names().len())?;
+    let metric = saved
+        .sidecar
+        .map_or(a.metric.to_string(), |s| s.settings.metric);
+    let value = cluster_json(a, &saved.matrix, &metric, g.seed)?;
+    write_json(&a.json, &value)?;
+    if !g.quiet {
+        eprintln!("wrote {}", a.json.display());
+    }
+    Ok(())
+}
+
+/// Runs k-medoids or GCUK on a distance matrix and forms the SPEC-cli JSON.
+fn cluster_json(
+    a: &SelectArgs,
+    d: &DistanceMatrix,
+    metric: &str,
+    seed: u64,
+) -> anyhow::Result<serde_json::Value> {
+    Ok(if a.method == "kmedoids" {
+        let ks = kmedoids_ks(a)?;
+        let runs = kmedoids_runs_with(d, &ks, a.runs, seed, a.algorithm)?;
+        json!({"method": a.method, "algorithm": a.algorithm.to_string(), "metric": metric, "runs": runs, "best": best(&runs)})
+    } else {
+        let runs = gcuk_runs(d, &gcuk_params(a)?, a.runs, seed)?;
+        json!({"method": a.method, "metric": metric, "runs": runs, "best": best(&runs)})
+    })
 }

@@ -2,7 +2,10 @@
 //! full lobe, over the evaluation mask or every valid cell, with uniform or solid-angle
 //! weights, and the Euclidean (F0, n) baseline.
 
+pub mod band;
 pub mod matrix;
+
+pub use band::{distance_matrix_banded, distance_tile, Tile, DEFAULT_BAND_ROWS};
 
 pub use matrix::{DistanceMatrix, Distances};
 
@@ -219,45 +222,41 @@ pub fn cell_set(coll: &Collection, p: &ValidDistanceParams) -> CellSet {
     cs
 }
 
-/// Computes the distance matrix of `coll` on `backend`.
+/// Computes the distance matrix of `coll` on `backend`, in super-blocks of
+/// [`DEFAULT_BAND_ROWS`] materials ([`band`]).
 pub fn distance_matrix(
     backend: &dyn Backend,
     coll: &Collection,
     p: &ValidDistanceParams,
     progress: Progress<'_>,
 ) -> Result<DistanceMatrix, DistanceError> {
-    let n = coll.len();
-    let condensed = match p.metric {
-        Metric::Euclidean => {
-            let params: Vec<(f64, f64)> = coll
-                .materials()
-                .iter()
-                .map(|m| {
-                    m.analytic()
-                        .map(|a| (a.f0, a.n))
-                        .ok_or_else(|| DistanceError::NoParameters(m.name.clone()))
-                })
-                .collect::<Result<_, _>>()?;
-            let mut out = vec![0.0; crate::backend::condensed_len(n)];
-            for i in 0..n {
-                for j in i + 1..n {
-                    out[condensed_index(n, i, j)] =
-                        (params[i].0 - params[j].0).hypot(params[i].1 - params[j].1);
+    distance_matrix_banded(backend, coll, p, DEFAULT_BAND_ROWS, progress)
+}
+
+/// A fingerprint of a collection: FNV-1a (64 bit) over every material's name and its
+/// parameters (analytic) or table values (measured), as 16 hex digits. Tiles and saved
+/// matrices carry it so that pieces of different collections are never mixed.
+pub fn collection_fingerprint(coll: &Collection) -> String {
+    let mut h = crate::io::matrix::Fnv64::new();
+    for m in coll.materials() {
+        h.write(&(m.name.len() as u64).to_le_bytes());
+        h.write(m.name.as_bytes());
+        match &m.data {
+            MaterialData::Analytic(a) => {
+                h.write(b"A");
+                for v in a.d.iter().chain(&a.s).chain([&a.f0, &a.n]) {
+                    h.write(&v.to_le_bytes());
                 }
             }
-            out
-        }
-        Metric::BrdfIt => {
-            let cells = cell_set(coll, p);
-            if cells.is_empty() {
-                return Err(DistanceError::Backend(crate::error::BackendError::Invalid(
-                    "no grid cell is valid in every material of the collection".into(),
-                )));
+            MaterialData::Measured(t) => {
+                h.write(b"M");
+                for v in &t.rgb {
+                    h.write(&v.to_le_bytes());
+                }
             }
-            backend.pairwise_l1(&lobes(coll, p.lobe), &cells, progress)?
         }
-    };
-    DistanceMatrix::from_condensed(coll.names(), &condensed)
+    }
+    format!("{:016x}", h.finish())
 }
 
 /// f64 reference of BRDF_it (slow, single pass per pair over the cells; for tests).

@@ -1,0 +1,53 @@
+//! `brdf-basis merge`.
+
+use super::Global;
+use brdf_basis::io::matrix::merge_tiles;
+use std::path::PathBuf;
+
+/// Arguments of `merge`.
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Every tile is a .npy written by `brdf-basis distance --tile I/N` with its \
+.names.json sidecar. The tiles must come from the same collection and settings, and each \
+of 1..N must be given exactly once; the merged matrix (with its sidecar) is byte-identical to \
+computing it at once.\n\nExamples:\n  \
+brdf-basis distance --stride 2 --band-rows 16 --tile 1/2 --out t1.npy\n  \
+brdf-basis distance --stride 2 --band-rows 16 --tile 2/2 --out t2.npy\n  \
+brdf-basis merge t1.npy t2.npy --out d.npy"
+)]
+pub struct MergeArgs {
+    /// Tile files (.npy, each with its .names.json sidecar), in any order.
+    #[arg(required = true)]
+    pub tiles: Vec<PathBuf>,
+    /// Output .npy (its sidecar is written beside it).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Merges the tiles.
+pub fn run(g: &Global, a: MergeArgs) -> anyhow::Result<()> {
+    let ext = a
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if ext != "npy" {
+        anyhow::bail!("{}: merge writes a .npy", a.out.display());
+    }
+    if a.tiles.iter().any(|t| t == &a.out) {
+        anyhow::bail!("{}: the output is also one of the tiles", a.out.display());
+    }
+    let side = merge_tiles(&a.tiles, &a.out)?;
+    if !g.quiet {
+        eprintln!(
+            "wrote {} ({} x {} {}, from {} tiles)",
+            a.out.display(),
+            side.n,
+            side.n,
+            side.settings.metric,
+            a.tiles.len()
+        );
+    }
+    Ok(())
+}
