@@ -190,17 +190,33 @@ impl OutputSet {
         Ok(())
     }
 
-    /// Renames every staged file into place, in the order staged.
+    /// Renames every staged file into place, in the order staged. Targets are checked
+    /// first (none may be a directory); should a rename still fail, the files this set
+    /// had already put in place where none existed are removed again.
     pub fn commit(mut self) -> Result<(), OutputError> {
+        for (_, path) in &self.staged {
+            check_output_path(path, "output")?;
+        }
         let staged = std::mem::take(&mut self.staged);
         let mut result = Ok(());
+        let mut placed = Vec::new();
         for (tmp, path) in staged {
             if result.is_ok() {
+                let existed = path.exists();
                 result = rename_into_place(&tmp, &path);
+                if result.is_ok() && !existed {
+                    placed.push(path);
+                }
             } else {
                 let _ = std::fs::remove_file(&tmp);
                 unregister(&tmp);
             }
+        }
+        if result.is_err() {
+            for p in placed {
+                let _ = std::fs::remove_file(p);
+            }
+            return result;
         }
         for d in std::mem::take(&mut self.created_dirs) {
             unregister(&d);

@@ -13,6 +13,7 @@ mod distance;
 mod fit;
 mod gpu_kernels;
 mod grid;
+mod hardening;
 mod measured;
 mod shaders;
 mod workflow;

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis fit ../shared/data/ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json\n  brdf-basis fit --basis mirror-silver,matte-white-paint --targets polished-gold --json f.json --export fitted/"
+    after_help = "Examples:\n  brdf-basis fit --basis gloss-white-enamel,gloss-black-enamel,polished-brass --targets gloss-red-enamel,polished-gold,polished-copper --json fits.json --export fitted/\n  brdf-basis fit ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json"
 )]
 pub struct FitArgs {
     /// Collection(s) (none: embedded default).
@@ -247,6 +247,27 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     if let Some(dir) = &a.export {
         if dir.exists() && !dir.is_dir() {
             anyhow::bail!("--export {}: exists and is not a directory", dir.display());
+        }
+        let names: Vec<&str> = targets
+            .iter()
+            .map(|&t| coll.materials()[t].name.as_str())
+            .collect();
+        if dir.is_dir() {
+            for file in export_file_names(&names)
+                .iter()
+                .map(String::as_str)
+                .chain([EXPORT_INDEX])
+            {
+                check_output_path(&dir.join(file), "--export")?;
+            }
+        } else if let Some(parent) = dir.ancestors().skip(1).find(|p| p.exists()) {
+            if !parent.is_dir() {
+                anyhow::bail!(
+                    "--export {}: {} is not a directory",
+                    dir.display(),
+                    parent.display()
+                );
+            }
         }
     }
     let p = FitParams {
