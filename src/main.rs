@@ -8,6 +8,14 @@ mod cli;
 use clap::Parser;
 
 fn main() -> std::process::ExitCode {
+    // `brdf-basis info | head -1`: a closed pipe ends the process quietly, as for any
+    // Unix filter, instead of a panic in `println!` (Rust ignores SIGPIPE by default).
+    #[cfg(unix)]
+    // SAFETY: called first in `main`, before any thread exists; restoring the default
+    // disposition of a signal has no other effect on this process.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let runtime_dir = private_runtime_dir();
     // SIGINT, SIGTERM, SIGHUP: remove the temporary files of outputs being written (and
     // the directories created for them), then exit 130 as shells expect after Ctrl-C.

@@ -280,12 +280,29 @@ fn fit_with_no_shared_cell_is_an_error() {
             "--targets",
             "polished-gold",
             "--stride",
-            "1000",
+            "90",
             "--json",
             "f.json",
         ],
     );
-    fails_with(&o, &["no cell", "stride 1000"]);
+    fails_with(&o, &["no cell", "stride 90"]);
+    for stride in ["0", "1000"] {
+        let args = [
+            "fit",
+            "--basis",
+            "mirror-silver",
+            "--targets",
+            "polished-gold",
+            "--stride",
+            stride,
+            "--json",
+            "f.json",
+        ];
+        fails_with(
+            &run_in(dir.path(), &args),
+            &["--stride", "from 1 (the full grid) to 90"],
+        );
+    }
     assert!(files_under(dir.path()).is_empty());
 }
 
@@ -612,4 +629,72 @@ fn an_interrupted_export_leaves_nothing() {
         "{:?}",
         files_under(dir.path())
     );
+}
+
+/// Outputs never replace an input collection or a device; `render --fit` never opens a
+/// FIFO.
+#[cfg(unix)]
+#[test]
+fn outputs_never_replace_inputs_or_devices() {
+    let dir = tmp();
+    write(
+        dir.path(),
+        "c.csv",
+        &format!("{HEADER}ok,0.2,0.1,0.1,0.5,0.5,0.5,0.5,50\n"),
+    );
+    let o = run_in(
+        dir.path(),
+        &["tabulate", "c.csv", "--material", "ok", "--out", "./c.csv"],
+    );
+    fails_with(&o, &["would overwrite the input collection c.csv"]);
+    let o = run_in(
+        dir.path(),
+        &[
+            "tabulate",
+            "c.csv",
+            "--material",
+            "ok",
+            "--out",
+            "/dev/null",
+        ],
+    );
+    fails_with(&o, &["/dev/null", "not a regular file"]);
+    assert!(Path::new("/dev/null").exists() && !Path::new("/dev/null").is_file());
+    let st = Command::new("mkfifo")
+        .arg(dir.path().join("f.json"))
+        .status()
+        .expect("mkfifo");
+    assert!(st.success());
+    let o = run_in(
+        dir.path(),
+        &[
+            "render",
+            "--material",
+            "polished-gold",
+            "--fit",
+            "f.json",
+            "--out",
+            "g.exr",
+            "--size",
+            "8",
+        ],
+    );
+    fails_with(&o, &["--fit f.json", "FIFO"]);
+}
+
+/// `brdf-basis info | head -1`: a closed pipe ends the process without a panic. The
+/// read end is closed right after the spawn, long before the first line is printed.
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_pipe_is_no_panic() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+        .args(["--backend", "cpu", "info"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    drop(child.stdout.take());
+    let o = child.wait_with_output().expect("wait");
+    let e = stderr(&o);
+    assert!(!e.contains("panicked") && !e.contains("Broken pipe"), "{e}");
 }

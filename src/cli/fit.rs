@@ -3,7 +3,7 @@
 use super::Global;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
-use brdf_basis::io::atomic::{check_output_path, OutputSet};
+use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary_to;
 use serde_json::json;
@@ -244,6 +244,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     };
     // Output paths before the work: a typo costs no computation.
     check_output_path(&a.json, "--json")?;
+    check_not_input(&a.json, "--json", &a.collection)?;
     if let Some(dir) = &a.export {
         if dir.exists() && !dir.is_dir() {
             anyhow::bail!("--export {}: exists and is not a directory", dir.display());
@@ -259,6 +260,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
                 .chain([EXPORT_INDEX])
             {
                 check_output_path(&dir.join(file), "--export")?;
+                check_not_input(&dir.join(file), "--export", &a.collection)?;
             }
         } else if let Some(parent) = dir.ancestors().skip(1).find(|p| p.exists()) {
             if !parent.is_dir() {
