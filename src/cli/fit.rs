@@ -29,13 +29,12 @@ pub struct FitArgs {
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
-    /// exact (Lawson-Hanson) or pgd (batched projected gradient, exact fallback).
-    #[arg(long, default_value = "exact")]
-    pub solver: String,
-    /// auto (closed-form separable Gram when every material is analytic) or grid (the
-    /// back-end's pass over the grid).
-    #[arg(long, default_value = "auto")]
-    pub gram: String,
+    /// NNLS solver.
+    #[arg(long, value_enum, default_value_t = Solver::Exact)]
+    pub solver: Solver,
+    /// How Gram matrices are computed.
+    #[arg(long, value_enum, default_value_t = GramMode::Auto)]
+    pub gram: GramMode,
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
@@ -232,16 +231,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
             "--all-others: every material of the collection is in the basis; nothing to fit"
         );
     }
-    let solver = match a.solver.as_str() {
-        "exact" => Solver::Exact,
-        "pgd" => Solver::Pgd,
-        s => anyhow::bail!("unknown solver `{s}` (expected exact or pgd)"),
-    };
-    let gram = match a.gram.as_str() {
-        "auto" => GramMode::Auto,
-        "grid" => GramMode::Grid,
-        g => anyhow::bail!("unknown gram mode `{g}` (expected auto or grid)"),
-    };
+    let (solver, gram) = (a.solver, a.gram);
     // Output paths before the work: a typo costs no computation.
     check_output_path(&a.json, "--json")?;
     check_not_input(&a.json, "--json", &a.collection)?;
