@@ -156,13 +156,14 @@ pub fn check_not_input(path: &Path, what: &str, inputs: &[PathBuf]) -> Result<()
     };
     let Some(out) = key(path) else { return Ok(()) };
     for input in inputs {
-        let same_dir = input.is_dir()
+        // A directory collection reads every `.binary` file in it.
+        let in_dir = input.is_dir()
             && out
                 .parent()
-                .is_some_and(|d| Some(d.to_path_buf()) == key(input));
-        if key(input).as_ref() == Some(&out)
-            || same_dir && out.extension().is_some_and(|e| e == "binary")
-        {
+                .is_some_and(|d| Some(d.to_path_buf()) == key(input))
+            && out.extension().is_some_and(|e| e == "binary")
+            && out.exists();
+        if key(input).as_ref() == Some(&out) || in_dir {
             return Err(OutputError::Encode {
                 path: path.to_path_buf(),
                 message: format!(

@@ -652,6 +652,19 @@ fn outputs_never_replace_inputs_or_devices() {
         &[
             "tabulate",
             "c.csv",
+            "./c.csv",
+            "--material",
+            "ok",
+            "--out",
+            "x.binary",
+        ],
+    );
+    fails_with(&o, &["./c.csv", "given twice"]);
+    let o = run_in(
+        dir.path(),
+        &[
+            "tabulate",
+            "c.csv",
             "--material",
             "ok",
             "--out",
