@@ -2,7 +2,7 @@
 // common.wgsl + <kernel>.wgsl (see src/gpu/mod.rs).
 
 // An analytic lobe kd / pi + ks * rho_s(F0, n).
-// Keep in sync with `LobeParams` in src/backend/mod.rs.
+// Keep in sync with `LobeParams` in src/brdf/lobe.rs.
 struct Lobe {
     kd: f32,
     ks: f32,
@@ -24,9 +24,9 @@ const T_SCHLICK_D: u32 = 450u;
 const T_ABS_COS_P: u32 = 540u;
 const T_LEN: u32 = 720u;
 
-// Packed lobe values (src/gpu/pairwise.rs): texel k of an rgba32float texture of width
+// Packed lobe values (src/gpu/pairwise/, src/gpu/tabulate.rs): texel k of an rgba32float texture of width
 // TEX_W holds rows 4b .. 4b + 3 at cell c of a chunk, k = b * chunk + c. Keep in sync with
-// `TEX_W` in src/gpu/pairwise.rs.
+// `TEX_W` in src/gpu/mod.rs.
 const TEX_W: u32 = 4096u;
 
 fn texel_coord(k: u32) -> vec2<u32> {

@@ -7,7 +7,7 @@
 // constant trip counts let the loops unroll, so the arrays stay in registers instead of
 // lavapipe's per-lane memory emulation.
 
-// Keep in sync with `PgdParams` in src/gpu/pgd.rs.
+// Keep in sync with `PgdUniforms` in src/gpu/pgd.rs.
 struct PgdUniforms {
     m: u32,
     n_targets: u32,

@@ -126,6 +126,12 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<(), OutputError> {
     if path.is_dir() {
         return Err(bad(format!("{what} is a directory; give a file name")));
     }
+    if path.exists() && !path.is_file() {
+        // A device, a FIFO, a socket: renaming a temporary file over it would replace it.
+        return Err(bad(format!(
+            "{what} exists and is not a regular file (a device, FIFO or socket); give a file name"
+        )));
+    }
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() && !p.is_dir() => Err(bad(format!(
             "{what}: the directory {} does not exist",
@@ -133,6 +139,41 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<(), OutputError> {
         ))),
         _ => Ok(()),
     }
+}
+
+/// Refuses an output path that names one of the `inputs` (the same file, through any
+/// spelling), which the command would otherwise overwrite with its result.
+pub fn check_not_input(path: &Path, what: &str, inputs: &[PathBuf]) -> Result<(), OutputError> {
+    let key = |p: &Path| -> Option<PathBuf> {
+        if let Ok(c) = p.canonicalize() {
+            return Some(c);
+        }
+        let parent = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.canonicalize().ok()?,
+            _ => std::env::current_dir().ok()?,
+        };
+        Some(parent.join(p.file_name()?))
+    };
+    let Some(out) = key(path) else { return Ok(()) };
+    for input in inputs {
+        // A directory collection reads every `.binary` file in it.
+        let in_dir = input.is_dir()
+            && out
+                .parent()
+                .is_some_and(|d| Some(d.to_path_buf()) == key(input))
+            && out.extension().is_some_and(|e| e == "binary")
+            && out.exists();
+        if key(input).as_ref() == Some(&out) || in_dir {
+            return Err(OutputError::Encode {
+                path: path.to_path_buf(),
+                message: format!(
+                    "{what} would overwrite the input collection {}",
+                    input.display()
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Several output files written as one: each is staged as a temporary sibling and all
@@ -190,17 +231,33 @@ impl OutputSet {
         Ok(())
     }
 
-    /// Renames every staged file into place, in the order staged.
+    /// Renames every staged file into place, in the order staged. Targets are checked
+    /// first (none may be a directory); should a rename still fail, the files this set
+    /// had already put in place where none existed are removed again.
     pub fn commit(mut self) -> Result<(), OutputError> {
+        for (_, path) in &self.staged {
+            check_output_path(path, "output")?;
+        }
         let staged = std::mem::take(&mut self.staged);
         let mut result = Ok(());
+        let mut placed = Vec::new();
         for (tmp, path) in staged {
             if result.is_ok() {
+                let existed = path.exists();
                 result = rename_into_place(&tmp, &path);
+                if result.is_ok() && !existed {
+                    placed.push(path);
+                }
             } else {
                 let _ = std::fs::remove_file(&tmp);
                 unregister(&tmp);
             }
+        }
+        if result.is_err() {
+            for p in placed {
+                let _ = std::fs::remove_file(p);
+            }
+            return result;
         }
         for d in std::mem::take(&mut self.created_dirs) {
             unregister(&d);

@@ -100,7 +100,14 @@ impl Collection {
             return Ok(Self::embedded_default());
         }
         let mut c = Self::new();
+        let mut seen: Vec<PathBuf> = Vec::new();
         for p in paths {
+            if let Ok(canon) = p.canonicalize() {
+                if seen.contains(&canon) {
+                    return Err(CollectionError::GivenTwice { path: p.clone() });
+                }
+                seen.push(canon);
+            }
             c.extend_from(p)?;
         }
         Ok(c)

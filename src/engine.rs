@@ -6,8 +6,9 @@ use crate::backend::Backend;
 use crate::error::GpuError;
 use crate::gpu::{GpuBackend, GpuContext};
 
-/// Which back-end to run on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+/// Which back-end to run on (spellings `auto`, `gpu`, `cpu` from the `clap::ValueEnum`
+/// derive, the one parser of option values).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum BackendChoice {
     /// A hardware GPU if there is one, else the CPU back-end (faster than a software
     /// rasteriser: ~18 G abs-diffs/s on 2 cores against ~4 for lavapipe).
@@ -17,18 +18,6 @@ pub enum BackendChoice {
     Gpu,
     /// The multi-threaded CPU back-end.
     Cpu,
-}
-
-impl std::str::FromStr for BackendChoice {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "auto" => Ok(Self::Auto),
-            "gpu" => Ok(Self::Gpu),
-            "cpu" => Ok(Self::Cpu),
-            _ => Err(format!("unknown backend `{s}` (expected auto, gpu or cpu)")),
-        }
-    }
 }
 
 /// Opens the chosen back-end.

@@ -114,6 +114,12 @@ pub enum CollectionError {
         /// What is wrong.
         message: String,
     },
+    /// The same collection file or directory is given twice.
+    #[error("{path}: this collection is given twice")]
+    GivenTwice {
+        /// The path given the second time.
+        path: PathBuf,
+    },
     /// An empty material name was asked for (e.g. `--basis ""` or `--basis a,,b`).
     #[error("empty material name (a name list such as --basis takes names separated by single commas, e.g. `--basis a,b`)")]
     EmptyName,

@@ -65,7 +65,7 @@ pub enum FitError {
 }
 
 /// Which NNLS solver.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Solver {
     /// Exact active-set Lawson-Hanson (f64).
@@ -76,10 +76,10 @@ pub enum Solver {
 }
 
 /// How Gram matrices and grid errors are computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum GramMode {
-    /// The separable closed form ([`crate::separable`]) when every lobe is analytic, else
+    /// The separable closed form (module `separable`) when every lobe is analytic, else
     /// the back-end's grid pass.
     Auto,
     /// Always the back-end's pass over the grid (GPU kernel or CPU twin).

@@ -8,9 +8,21 @@ mod cli;
 use clap::Parser;
 
 fn main() -> std::process::ExitCode {
+    // `brdf-basis info | head -1`: a closed pipe ends the process quietly, as for any
+    // Unix filter, instead of a panic in `println!` (Rust ignores SIGPIPE by default).
+    #[cfg(unix)]
+    // SAFETY: called first in `main`, before any thread exists; restoring the default
+    // disposition of a signal has no other effect on this process.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let runtime_dir = private_runtime_dir();
     // SIGINT, SIGTERM, SIGHUP: remove the temporary files of outputs being written (and
     // the directories created for them), then exit 130 as shells expect after Ctrl-C.
+    // A signal ignored at start (SIGINT for a background job of a script, SIGHUP under
+    // nohup) stays ignored, as the caller meant.
+    #[cfg(unix)]
+    let ignored = [libc::SIGINT, libc::SIGHUP].map(|sig| (sig, is_ignored(sig)));
     let handler_dir = runtime_dir.clone();
     let _ = ctrlc::set_handler(move || {
         brdf_basis::atomic::remove_pending();
@@ -20,6 +32,16 @@ fn main() -> std::process::ExitCode {
         eprintln!("error: interrupted; no output written");
         std::process::exit(130);
     });
+    #[cfg(unix)]
+    for (sig, was_ignored) in ignored {
+        if was_ignored {
+            // SAFETY: still single-threaded apart from ctrlc's waiting thread, which does
+            // not touch signal dispositions; SIG_IGN needs no handler.
+            unsafe {
+                libc::signal(sig, libc::SIG_IGN);
+            }
+        }
+    }
     let args = cli::Cli::parse();
     let code = match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -32,6 +54,17 @@ fn main() -> std::process::ExitCode {
         let _ = std::fs::remove_dir_all(d);
     }
     code
+}
+
+/// Whether `sig` is ignored (SIG_IGN) in this process.
+#[cfg(unix)]
+fn is_ignored(sig: libc::c_int) -> bool {
+    // SAFETY: sigaction with a null new action only reads the current disposition into
+    // `old`, a zeroed plain C struct.
+    unsafe {
+        let mut old: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
+    }
 }
 
 /// The error chain as one line. A message that already ends with its cause's text (an

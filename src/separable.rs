@@ -15,7 +15,7 @@
 //! Residuals and absolute errors still run over the cells (no separation for |r|), but each
 //! cell costs one multiply-add from the per-(i, j) tables of the fit and of the target.
 
-use crate::backend::LobeParams;
+use crate::brdf::LobeParams;
 use crate::merl::grid::{N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
 use rayon::prelude::*;

@@ -409,8 +409,8 @@ fn gpu_pgd_at_the_column_limit_reaches_the_exact_optimum() {
         return;
     };
     let (m, rows, targets) = (PGD_KERNEL_COLUMNS, 96, 40);
-    use rand::{Rng, SeedableRng};
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    use rand::Rng;
+    let mut rng = rng(7);
     let mut rnd = || rng.random::<f64>();
     let a: Vec<f64> = (0..rows * m).map(|_| rnd()).collect();
     let g: Vec<f64> = (0..m * m)

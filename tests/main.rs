@@ -14,6 +14,7 @@ mod fit;
 mod gpu_kernels;
 mod grid;
 mod kmedoids;
+mod hardening;
 mod measured;
 mod selection;
 mod saved_matrix;

@@ -239,7 +239,7 @@ fn directory_collections_are_sorted_and_mixed_with_csv() {
     std::fs::create_dir(&empty).expect("mkdir");
     assert!(matches!(
         Collection::load(&empty),
-        Err(CollectionError::Empty { .. })
+        Err(CollectionError::EmptyDir { .. })
     ));
 }
 
@@ -251,7 +251,7 @@ fn synthetic(dir: &Path, names: &[&str], noise: f64, mask_row: Option<usize>) ->
     std::fs::create_dir_all(&out).expect("mkdir");
     let cells: Vec<u32> = (0..N_CELLS as u32).collect();
     let cpu = CpuBackend::new();
-    let mut state = 0x1234_5678u64;
+    let mut rng = rng(0x1234_5678);
     for n in names {
         let m = c.get(n).expect("name");
         let lobes: Vec<Lobe> = (0..3)
@@ -265,10 +265,7 @@ fn synthetic(dir: &Path, names: &[&str], noise: f64, mask_row: Option<usize>) ->
                 if !cell_info(cell).valid || masked {
                     *v = -1.0;
                 } else if noise > 0.0 {
-                    state = state
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    let u = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                    let u = rand::Rng::random::<f64>(&mut rng) - 0.5;
                     *v = (*v as f64 * (1.0 + noise * u)) as f32;
                 }
             }

@@ -14,23 +14,7 @@ use crate::error::BackendError;
 use crate::merl::{CellSet, MerlTable};
 use std::sync::Arc;
 
-/// An analytic lobe `kd / pi + ks * rho_s(F0, n)`: the specular lobe is
-/// `(0, 1, F0, n)`, one RGB channel `(d_c, s_c, F0, n)`, the channel mean
-/// `(mean d, mean s, F0, n)`.
-///
-/// Keep in sync with `struct Lobe` in `shaders/common.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct LobeParams {
-    /// Coefficient of the Lambertian term `1 / pi`.
-    pub kd: f32,
-    /// Coefficient of `rho_s`.
-    pub ks: f32,
-    /// Schlick F0.
-    pub f0: f32,
-    /// Exponent.
-    pub n: f32,
-}
+pub use crate::brdf::LobeParams;
 
 /// One function on the grid to tabulate or compare.
 #[derive(Clone, Debug)]

@@ -167,13 +167,9 @@ mod tests {
                 n: 80_000.0,
             },
         ];
-        let mut state = 12345u64;
-        let mut rnd = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12345);
+        let mut rnd = || rng.random::<f64>();
         for m in &mats {
             for _ in 0..2000 {
                 let wi = dir(rnd() * PI / 2.0, rnd() * 2.0 * PI);

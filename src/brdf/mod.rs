@@ -2,5 +2,7 @@
 
 pub mod ashikhmin_shirley;
 pub mod fresnel;
+pub mod lobe;
 
 pub use ashikhmin_shirley::AshikhminShirley;
+pub use lobe::LobeParams;

@@ -4,7 +4,7 @@ use super::Global;
 use brdf_basis::collection::Collection;
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
-use brdf_basis::io::atomic::{check_output_path, OutputSet};
+use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary_to;
 use std::path::PathBuf;
@@ -12,7 +12,7 @@ use std::path::PathBuf;
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis fit ../shared/data/ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json\n  brdf-basis fit --basis mirror-silver,matte-white-paint --targets polished-gold --json f.json --export fitted/"
+    after_help = "Examples:\n  brdf-basis fit --basis gloss-white-enamel,gloss-black-enamel,polished-brass --targets gloss-red-enamel,polished-gold,polished-copper --json fits.json --export fitted/\n  brdf-basis fit ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json"
 )]
 pub struct FitArgs {
     /// Collection(s) (none: embedded default).
@@ -29,13 +29,12 @@ pub struct FitArgs {
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
-    /// exact (Lawson-Hanson) or pgd (batched projected gradient, exact fallback).
-    #[arg(long, default_value = "exact")]
-    pub solver: String,
-    /// auto (closed-form separable Gram when every material is analytic) or grid (the
-    /// back-end's pass over the grid).
-    #[arg(long, default_value = "auto")]
-    pub gram: String,
+    /// NNLS solver.
+    #[arg(long, value_enum, default_value_t = Solver::Exact)]
+    pub solver: Solver,
+    /// How Gram matrices are computed.
+    #[arg(long, value_enum, default_value_t = GramMode::Auto)]
+    pub gram: GramMode,
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
@@ -206,21 +205,35 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
             "--all-others: every material of the collection is in the basis; nothing to fit"
         );
     }
-    let solver = match a.solver.as_str() {
-        "exact" => Solver::Exact,
-        "pgd" => Solver::Pgd,
-        s => anyhow::bail!("unknown solver `{s}` (expected exact or pgd)"),
-    };
-    let gram = match a.gram.as_str() {
-        "auto" => GramMode::Auto,
-        "grid" => GramMode::Grid,
-        g => anyhow::bail!("unknown gram mode `{g}` (expected auto or grid)"),
-    };
+    let (solver, gram) = (a.solver, a.gram);
     // Output paths before the work: a typo costs no computation.
     check_output_path(&a.json, "--json")?;
+    check_not_input(&a.json, "--json", &a.collection)?;
     if let Some(dir) = &a.export {
         if dir.exists() && !dir.is_dir() {
             anyhow::bail!("--export {}: exists and is not a directory", dir.display());
+        }
+        let names: Vec<&str> = targets
+            .iter()
+            .map(|&t| coll.materials()[t].name.as_str())
+            .collect();
+        if dir.is_dir() {
+            for file in export_file_names(&names)
+                .iter()
+                .map(String::as_str)
+                .chain([EXPORT_INDEX])
+            {
+                check_output_path(&dir.join(file), "--export")?;
+                check_not_input(&dir.join(file), "--export", &a.collection)?;
+            }
+        } else if let Some(parent) = dir.ancestors().skip(1).find(|p| p.exists()) {
+            if !parent.is_dir() {
+                anyhow::bail!(
+                    "--export {}: {} is not a directory",
+                    dir.display(),
+                    parent.display()
+                );
+            }
         }
     }
     let p = FitParams {

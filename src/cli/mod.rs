@@ -56,9 +56,19 @@ pub struct GridArgs {
     /// evaluation (theta <= 80 deg, >= 3 deg from retroreflection) or valid.
     #[arg(long, default_value = "evaluation")]
     pub mask: brdf_basis::merl::Mask,
-    /// Use every s-th cell on each grid axis (1 = full grid; larger for quick runs).
-    #[arg(long, default_value_t = 1)]
+    /// Use every s-th cell on each grid axis (1 = full grid; larger for quick runs; 1..=90).
+    #[arg(long, default_value_t = 1, value_parser = parse_stride)]
     pub stride: usize,
+}
+
+/// `--stride`: 1 (the full grid) to 90 (one cell per axis).
+fn parse_stride(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(v) if (1..=90).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "expected a whole number from 1 (the full grid) to 90, got `{s}`"
+        )),
+    }
 }
 
 /// Subcommands.

@@ -6,14 +6,14 @@ use brdf_basis::eval::image_error::{heatmap, normalized_image_error, DisplayPara
 use brdf_basis::eval::render::{render_sphere, RenderParams};
 use brdf_basis::eval::shade::{combination_brdf, material_brdf};
 use brdf_basis::experiment::files::FitFile;
-use brdf_basis::io::atomic::{check_output_path, OutputSet};
+use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
 use brdf_basis::io::image::{exr_bytes, png_bytes, rgb8_png_bytes};
 use std::path::PathBuf;
 
 /// Arguments of `render`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis render --material polished-gold --out gold.exr --png gold.png\n  brdf-basis render ../shared/data/ngan2005_ashikhmin_shirley.csv --material alum-bronze --fit fits.json --out fit.exr --png fit.png --heatmap err.png"
+    after_help = "Examples:\n  brdf-basis render --material polished-gold --out gold.exr --png gold.png\n  brdf-basis render --material polished-gold --fit fits.json --out fit.exr --png fit.png --heatmap err.png  (fits.json from `brdf-basis fit`)"
 )]
 pub struct RenderArgs {
     /// Collection(s) (none: embedded default).
@@ -91,6 +91,23 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
                 );
             }
             paths.push(p.clone());
+        }
+    }
+    for p in &paths {
+        check_not_input(p, "output", &a.collection)?;
+    }
+    if let Some(f) = &a.fit {
+        // Never open a FIFO or a device (reading one could block forever).
+        let meta = std::fs::metadata(f).with_context(|| format!("--fit {}", f.display()))?;
+        if !meta.is_file() {
+            anyhow::bail!(
+                "--fit {}: is {}, not a regular file (give the JSON written by `brdf-basis fit`)",
+                f.display(),
+                brdf_basis::merl::binary::file_kind(&meta)
+            );
+        }
+        if paths.contains(f) {
+            anyhow::bail!("--fit {}: is also given as an output", f.display());
         }
     }
     let coll = super::load_collection(&a.collection)?;

@@ -5,7 +5,7 @@ use anyhow::Context;
 use brdf_basis::backend::Lobe;
 use brdf_basis::collection::MaterialData;
 use brdf_basis::fit::channel_lobe;
-use brdf_basis::io::atomic::check_output_path;
+use brdf_basis::io::atomic::{check_not_input, check_output_path};
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary;
 use std::path::PathBuf;
@@ -29,6 +29,7 @@ pub struct TabulateArgs {
 /// Writes the material on the full MERL grid (invalid cells = -1).
 pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
     check_output_path(&a.out, "--out")?;
+    check_not_input(&a.out, "--out", &a.collection)?;
     let coll = super::load_collection(&a.collection)?;
     let m = coll.get(&a.material)?;
     let mut rgb = vec![0f32; 3 * N_CELLS];

@@ -33,6 +33,13 @@ pub const TABLE_ABS_COS_P: usize = 540;
 /// Length of the grid-table buffer in f32.
 pub const TABLE_LEN: usize = 720;
 
+/// Width in texels of the packed value textures (pairwise and tabulation kernels); keep
+/// in sync with `TEX_W` in `shaders/common.wgsl`.
+pub const TEX_W: usize = 4096;
+/// Texels of one lobe's separable beta table: one per (theta_h, theta_d) row pair,
+/// 90 x 90 (the alpha texel follows it).
+pub const NIJ: usize = crate::merl::grid::N_TH * crate::merl::grid::N_TD;
+
 /// The grid tables as the f32 array the kernels read (each entry computed in f64 and
 /// rounded once).
 pub fn grid_table_f32(t: &GridTables) -> Vec<f32> {
@@ -235,11 +242,11 @@ impl GpuContext {
             })
     }
 
-    /// An rgba32float texture of width [`pairwise::TEX_W`] holding `texels` (rgba)
+    /// An rgba32float texture of width [`TEX_W`] holding `texels` (rgba)
     /// linearly (texel `k` at `(k % TEX_W, k / TEX_W)`, zero-padded to whole rows): a table
     /// the kernels fetch with vector gathers.
     pub fn linear_texture(&self, label: &str, texels: &[f32]) -> wgpu::TextureView {
-        let row = 4 * pairwise::TEX_W;
+        let row = 4 * TEX_W;
         let mut padded = texels.to_vec();
         padded.resize(texels.len().div_ceil(row).max(1) * row, 0.0);
         let tex = self.packed_texture(
@@ -251,10 +258,10 @@ impl GpuContext {
         tex.create_view(&wgpu::TextureViewDescriptor::default())
     }
 
-    /// Writes `texels` (rgba, whole rows of [`pairwise::TEX_W`]) into `texture` from row
+    /// Writes `texels` (rgba, whole rows of [`TEX_W`]) into `texture` from row
     /// `first_row`.
     pub fn write_texel_rows(&self, texture: &wgpu::Texture, first_row: usize, texels: &[f32]) {
-        let w = pairwise::TEX_W;
+        let w = TEX_W;
         self.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
                 texture,
@@ -280,7 +287,7 @@ impl GpuContext {
         );
     }
 
-    /// An rgba32float texture of width [`pairwise::TEX_W`] and `height` rows, used as
+    /// An rgba32float texture of width [`TEX_W`] and `height` rows, used as
     /// `usage` says.
     pub fn packed_texture(
         &self,
@@ -291,7 +298,7 @@ impl GpuContext {
         self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
             size: wgpu::Extent3d {
-                width: pairwise::TEX_W as u32,
+                width: TEX_W as u32,
                 height,
                 depth_or_array_layers: 1,
             },

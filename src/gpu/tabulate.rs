@@ -5,7 +5,7 @@
 //! rows. (The pairwise kernel itself tabulates analytic lobes in registers.)
 
 use super::{dispatch, GpuContext};
-use crate::backend::LobeParams;
+use crate::brdf::LobeParams;
 use crate::error::GpuError;
 use crate::merl::GridTables;
 use crate::separable::SeparableLobe;
@@ -57,7 +57,7 @@ pub struct PackTarget {
 impl PackTarget {
     /// A target for `blocks` row blocks of `chunk` cells (`chunk` a multiple of `TEX_W`).
     pub fn new(ctx: &GpuContext, blocks: usize, chunk: usize, usage: wgpu::TextureUsages) -> Self {
-        use super::pairwise::TEX_W;
+        use super::TEX_W;
         assert_eq!(chunk % TEX_W, 0, "whole texture rows per row block");
         let texture = ctx.packed_texture(
             "packed rows",
@@ -104,8 +104,8 @@ pub fn separable_texels(t: &GridTables, rows: &[Option<LobeParams>]) -> Vec<f32>
     texels
 }
 
-/// f32 of one lobe's beta table.
-pub const NIJ: usize = 8100;
+/// Texels of one lobe's beta table (defined in [`crate::gpu`], beside `TEX_W`).
+pub use super::NIJ;
 
 /// The compiled kernel and its grid tables.
 #[derive(Debug)]
@@ -141,7 +141,7 @@ impl TabulateKernel {
     pub fn prepare_packed(&self, ctx: &GpuContext, rows: &[Option<LobeParams>]) -> PackRows {
         assert_eq!(rows.len() % 4, 0, "whole row blocks");
         let t = GridTables::new();
-        use super::pairwise::TEX_W;
+        use super::TEX_W;
         let by_texture = (TEX_W * ctx.limits.max_texture_dimension_2d as usize / (NIJ + 1)).max(1);
         let by_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1) as usize * BPI;
         let per = by_texture.min(by_dim);
@@ -217,7 +217,7 @@ impl TabulateKernel {
         lobes: &[LobeParams],
         cells: &[u32],
     ) -> Result<Vec<f32>, GpuError> {
-        use super::pairwise::TEX_W;
+        use super::TEX_W;
         let n = cells.len();
         let mut out = vec![0f32; lobes.len() * n];
         if n == 0 || lobes.is_empty() {

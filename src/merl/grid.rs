@@ -166,8 +166,12 @@ pub fn cell_info(idx: usize) -> CellInfo {
     }
 }
 
-/// Which cells a computation runs over.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+/// Which cells a computation runs over. Spellings (`evaluation`, `valid`) come from one
+/// table, the `clap::ValueEnum` derive, used by the command line, [`FromStr`] and
+/// [`Display`](std::fmt::Display) alike.
+///
+/// [`FromStr`]: std::str::FromStr
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Mask {
     /// Valid cells with theta_i, theta_o <= 80 deg and 2 theta_d >= 3 deg (paper VI-E).
@@ -176,8 +180,8 @@ pub enum Mask {
     Valid,
 }
 
-/// How cells are weighted.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+/// How cells are weighted (`uniform`, `solid-angle`; spellings as for [`Mask`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Weighting {
     /// Every cell of the mask weighs 1 (the paper's Eq. 5).
@@ -186,51 +190,51 @@ pub enum Weighting {
     SolidAngle,
 }
 
+/// Parses `s` by the `clap::ValueEnum` spellings of `T`; `what` names the option in the
+/// error.
+pub fn parse_value<T: clap::ValueEnum>(
+    s: &str,
+    what: &'static str,
+    expected: &'static str,
+) -> Result<T, crate::error::DistanceError> {
+    T::from_str(s, false).map_err(|_| crate::error::DistanceError::UnknownOption {
+        what,
+        found: s.into(),
+        expected,
+    })
+}
+
+/// Writes the `clap::ValueEnum` spelling of `v`.
+pub fn fmt_value<T: clap::ValueEnum>(v: &T, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+    match v.to_possible_value() {
+        Some(p) => f.write_str(p.get_name()),
+        None => Ok(()),
+    }
+}
+
 impl std::str::FromStr for Mask {
     type Err = crate::error::DistanceError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "evaluation" => Ok(Self::Evaluation),
-            "valid" => Ok(Self::Valid),
-            _ => Err(crate::error::DistanceError::UnknownOption {
-                what: "mask",
-                found: s.into(),
-                expected: "evaluation, valid",
-            }),
-        }
+        parse_value(s, "mask", "evaluation, valid")
     }
 }
 
 impl std::str::FromStr for Weighting {
     type Err = crate::error::DistanceError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "uniform" => Ok(Self::Uniform),
-            "solid-angle" => Ok(Self::SolidAngle),
-            _ => Err(crate::error::DistanceError::UnknownOption {
-                what: "weighting",
-                found: s.into(),
-                expected: "uniform, solid-angle",
-            }),
-        }
+        parse_value(s, "weighting", "uniform, solid-angle")
     }
 }
 
 impl std::fmt::Display for Mask {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Evaluation => "evaluation",
-            Self::Valid => "valid",
-        })
+        fmt_value(self, f)
     }
 }
 
 impl std::fmt::Display for Weighting {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Uniform => "uniform",
-            Self::SolidAngle => "solid-angle",
-        })
+        fmt_value(self, f)
     }
 }
 

@@ -404,16 +404,17 @@ impl ScaledGram {
 pub(crate) mod test_support {
     //! Seeded random problems and checks made on `A` itself, shared by the solver tests.
 
-    /// SplitMix64 (Steele, Lea & Flood 2014): a tiny seeded generator for tests.
-    pub(crate) struct Rng(pub(crate) u64);
+    /// The seeded generator of the solver tests: ChaCha8, as every seeded step of the
+    /// crate and the integration tests (`tests/common::rng`).
+    pub(crate) struct Rng(rand_chacha::ChaCha8Rng);
 
     impl Rng {
+        /// A generator seeded with `seed`.
+        pub(crate) fn new(seed: u64) -> Self {
+            Self(rand::SeedableRng::seed_from_u64(seed))
+        }
         pub(crate) fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
+            rand::RngCore::next_u64(&mut self.0)
         }
         /// Uniform in [0, 1).
         pub(crate) fn uniform(&mut self) -> f64 {
@@ -583,7 +584,7 @@ mod tests {
 
     #[test]
     fn gram_on_dense_matches_objective() {
-        let mut rng = test_support::Rng(7);
+        let mut rng = test_support::Rng::new(7);
         let d = test_support::random_dense(&mut rng, 40, 5, &[4]);
         let (g, h, bb) = d.gram();
         let p = GramProblem::new(5, &g, &h, bb).unwrap();

@@ -361,7 +361,7 @@ mod tests {
 
     #[test]
     fn duplicate_and_lambertian_multiple_get_no_weight() {
-        let mut rng = Rng(21);
+        let mut rng = Rng::new(21);
         for dup in [1, 2] {
             // (c) column `dup` copies column 0; (f) with column 0 Lambertian and `dup` 3.7x it.
             for lambertian in [false, true] {
@@ -396,7 +396,7 @@ mod tests {
 
     #[test]
     fn rank_deficient_matches_lawson_hanson() {
-        let mut rng = Rng(22);
+        let mut rng = Rng::new(22);
         let combos = [7, 19, 20, 33, 48, 61, 62, 75, 88, 99];
         for t in 0..3 {
             let mut d = random_dense(&mut rng, 300, 100, &combos);
@@ -420,7 +420,7 @@ mod tests {
 
     #[test]
     fn matches_lawson_hanson_on_random_problems() {
-        let mut rng = Rng(23);
+        let mut rng = Rng::new(23);
         let mut worst = 0.0f64;
         for trial in 0..200 {
             let m = 1 + trial % 32;
@@ -437,7 +437,7 @@ mod tests {
 
     #[test]
     fn batch_is_deterministic_and_matches_single_solves() {
-        let mut rng = Rng(24);
+        let mut rng = Rng::new(24);
         let d = random_dense(&mut rng, 60, 20, &[9, 19]);
         let (g, _, _) = d.gram();
         let (mut hs, mut bbs) = (Vec::new(), Vec::new());

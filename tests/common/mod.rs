@@ -43,6 +43,12 @@ pub fn max_rel(a: &[f64], b: &[f64], floor: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The one seeded generator of all test randomness (ChaCha8, as the library's seeded
+/// steps): the same seed gives the same numbers on every platform.
+pub fn rng(seed: u64) -> rand_chacha::ChaCha8Rng {
+    rand::SeedableRng::seed_from_u64(seed)
+}
+
 /// A temporary directory.
 pub fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().expect("temp dir")

@@ -34,9 +34,8 @@ use plan::table_rows;
 
 /// WGSL template of the kernel (see [`kernel_source`]).
 pub const SOURCE: &str = include_str!("../../../shaders/pairwise.wgsl");
+pub use super::TEX_W;
 pub use crate::backend::blocks::BLOCK;
-/// Width in texels of the packed value texture; keep in sync with `TEX_W` in common.wgsl.
-pub const TEX_W: usize = 4096;
 /// Most loop iterations of one invocation (lavapipe silently ends loops after 65,535).
 pub const MAX_RUN_ITERS: u32 = 1024;
 /// Most cells per streamed chunk.
