@@ -527,7 +527,7 @@ mod tests {
     #[test]
     fn rows_of_different_lengths_are_an_error_not_a_read_past_the_end() {
         let long = vec![1f32; 4096];
-        let short = vec![2f32; 8];
+        let short = [2f32; 8];
         for op in [PairOp::L1, PairOp::Dot] {
             for bad in 0..2 * BLOCK {
                 let rows: [&[f32]; 2 * BLOCK] =
