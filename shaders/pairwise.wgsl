@@ -12,9 +12,13 @@
 // blocks read an all-zero table.
 //
 // One workgroup of LANES lanes owns one register block of (4 R) x (4 R) lobe pairs (from
-// a caller-given list of block pairs) and one run of LANES x run_iters cells: lane l takes
-// cells l, l + LANES, ..., fetches 1 + 2 R texels per cell, keeps 4 R x R vec4
-// accumulators in registers and writes them out; the host sums lanes and runs in f64.
+// a caller-given list of block pairs) and LANES / 8 consecutive *canonical runs* of
+// 8 x run_iters cells. The canonical order of summation, the same on every back-end and
+// shape (the CPU back-end follows it too, so both give the same sums bit for bit): in a
+// canonical run, lane l (0..8) takes cells l, l + 8, l + 16, ... and sums them in f32 in
+// that order; the host adds the per-lane sums in f64 in (run, lane) order. Each invocation
+// fetches 1 + 2 R texels per cell, keeps 4 R x R vec4 accumulators in registers and
+// writes them out.
 //
 // Why textures: lavapipe compiles each storage-buffer load into a per-lane scalar loop
 // with bounds checks, but a texel fetch into vector code, and one rgba texel gives four
@@ -69,19 +73,22 @@ fn source(b: u32) -> Source {
     return Source(p.zero_base, 0u, vec4<f32>(0.0));
 }
 
-// The four rows of a block at cell c, whose cell info is (e, g, w).
+// The four rows of a block at cell c, whose cell info is (e, g, w): beta g + alpha w,
+// each product and the sum rounded to f32 (the CPU back-end's formula; not fma, which
+// lavapipe computes as a multiply and an add anyway).
 fn rows(s: Source, c: u32, e: u32, g: f32, w: f32) -> vec4<f32> {
     let m = s.per_cell != 0u;
     let t = textureLoad(vals, texel_coord(s.base + select(e, c, m)), 0);
-    return fma(t, vec4<f32>(select(g, 1.0, m)), s.alpha * w);
+    return t * vec4<f32>(select(g, 1.0, m)) + s.alpha * w;
 }
 
-// One row's value `a` against four column values `b`.
+// One row's value `a` against four column values `b` (as the CPU back-end: acc + |a - b|,
+// acc + a b with the product rounded).
 fn step(acc: vec4<f32>, a: f32, b: vec4<f32>) -> vec4<f32> {
     if (OP == 0u) {
         return acc + abs(vec4<f32>(a) - b);
     }
-    return fma(vec4<f32>(a), b, acc);
+    return acc + vec4<f32>(a) * b;
 }
 
 @compute @workgroup_size(LANES)
@@ -91,11 +98,12 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
     let blk = blocks[min(b, p.n_blocks - 1u)];
     let ra = blk.x * R;
     let rb = blk.y * R;
-    let start = run * p.run_iters * LANES + lid.x;
+    // Canonical run (run * LANES / 8 + lid / 8), lane lid % 8 of it.
+    let start = (run * (LANES / 8u) + lid.x / 8u) * p.run_iters * 8u + lid.x % 8u;
     //@SOURCES
     //@DECLARE
     for (var t = 0u; t < p.run_iters; t = t + 1u) {
-        let c = start + t * LANES;
+        let c = start + t * 8u;
         if (c >= p.n_cells) {
             break;
         }

@@ -9,6 +9,7 @@ mod common;
 
 mod cli;
 mod collection;
+mod determinism;
 mod distance;
 mod fit;
 mod gpu_kernels;

@@ -7,7 +7,11 @@
 //! are packed per chunk of cells by the host. One dispatch per chunk reduces every
 //! requested register block of `4R x 4R` lobe pairs over every run of cells. Per-lane
 //! partial sums (f32 over at most `MAX_RUN_ITERS` cells) are read back and accumulated in
-//! f64 on the host.
+//! f64 on the host, in the canonical order of [`crate::backend::cpu`] (lane `l` of a run of
+//! 8,192 cells sums cells `l, l + 8, ...`; runs and lanes added in order), so that the
+//! sums equal the CPU back-end's bit for bit wherever the adapter computes f32 `*`, `+`,
+//! `-` and `abs` as IEEE 754 does and does not contract `a * b + c` into a fused
+//! multiply-add (lavapipe).
 //!
 //! The kernel body is unrolled here ([`kernel_source`]) for a [`KernelShape`]: on lavapipe
 //! large blocks (R = 4 to 6: up to 24 x 24 pairs from 12 texel fetches per cell) amortise
@@ -40,12 +44,15 @@ pub use crate::backend::blocks::BLOCK;
 pub const MAX_RUN_ITERS: u32 = 1024;
 /// Most cells per streamed chunk.
 pub const MAX_CHUNK: usize = 1 << 18;
-/// Workgroups per dispatch the hardware plan aims at.
-pub const HARDWARE_WORKGROUPS: usize = 4096;
 /// Most bytes of measured rows in the value texture (bounds the chunk for large measured
 /// collections).
 pub const MAX_PACKED_BYTES: usize = 256 << 20;
 const _: () = assert!(MAX_RUN_ITERS < 65_535);
+// One invocation sums one lane of one canonical run (the CPU back-end's summation order).
+const _: () = assert!(
+    MAX_RUN_ITERS as usize * crate::backend::cpu::CANONICAL_LANES
+        == crate::backend::cpu::CANONICAL_RUN
+);
 
 /// Uniform parameters; keep in sync with `PairParams` in `shaders/pairwise.wgsl`.
 #[repr(C)]

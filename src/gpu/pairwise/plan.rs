@@ -1,9 +1,8 @@
 //! Where a pairwise reduction's rows sit in the value texture, how the grid is cut into
 //! chunks and runs, and which register blocks cover the requested block pairs.
 
-use super::{
-    KernelShape, BLOCK, HARDWARE_WORKGROUPS, MAX_CHUNK, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
-};
+use super::{KernelShape, BLOCK, MAX_CHUNK, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W};
+use crate::backend::cpu::CANONICAL_RUN;
 use crate::backend::Lobe;
 use crate::error::GpuError;
 use crate::gpu::tabulate::NIJ;
@@ -92,11 +91,11 @@ pub struct PairPlan {
     pub analytic_blocks: usize,
     /// Measured row blocks.
     pub measured_blocks: usize,
-    /// Cells per chunk (a multiple of `lanes x run_iters` unless the whole set is smaller).
+    /// Cells per chunk (a multiple of [`CANONICAL_RUN`] unless the whole set is smaller).
     pub chunk: usize,
     /// Texels between measured row blocks: `chunk` rounded up to whole texture rows.
     pub row_stride: usize,
-    /// Loop iterations per lane.
+    /// Loop iterations per lane ([`MAX_RUN_ITERS`]: one canonical run).
     pub run_iters: u32,
     /// Runs per chunk.
     pub n_runs: usize,
@@ -114,7 +113,6 @@ impl PairPlan {
         let n_rows = RowLayout::rows_for(n_analytic, n_measured);
         let side = shape.side();
         let n_pad = n_rows.max(1).div_ceil(side) * side;
-        let n_super = n_pad / side;
         let analytic_blocks = n_analytic.div_ceil(4);
         let measured_blocks = n_measured.div_ceil(4);
         let max_dim = limits.max_texture_dim as usize;
@@ -140,19 +138,14 @@ impl PairPlan {
                  and side {max_dim} even {TEX_W} cells at a time"
             )));
         }
-        let run_iters = if shape.is_software() {
-            MAX_RUN_ITERS
-        } else {
-            // About HARDWARE_WORKGROUPS workgroups per dispatch: enough to fill a large GPU
-            // (4,096 x 64 lanes is ~30 warps per SM of an H100), while the per-lane
-            // partials the host sums in f64 stay few (they scale with the run count).
-            let pairs = n_super * (n_super + 1) / 2;
-            let want_runs = HARDWARE_WORKGROUPS.div_ceil(pairs).max(1);
-            ((chunk / shape.lanes / want_runs) as u32).clamp(8, MAX_RUN_ITERS)
-        };
+        // Every shape runs canonical runs of CANONICAL_LANES x MAX_RUN_ITERS cells (the
+        // summation order shared with the CPU back-end); chunks hold whole canonical runs so
+        // that runs start at the same cells whatever the chunk size.
+        let run_iters = MAX_RUN_ITERS;
         let run = shape.lanes * run_iters as usize;
-        if chunk > run {
-            chunk = chunk / run * run;
+        let canonical = CANONICAL_RUN;
+        if chunk > canonical {
+            chunk = chunk / canonical * canonical;
         }
         let n_runs = chunk.div_ceil(run);
         if n_runs > limits.max_dispatch as usize {

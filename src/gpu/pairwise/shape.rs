@@ -75,6 +75,10 @@ impl KernelShape {
 /// on the diagonal (`I = J`), which fetches the `R` texels once and accumulates only the
 /// texel pairs `(i <= j)` (the rest mirror them).
 pub fn kernel_source(shape: KernelShape, diagonal: bool) -> String {
+    assert!(
+        shape.lanes % crate::backend::cpu::CANONICAL_LANES == 0,
+        "lanes of a workgroup come in whole canonical runs"
+    );
     let (r, side) = (shape.r, shape.side());
     const XYZW: [char; 4] = ['x', 'y', 'z', 'w'];
     // Accumulator (row i of the block, texel j of the columns) is computed?

@@ -1,0 +1,241 @@
+//! Same seed, same collection, same settings: the same results on every back-end.
+//!
+//! The CPU back-end and the GPU kernel sum in one canonical order (see
+//! `brdf_basis::backend::cpu`), so their matrices agree bit for bit on lavapipe (and on
+//! any adapter with IEEE f32 `fma`, `+`, `-`); the clustering then compares losses and
+//! fitness with a relative tie margin (`cluster::TIE_TOLERANCE`) on top.
+
+use crate::common::*;
+use brdf_basis::backend::blocks::{all_blocks, gram_blocks, PairOp};
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::Backend;
+use brdf_basis::cluster::{GcukParams, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
+use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams, LobeKind};
+use brdf_basis::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
+use brdf_basis::merl::{CellSet, Mask, Weighting};
+use std::path::Path;
+use std::process::Command;
+
+/// Largest relative difference and the number of entries that differ at all.
+fn compare(a: &[f64], b: &[f64]) -> (f64, usize) {
+    let rel = max_rel(a, b, 1e-300);
+    (rel, a.iter().zip(b).filter(|(x, y)| x != y).count())
+}
+
+/// BRDF_it of the Ngan table on the CPU and on the GPU with `p`.
+fn both(gpu: &dyn Backend, p: DistanceParams) -> (DistanceMatrix, DistanceMatrix) {
+    let coll = ngan();
+    let p = p.check(&coll).expect("params");
+    let cpu = distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("cpu");
+    let gpu = distance_matrix(gpu, &coll, &p, &|_, _| {}).expect("gpu");
+    (cpu, gpu)
+}
+
+#[test]
+fn cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical() {
+    let Some(g) = gpu("cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical") else {
+        return;
+    };
+    for (what, p) in [
+        (
+            "specular, evaluation mask, uniform",
+            DistanceParams::default(),
+        ),
+        (
+            "full lobe, valid cells, solid angle",
+            DistanceParams::default()
+                .lobe(LobeKind::Full)
+                .mask(Mask::Valid)
+                .weighting(Weighting::SolidAngle),
+        ),
+    ] {
+        let (c, gm) = both(g, p);
+        let (rel, differ) = compare(gm.as_full(), c.as_full());
+        eprintln!("BRDF_it {what}: GPU vs CPU max relative difference {rel:e}, {differ} of 9,900 entries differ");
+        assert_eq!(differ, 0, "{what}: max relative difference {rel:e}");
+    }
+}
+
+#[test]
+fn every_kernel_shape_sums_in_the_canonical_order() {
+    // Each register-block shape (the hardware one included, run here on whatever adapter
+    // this is) gives the CPU back-end's sums bit for bit, for L1 and dot products.
+    let Some(g) = gpu("every_kernel_shape_sums_in_the_canonical_order") else {
+        return;
+    };
+    let coll = ngan().subset(&(0..37).collect::<Vec<_>>());
+    let lobes = brdf_basis::distance::lobes(&coll, LobeKind::Full);
+    let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 3);
+    let ctx = g.context();
+    let kernel = PairwiseKernel::new();
+    let cpu = CpuBackend::new();
+    for (op, blocks) in [
+        (PairOp::L1, all_blocks(lobes.len())),
+        (PairOp::Dot, gram_blocks(lobes.len(), 6)),
+    ] {
+        let want = cpu
+            .reduce_pairs(&lobes, &cells, &blocks, op, &|_, _| {})
+            .expect("cpu");
+        for shape in KernelShape::all() {
+            let plan = PairPlan::new(lobes.len(), 0, cells.len(), &PlanLimits::of(ctx), shape)
+                .expect("plan");
+            let got = kernel
+                .run(ctx, &lobes, &cells, &blocks, op, &plan, &|_, _| {})
+                .expect("gpu");
+            let (rel, differ) = compare(&got, &want);
+            assert_eq!(
+                differ, 0,
+                "{op:?} {shape:?}: max relative difference {rel:e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn clustering_runs_are_identical_on_both_back_ends() {
+    // The paper's protocol on BRDF_it of the Ngan table: k-medoids 30 runs x k = 5..12
+    // (FasterPAM and PAM) and GCUK 30 runs: the same medoids, labels, losses and DB.
+    let Some(g) = gpu("clustering_runs_are_identical_on_both_back_ends") else {
+        return;
+    };
+    let (c, gm) = both(g, DistanceParams::default());
+    let mut runs = 0;
+    for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+        for k in 5..=12 {
+            for seed in 0..30 {
+                let p = KMedoidsParams::new(k)
+                    .algorithm(algorithm)
+                    .seed(seed)
+                    .init(KMedoidsInit::Random);
+                let (a, b) = (p.fit(&c).expect("cpu"), p.fit(&gm).expect("gpu"));
+                assert_eq!(a, b, "{algorithm} k {k} seed {seed}");
+                runs += 1;
+            }
+        }
+    }
+    for seed in 0..30 {
+        let p = GcukParams::default().seed(seed);
+        assert_eq!(
+            p.fit(&c).expect("cpu"),
+            p.fit(&gm).expect("gpu"),
+            "GCUK seed {seed}"
+        );
+        runs += 1;
+    }
+    eprintln!("{runs} clustering runs identical on both back-ends");
+}
+
+/// Whether `line` gives a duration: a number followed by `s` or `ms` (`12.5 s`, `80ms`).
+fn has_duration(line: &str) -> bool {
+    let b = line.as_bytes();
+    (0..b.len()).any(|i| {
+        if !b[i].is_ascii_digit()
+            || b.get(i + 1)
+                .is_some_and(|c| c.is_ascii_digit() || *c == b'.')
+        {
+            return false;
+        }
+        let mut j = i + 1;
+        while b.get(j) == Some(&b' ') {
+            j += 1;
+        }
+        let unit = if b.get(j) == Some(&b'm') { j + 1 } else { j };
+        b.get(unit) == Some(&b's') && !b.get(unit + 1).is_some_and(|c| c.is_ascii_alphanumeric())
+    })
+}
+
+/// Lines of a text output with the back-end's name and timings masked.
+fn masked(text: &str) -> Vec<String> {
+    text.lines()
+        .map(|l| {
+            let lower = l.to_lowercase();
+            let named = ["back-end", "backend", "elapsed", "timing", "seconds"]
+                .iter()
+                .any(|t| lower.contains(t));
+            if named || has_duration(&lower) {
+                "<masked>".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn masking_hides_back_end_and_timing_lines_only() {
+    assert!(has_duration("distances: 12.5 s") && has_duration("(80ms)"));
+    assert!(!has_duration("k = 5, 30 runs") && !has_duration("3 materials"));
+    let m = masked("back-end: cpu\nDB 0.51\ntook 3.2 s\n5 runs");
+    assert_eq!(m, ["<masked>", "DB 0.51", "<masked>", "5 runs"]);
+}
+
+/// Every file under `dir`, relative paths, sorted.
+fn files(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("read dir") {
+            let p = e.expect("entry").path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p.strip_prefix(dir).expect("prefix").to_path_buf());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn reproduce_writes_the_same_outputs_with_the_cpu_and_the_gpu() {
+    if gpu("reproduce_writes_the_same_outputs_with_the_cpu_and_the_gpu").is_none() {
+        return;
+    }
+    let dir = tmp();
+    let run = |backend: &str| {
+        let out = dir.path().join(backend);
+        let o = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+            .args(["--quiet", "--backend", backend, "--seed", "3", "reproduce"])
+            .arg(shared("ngan2005_ashikhmin_shirley.csv"))
+            .args(["--runs", "10", "--render-size", "32", "--out"])
+            .arg(&out)
+            .output()
+            .expect("run");
+        assert!(
+            o.status.success(),
+            "{backend}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        out
+    };
+    let (c, g) = (run("cpu"), run("gpu"));
+    let names = files(&c);
+    assert_eq!(names, files(&g), "the same files");
+    assert!(names.iter().any(|n| n.ends_with("report.md")));
+    for name in &names {
+        let (a, b) = (c.join(name), g.join(name));
+        let ext = name.extension().and_then(|e| e.to_str()).unwrap_or("");
+        match ext {
+            "md" | "json" | "csv" | "txt" => {
+                let (ta, tb) = (
+                    std::fs::read_to_string(&a).expect("read"),
+                    std::fs::read_to_string(&b).expect("read"),
+                );
+                assert_eq!(masked(&ta), masked(&tb), "{}", name.display());
+            }
+            // EXR chunk order is the writer's: compare the pixels.
+            "exr" => assert_eq!(
+                brdf_basis::io::image::read_exr(&a).expect("exr"),
+                brdf_basis::io::image::read_exr(&b).expect("exr"),
+                "{}",
+                name.display()
+            ),
+            _ => assert!(
+                std::fs::read(&a).expect("read") == std::fs::read(&b).expect("read"),
+                "{} differs",
+                name.display()
+            ),
+        }
+    }
+}
