@@ -35,6 +35,9 @@ fn encode_exr(image: &Image) -> Result<Vec<u8>, String> {
     let mut bytes = Cursor::new(Vec::new());
     exr::prelude::Image::from_channels((w, h), channels)
         .write()
+        // Blocks in increasing order: parallel compression writes them in completion
+        // order, so the same image gave different bytes from run to run.
+        .non_parallel()
         .to_buffered(&mut bytes)
         .map_err(|e| format!("cannot encode OpenEXR: {e}"))?;
     Ok(bytes.into_inner())
@@ -200,6 +203,25 @@ mod tests {
             assert_eq!(a.to_bits(), b.to_bits());
         }
         assert!(no_temp_files(dir.path()));
+    }
+
+    #[test]
+    fn exr_bytes_are_deterministic() {
+        // Many blocks (16 lines each), so completion order would show if it leaked in.
+        let (w, h) = (256u32, 512u32);
+        let data: Vec<f32> = (0..3 * w * h)
+            .map(|i| ((i * 7919) % 1013) as f32 / 97.0)
+            .collect();
+        let img = Image {
+            width: w,
+            height: h,
+            data,
+            mask: vec![true; (w * h) as usize],
+        };
+        let first = exr_bytes(Path::new("a.exr"), &img).unwrap();
+        for _ in 0..4 {
+            assert_eq!(exr_bytes(Path::new("a.exr"), &img).unwrap(), first);
+        }
     }
 
     #[test]
