@@ -14,5 +14,6 @@ mod fit;
 mod gpu_kernels;
 mod grid;
 mod measured;
+mod reproduce;
 mod shaders;
 mod workflow;

@@ -157,5 +157,18 @@ fn reproduce_runs_end_to_end_on_a_small_setting() {
         assert!(out.join(f).exists(), "{f}");
     }
     let report = std::fs::read_to_string(out.join("report.md")).expect("report");
-    assert!(report.contains("Friedman") && report.contains("Bases"));
+    // The Friedman test was computed (not merely mentioned) and its statistic is the
+    // report's.
+    let st = json(&out.join("statistics.json"));
+    let chi2 = st["friedman-brdf-it"]["statistic"]
+        .as_f64()
+        .expect("friedman-brdf-it computed");
+    assert!(st["friedman-brdf-it"]["p_value"]
+        .as_f64()
+        .is_some_and(|p| (0.0..=1.0).contains(&p)));
+    assert!(report.contains(&format!(
+        "chi2 = {}",
+        brdf_basis::experiment::report::sig(chi2)
+    )));
+    assert!(report.contains("## Bases"));
 }
