@@ -418,6 +418,7 @@ impl Draw for ErrorsPerMaterial<'_> {
                 chart
                     .configure_mesh()
                     .x_desc(xdesc)
+                    .x_label_formatter(&|v| format!("{v:.0}"))
                     .y_desc("MAE (log scale)")
                     .label_style((FONT, 12))
                     .draw()
@@ -432,6 +433,7 @@ impl Draw for ErrorsPerMaterial<'_> {
                 chart
                     .configure_mesh()
                     .x_desc(xdesc)
+                    .x_label_formatter(&|v| format!("{v:.0}"))
                     .y_desc("normalised image error")
                     .label_style((FONT, 12))
                     .draw()
