@@ -209,6 +209,48 @@ fn reproduce_rejects_bad_settings_before_work() {
         !o.status.success() && err.contains("line 3") && err.contains("polished-gold"),
         "{err}"
     );
+    // A failure after the work started (every material in some basis: nothing to
+    // evaluate) leaves no partial output directory.
+    let coll = d.path().join("small.csv");
+    let mut text = String::from("material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n");
+    let mut pb = String::from("basis,material\n");
+    for i in 0..8 {
+        text.push_str(&format!(
+            "m{i},0.{i}1,0.2,0.3,0.5,0.5,0.5,0.{i}5,{}\n",
+            10 + 300 * i
+        ));
+        pb.push_str(&format!("all,m{i}\n"));
+    }
+    std::fs::write(&coll, text).expect("write");
+    std::fs::write(&csv, pb).expect("write");
+    let out = d.path().join("partial");
+    let o = bin()
+        .arg("reproduce")
+        .arg(&coll)
+        .args([
+            "--runs",
+            "2",
+            "--stride",
+            "8",
+            "--k-min",
+            "2",
+            "--k-max",
+            "3",
+            "--gcuk-k-max",
+            "4",
+            "--paper-bases",
+        ])
+        .arg(&csv)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("no material is left"),
+        "{err}"
+    );
+    assert!(!out.exists(), "partial output left behind");
 }
 
 /// A basis material named `lambertian` no longer overwrites the Lambertian coefficients
