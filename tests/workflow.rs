@@ -88,7 +88,9 @@ fn fit_export_and_render_round_trip() {
     assert!(st.success());
     let v = json(&fits);
     assert_eq!(v["targets"].as_array().expect("t").len(), 2);
-    assert!(v["targets"][0]["coefficients"]["lambertian"].is_array());
+    // SPEC-cli: the Lambertian term beside the basis coefficients.
+    assert!(v["targets"][0]["lambertian"].is_array());
+    assert!(v["targets"][0]["coefficients"].get("lambertian").is_none());
     assert!(v["targets"][0]["coefficients"]["mirror-silver"].is_array());
     assert!(v["targets"][0]["mae"].as_f64().expect("mae") >= 0.0);
     let t = brdf_basis::merl::read_binary(&exp.join("polished-gold.binary"))
