@@ -324,3 +324,29 @@ fn fit_json_keeps_a_material_named_lambertian() {
         .expect("svg")
         .contains("fit by f"));
 }
+
+/// Without a font, figures are drawn without text: still written, not blank, and the
+/// user is told.
+#[test]
+fn figures_without_a_font_are_text_free_not_missing() {
+    let d = tmp();
+    let png = d.path().join("l.png");
+    let o = bin()
+        .env("BRDF_BASIS_FONT", "none")
+        .args([
+            "plot",
+            "--material",
+            "polished-gold",
+            "--angles",
+            "0,60",
+            "--out",
+        ])
+        .arg(&png)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no font"));
+    let img = image::open(&png).expect("png").to_rgb8();
+    let ink = img.pixels().filter(|p| p.0 != [255, 255, 255]).count();
+    assert!(ink > 1000, "{ink} inked pixels");
+}

@@ -197,7 +197,7 @@ fn run_into(
     let out = &a.out;
     let backend = super::backend(g)?;
     let bars = StageBars::new(g);
-    let e = run_experiment(backend.as_ref(), &coll, &params, &|s, d, t| {
+    let e = run_experiment(backend.as_ref(), coll, params, &|s, d, t| {
         bars.update(s, d, t)
     })?;
     bars.finish();
