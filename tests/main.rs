@@ -19,6 +19,7 @@ mod kmedoids;
 mod measured;
 mod saved_matrix;
 mod selection;
+mod reproduce;
 mod shaders;
 mod tiles;
 mod workflow;

@@ -116,8 +116,9 @@ fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
         std::fs::create_dir_all(out.join(sub))
             .with_context(|| format!("{}", out.join(sub).display()))?;
     }
-    write_text(&out.join("report.md"), "# brdf-basis reproduce: running\n")
-        .with_context(|| format!("--out {}: not writable", out.display()))?;
+    let probe = out.join(".brdf-basis-probe");
+    write_text(&probe, "").with_context(|| format!("--out {}: not writable", out.display()))?;
+    std::fs::remove_file(&probe).with_context(|| format!("{}", probe.display()))?;
     Ok(())
 }
 
@@ -163,10 +164,40 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     }
     .check(&coll)?;
     let out = &a.out;
+    let existed = out.exists();
     prepare_out(out, a.force)?;
+    let result = run_into(g, &a, &coll, &params, started);
+    if result.is_err() {
+        // The directory was empty (or cleared) before: leave nothing partial behind.
+        let _ = if existed {
+            std::fs::read_dir(out).map(|rd| {
+                for e in rd.flatten() {
+                    let p = e.path();
+                    let _ = if p.is_dir() {
+                        std::fs::remove_dir_all(&p)
+                    } else {
+                        std::fs::remove_file(&p)
+                    };
+                }
+            })
+        } else {
+            std::fs::remove_dir_all(out)
+        };
+    }
+    result
+}
+
+fn run_into(
+    g: &Global,
+    a: &ReproduceArgs,
+    coll: &brdf_basis::collection::Collection,
+    params: &brdf_basis::experiment::ValidExperimentParams,
+    started: Instant,
+) -> anyhow::Result<()> {
+    let out = &a.out;
     let backend = super::backend(g)?;
     let bars = StageBars::new(g);
-    let e = run_experiment(backend.as_ref(), &coll, &params, &|s, d, t| {
+    let e = run_experiment(backend.as_ref(), coll, params, &|s, d, t| {
         bars.update(s, d, t)
     })?;
     bars.finish();

@@ -12,6 +12,7 @@ use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::fit::{fit, FitParams};
 use rayon::prelude::*;
+use std::collections::{BTreeSet, HashMap};
 
 /// Errors of every target by one basis, target order.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -91,6 +92,22 @@ pub fn errors_csv(e: &Evaluation) -> String {
     String::from_utf8(w.into_inner().unwrap_or_default()).unwrap_or_default()
 }
 
+/// The image `sum_k a_k,c images[k]_c` per channel (all images of one size and mask),
+/// accumulated in f64: the render of a combination from the renders of its columns.
+pub fn combine(images: &[&Image], coefficients: &[[f64; 3]]) -> Image {
+    let mut out = images[0].clone();
+    for (p, v) in out.data.iter_mut().enumerate() {
+        let c = p % 3;
+        let sum: f64 = images
+            .iter()
+            .zip(coefficients)
+            .map(|(img, a)| a[c] * f64::from(img.data[p]))
+            .sum();
+        *v = sum as f32;
+    }
+    out
+}
+
 /// Fits `targets` by every basis, renders fits and originals, and the showcase.
 pub fn evaluate(
     backend: &dyn Backend,
@@ -101,10 +118,29 @@ pub fn evaluate(
     s: &EvalSettings,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Evaluation, ExperimentError> {
-    let originals: Vec<Image> = targets
+    // Renders are linear in the BRDF, so every combination's render is the same
+    // combination of the renders of its columns: one render per material, not per fit.
+    let needed: BTreeSet<usize> = targets
+        .iter()
+        .copied()
+        .chain(
+            bases
+                .iter()
+                .flat_map(|b| b.materials.iter().filter_map(|n| coll.index_of(n).ok())),
+        )
+        .collect();
+    let needed: Vec<usize> = needed.into_iter().collect();
+    let renders: HashMap<usize, Image> = needed
         .par_iter()
-        .map(|&t| render_sphere(&s.small, &material_brdf(&coll.materials()[t].data)))
-        .collect::<Result<_, _>>()?;
+        .map(|&m| {
+            Ok((
+                m,
+                render_sphere(&s.small, &material_brdf(&coll.materials()[m].data))?,
+            ))
+        })
+        .collect::<Result<_, ExperimentError>>()?;
+    let lambert = render_sphere(&s.small, &|_, _| [std::f64::consts::FRAC_1_PI; 3])?;
+    let originals: Vec<&Image> = targets.iter().map(|t| &renders[t]).collect();
     let show_orig = render_sphere(&s.big, &material_brdf(&coll.materials()[showcase].data))?;
     let mut fits = Vec::new();
     let mut errors = Vec::new();
@@ -123,8 +159,10 @@ pub fn evaluate(
             .par_iter()
             .zip(&originals)
             .map(|(t, orig)| {
-                let img =
-                    render_sphere(&s.small, &combination_brdf(coll, &basis, &t.coefficients))?;
+                let columns: Vec<&Image> = std::iter::once(&lambert)
+                    .chain(basis.iter().map(|b| &renders[b]))
+                    .collect();
+                let img = combine(&columns, &t.coefficients);
                 Ok(normalized_image_error(orig, &img, &s.display)?)
             })
             .collect::<Result<_, ExperimentError>>()?;
@@ -168,4 +206,36 @@ pub fn evaluate(
             approximations,
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A combination rendered from its columns' renders equals the direct render of the
+    /// combined BRDF (f32 rounding apart).
+    #[test]
+    fn combined_render_equals_direct_render() {
+        let coll = Collection::embedded_default();
+        let basis = [0usize, 5, 9];
+        let coef = [
+            [0.3, 0.2, 0.1],
+            [0.5, 0.4, 0.3],
+            [0.0, 1.2, 0.7],
+            [2.0, 0.1, 0.0],
+        ];
+        let p = RenderParams::default().with_size(40);
+        let direct = render_sphere(&p, &combination_brdf(&coll, &basis, &coef)).unwrap();
+        let lambert = render_sphere(&p, &|_, _| [std::f64::consts::FRAC_1_PI; 3]).unwrap();
+        let cols: Vec<Image> = basis
+            .iter()
+            .map(|&b| render_sphere(&p, &material_brdf(&coll.materials()[b].data)).unwrap())
+            .collect();
+        let refs: Vec<&Image> = std::iter::once(&lambert).chain(&cols).collect();
+        let combined = combine(&refs, &coef);
+        assert_eq!(combined.mask, direct.mask);
+        for (a, b) in combined.data.iter().zip(&direct.data) {
+            assert!((a - b).abs() <= 1e-6 * b.abs().max(1e-3), "{a} vs {b}");
+        }
+    }
 }

@@ -238,7 +238,7 @@ fn bases(e: &Experiment, _: &ReportContext, s: &mut String) {
 
 fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
     let ev = &e.evaluation;
-    let _ = writeln!(s, "\n## Fits of the {} materials in no basis\n\nEvery basis fits the same targets (the materials in none of the bases above). MAE: weighted mean |fit - target| over the evaluation mask, mean over RGB; image error: normalised mean absolute difference of {0}x{0} px sphere renders after display mapping; per material in `fit_errors.csv`.\n", ev.targets.len());
+    let _ = writeln!(s, "\n## Fits of the {} materials in no basis\n\nEvery basis fits the same targets (the materials in none of the bases above). MAE: weighted mean |fit - target| over the evaluation mask, mean over RGB; image error: normalised mean absolute difference of {1}x{1} px sphere renders after display mapping; per material in `fit_errors.csv`.\n", ev.targets.len(), e.settings.render_size);
     let _ = writeln!(s, "| basis | size | mean MAE | median MAE | mean image error | median image error | {} image error |\n|---|---|---|---|---|---|---|", ev.showcase.material);
     for (b, a) in ev.errors.iter().zip(&ev.showcase.approximations) {
         let _ = writeln!(

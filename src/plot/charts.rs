@@ -311,15 +311,30 @@ impl Draw for CdDiagram<'_> {
             series_colour(3).stroke_width(3),
         ))
         .map_err(e2s)?;
-        // Methods, sorted by rank: first half labelled on the left, second on the right.
+        // Groups not significantly different.
         let mut order: Vec<usize> = (0..k).collect();
         order.sort_by(|&a, &b| f.mean_ranks[a].total_cmp(&f.mean_ranks[b]));
-        let row = (h as i32 - axis_y - 40) / ((k as i32 + 1) / 2 + 1).max(1);
+        let mut groups: Vec<(f64, f64)> = Vec::new();
+        for (a, &i) in order.iter().enumerate() {
+            let last = order[a..]
+                .iter()
+                .take_while(|&&j| f.mean_ranks[j] - f.mean_ranks[i] <= f.nemenyi_cd)
+                .last()
+                .copied()
+                .unwrap_or(i);
+            let g = (f.mean_ranks[i], f.mean_ranks[last]);
+            if last != i && !groups.iter().any(|h| h.0 <= g.0 && g.1 <= h.1) {
+                groups.push(g);
+            }
+        }
+        // Methods, sorted by rank: first half labelled on the left, second on the right.
+        let top = axis_y + 30 + 6 * groups.len() as i32;
+        let row = (h as i32 - top - 10) / ((k as i32 + 1) / 2 + 1).max(1);
         for (pos, &i) in order.iter().enumerate() {
             let x = x_of(f.mean_ranks[i]) as i32;
             let half = pos < k.div_ceil(2);
             let level = if half { pos } else { k - 1 - pos } as i32;
-            let y = axis_y + 40 + row * level;
+            let y = top + row * level;
             let end = if half { 20 } else { w as i32 - 20 };
             root.draw(&PathElement::new(
                 vec![(x, axis_y), (x, y), (end, y)],
@@ -335,20 +350,6 @@ impl Draw for CdDiagram<'_> {
                 };
                 root.draw(&Text::new(label, (tx, y - 16), style.clone()))
                     .map_err(e2s)?;
-            }
-        }
-        // Groups not significantly different.
-        let mut groups: Vec<(f64, f64)> = Vec::new();
-        for (a, &i) in order.iter().enumerate() {
-            let last = order[a..]
-                .iter()
-                .take_while(|&&j| f.mean_ranks[j] - f.mean_ranks[i] <= f.nemenyi_cd)
-                .last()
-                .copied()
-                .unwrap_or(i);
-            let g = (f.mean_ranks[i], f.mean_ranks[last]);
-            if last != i && !groups.iter().any(|h| h.0 <= g.0 && g.1 <= h.1) {
-                groups.push(g);
             }
         }
         for (gi, (a, b)) in groups.iter().enumerate() {
@@ -417,6 +418,7 @@ impl Draw for ErrorsPerMaterial<'_> {
                 chart
                     .configure_mesh()
                     .x_desc(xdesc)
+                    .x_label_formatter(&|v| format!("{v:.0}"))
                     .y_desc("MAE (log scale)")
                     .label_style((FONT, 12))
                     .draw()
@@ -431,6 +433,7 @@ impl Draw for ErrorsPerMaterial<'_> {
                 chart
                     .configure_mesh()
                     .x_desc(xdesc)
+                    .x_label_formatter(&|v| format!("{v:.0}"))
                     .y_desc("normalised image error")
                     .label_style((FONT, 12))
                     .draw()
@@ -508,7 +511,7 @@ pub fn db_vs_k(metrics: &[String], sets: &[ClusteringSet]) -> Result<Figure, Plo
 
 /// Nemenyi critical-difference diagram of one metric.
 pub fn cd_diagram(metric: &str, friedman: &FriedmanSummary) -> Result<Figure, PlotError> {
-    let h = 150 + 30 * friedman.methods.len().div_ceil(2) as u32;
+    let h = 190 + 30 * friedman.methods.len().div_ceil(2) as u32;
     figure(
         &format!("cd-{metric}"),
         (900, h),

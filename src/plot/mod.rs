@@ -54,11 +54,15 @@ pub const FONT_PATHS: &[&str] = &[
 ];
 
 /// Registers the first font of [`FONT_PATHS`] (or `BRDF_BASIS_FONT`) as `sans-serif`, once;
-/// returns its path, or `None` when no font could be loaded (figures then have no text).
+/// returns its path, or `None` when no font could be loaded (figures then have no text;
+/// `BRDF_BASIS_FONT=none` asks for that).
 pub fn font_available() -> Option<&'static str> {
     static FONT: OnceLock<Option<String>> = OnceLock::new();
     FONT.get_or_init(|| {
         let env = std::env::var("BRDF_BASIS_FONT").ok();
+        if env.as_deref() == Some("none") {
+            return None; // text-free figures on request (tests the no-font path)
+        }
         let candidates = env
             .iter()
             .map(String::as_str)

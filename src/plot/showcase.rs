@@ -33,10 +33,10 @@ pub fn common_scale(s: &Showcase, display: &DisplayParams) -> Result<f64, PlotEr
     Ok((max / mag).ceil() * mag)
 }
 
-/// Halves an image `n` times by 2 x 2 box filtering until it is at most `TILE` wide.
+/// Halves an image by 2 x 2 box filtering until it is at most `TILE` wide.
 fn shrink(img: &Rgb8Image) -> Rgb8Image {
     let mut cur = img.clone();
-    while cur.width > TILE && cur.width >= 2 && cur.height >= 2 {
+    while cur.width > TILE && cur.height >= 2 {
         let (w, h) = (cur.width / 2, cur.height / 2);
         let mut data = Vec::with_capacity(3 * (w * h) as usize);
         for y in 0..h {

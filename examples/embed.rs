@@ -1,0 +1,94 @@
+//! Embedding brdf-basis in a program that owns its wgpu device: the program opens the
+//! adapter and device, hands them to brdf-basis, and computes BRDF_it distances, a
+//! k-medoids basis and NNLS fits on the GPU, checked against the CPU back-end.
+//!
+//! ```sh
+//! cargo run --release --example embed
+//! ```
+//!
+//! Without a GPU adapter it prints `SKIP (no adapter)` and exits 0, unless
+//! `BRDF_BASIS_REQUIRE_GPU=1` (as in CI), when it fails.
+
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::cluster::{KMedoidsInit, KMedoidsParams};
+use brdf_basis::collection::Collection;
+use brdf_basis::distance::{distance_matrix, DistanceParams, Distances};
+use brdf_basis::fit::{fit, FitParams, GramMode};
+use brdf_basis::gpu::{GpuBackend, GpuContext};
+use std::sync::Arc;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // 1. The host program's own device (any adapter; lavapipe in CI).
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = match pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+        &instance, None,
+    )) {
+        Ok(a) => a,
+        Err(e) => {
+            if std::env::var("BRDF_BASIS_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                return Err(format!("BRDF_BASIS_REQUIRE_GPU=1 but no GPU adapter: {e}").into());
+            }
+            println!("SKIP (no adapter): {e}");
+            return Ok(());
+        }
+    };
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("host program"),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))?;
+    println!("adapter: {}", adapter.get_info().name);
+
+    // 2. Hand it to brdf-basis.
+    let ctx = GpuContext::from_device(Arc::new(device), Arc::new(queue), adapter.get_info());
+    let gpu = GpuBackend::with_context(ctx)?;
+
+    // 3. Distances, a basis and fits on the embedded default collection (every 4th cell
+    //    per grid axis, to stay quick on a software adapter).
+    let coll = Collection::embedded_default();
+    let dp = DistanceParams::default().stride(4).check(&coll)?;
+    let d = distance_matrix(&gpu, &coll, &dp, &|_, _| {})?;
+    let d_cpu = distance_matrix(&CpuBackend::new(), &coll, &dp, &|_, _| {})?;
+    let n = coll.len();
+    let mut worst = 0f64;
+    for i in 0..n {
+        for j in 0..n {
+            let (a, b) = (d.dist(i, j), d_cpu.dist(i, j));
+            worst = worst.max((a - b).abs() / b.abs().max(1e-12));
+        }
+    }
+    println!("BRDF_it {n} x {n}: largest relative difference GPU vs CPU {worst:.2e}");
+    if worst > 1e-4 {
+        return Err(format!("GPU and CPU distances differ by {worst:e} (> 1e-4)").into());
+    }
+    let km = KMedoidsParams::new(5)
+        .seed(1)
+        .init(KMedoidsInit::Random)
+        .fit(&d)?;
+    let basis: Vec<usize> = km.medoids.clone();
+    println!(
+        "k-medoids basis (DB {:.4}): {}",
+        km.db_index,
+        basis
+            .iter()
+            .map(|&b| coll.names()[b].clone())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let targets: Vec<usize> = (0..n).filter(|t| !basis.contains(t)).collect();
+    // The Gram matrices by a pass of the GPU over the grid (analytic collections would
+    // otherwise take the closed form on the host).
+    let fp = FitParams {
+        stride: 4,
+        gram: GramMode::Grid,
+        ..Default::default()
+    };
+    let fits = fit(&gpu, &coll, &basis, &targets, &fp, &|_, _| {})?;
+    let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
+    println!("fitted {} materials, mean MAE {mean:.4e}", fits.len());
+    if fits.len() != targets.len() || !mean.is_finite() {
+        return Err("fits incomplete".into());
+    }
+    Ok(())
+}
