@@ -146,13 +146,18 @@ fn has_duration(line: &str) -> bool {
 
 /// Lines of a text output with the back-end's name and timings masked.
 fn masked(text: &str) -> Vec<String> {
+    // Inside a Markdown section named for timings every line is a duration.
+    let mut in_timings = false;
     text.lines()
         .map(|l| {
             let lower = l.to_lowercase();
+            if lower.starts_with('#') {
+                in_timings = lower.contains("timing");
+            }
             let named = ["back-end", "backend", "elapsed", "timing", "seconds"]
                 .iter()
                 .any(|t| lower.contains(t));
-            if named || has_duration(&lower) {
+            if named || in_timings || has_duration(&lower) {
                 "<masked>".to_string()
             } else {
                 l.to_string()
@@ -167,6 +172,17 @@ fn masking_hides_back_end_and_timing_lines_only() {
     assert!(!has_duration("k = 5, 30 runs") && !has_duration("3 materials"));
     let m = masked("back-end: cpu\nDB 0.51\ntook 3.2 s\n5 runs");
     assert_eq!(m, ["<masked>", "DB 0.51", "<masked>", "5 runs"]);
+    let t = masked("## Timings\n\n| distances | 1.58 |\n## Bases\n| b | 0.5 |");
+    assert_eq!(
+        t,
+        [
+            "<masked>",
+            "<masked>",
+            "<masked>",
+            "## Bases",
+            "| b | 0.5 |"
+        ]
+    );
 }
 
 /// Every file under `dir`, relative paths, sorted.
