@@ -454,6 +454,28 @@ fn cross_validation_is_complete_honest_and_reproducible() {
         );
     }
     assert_eq!(r.tests.len(), 2 * 21);
+    // Held-out MAE and rho agree with `fit` (its own Gram, grid residuals) on the same basis.
+    let sw = get("swap", 3);
+    let basis: Vec<usize> = sw.fold_bases[1]
+        .iter()
+        .map(|m| coll.index_of(m).expect("m"))
+        .collect();
+    let held: Vec<&brdf_basis::selection::cv::HeldOut> =
+        sw.held_out.iter().filter(|h| h.fold == 1).collect();
+    let targets: Vec<usize> = held
+        .iter()
+        .map(|h| coll.index_of(&h.material).expect("m"))
+        .collect();
+    let fp = p.params().objective.fit_params();
+    let fits = fit(&cpu, &coll, &basis, &targets, &fp, &|_, _| {}).expect("fit");
+    for (h, f) in held.iter().zip(&fits) {
+        assert!(
+            (h.mae - f.mae).abs() <= 1e-9 * f.mae.max(1e-3),
+            "{} vs {}",
+            h.mae,
+            f.mae
+        );
+    }
     let again = cross_validate(&cpu, &coll, &p, &|_, _| {}).expect("cv");
     assert_eq!(
         serde_json::to_string(&r).expect("json"),
