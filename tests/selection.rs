@@ -118,6 +118,27 @@ fn incremental_scores_and_greedy_steps_match_fresh_solves() {
             worst = worst.max((s - fresh).abs());
         }
     }
+    // All 100 materials with bases of up to 12: the warm-started inner loop (a coefficient
+    // turning negative) and the fresh fallback are exercised too.
+    let full = ngan();
+    let objf = objective(&full, 4);
+    let allf: Vec<usize> = (0..100).collect();
+    for basis in [
+        vec![10, 20, 30, 40, 50, 60, 70],
+        vec![3, 14, 15, 92, 65, 35, 89, 79, 32, 38, 46, 26],
+    ] {
+        let cands: Vec<usize> = allf
+            .iter()
+            .copied()
+            .filter(|c| !basis.contains(c))
+            .collect();
+        let inc = objf.scores_adding(&basis, &allf, &cands);
+        for (&c, &s) in cands.iter().zip(&inc) {
+            let mut b = basis.clone();
+            b.push(c);
+            worst = worst.max((s - objf.score(&b, &allf)).abs());
+        }
+    }
     eprintln!("incremental vs fresh S: worst difference {worst:e}");
     assert!(worst < 1e-12, "{worst:e}");
     // Each greedy step is the argmin over fresh scores (ties: earliest).

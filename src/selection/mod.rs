@@ -22,10 +22,14 @@ pub mod cv;
 pub mod objective;
 pub mod search;
 
-pub use cv::{cross_validate, CvMethod, CvParams, CvResult, ValidCvParams};
+pub use cv::{
+    cross_validate, cross_validate_with, make_folds, CvMethod, CvMethodResult, CvParams, CvResult,
+    CvTest, HeldOut, ValidCvParams,
+};
 pub use objective::{Objective, ObjectiveParams};
 pub use search::{
-    ga, greedy, swap, GaParams, SearchParams, Selection, ValidGaParams, ValidSearchParams,
+    error_driven_bases, ga, greedy, swap, GaParams, SearchParams, Selection, ValidGaParams,
+    ValidSearchParams,
 };
 
 /// Errors of error-driven selection and cross-validation.

@@ -478,7 +478,7 @@ impl Objective {
             *zk = y - delta * u;
         }
         if z.iter().any(|&x| x <= 0.0) {
-            return self.solve_adding(c, cols, j, t);
+            return self.warm_inner(st, c, cols, j, t, z, delta);
         }
         let s = hmax + z.iter().sum::<f64>() + delta;
         for &i in &st.inactive {
@@ -498,6 +498,118 @@ impl Objective {
             }
         }
         (st.q - w * w / d2).max(0.0)
+    }
+
+    /// Lawson-Hanson's inner loop from the old optimum (feasible, column `j` at 0) towards
+    /// the unconstrained solution `z` on `P + j` (`z_P`, `z_j = delta`): step to the first
+    /// bound, drop the columns that reach 0, re-solve, until every coefficient is positive;
+    /// then the KKT conditions of every other basis column are checked (a failure, rare,
+    /// falls back to a fresh solve).
+    #[allow(clippy::too_many_arguments)]
+    fn warm_inner(
+        &self,
+        st: &ChanState,
+        c: usize,
+        cols: &[usize],
+        j: usize,
+        t: usize,
+        z_p: &[f64],
+        delta: f64,
+    ) -> f64 {
+        let mut set: Vec<usize> = st.passive.clone();
+        set.push(j);
+        let mut x: Vec<f64> = st.y.clone();
+        x.push(0.0);
+        let mut z: Vec<f64> = z_p.to_vec();
+        z.push(delta);
+        for _ in 0..=set.len() {
+            if z.iter().all(|&v| v > 0.0) {
+                break;
+            }
+            let alpha = x
+                .iter()
+                .zip(&z)
+                .filter(|(_, &zk)| zk <= 0.0)
+                .map(|(&xk, &zk)| xk / (xk - zk))
+                .fold(1.0f64, f64::min);
+            let mut keep_set = Vec::with_capacity(set.len());
+            let mut keep_x = Vec::with_capacity(set.len());
+            for ((&k, &xk), &zk) in set.iter().zip(&x).zip(&z) {
+                let nx = if zk <= 0.0 && xk / (xk - zk) <= alpha {
+                    0.0
+                } else {
+                    xk + alpha * (zk - xk)
+                };
+                if nx > 0.0 {
+                    keep_set.push(k);
+                    keep_x.push(nx);
+                }
+            }
+            set = keep_set;
+            x = keep_x;
+            match self.solve_on(c, &set, t) {
+                Some(sol) => z = sol,
+                None => return self.solve_adding(c, cols, j, t),
+            }
+        }
+        if z.iter().any(|&v| v <= 0.0) {
+            return self.solve_adding(c, cols, j, t);
+        }
+        // KKT of the columns outside the final set.
+        let hmax = cols
+            .iter()
+            .chain(std::iter::once(&j))
+            .map(|&i| self.cs(c, i, t + 1).abs())
+            .fold(0.0, f64::max);
+        let s = hmax + z.iter().sum::<f64>();
+        for &i in cols.iter().chain(std::iter::once(&j)) {
+            if set.contains(&i) {
+                continue;
+            }
+            let ri = self.row(c, i);
+            if ri[i] == 0.0 {
+                continue;
+            }
+            let wi = ri[t + 1] - set.iter().zip(&z).map(|(&k, &zk)| ri[k] * zk).sum::<f64>();
+            if wi > KKT_TOL * s {
+                return self.solve_adding(c, cols, j, t);
+            }
+        }
+        // q = 1 + sum_k z_k ((C z)_k - 2 h_k)
+        let mut q = 1.0;
+        for (&a, &za) in set.iter().zip(&z) {
+            let ra = self.row(c, a);
+            let cz: f64 = set.iter().zip(&z).map(|(&b, &zb)| ra[b] * zb).sum();
+            q += za * (cz - 2.0 * ra[t + 1]);
+        }
+        q.clamp(0.0, 1.0)
+    }
+
+    /// The unconstrained solution of `C_SS z = C_St` by Cholesky (`None` when `C_SS` is not
+    /// numerically positive definite).
+    fn solve_on(&self, c: usize, set: &[usize], t: usize) -> Option<Vec<f64>> {
+        let p = set.len();
+        let mut a = vec![0.0; p * p];
+        for (r, &i) in set.iter().enumerate() {
+            let ri = self.row(c, i);
+            for (s, &k) in set.iter().enumerate() {
+                a[r * p + s] = ri[k];
+            }
+        }
+        let l = cholesky(p, &a)?;
+        if (0..p).any(|r| l[r * p + r] * l[r * p + r] <= PIVOT_TOL) {
+            return None;
+        }
+        let mut z: Vec<f64> = set.iter().map(|&i| self.cs(c, i, t + 1)).collect();
+        for r in 0..p {
+            let dot: f64 = (0..r).map(|k| l[r * p + k] * z[k]).sum();
+            z[r] = (z[r] - dot) / l[r * p + r];
+        }
+        for r in (0..p).rev() {
+            let dot: f64 = (r + 1..p).map(|k| l[k * p + r] * z[k]).sum();
+            z[r] = (z[r] - dot) / l[r * p + r];
+        }
+        Some(z)
     }
 
     fn solve_adding(&self, c: usize, cols: &[usize], j: usize, t: usize) -> f64 {

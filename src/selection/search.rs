@@ -335,6 +335,27 @@ pub fn swap(obj: &Objective, p: &ValidSearchParams, progress: Progress<'_>) -> S
     Selection::new(obj, "swap", p, basis, history)
 }
 
+/// The error-driven bases `reproduce` compares: greedy and swap (from the greedy basis) at
+/// each k of `ks` (k larger than the collection is skipped), every material a candidate and
+/// a target; in the order greedy k1, swap k1, greedy k2, ...
+pub fn error_driven_bases(obj: &Objective, ks: &[usize]) -> Result<Vec<Selection>, SelectionError> {
+    let mut out = Vec::new();
+    for &k in ks.iter().filter(|&&k| k >= 1 && k <= obj.len()) {
+        let p = SearchParams::new(k).check(obj.names())?;
+        let g = greedy(obj, &p, &|_, _| {});
+        let s = swap(
+            obj,
+            &SearchParams::new(k)
+                .init(g.indices.clone())
+                .check(obj.names())?,
+            &|_, _| {},
+        );
+        out.push(g);
+        out.push(s);
+    }
+    Ok(out)
+}
+
 /// Parameters of the genetic algorithm over k-subsets (builder; [`GaParams::check`]).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct GaParams {
