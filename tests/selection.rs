@@ -179,14 +179,33 @@ fn gram_score_equals_grid_residual_score() {
     // Full grid: the residuals of `fit` are computed cell by cell in f64; the target energy
     // on the grid too. Agreement within 1e-9 of the target energy (SPEC 8 objective).
     let coll = ngan().subset(&(0..100).step_by(9).collect::<Vec<_>>());
-    let obj = objective(&coll, 1);
+    for (op, basis) in [
+        (ObjectiveParams::default(), vec![0, 4, 7]),
+        (
+            ObjectiveParams::default()
+                .weighting(brdf_basis::merl::Weighting::SolidAngle)
+                .stride(3),
+            vec![2, 9],
+        ),
+    ] {
+        grid_check(&coll, &op, &basis);
+    }
+}
+
+fn grid_check(coll: &Collection, op: &ObjectiveParams, basis: &[usize]) {
+    let obj = Objective::new(
+        &CpuBackend::new(),
+        coll,
+        &op.check().expect("p"),
+        &|_, _| {},
+    )
+    .expect("objective");
     let n = coll.len();
-    let basis = vec![0, 4, 7];
     let targets: Vec<usize> = (0..n).filter(|t| !basis.contains(t)).collect();
     let cpu = CpuBackend::new();
-    let fp = ObjectiveParams::default().fit_params();
-    let fits = fit(&cpu, &coll, &basis, &targets, &fp, &|_, _| {}).expect("fit");
-    let cells = fit_cells(&coll, &(0..n).collect::<Vec<_>>(), &fp);
+    let fp = op.fit_params();
+    let fits = fit(&cpu, coll, basis, &targets, &fp, &|_, _| {}).expect("fit");
+    let cells = fit_cells(coll, &(0..n).collect::<Vec<_>>(), &fp);
     let mut worst = 0.0f64;
     let mut s_grid = 0.0;
     for (f, &t) in fits.iter().zip(&targets) {
@@ -203,9 +222,9 @@ fn gram_score_equals_grid_residual_score() {
         }
         let rho_grid = num / den;
         s_grid += rho_grid / targets.len() as f64;
-        worst = worst.max((obj.rho(&basis, t) - rho_grid).abs());
+        worst = worst.max((obj.rho(basis, t) - rho_grid).abs());
     }
-    let s_gram = obj.score(&basis, &targets);
+    let s_gram = obj.score(basis, &targets);
     eprintln!("S gram {s_gram:e} vs grid {s_grid:e}; worst rho difference {worst:e}");
     assert!(worst < 1e-9 && (s_gram - s_grid).abs() < 1e-9, "{worst:e}");
 }
