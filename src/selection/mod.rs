@@ -17,6 +17,21 @@
 //! * [`cv`]: K-fold cross-validation over materials of any set of methods (greedy, swap,
 //!   ga, kmedoids, gcuk, empirical, random), with paired Wilcoxon tests and a Markdown
 //!   summary.
+//!
+//! ```no_run
+//! use brdf_basis::backend::cpu::CpuBackend;
+//! use brdf_basis::collection::Collection;
+//! use brdf_basis::selection::*;
+//! let coll = Collection::embedded_default();
+//! let cpu = CpuBackend::new();
+//! let op = ObjectiveParams::default().check()?;
+//! let obj = Objective::new(&cpu, &coll, &op, &|_, _| {})?;
+//! let best = swap(&obj, &SearchParams::new(5).check(obj.names())?, &|_, _| {});
+//! println!("{:?}: S = {:.4}", best.basis, best.score);
+//! let cv = cross_validate(&cpu, &coll, &CvParams::default().check(coll.len())?, &|_, _| {})?;
+//! println!("{}", cv.markdown());
+//! # Ok::<(), SelectionError>(())
+//! ```
 
 pub mod cv;
 pub mod objective;

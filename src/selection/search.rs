@@ -134,8 +134,8 @@ impl SearchParams {
                 if b.len() != self.k {
                     return Err(SelectionError::InvalidParam {
                         name: "init",
-                        value: format!("{} materials", b.len()),
-                        expected: "exactly k materials",
+                        value: format!("{} materials for k = {}", b.len(), self.k),
+                        expected: "the starting basis must hold exactly k materials",
                     });
                 }
                 let mut seen = vec![false; n];
