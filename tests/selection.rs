@@ -118,6 +118,27 @@ fn incremental_scores_and_greedy_steps_match_fresh_solves() {
             worst = worst.max((s - fresh).abs());
         }
     }
+    // All 100 materials with bases of up to 12: the warm-started inner loop (a coefficient
+    // turning negative) and the fresh fallback are exercised too.
+    let full = ngan();
+    let objf = objective(&full, 4);
+    let allf: Vec<usize> = (0..100).collect();
+    for basis in [
+        vec![10, 20, 30, 40, 50, 60, 70],
+        vec![3, 14, 15, 92, 65, 35, 89, 79, 32, 38, 46, 26],
+    ] {
+        let cands: Vec<usize> = allf
+            .iter()
+            .copied()
+            .filter(|c| !basis.contains(c))
+            .collect();
+        let inc = objf.scores_adding(&basis, &allf, &cands);
+        for (&c, &s) in cands.iter().zip(&inc) {
+            let mut b = basis.clone();
+            b.push(c);
+            worst = worst.max((s - objf.score(&b, &allf)).abs());
+        }
+    }
     eprintln!("incremental vs fresh S: worst difference {worst:e}");
     assert!(worst < 1e-12, "{worst:e}");
     // Each greedy step is the argmin over fresh scores (ties: earliest).
@@ -158,14 +179,33 @@ fn gram_score_equals_grid_residual_score() {
     // Full grid: the residuals of `fit` are computed cell by cell in f64; the target energy
     // on the grid too. Agreement within 1e-9 of the target energy (SPEC 8 objective).
     let coll = ngan().subset(&(0..100).step_by(9).collect::<Vec<_>>());
-    let obj = objective(&coll, 1);
+    for (op, basis) in [
+        (ObjectiveParams::default(), vec![0, 4, 7]),
+        (
+            ObjectiveParams::default()
+                .weighting(brdf_basis::merl::Weighting::SolidAngle)
+                .stride(3),
+            vec![2, 9],
+        ),
+    ] {
+        grid_check(&coll, &op, &basis);
+    }
+}
+
+fn grid_check(coll: &Collection, op: &ObjectiveParams, basis: &[usize]) {
+    let obj = Objective::new(
+        &CpuBackend::new(),
+        coll,
+        &op.check().expect("p"),
+        &|_, _| {},
+    )
+    .expect("objective");
     let n = coll.len();
-    let basis = vec![0, 4, 7];
     let targets: Vec<usize> = (0..n).filter(|t| !basis.contains(t)).collect();
     let cpu = CpuBackend::new();
-    let fp = ObjectiveParams::default().fit_params();
-    let fits = fit(&cpu, &coll, &basis, &targets, &fp, &|_, _| {}).expect("fit");
-    let cells = fit_cells(&coll, &(0..n).collect::<Vec<_>>(), &fp);
+    let fp = op.fit_params();
+    let fits = fit(&cpu, coll, basis, &targets, &fp, &|_, _| {}).expect("fit");
+    let cells = fit_cells(coll, &(0..n).collect::<Vec<_>>(), &fp);
     let mut worst = 0.0f64;
     let mut s_grid = 0.0;
     for (f, &t) in fits.iter().zip(&targets) {
@@ -182,9 +222,9 @@ fn gram_score_equals_grid_residual_score() {
         }
         let rho_grid = num / den;
         s_grid += rho_grid / targets.len() as f64;
-        worst = worst.max((obj.rho(&basis, t) - rho_grid).abs());
+        worst = worst.max((obj.rho(basis, t) - rho_grid).abs());
     }
-    let s_gram = obj.score(&basis, &targets);
+    let s_gram = obj.score(basis, &targets);
     eprintln!("S gram {s_gram:e} vs grid {s_grid:e}; worst rho difference {worst:e}");
     assert!(worst < 1e-9 && (s_gram - s_grid).abs() < 1e-9, "{worst:e}");
 }
@@ -454,6 +494,28 @@ fn cross_validation_is_complete_honest_and_reproducible() {
         );
     }
     assert_eq!(r.tests.len(), 2 * 21);
+    // Held-out MAE and rho agree with `fit` (its own Gram, grid residuals) on the same basis.
+    let sw = get("swap", 3);
+    let basis: Vec<usize> = sw.fold_bases[1]
+        .iter()
+        .map(|m| coll.index_of(m).expect("m"))
+        .collect();
+    let held: Vec<&brdf_basis::selection::cv::HeldOut> =
+        sw.held_out.iter().filter(|h| h.fold == 1).collect();
+    let targets: Vec<usize> = held
+        .iter()
+        .map(|h| coll.index_of(&h.material).expect("m"))
+        .collect();
+    let fp = p.params().objective.fit_params();
+    let fits = fit(&cpu, &coll, &basis, &targets, &fp, &|_, _| {}).expect("fit");
+    for (h, f) in held.iter().zip(&fits) {
+        assert!(
+            (h.mae - f.mae).abs() <= 1e-9 * f.mae.max(1e-3),
+            "{} vs {}",
+            h.mae,
+            f.mae
+        );
+    }
     let again = cross_validate(&cpu, &coll, &p, &|_, _| {}).expect("cv");
     assert_eq!(
         serde_json::to_string(&r).expect("json"),

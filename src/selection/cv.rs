@@ -31,6 +31,8 @@ use std::fmt::Write as _;
 use super::objective::{Objective, ObjectiveParams};
 use super::search::{ga, greedy, swap, GaParams, SearchParams, ValidGaParams};
 use super::SelectionError;
+use crate::backend::cpu::CpuBackend;
+use crate::backend::Lobe;
 use crate::backend::{Backend, Progress};
 use crate::cluster::{GcukParams, KMedoidsParams};
 use crate::collection::Collection;
@@ -38,7 +40,9 @@ use crate::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
-use crate::fit::fit;
+use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
+use crate::merl::{CellSet, GridTables};
+use crate::separable::{CellMoments, SeparableLobe};
 
 /// A selection method compared by cross-validation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -389,14 +393,13 @@ pub fn cross_validate(
     } else {
         None
     };
-    cross_validate_with(backend, coll, &obj, dist.as_ref(), p, progress)
+    cross_validate_with(coll, &obj, dist.as_ref(), p, progress)
 }
 
 /// Runs the cross-validation with a given objective (of `coll`) and distance matrix (of
 /// `coll`; needed only by the clustering methods). `progress(done, total)` counts
 /// (fold, method, k) selections.
 pub fn cross_validate_with(
-    backend: &dyn Backend,
     coll: &Collection,
     obj: &Objective,
     dist: Option<&DistanceMatrix>,
@@ -517,32 +520,29 @@ pub fn cross_validate_with(
     let originals: Vec<Image> = (0..n)
         .map(|t| render_sphere(&rp, &material_brdf(&coll.materials()[t].data)))
         .collect::<Result<_, _>>()?;
+    let grid = GridEval::new(coll, &fp);
     let mut results = Vec::new();
     for (mi, &m) in p.methods.iter().enumerate() {
         for (ki, &k) in p.ks.iter().enumerate() {
             let mut held_out = Vec::with_capacity(n);
             for (f, fold) in folds.iter().enumerate() {
                 let basis = &bases[mi][ki][f];
-                let fits = fit(backend, coll, basis, fold, &fp, &|_, _| {})?;
-                let errs: Vec<Result<(f64, f64), SelectionError>> = fold
+                let rows: Vec<Result<HeldOut, SelectionError>> = fold
                     .par_iter()
-                    .zip(&fits)
-                    .map(|(&t, ft)| {
-                        let img =
-                            render_sphere(&rp, &combination_brdf(coll, basis, &ft.coefficients))?;
-                        let e = normalized_image_error(&originals[t], &img, &display)?;
-                        Ok((obj.rho(basis, t), e))
+                    .map(|&t| {
+                        let (coef, rho) = obj.fit(basis, t);
+                        let img = render_sphere(&rp, &combination_brdf(coll, basis, &coef))?;
+                        Ok(HeldOut {
+                            material: names[t].clone(),
+                            fold: f,
+                            rho,
+                            mae: grid.mae(basis, t, &coef),
+                            image_error: normalized_image_error(&originals[t], &img, &display)?,
+                        })
                     })
                     .collect();
-                for ((&t, ft), e) in fold.iter().zip(&fits).zip(errs) {
-                    let (rho, image_error) = e?;
-                    held_out.push(HeldOut {
-                        material: names[t].clone(),
-                        fold: f,
-                        rho,
-                        mae: ft.mae,
-                        image_error,
-                    });
+                for r in rows {
+                    held_out.push(r?);
                 }
             }
             let col = |g: fn(&HeldOut) -> f64| held_out.iter().map(g).collect::<Vec<f64>>();
@@ -602,6 +602,88 @@ pub fn cross_validate_with(
         mask: p.objective.mask.to_string(),
         weighting: p.objective.weighting.to_string(),
     })
+}
+
+/// MAE of fitted combinations on the grid (SPEC 5) over the objective's cells: one
+/// multiply-add per cell from separable tables when every material is analytic, else the
+/// f64 values of every column.
+struct GridEval<'a> {
+    coll: &'a Collection,
+    cells: CellSet,
+    moments: Option<CellMoments>,
+    tables: GridTables,
+    cpu: CpuBackend,
+}
+
+impl<'a> GridEval<'a> {
+    fn new(coll: &'a Collection, fp: &FitParams) -> Self {
+        let all: Vec<usize> = (0..coll.len()).collect();
+        let cells = fit_cells(coll, &all, fp);
+        let tables = GridTables::new();
+        let moments = (fp.gram == GramMode::Auto && coll.all_analytic())
+            .then(|| CellMoments::new(&tables, &cells));
+        Self {
+            coll,
+            cells,
+            moments,
+            tables,
+            cpu: CpuBackend::new(),
+        }
+    }
+
+    fn lobe(&self, col: Option<usize>, c: usize) -> Lobe {
+        match col {
+            None => LAMBERTIAN,
+            Some(i) => channel_lobe(&self.coll.materials()[i].data, c),
+        }
+    }
+
+    /// Weighted mean of |fit - target| over the cells, averaged over channels.
+    fn mae(&self, basis: &[usize], t: usize, coef: &[[f64; 3]]) -> f64 {
+        let cols: Vec<Option<usize>> = std::iter::once(None)
+            .chain(basis.iter().map(|&b| Some(b)))
+            .collect();
+        let mut mae = 0.0;
+        for c in 0..3 {
+            let x: Vec<f64> = coef.iter().map(|a| a[c]).collect();
+            let sep = |l: Lobe| match l {
+                Lobe::Analytic(p) => Some(SeparableLobe::new(&self.tables, &p)),
+                Lobe::Measured { .. } => None,
+            };
+            let analytic = self.moments.as_ref().and_then(|mom| {
+                let lobes: Vec<SeparableLobe> = cols
+                    .iter()
+                    .map(|&i| sep(self.lobe(i, c)))
+                    .collect::<Option<_>>()?;
+                let refs: Vec<&SeparableLobe> = lobes.iter().collect();
+                let target = sep(self.lobe(Some(t), c))?;
+                Some(
+                    mom.errors(&SeparableLobe::combination(&refs, &x), &target)
+                        .1,
+                )
+            });
+            mae += match analytic {
+                Some(ab) => ab,
+                None => {
+                    let cells = &self.cells.cells;
+                    let mut fitv = vec![0.0; cells.len()];
+                    for (&i, &a) in cols.iter().zip(&x) {
+                        if a != 0.0 {
+                            let v = self.cpu.values_f64(&self.lobe(i, c), cells);
+                            fitv.iter_mut().zip(v).for_each(|(o, v)| *o += a * v);
+                        }
+                    }
+                    let b = self.cpu.values_f64(&self.lobe(Some(t), c), cells);
+                    fitv.iter()
+                        .zip(&b)
+                        .zip(&self.cells.weights)
+                        .map(|((f, b), w)| w * (f - b).abs())
+                        .sum()
+                }
+            } / 3.0;
+        }
+        mae
+    }
 }
 
 fn missing_distances() -> SelectionError {

@@ -17,15 +17,34 @@
 //! * [`cv`]: K-fold cross-validation over materials of any set of methods (greedy, swap,
 //!   ga, kmedoids, gcuk, empirical, random), with paired Wilcoxon tests and a Markdown
 //!   summary.
+//!
+//! ```no_run
+//! use brdf_basis::backend::cpu::CpuBackend;
+//! use brdf_basis::collection::Collection;
+//! use brdf_basis::selection::*;
+//! let coll = Collection::embedded_default();
+//! let cpu = CpuBackend::new();
+//! let op = ObjectiveParams::default().check()?;
+//! let obj = Objective::new(&cpu, &coll, &op, &|_, _| {})?;
+//! let best = swap(&obj, &SearchParams::new(5).check(obj.names())?, &|_, _| {});
+//! println!("{:?}: S = {:.4}", best.basis, best.score);
+//! let cv = cross_validate(&cpu, &coll, &CvParams::default().check(coll.len())?, &|_, _| {})?;
+//! println!("{}", cv.markdown());
+//! # Ok::<(), SelectionError>(())
+//! ```
 
 pub mod cv;
 pub mod objective;
 pub mod search;
 
-pub use cv::{cross_validate, CvMethod, CvParams, CvResult, ValidCvParams};
+pub use cv::{
+    cross_validate, cross_validate_with, make_folds, CvMethod, CvMethodResult, CvParams, CvResult,
+    CvTest, HeldOut, ValidCvParams,
+};
 pub use objective::{Objective, ObjectiveParams};
 pub use search::{
-    ga, greedy, swap, GaParams, SearchParams, Selection, ValidGaParams, ValidSearchParams,
+    error_driven_bases, ga, greedy, swap, GaParams, SearchParams, Selection, ValidGaParams,
+    ValidSearchParams,
 };
 
 /// Errors of error-driven selection and cross-validation.

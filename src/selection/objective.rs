@@ -133,6 +133,8 @@ pub struct Objective {
     /// Per channel: `(N + 1)^2` cosine matrix (column 0 Lambertian, `j + 1` material `j`),
     /// unit diagonal, zero rows and columns for zero columns.
     cos: [Vec<f64>; 3],
+    /// Per channel: `sqrt(F_ii)` of every column (0 for a zero column).
+    scale: [Vec<f64>; 3],
     /// Per material: `F_tt` per channel (the target energy `sum_s w_s b_c(s)^2`).
     energy: Vec<[f64; 3]>,
     /// Per material: `F_tt,c / sum_c F_tt,c` (0 for a black material).
@@ -187,6 +189,7 @@ impl Objective {
         let n = names.len();
         let m = n + 1;
         let mut cos: [Vec<f64>; 3] = Default::default();
+        let mut scale: [Vec<f64>; 3] = Default::default();
         for (c, g) in grams.iter().enumerate() {
             if g.len() != m * m {
                 return Err(SelectionError::GramShape {
@@ -232,6 +235,7 @@ impl Objective {
                 }
             });
             cos[c] = s;
+            scale[c] = d;
         }
         let energy: Vec<[f64; 3]> = (0..n)
             .map(|t| [0, 1, 2].map(|c| grams[c][(t + 1) * m + t + 1].max(0.0)))
@@ -250,6 +254,7 @@ impl Objective {
         Ok(Self {
             names,
             cos,
+            scale,
             energy,
             share,
         })
@@ -320,6 +325,27 @@ impl Objective {
             .filter(|&c| self.share[t][c] > 0.0)
             .map(|c| self.share[t][c] * self.solve(c, &cols, t).1)
             .sum()
+    }
+
+    /// The exact fit of target `t` by `basis` (SPEC 5) from the Gram matrices:
+    /// coefficients per column (0 = Lambertian, then the basis in order), RGB, in the
+    /// units of the materials, and `rho(t; basis)`.
+    pub fn fit(&self, basis: &[usize], t: usize) -> (Vec<[f64; 3]>, f64) {
+        let cols = basis_cols(basis);
+        let mut coef = vec![[0.0; 3]; cols.len()];
+        let mut rho = 0.0;
+        for c in (0..3).filter(|&c| self.share[t][c] > 0.0) {
+            let (x, q) = self.solve(c, &cols, t);
+            rho += self.share[t][c] * q;
+            let dt = self.scale[c][t + 1];
+            for ((a, &y), &col) in coef.iter_mut().zip(&x).zip(&cols) {
+                let dj = self.scale[c][col];
+                if y > 0.0 && dj > 0.0 {
+                    a[c] = y * dt / dj;
+                }
+            }
+        }
+        (coef, rho)
     }
 
     /// Which materials of `basis` contribute (a coefficient > 0 in some channel) to the
@@ -400,7 +426,16 @@ impl Objective {
 
     /// Relative residual `q` of channel `c` of target `t` after adding material `cand` to
     /// the basis whose state is `st` (`cols`: that basis' Gram columns).
-    fn q_adding(&self, st: &ChanState, c: usize, cols: &[usize], cand: usize, t: usize) -> f64 {
+    #[allow(clippy::too_many_arguments)]
+    fn q_adding(
+        &self,
+        st: &ChanState,
+        c: usize,
+        cols: &[usize],
+        cand: usize,
+        t: usize,
+        scratch: &mut Vec<f64>,
+    ) -> f64 {
         let j = cand + 1;
         let row = self.row(c, j);
         if row[j] == 0.0 {
@@ -420,10 +455,13 @@ impl Objective {
             return self.solve_adding(c, cols, j, t);
         }
         let p = st.passive.len();
+        scratch.clear();
+        scratch.resize(2 * p, 0.0);
+        let (v, z) = scratch.split_at_mut(p);
         // v = L^-1 C_Pj
-        let mut v = vec![0.0; p];
         for r in 0..p {
-            let dot: f64 = (0..r).map(|s| st.l[r * p + s] * v[s]).sum();
+            let lr = &st.l[r * p..r * p + r];
+            let dot: f64 = lr.iter().zip(&v[..r]).map(|(a, b)| a * b).sum();
             v[r] = (row[st.passive[r]] - dot) / st.l[r * p + r];
         }
         let d2 = 1.0 - v.iter().map(|x| x * x).sum::<f64>();
@@ -436,9 +474,11 @@ impl Objective {
             v[r] = (v[r] - dot) / st.l[r * p + r];
         }
         let delta = w / d2;
-        let z: Vec<f64> = st.y.iter().zip(&v).map(|(y, u)| y - delta * u).collect();
+        for ((zk, y), u) in z.iter_mut().zip(&st.y).zip(v.iter()) {
+            *zk = y - delta * u;
+        }
         if z.iter().any(|&x| x <= 0.0) {
-            return self.solve_adding(c, cols, j, t);
+            return self.warm_inner(st, c, cols, j, t, z, delta);
         }
         let s = hmax + z.iter().sum::<f64>() + delta;
         for &i in &st.inactive {
@@ -449,7 +489,7 @@ impl Objective {
             let wi = ri[t + 1]
                 - st.passive
                     .iter()
-                    .zip(&z)
+                    .zip(z.iter())
                     .map(|(&k, &zk)| ri[k] * zk)
                     .sum::<f64>()
                 - ri[j] * delta;
@@ -458,6 +498,118 @@ impl Objective {
             }
         }
         (st.q - w * w / d2).max(0.0)
+    }
+
+    /// Lawson-Hanson's inner loop from the old optimum (feasible, column `j` at 0) towards
+    /// the unconstrained solution `z` on `P + j` (`z_P`, `z_j = delta`): step to the first
+    /// bound, drop the columns that reach 0, re-solve, until every coefficient is positive;
+    /// then the KKT conditions of every other basis column are checked (a failure, rare,
+    /// falls back to a fresh solve).
+    #[allow(clippy::too_many_arguments)]
+    fn warm_inner(
+        &self,
+        st: &ChanState,
+        c: usize,
+        cols: &[usize],
+        j: usize,
+        t: usize,
+        z_p: &[f64],
+        delta: f64,
+    ) -> f64 {
+        let mut set: Vec<usize> = st.passive.clone();
+        set.push(j);
+        let mut x: Vec<f64> = st.y.clone();
+        x.push(0.0);
+        let mut z: Vec<f64> = z_p.to_vec();
+        z.push(delta);
+        for _ in 0..=set.len() {
+            if z.iter().all(|&v| v > 0.0) {
+                break;
+            }
+            let alpha = x
+                .iter()
+                .zip(&z)
+                .filter(|(_, &zk)| zk <= 0.0)
+                .map(|(&xk, &zk)| xk / (xk - zk))
+                .fold(1.0f64, f64::min);
+            let mut keep_set = Vec::with_capacity(set.len());
+            let mut keep_x = Vec::with_capacity(set.len());
+            for ((&k, &xk), &zk) in set.iter().zip(&x).zip(&z) {
+                let nx = if zk <= 0.0 && xk / (xk - zk) <= alpha {
+                    0.0
+                } else {
+                    xk + alpha * (zk - xk)
+                };
+                if nx > 0.0 {
+                    keep_set.push(k);
+                    keep_x.push(nx);
+                }
+            }
+            set = keep_set;
+            x = keep_x;
+            match self.solve_on(c, &set, t) {
+                Some(sol) => z = sol,
+                None => return self.solve_adding(c, cols, j, t),
+            }
+        }
+        if z.iter().any(|&v| v <= 0.0) {
+            return self.solve_adding(c, cols, j, t);
+        }
+        // KKT of the columns outside the final set.
+        let hmax = cols
+            .iter()
+            .chain(std::iter::once(&j))
+            .map(|&i| self.cs(c, i, t + 1).abs())
+            .fold(0.0, f64::max);
+        let s = hmax + z.iter().sum::<f64>();
+        for &i in cols.iter().chain(std::iter::once(&j)) {
+            if set.contains(&i) {
+                continue;
+            }
+            let ri = self.row(c, i);
+            if ri[i] == 0.0 {
+                continue;
+            }
+            let wi = ri[t + 1] - set.iter().zip(&z).map(|(&k, &zk)| ri[k] * zk).sum::<f64>();
+            if wi > KKT_TOL * s {
+                return self.solve_adding(c, cols, j, t);
+            }
+        }
+        // q = 1 + sum_k z_k ((C z)_k - 2 h_k)
+        let mut q = 1.0;
+        for (&a, &za) in set.iter().zip(&z) {
+            let ra = self.row(c, a);
+            let cz: f64 = set.iter().zip(&z).map(|(&b, &zb)| ra[b] * zb).sum();
+            q += za * (cz - 2.0 * ra[t + 1]);
+        }
+        q.clamp(0.0, 1.0)
+    }
+
+    /// The unconstrained solution of `C_SS z = C_St` by Cholesky (`None` when `C_SS` is not
+    /// numerically positive definite).
+    fn solve_on(&self, c: usize, set: &[usize], t: usize) -> Option<Vec<f64>> {
+        let p = set.len();
+        let mut a = vec![0.0; p * p];
+        for (r, &i) in set.iter().enumerate() {
+            let ri = self.row(c, i);
+            for (s, &k) in set.iter().enumerate() {
+                a[r * p + s] = ri[k];
+            }
+        }
+        let l = cholesky(p, &a)?;
+        if (0..p).any(|r| l[r * p + r] * l[r * p + r] <= PIVOT_TOL) {
+            return None;
+        }
+        let mut z: Vec<f64> = set.iter().map(|&i| self.cs(c, i, t + 1)).collect();
+        for r in 0..p {
+            let dot: f64 = (0..r).map(|k| l[r * p + k] * z[k]).sum();
+            z[r] = (z[r] - dot) / l[r * p + r];
+        }
+        for r in (0..p).rev() {
+            let dot: f64 = (r + 1..p).map(|k| l[k * p + r] * z[k]).sum();
+            z[r] = (z[r] - dot) / l[r * p + r];
+        }
+        Some(z)
     }
 
     fn solve_adding(&self, c: usize, cols: &[usize], j: usize, t: usize) -> f64 {
@@ -481,28 +633,37 @@ impl Objective {
             .collect();
         let states: Vec<TargetState> = live.par_iter().map(|&t| self.state(basis, t)).collect();
         let cols = basis_cols(basis);
-        candidates
-            .par_iter()
-            .map(|&cand| {
-                let (mut sum, mut count) = (0.0, 0usize);
+        // Candidates in blocks, so that each target's state is read once per block and the
+        // block's cosine rows stay in cache; each candidate still sums its targets in
+        // order, so the result does not depend on the blocking or the threads.
+        const BLOCK: usize = 16;
+        let blocks: Vec<Vec<f64>> = candidates
+            .par_chunks(BLOCK)
+            .map(|block| {
+                let mut sums = vec![0.0; block.len()];
+                let mut counts = vec![0usize; block.len()];
+                let mut scratch = Vec::new();
                 for (&t, st) in live.iter().zip(&states) {
-                    if t == cand {
-                        continue;
-                    }
-                    count += 1;
-                    for (c, ch) in st.chans.iter().enumerate() {
-                        if ch.active {
-                            sum += self.share[t][c] * self.q_adding(ch, c, &cols, cand, t);
+                    for (b, &cand) in block.iter().enumerate() {
+                        if t == cand {
+                            continue;
+                        }
+                        counts[b] += 1;
+                        for (c, ch) in st.chans.iter().enumerate() {
+                            if ch.active {
+                                sums[b] += self.share[t][c]
+                                    * self.q_adding(ch, c, &cols, cand, t, &mut scratch);
+                            }
                         }
                     }
                 }
-                if count == 0 {
-                    0.0
-                } else {
-                    sum / count as f64
-                }
+                sums.iter()
+                    .zip(&counts)
+                    .map(|(&s, &n)| if n == 0 { 0.0 } else { s / n as f64 })
+                    .collect()
             })
-            .collect()
+            .collect();
+        blocks.concat()
     }
 }
 

@@ -134,8 +134,8 @@ impl SearchParams {
                 if b.len() != self.k {
                     return Err(SelectionError::InvalidParam {
                         name: "init",
-                        value: format!("{} materials", b.len()),
-                        expected: "exactly k materials",
+                        value: format!("{} materials for k = {}", b.len(), self.k),
+                        expected: "the starting basis must hold exactly k materials",
                     });
                 }
                 let mut seen = vec![false; n];
@@ -286,7 +286,7 @@ fn greedy_indices(obj: &Objective, p: &ValidSearchParams, progress: Progress<'_>
 
 /// Swap refinement (SPEC 8): from `p.init` (or the greedy basis), apply the single
 /// exchange that lowers S the most while it lowers S by more than `swap_tol` relative.
-/// `progress(swaps, max_swaps)` after each exchange.
+/// `progress(position, k)` after each basis position of each round of exchanges.
 pub fn swap(obj: &Objective, p: &ValidSearchParams, progress: Progress<'_>) -> Selection {
     let mut basis = match &p.init {
         Some(b) => b.clone(),
@@ -294,7 +294,7 @@ pub fn swap(obj: &Objective, p: &ValidSearchParams, progress: Progress<'_>) -> S
     };
     let mut current = obj.score(&basis, &p.targets);
     let mut history = vec![current];
-    for it in 0..p.max_swaps {
+    for _ in 0..p.max_swaps {
         // Every (position, candidate) pair: states of B - b, then every candidate added.
         let per_pos: Vec<(Vec<usize>, Vec<f64>)> = (0..basis.len())
             .map(|pos| {
@@ -307,6 +307,7 @@ pub fn swap(obj: &Objective, p: &ValidSearchParams, progress: Progress<'_>) -> S
                     .filter(|c| !basis.contains(c))
                     .collect();
                 let scores = obj.scores_adding(&rest, &p.targets, &cands);
+                progress(pos as u64 + 1, basis.len() as u64);
                 (cands, scores)
             })
             .collect();
@@ -330,9 +331,29 @@ pub fn swap(obj: &Objective, p: &ValidSearchParams, progress: Progress<'_>) -> S
         // The incremental score and the fresh one agree to rounding; never record a rise.
         current = fresh.min(current);
         history.push(current);
-        progress(it as u64 + 1, p.max_swaps as u64);
     }
     Selection::new(obj, "swap", p, basis, history)
+}
+
+/// The error-driven bases `reproduce` compares: greedy and swap (from the greedy basis) at
+/// each k of `ks` (k larger than the collection is skipped), every material a candidate and
+/// a target; in the order greedy k1, swap k1, greedy k2, ...
+pub fn error_driven_bases(obj: &Objective, ks: &[usize]) -> Result<Vec<Selection>, SelectionError> {
+    let mut out = Vec::new();
+    for &k in ks.iter().filter(|&&k| k >= 1 && k <= obj.len()) {
+        let p = SearchParams::new(k).check(obj.names())?;
+        let g = greedy(obj, &p, &|_, _| {});
+        let s = swap(
+            obj,
+            &SearchParams::new(k)
+                .init(g.indices.clone())
+                .check(obj.names())?,
+            &|_, _| {},
+        );
+        out.push(g);
+        out.push(s);
+    }
+    Ok(out)
 }
 
 /// Parameters of the genetic algorithm over k-subsets (builder; [`GaParams::check`]).
