@@ -56,6 +56,15 @@ pub struct ReproduceArgs {
     /// The paper's bases, CSV with columns basis,material: fitted on the same targets.
     #[arg(long)]
     pub paper_bases: Option<PathBuf>,
+    /// Folds of the cross-validation of every selection method (0: none).
+    #[arg(long, default_value_t = 5)]
+    pub cv_folds: usize,
+    /// k-medoids restarts and GCUK runs per fold in the cross-validation.
+    #[arg(long, default_value_t = 10)]
+    pub cv_runs: usize,
+    /// Leave out the bases chosen by fitting error (greedy, swap).
+    #[arg(long)]
+    pub no_selection: bool,
 }
 
 /// What `reproduce` may find in an output directory it clears with --force.
@@ -70,6 +79,8 @@ fn ours(name: &str) -> bool {
             | "empirical.json"
             | "fit_errors.csv"
             | "summary.json"
+            | "selection.json"
+            | "cv.json"
             | "renders"
             | "figures"
     ) || (name.starts_with("fit-") && name.ends_with(".json"))
@@ -160,6 +171,9 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
         showcase: a.showcase.clone(),
         seed: g.seed,
         paper_bases,
+        error_driven: !a.no_selection,
+        cv_folds: a.cv_folds,
+        cv_runs: a.cv_runs,
         ..Default::default()
     }
     .check(&coll)?;
@@ -218,6 +232,12 @@ fn run_into(
     )?;
     write_json(&out.join("statistics.json"), &e.statistics)?;
     write_json(&out.join("bases.json"), &e.bases)?;
+    if !e.selections.is_empty() {
+        write_json(&out.join("selection.json"), &e.selections)?;
+    }
+    if let Some(cv) = &e.cv {
+        write_json(&out.join("cv.json"), cv)?;
+    }
     for (b, f) in e.bases.iter().zip(&e.evaluation.fits) {
         write_json(&out.join(format!("fit-{}.json", b.name)), f)?;
     }

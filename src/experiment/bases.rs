@@ -25,6 +25,10 @@ pub enum BasisSource {
     GcukBest,
     /// The best GCUK run among those with the largest k found (BRDF_it).
     GcukLargestK,
+    /// Greedy forward selection on the fitting error S (SPEC 8), in-sample.
+    Greedy,
+    /// Swap refinement of the greedy basis on S (SPEC 8), in-sample.
+    Swap,
     /// A basis of the paper's Table I, from `--paper-bases`.
     Paper,
 }
@@ -115,6 +119,26 @@ pub fn our_bases(
         }
     }
     out
+}
+
+/// The basis of an error-driven selection (`greedy-k5`, `swap-k12`, ...), with its
+/// in-sample score in the note.
+pub fn error_driven_basis(s: &crate::selection::search::Selection) -> Basis {
+    let source = if s.method == "swap" {
+        BasisSource::Swap
+    } else {
+        BasisSource::Greedy
+    };
+    Basis {
+        name: format!("{}-k{}", s.method, s.k),
+        same_as: vec![],
+        source,
+        materials: s.basis.clone(),
+        note: Some(format!(
+            "chosen by fitting error on the whole collection (in-sample S = {:.4}; the cross-validation below is the fair comparison)",
+            s.score
+        )),
+    }
 }
 
 fn basis(name: String, source: BasisSource, materials: &[String]) -> Basis {

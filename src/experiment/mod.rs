@@ -33,6 +33,10 @@ use crate::eval::render::{RenderError, RenderParams};
 use crate::fit::{FitError, FitParams};
 use crate::merl::Weighting;
 use crate::select::{empirical, Empirical, EmpiricalParams};
+use crate::selection::cv::{cross_validate_with, CvParams, CvResult};
+use crate::selection::objective::{Objective, ObjectiveParams};
+use crate::selection::search::{error_driven_bases, Selection};
+use crate::selection::SelectionError;
 use bases::Basis;
 use clustering::ClusteringSet;
 use evaluation::{EvalSettings, Evaluation};
@@ -85,6 +89,9 @@ pub enum ExperimentError {
     /// Render error.
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// Error-driven selection or cross-validation error.
+    #[error(transparent)]
+    Selection(#[from] SelectionError),
 }
 
 /// Parameters of [`run`]; the defaults are the paper's settings (VI-C).
@@ -117,6 +124,14 @@ pub struct ExperimentParams {
     pub seed: u64,
     /// The paper's bases (from [`bases::read_paper_bases`]); default none.
     pub paper_bases: Vec<Basis>,
+    /// Also compare bases chosen by fitting error (SPEC 8): greedy and swap at `k_min`
+    /// and `k_max`, the sizes of the paper's bases (default true).
+    pub error_driven: bool,
+    /// Folds of the cross-validation of every selection method (SPEC 8; default 5,
+    /// 0 = none).
+    pub cv_folds: usize,
+    /// Clustering runs per fold in the cross-validation (default 10).
+    pub cv_runs: usize,
 }
 
 impl Default for ExperimentParams {
@@ -135,6 +150,9 @@ impl Default for ExperimentParams {
             showcase: None,
             seed: 1,
             paper_bases: vec![],
+            error_driven: true,
+            cv_folds: 5,
+            cv_runs: 10,
         }
     }
 }
@@ -215,6 +233,16 @@ impl ExperimentParams {
         for size in [self.render_size, self.showcase_size] {
             RenderParams::default().with_size(size).check()?;
         }
+        if self.cv_folds == 1 || self.cv_folds > n {
+            return Err(invalid(
+                "--cv-folds",
+                self.cv_folds,
+                format!("0 (no cross-validation) or between 2 and the number of materials ({n})"),
+            ));
+        }
+        if self.cv_folds > 0 && self.cv_runs == 0 {
+            return Err(invalid("--cv-runs", 0, "at least 1 run per fold".into()));
+        }
         let showcase = match &self.showcase {
             Some(s) => Some(coll.index_of(s).map_err(ExperimentError::Showcase)?),
             None => None,
@@ -235,6 +263,10 @@ pub enum Stage {
     Clustering,
     /// Friedman, Nemenyi, Wilcoxon, Mann-Whitney.
     Statistics,
+    /// Bases chosen by fitting error (greedy, swap; SPEC 8).
+    Selection,
+    /// Cross-validation of every selection method over materials (SPEC 8).
+    CrossValidation,
     /// Fits, renders and image errors of every basis.
     Fits,
 }
@@ -246,6 +278,8 @@ impl std::fmt::Display for Stage {
             Stage::Empirical => "empirical",
             Stage::Clustering => "clustering",
             Stage::Statistics => "statistics",
+            Stage::Selection => "selection",
+            Stage::CrossValidation => "cross-validation",
             Stage::Fits => "fits",
         })
     }
@@ -317,6 +351,10 @@ pub struct Experiment {
     pub clustering: Vec<ClusteringSet>,
     /// Statistical tests.
     pub statistics: Statistics,
+    /// Bases chosen by fitting error on the whole collection (greedy, swap), in-sample.
+    pub selections: Vec<Selection>,
+    /// Cross-validation of the selection methods, if run.
+    pub cv: Option<CvResult>,
     /// The bases compared (ours, then the paper's), coincident ones named once.
     pub bases: Vec<Basis>,
     /// Fits and errors.
@@ -434,18 +472,68 @@ pub fn run(
     progress(Stage::Statistics, 1, 1);
     lap(Stage::Statistics, &mut timings);
 
-    // 5. Bases: ours from the BRDF_it (uniform) clusterings as the paper, then the
-    // paper's. Add another source here.
+    // 5. Error-driven bases and the cross-validation of every method (SPEC 8), from one
+    // Gram matrix per channel of the whole collection.
+    let ks: Vec<usize> = {
+        let mut v = vec![p.k_min, p.k_max];
+        v.dedup();
+        v
+    };
+    let need_objective = p.error_driven || p.cv_folds > 0;
+    let objective = if need_objective {
+        let op = ObjectiveParams::default().stride(p.stride).check()?;
+        Some(Objective::new(backend, coll, &op, &|_, _| {})?)
+    } else {
+        None
+    };
+    let selections = match (&objective, p.error_driven) {
+        (Some(obj), true) => {
+            progress(Stage::Selection, 0, 1);
+            let s = error_driven_bases(obj, &ks)?;
+            progress(Stage::Selection, 1, 1);
+            s
+        }
+        _ => vec![],
+    };
+    lap(Stage::Selection, &mut timings);
+    // A fold trains on n - ceil(n / K) materials: larger bases are left out of the CV.
+    let train = coll.len() - coll.len().div_ceil(p.cv_folds.max(1));
+    let cv_ks: Vec<usize> = ks.iter().copied().filter(|&k| k <= train).collect();
+    let cv = match &objective {
+        Some(obj) if p.cv_folds > 0 && !cv_ks.is_empty() => {
+            let vp = CvParams::default()
+                .ks(cv_ks)
+                .folds(p.cv_folds)
+                .seed(p.seed)
+                .runs(p.cv_runs)
+                .objective(ObjectiveParams::default().stride(p.stride))
+                .check(coll.len())?;
+            // The clustering methods run on the BRDF_it (uniform) matrix, as the paper's.
+            let d = metrics
+                .iter()
+                .position(|m| m.label == "brdf-it")
+                .map(|i| &distances[i]);
+            Some(cross_validate_with(coll, obj, d, &vp, &|d, t| {
+                progress(Stage::CrossValidation, d, t)
+            })?)
+        }
+        _ => None,
+    };
+    lap(Stage::CrossValidation, &mut timings);
+
+    // 6. Bases: ours from the BRDF_it (uniform) clusterings as the paper, the error-driven
+    // ones, then the paper's. Add another source here.
     let brdf_it: Vec<ClusteringSet> = sets
         .iter()
         .filter(|s| s.metric == "brdf-it")
         .cloned()
         .collect();
     let mut all = bases::our_bases(coll, &emp, &brdf_it, p.k_max, p.k_min);
+    all.extend(selections.iter().map(bases::error_driven_basis));
     all.extend(p.paper_bases.iter().cloned());
     let bases = bases::dedupe(all);
 
-    // 6. Fits of the materials in no basis.
+    // 7. Fits of the materials in no basis.
     let in_any: std::collections::HashSet<&String> =
         bases.iter().flat_map(|b| b.materials.iter()).collect();
     let targets: Vec<usize> = (0..coll.len())
@@ -502,6 +590,8 @@ pub fn run(
         empirical: emp,
         clustering: sets,
         statistics,
+        selections,
+        cv,
         bases,
         evaluation,
         collection: coll.clone(),

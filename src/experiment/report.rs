@@ -40,7 +40,16 @@ pub type Section = fn(&Experiment, &ReportContext, &mut String);
 
 /// The sections, in order.
 pub const SECTIONS: &[Section] = &[
-    header, empirical, clustering, statistics, bases, fits, lobes, claims, timings,
+    header,
+    empirical,
+    clustering,
+    statistics,
+    bases,
+    fits,
+    cross_validation,
+    lobes,
+    claims,
+    timings,
 ];
 
 /// The whole report.
@@ -264,6 +273,19 @@ fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         "Fig. 4b: normalised image error per material, sorted by the first basis",
     );
     ctx.figure(s, "fig5-showcase", &format!("Fig. 5: {} (top: target and each basis's approximation; bottom: per-pixel error heatmaps on a common scale)", ev.showcase.material));
+}
+
+fn cross_validation(e: &Experiment, _: &ReportContext, s: &mut String) {
+    let Some(cv) = &e.cv else {
+        return;
+    };
+    let _ = writeln!(
+        s,
+        "\n## Cross-validation of the selection methods (SPEC 8)\n"
+    );
+    let _ = writeln!(s, "The fits above score every basis on the materials outside all bases, and the error-driven bases (greedy, swap) were chosen on those very materials. Here each method chooses its basis from the training folds only (clustering on the BRDF_it matrix restricted to them, empirical on its own leave-one-out) and every held-out material is fitted by it. rho: relative residual of the fit (SPEC 8); `cv.json` has every fold's bases and every held-out value.\n");
+    s.push_str(&cv.markdown());
+    s.push('\n');
 }
 
 fn lobes(e: &Experiment, ctx: &ReportContext, s: &mut String) {
