@@ -395,8 +395,8 @@ pub fn write_npy_with_sidecar(
     )
 }
 
-/// Writes a tile as `.npy` (`rows x N`) and its sidecar (with the tile's index, count
-/// and rows).
+/// Writes a tile as `.npy` (`rows x (N - first row)`: the band from its diagonal block
+/// rightwards) and its sidecar (with the tile's index, count and rows).
 pub fn write_tile(
     path: &Path,
     tile: &Tile,
@@ -404,7 +404,7 @@ pub fn write_tile(
     settings: &MatrixSettings,
     fingerprint: &str,
 ) -> Result<(), OutputError> {
-    let (bytes, hash) = write_npy_2d(path, tile.rows.len(), tile.n, &tile.data)?;
+    let (bytes, hash) = write_npy_2d(path, tile.rows.len(), tile.n - tile.rows.start, &tile.data)?;
     write_sidecar(
         path,
         &MatrixSidecar {
@@ -915,15 +915,16 @@ pub fn merge_tiles(tiles: &[PathBuf], out: &Path) -> Result<MatrixSidecar, Matri
             if bytes != sides[k].npy_bytes || format!("{hash:016x}") != sides[k].npy_fnv64 {
                 return Err(mismatch("size or checksum differs".into()));
             }
-            if rows != r1 - r0 || cols != n {
+            let w = n - r0;
+            if rows != r1 - r0 || cols != w {
                 return Err(mismatch(format!(
-                    "shape ({rows}, {cols}), expected ({}, {n})",
+                    "shape ({rows}, {cols}), expected ({}, {w})",
                     r1 - r0
                 )));
             }
             for (r, i) in (r0..r1).enumerate() {
                 for j in r0..n {
-                    let v = tile[r * n + j];
+                    let v = tile[r * w + (j - r0)];
                     let reason = if !v.is_finite() {
                         "not a finite number"
                     } else if v < 0.0 {
@@ -944,7 +945,7 @@ pub fn merge_tiles(tiles: &[PathBuf], out: &Path) -> Result<MatrixSidecar, Matri
                     });
                 }
                 seg.clear();
-                for v in &tile[r * n + r0..(r + 1) * n] {
+                for v in &tile[r * w..(r + 1) * w] {
                     seg.extend_from_slice(&v.to_le_bytes());
                 }
                 file.seek(SeekFrom::Start(base + ((i * n + r0) * 8) as u64))
@@ -954,7 +955,7 @@ pub fn merge_tiles(tiles: &[PathBuf], out: &Path) -> Result<MatrixSidecar, Matri
             for j in r1..n {
                 seg.clear();
                 for r in 0..r1 - r0 {
-                    seg.extend_from_slice(&tile[r * n + j].to_le_bytes());
+                    seg.extend_from_slice(&tile[r * w + (j - r0)].to_le_bytes());
                 }
                 file.seek(SeekFrom::Start(base + ((j * n + r0) * 8) as u64))
                     .map_err(io)?;
