@@ -62,6 +62,16 @@ pub enum FitError {
     /// Solver failure.
     #[error(transparent)]
     Nnls(#[from] NnlsError),
+    /// The fit of one material failed (non-finite data, or no convergence).
+    #[error("the NNLS fit of `{material}` (channel {channel}) failed: {reason}")]
+    Solve {
+        /// Material fitted (the target).
+        material: String,
+        /// Colour channel (0 = R).
+        channel: usize,
+        /// What went wrong.
+        reason: String,
+    },
 }
 
 /// Which NNLS solver.

@@ -212,9 +212,10 @@ pub fn distance_matrix_banded(
     DistanceMatrix::from_full(coll.names(), data)
 }
 
-/// One tile of a matrix: rows `rows` of the `N x N` matrix, row-major `rows.len() x N`;
-/// every entry at or right of column `rows.start` is filled (the band's own square is
-/// symmetric), the columns left of it (computed by earlier tiles) are 0.
+/// One tile of a matrix: rows `rows` of the `N x N` matrix from column `rows.start` on,
+/// row-major `rows.len() x (N - rows.start)` (the columns left of the band belong to
+/// earlier tiles, by symmetry; the band's own square is filled on both sides of the
+/// diagonal).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tile {
     /// 1-based tile index.
@@ -225,7 +226,8 @@ pub struct Tile {
     pub rows: Range<usize>,
     /// Number of materials `N`.
     pub n: usize,
-    /// `rows.len() x N`, row-major.
+    /// `rows.len() x (N - rows.start)`, row-major: entry `(i, j)` at
+    /// `(i - rows.start) * (N - rows.start) + (j - rows.start)`.
     pub data: Vec<f64>,
 }
 
@@ -246,7 +248,8 @@ pub fn distance_tile(
     let blocks = tile_blocks(n, band_rows, index, count)?;
     let rows = block_rows(n, band_rows, blocks.clone());
     let r0 = rows.start;
-    let mut data = vec![0.0; rows.len() * n];
+    let w = n - r0;
+    let mut data = vec![0.0; rows.len() * w];
     distance_band(
         backend,
         coll,
@@ -255,9 +258,9 @@ pub fn distance_tile(
         blocks,
         progress,
         &mut |i, j, v| {
-            data[(i - r0) * n + j] = v;
+            data[(i - r0) * w + (j - r0)] = v;
             if j < rows.end {
-                data[(j - r0) * n + i] = v;
+                data[(j - r0) * w + (i - r0)] = v;
             }
         },
     )?;

@@ -322,6 +322,20 @@ impl Write for HashingWriter<'_> {
     }
 }
 
+/// The `.npy` (format 1.0) header of a `rows x cols` little-endian float64 C-order array,
+/// padded to a multiple of 64 bytes (as NumPy writes it).
+pub fn npy_header(rows: usize, cols: usize) -> Vec<u8> {
+    let mut header =
+        format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({rows}, {cols}), }}");
+    let total = 10 + header.len() + 1;
+    header.push_str(&" ".repeat(total.next_multiple_of(64) - total));
+    header.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    out
+}
+
 /// Writes a `rows x cols` float64 `.npy` atomically; returns `(bytes, fnv64)` of the file.
 pub fn write_npy_2d(
     path: &Path,
@@ -336,14 +350,7 @@ pub fn write_npy_2d(
             hash: Fnv64::new(),
             bytes: 0,
         };
-        let mut header =
-            format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({rows}, {cols}), }}");
-        let total = 10 + header.len() + 1;
-        header.push_str(&" ".repeat(total.next_multiple_of(64) - total));
-        header.push('\n');
-        hw.write_all(b"\x93NUMPY\x01\x00")?;
-        hw.write_all(&(header.len() as u16).to_le_bytes())?;
-        hw.write_all(header.as_bytes())?;
+        hw.write_all(&npy_header(rows, cols))?;
         let mut buf = Vec::with_capacity(1 << 16);
         for chunk in data.chunks(1 << 13) {
             buf.clear();
@@ -388,8 +395,8 @@ pub fn write_npy_with_sidecar(
     )
 }
 
-/// Writes a tile as `.npy` (`rows x N`) and its sidecar (with the tile's index, count
-/// and rows).
+/// Writes a tile as `.npy` (`rows x (N - first row)`: the band from its diagonal block
+/// rightwards) and its sidecar (with the tile's index, count and rows).
 pub fn write_tile(
     path: &Path,
     tile: &Tile,
@@ -397,7 +404,7 @@ pub fn write_tile(
     settings: &MatrixSettings,
     fingerprint: &str,
 ) -> Result<(), OutputError> {
-    let (bytes, hash) = write_npy_2d(path, tile.rows.len(), tile.n, &tile.data)?;
+    let (bytes, hash) = write_npy_2d(path, tile.rows.len(), tile.n - tile.rows.start, &tile.data)?;
     write_sidecar(
         path,
         &MatrixSidecar {
@@ -772,8 +779,10 @@ pub fn validate_matrix(
 }
 
 /// Assembles tiles into the whole matrix and writes it with its sidecar. Refuses tiles
-/// of different collections, settings or tilings, a missing or doubled tile, and tiles
-/// whose rows do not cover the matrix, naming the files.
+/// of different collections, settings or tilings, a missing or doubled tile, tiles whose
+/// rows do not cover the matrix and a tile whose data does not match its sidecar, naming
+/// the files. Streams: memory holds one tile; the output is written to a temporary file
+/// beside `out` and renamed over it only when complete.
 pub fn merge_tiles(tiles: &[PathBuf], out: &Path) -> Result<MatrixSidecar, MatrixFileError> {
     let merr = MatrixFileError::Merge;
     if tiles.is_empty() {
@@ -847,50 +856,147 @@ pub fn merge_tiles(tiles: &[PathBuf], out: &Path) -> Result<MatrixSidecar, Matri
         )));
     }
     let n = first.n;
+    let order: Vec<usize> = by_index.into_iter().flatten().collect();
     let mut next_row = 0usize;
-    let mut data = vec![0.0; n * n];
-    for k in by_index.into_iter().flatten() {
+    for &k in &order {
         let t = info(k)?;
-        let path = &tiles[k];
-        if t.row_start != next_row || t.row_end < t.row_start || t.row_end > n {
+        if t.row_start != next_row || t.row_end <= t.row_start || t.row_end > n {
             return Err(merr(format!(
                 "{} holds rows {}..{}, expected rows starting at {next_row}",
-                path.display(),
+                tiles[k].display(),
                 t.row_start,
                 t.row_end
             )));
         }
-        let (rows, cols, tile, bytes, hash) = read_npy_2d(path)?;
-        if bytes != sides[k].npy_bytes || format!("{hash:016x}") != sides[k].npy_fnv64 {
-            return Err(MatrixFileError::Mismatch {
-                npy: path.clone(),
-                sidecar: sidecar_path(path),
-                what: "size or checksum differs".into(),
-            });
-        }
-        if rows != t.row_end - t.row_start || cols != n {
-            return Err(MatrixFileError::Mismatch {
-                npy: path.clone(),
-                sidecar: sidecar_path(path),
-                what: format!(
-                    "shape ({rows}, {cols}), expected ({}, {n})",
-                    t.row_end - t.row_start
-                ),
-            });
-        }
-        for (r, i) in (t.row_start..t.row_end).enumerate() {
-            for j in i + 1..n {
-                let v = tile[r * n + j];
-                data[i * n + j] = v;
-                data[j * n + i] = v;
-            }
-        }
         next_row = t.row_end;
     }
-    if next_row != n {
-        return Err(merr(format!("the tiles cover rows 0..{next_row} of {n}")));
+    if next_row != n || first.names.len() != n {
+        return Err(merr(format!(
+            "the tiles cover rows 0..{next_row} of {n} ({} names)",
+            first.names.len()
+        )));
     }
-    let m = validate_matrix(out, first.names.clone(), data)?;
-    write_npy_with_sidecar(out, &m, &first.settings, &first.collection_fingerprint)?;
-    read_sidecar(out)
+    let mut seen = std::collections::HashSet::with_capacity(n);
+    if let Some(dup) = first.names.iter().find(|m| !seen.insert(m.as_str())) {
+        return Err(merr(format!(
+            "{}: material `{dup}` is named twice",
+            sidecar_path(&tiles[order[0]]).display()
+        )));
+    }
+    // Streamed: the output file is written in place, tile by tile (its own rows, then
+    // the transposed block below them), so memory holds one tile, not the N x N matrix.
+    let name = out
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = out.with_file_name(format!(".{name}.merge-{}", std::process::id()));
+    let result = (|| -> Result<(u64, u64), MatrixFileError> {
+        use std::io::{Seek, SeekFrom};
+        let io = |source| MatrixFileError::Io {
+            path: out.to_path_buf(),
+            source,
+        };
+        let mut file = std::fs::File::create(&tmp).map_err(io)?;
+        let header = npy_header(n, n);
+        file.write_all(&header).map_err(io)?;
+        let base = header.len() as u64;
+        file.set_len(base + (n * n * 8) as u64).map_err(io)?;
+        let mut seg: Vec<u8> = Vec::new();
+        for &k in &order {
+            let t = info(k)?;
+            let path = &tiles[k];
+            let (r0, r1) = (t.row_start, t.row_end);
+            let (rows, cols, tile, bytes, hash) = read_npy_2d(path)?;
+            let mismatch = |what: String| MatrixFileError::Mismatch {
+                npy: path.clone(),
+                sidecar: sidecar_path(path),
+                what,
+            };
+            if bytes != sides[k].npy_bytes || format!("{hash:016x}") != sides[k].npy_fnv64 {
+                return Err(mismatch("size or checksum differs".into()));
+            }
+            let w = n - r0;
+            if rows != r1 - r0 || cols != w {
+                return Err(mismatch(format!(
+                    "shape ({rows}, {cols}), expected ({}, {w})",
+                    r1 - r0
+                )));
+            }
+            for (r, i) in (r0..r1).enumerate() {
+                for j in r0..n {
+                    let v = tile[r * w + (j - r0)];
+                    let reason = if !v.is_finite() {
+                        "not a finite number"
+                    } else if v < 0.0 {
+                        "a distance cannot be negative"
+                    } else if i == j && v != 0.0 {
+                        "the diagonal must be 0"
+                    } else {
+                        continue;
+                    };
+                    return Err(MatrixFileError::Entry {
+                        path: path.clone(),
+                        row: i,
+                        row_name: first.names[i].clone(),
+                        col: j,
+                        col_name: first.names[j].clone(),
+                        value: v,
+                        reason: reason.into(),
+                    });
+                }
+                seg.clear();
+                for v in &tile[r * w..(r + 1) * w] {
+                    seg.extend_from_slice(&v.to_le_bytes());
+                }
+                file.seek(SeekFrom::Start(base + ((i * n + r0) * 8) as u64))
+                    .map_err(io)?;
+                file.write_all(&seg).map_err(io)?;
+            }
+            for j in r1..n {
+                seg.clear();
+                for r in 0..r1 - r0 {
+                    seg.extend_from_slice(&tile[r * w + (j - r0)].to_le_bytes());
+                }
+                file.seek(SeekFrom::Start(base + ((j * n + r0) * 8) as u64))
+                    .map_err(io)?;
+                file.write_all(&seg).map_err(io)?;
+            }
+        }
+        file.sync_all().map_err(io)?;
+        drop(file);
+        let mut rd =
+            std::io::BufReader::with_capacity(1 << 20, std::fs::File::open(&tmp).map_err(io)?);
+        let mut h = Fnv64::new();
+        let mut buf = vec![0u8; 1 << 20];
+        let mut total = 0u64;
+        loop {
+            let k = rd.read(&mut buf).map_err(io)?;
+            if k == 0 {
+                break;
+            }
+            h.write(&buf[..k]);
+            total += k as u64;
+        }
+        std::fs::rename(&tmp, out).map_err(io)?;
+        Ok((total, h.finish()))
+    })();
+    let (bytes, hash) = match result {
+        Ok(v) => v,
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(e);
+        }
+    };
+    let side = MatrixSidecar {
+        format: SIDECAR_FORMAT.into(),
+        n,
+        names: first.names.clone(),
+        settings: first.settings.clone(),
+        collection_fingerprint: first.collection_fingerprint.clone(),
+        tile: None,
+        npy_bytes: bytes,
+        npy_fnv64: format!("{hash:016x}"),
+    };
+    write_sidecar(out, &side)?;
+    Ok(side)
 }

@@ -117,7 +117,7 @@ pub fn solve_batch(
 fn solve_prepared(sg: &ScaledGram, p: &GramProblem<'_>, params: &LhParams) -> NnlsSolution {
     let mut hs = vec![0.0; sg.m];
     sg.scale_h(p.h(), &mut hs);
-    let (y, iterations) = solve_scaled(sg, &hs, params);
+    let (y, iterations) = solve_scaled(sg, &hs, params, None, params.outer_cap(sg.m));
     sg.finish(p, &y, iterations)
 }
 
@@ -134,13 +134,18 @@ impl<'a> Passive<'a> {
         Self {
             sg,
             passive: Vec::with_capacity(sg.m),
-            l: vec![0.0; sg.m * sg.m],
+            // Rows are added as columns enter (a full m x m zero matrix per solve would
+            // cost more than the solve when few columns enter).
+            l: Vec::new(),
         }
     }
 
     /// Appends column `j` unless its pivot `1 - ||L^-1 G~_Pj||^2` is `<= pivot_tol`.
     fn try_push(&mut self, j: usize, pivot_tol: f64) -> bool {
         let (m, p) = (self.sg.m, self.passive.len());
+        if self.l.len() < (p + 1) * m {
+            self.l.resize((p + 1) * m, 0.0);
+        }
         let mut d2 = self.sg.gs[j * m + j];
         for r in 0..p {
             let dot: f64 = (0..r).map(|c| self.l[r * m + c] * self.l[p * m + c]).sum();
@@ -203,16 +208,28 @@ impl<'a> Passive<'a> {
 }
 
 /// The active-set iteration on the scaled problem; returns `y` and the outer-loop count.
-fn solve_scaled(sg: &ScaledGram, hs: &[f64], params: &LhParams) -> (Vec<f64>, usize) {
+/// Column `excluded` (its `hs` entry must be 0) never enters: the result is the solve
+/// without that column, operation for operation.
+fn solve_scaled(
+    sg: &ScaledGram,
+    hs: &[f64],
+    params: &LhParams,
+    excluded: Option<usize>,
+    cap: usize,
+) -> (Vec<f64>, usize) {
     let m = sg.m;
     let mut y = vec![0.0; m];
     let mut gy = vec![0.0; m];
     let mut in_p = vec![false; m];
+    if let Some(c) = excluded {
+        // Never passive, never a candidate: marked as if in P, but never in `passive`.
+        in_p[c] = true;
+    }
     let mut tried = vec![false; m];
     let mut z = Vec::with_capacity(m);
     let mut set = Passive::new(sg);
     let mut outer = 0;
-    while outer < params.outer_cap(m) {
+    while outer < cap {
         for (i, gi) in gy.iter_mut().enumerate() {
             *gi = set.passive.iter().map(|&k| sg.gs[i * m + k] * y[k]).sum();
         }
@@ -272,6 +289,72 @@ fn solve_scaled(sg: &ScaledGram, hs: &[f64], params: &LhParams) -> (Vec<f64>, us
         }
     }
     (y, outer)
+}
+
+/// Leave-one-out solves on one Gram matrix: column `c` fitted by all the other columns
+/// (`G` without row and column `c`, `h = G[., c]`, `bb = G[c][c]`), as in the paper's
+/// Algorithm 1. `G` is validated and scaled once; each solve then costs
+/// `O(m x passive set)` instead of the `O(m^2)` of building and scaling its own
+/// sub-problem, and returns exactly the coefficients [`solve`] gives on that
+/// sub-problem (same operations in the same order), re-indexed: `x[c] = 0`.
+#[derive(Debug, Clone)]
+pub struct LeaveOneOut<'a> {
+    g: &'a [f64],
+    sg: ScaledGram,
+    params: LhParams,
+}
+
+impl<'a> LeaveOneOut<'a> {
+    /// Validates `G` (`m x m`, finite, non-negative diagonal) and the parameters.
+    pub fn new(m: usize, g: &'a [f64], params: &LhParams) -> Result<Self, NnlsError> {
+        params.check()?;
+        super::check_gram(m, g)?;
+        Ok(Self {
+            g,
+            sg: ScaledGram::new(m, g),
+            params: *params,
+        })
+    }
+
+    /// Number of columns `m`.
+    pub fn m(&self) -> usize {
+        self.sg.m
+    }
+
+    /// The outer-loop cap of one leave-one-out solve (that of its `m - 1` columns).
+    pub fn outer_cap(&self) -> usize {
+        self.params.outer_cap(self.sg.m - 1)
+    }
+
+    /// Fits column `c` (`< m`) by the others.
+    pub fn solve(&self, c: usize) -> NnlsSolution {
+        let (m, sg) = (self.sg.m, &self.sg);
+        let h: Vec<f64> = (0..m)
+            .map(|i| if i == c { 0.0 } else { self.g[i * m + c] })
+            .collect();
+        let mut hs = vec![0.0; m];
+        sg.scale_h(&h, &mut hs);
+        let (y, iterations) = solve_scaled(sg, &hs, &self.params, Some(c), self.outer_cap());
+        let x: Vec<f64> = y
+            .iter()
+            .zip(&sg.d)
+            .map(|(&yi, &di)| if di > 0.0 && yi > 0.0 { yi / di } else { 0.0 })
+            .collect();
+        let objective = super::objective_unchecked(m, self.g, &h, self.g[c * m + c], &x);
+        // KKT on the sub-problem from the shared scaled G: O(m x non-zeros).
+        let ys: Vec<f64> = x.iter().zip(&sg.d).map(|(xi, di)| xi * di).collect();
+        let nz: Vec<usize> = (0..m).filter(|&k| ys[k] != 0.0).collect();
+        let mut gy: Vec<f64> = (0..m)
+            .map(|i| nz.iter().map(|&k| sg.gs[i * m + k] * ys[k]).sum())
+            .collect();
+        gy[c] = 0.0;
+        NnlsSolution {
+            objective,
+            iterations,
+            max_kkt_violation: super::kkt_scaled(&hs, &ys, &gy),
+            x,
+        }
+    }
 }
 
 /// The entering candidate: the largest `w_i = h~_i - (G~ y)_i > kkt_tol * s` among untried

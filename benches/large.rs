@@ -1,0 +1,219 @@
+//! Large collections: time and peak resident memory of every stage at N = 1,000, 3,000
+//! and 10,000 synthetic analytic materials (generated from a seed; nothing is read from
+//! disk). Each stage runs as a child process so that its peak RSS (VmHWM) is its own:
+//!
+//! * `distance`: the banded BRDF_it matrix (CPU back-end), written as `.npy` + sidecar;
+//! * `kmedoids`: the saved matrix loaded (`select --distances` path), k-medoids for
+//!   k = 5..20, one seeded run each (the library default algorithm);
+//! * `gcuk`: the saved matrix loaded, one GCUK run (default parameters);
+//! * `greedy`: error-driven greedy selection (SPEC 8) — its place; see `stage_greedy`;
+//! * `empirical`: Algorithm 1 (leave-one-out NNLS over the whole collection), N <= 3,000.
+//!
+//! `cargo bench --bench large` runs N = 1000, 3000, 10000. Environment: `BENCH_N=1000,3000`
+//! (sizes), `BENCH_STAGES=distance,kmedoids` (stages), `BENCH_STRIDE=2` (grid stride of the
+//! distance stage; default 1 at N <= 1,000, 2 above: the full-grid cost scales as
+//! `stride^3`), `BENCH_SEED` (collection seed, default 2016).
+
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::cluster::{GcukParams, KMedoidsParams};
+use brdf_basis::collection::{parse_csv, Collection};
+use brdf_basis::distance::{
+    collection_fingerprint, distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS,
+};
+use brdf_basis::io::matrix::{load_saved_matrix, write_npy_with_sidecar, MatrixSettings};
+use brdf_basis::select::{empirical, EmpiricalParams};
+use rand::{Rng, SeedableRng};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// `n` Ashikhmin-Shirley materials from `seed`: diffuse albedo in [0, 0.6]^3, specular
+/// scale in [0, 1.2]^3, F0 in [0.02, 0.98], exponent log-uniform in [1, 80,000].
+fn synthetic(n: usize, seed: u64) -> Collection {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut csv = String::from("material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n");
+    for i in 0..n {
+        let d: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..0.6)).collect();
+        let s: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..1.2)).collect();
+        let f0: f64 = rng.random_range(0.02..0.98);
+        let e: f64 = 80_000f64.powf(rng.random_range(0.0..1.0));
+        csv.push_str(&format!(
+            "synth-{i:05},{},{},{},{},{},{},{f0},{e}\n",
+            d[0], d[1], d[2], s[0], s[1], s[2]
+        ));
+    }
+    parse_csv(csv.as_bytes(), Path::new("<synthetic>")).expect("synthetic collection")
+}
+
+fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|v| v.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn env_list(name: &str, default: &str) -> Vec<String> {
+    std::env::var(name)
+        .unwrap_or_else(|_| default.into())
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect()
+}
+
+fn stride_for(n: usize) -> usize {
+    std::env::var("BENCH_STRIDE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(if n <= 1000 { 1 } else { 2 })
+}
+
+fn matrix_path(dir: &Path, n: usize) -> PathBuf {
+    dir.join(format!("d{n}.npy"))
+}
+
+/// Error-driven greedy selection (SPEC 8, engineer 9's `src/selection/`) belongs here: it
+/// is not on this branch, so this stage reports that it did not run. When merging, call
+/// the greedy selector on `coll` with k = 12 and return a one-line summary.
+fn stage_greedy(_coll: &Collection) -> Option<String> {
+    None
+}
+
+/// One stage in this process; prints `RESULT ...`.
+fn child(stage: &str, n: usize, dir: &Path) {
+    let seed = std::env::var("BENCH_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2016);
+    let coll = synthetic(n, seed);
+    let t = Instant::now();
+    let detail = match stage {
+        "distance" => {
+            let stride = stride_for(n);
+            let p = DistanceParams::default()
+                .stride(stride)
+                .check(&coll)
+                .expect("params");
+            let cpu = CpuBackend::new();
+            let d = distance_matrix_banded(&cpu, &coll, &p, DEFAULT_BAND_ROWS, &|_, _| {})
+                .expect("distance");
+            let computed = t.elapsed().as_secs_f64();
+            write_npy_with_sidecar(
+                &matrix_path(dir, n),
+                &d,
+                &MatrixSettings::of(&p, DEFAULT_BAND_ROWS),
+                &collection_fingerprint(&coll),
+            )
+            .expect("write");
+            let cells = brdf_basis::distance::cell_set(&coll, &p).len();
+            let diffs = (n * (n - 1) / 2) as f64 * cells as f64;
+            format!(
+                "stride {stride}, {cells} cells, compute {computed:.1} s ({:.2} G abs-diffs/s), write {:.1} s",
+                diffs / computed / 1e9,
+                t.elapsed().as_secs_f64() - computed
+            )
+        }
+        "kmedoids" => {
+            let d = load_saved_matrix(&matrix_path(dir, n))
+                .expect("load")
+                .matrix;
+            let load = t.elapsed().as_secs_f64();
+            let mut losses = Vec::new();
+            for k in 5..=20 {
+                let km = KMedoidsParams::new(k).seed(1).fit(&d).expect("kmedoids");
+                losses.push(format!("{:.4}", km.loss));
+            }
+            format!(
+                "load {load:.1} s; k = 5..20 one run each; loss {}",
+                losses.join(" ")
+            )
+        }
+        "gcuk" => {
+            let d = load_saved_matrix(&matrix_path(dir, n))
+                .expect("load")
+                .matrix;
+            let load = t.elapsed().as_secs_f64();
+            let g = GcukParams::default().seed(1).fit(&d).expect("gcuk");
+            format!(
+                "load {load:.1} s; k = {} DB {:.4}",
+                g.medoids.len(),
+                g.db_index
+            )
+        }
+        "greedy" => match stage_greedy(&coll) {
+            Some(s) => s,
+            None => "NOT RUN: error-driven selection (src/selection) is not on this branch".into(),
+        },
+        "empirical" => {
+            let e = empirical(
+                &CpuBackend::new(),
+                &coll,
+                &EmpiricalParams::default(),
+                &|_, _| {},
+            )
+            .expect("empirical");
+            let links: usize = e.contributors.values().map(Vec::len).sum();
+            // Digest of every target's contributor list (order-sensitive), to compare runs.
+            let mut h = brdf_basis::io::matrix::Fnv64::new();
+            for (t, c) in &e.contributors {
+                h.write(t.as_bytes());
+                for name in c {
+                    h.write(name.as_bytes());
+                }
+            }
+            format!(
+                "basis {} materials, {links} contributor links, contributors digest {:016x}",
+                e.basis.len(),
+                h.finish()
+            )
+        }
+        other => panic!("unknown stage {other}"),
+    };
+    println!(
+        "RESULT {stage} N={n} time={:.2}s peak_rss={:.0}MB  {detail}",
+        t.elapsed().as_secs_f64(),
+        peak_rss_mb()
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(k) = args.iter().position(|a| a == "--stage") {
+        let stage = &args[k + 1];
+        let n: usize = args[k + 2].parse().expect("n");
+        child(stage, n, Path::new(&args[k + 3]));
+        return;
+    }
+    let sizes: Vec<usize> = env_list("BENCH_N", "1000,3000,10000")
+        .iter()
+        .map(|s| s.parse().expect("BENCH_N"))
+        .collect();
+    let stages = env_list("BENCH_STAGES", "distance,kmedoids,gcuk,greedy,empirical");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let exe = std::env::current_exe().expect("exe");
+    for &n in &sizes {
+        for stage in &stages {
+            if stage == "empirical" && n > 3000 {
+                continue;
+            }
+            let out = Command::new(&exe)
+                .args(["--stage", stage, &n.to_string()])
+                .arg(dir.path())
+                .output()
+                .expect("child");
+            let text = String::from_utf8_lossy(&out.stdout);
+            match text.lines().find(|l| l.starts_with("RESULT ")) {
+                Some(l) => println!("large {}", &l[7..]),
+                None => println!(
+                    "large {stage} N={n} FAILED: {}",
+                    String::from_utf8_lossy(&out.stderr)
+                ),
+            }
+        }
+    }
+}
