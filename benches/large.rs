@@ -6,7 +6,7 @@
 //! * `kmedoids`: the saved matrix loaded (`select --distances` path), k-medoids for
 //!   k = 5..20, one seeded run each (the library default algorithm);
 //! * `gcuk`: the saved matrix loaded, one GCUK run (default parameters);
-//! * `greedy`: error-driven greedy selection (SPEC 8) — its place; see `stage_greedy`;
+//! * `greedy`: error-driven greedy selection (SPEC 8) at k = 20 (Gram + greedy);
 //! * `empirical`: Algorithm 1 (leave-one-out NNLS over the whole collection), N <= 3,000.
 //!
 //! `cargo bench --bench large` runs N = 1000, 3000, 10000. Environment: `BENCH_N=1000,3000`
@@ -77,11 +77,26 @@ fn matrix_path(dir: &Path, n: usize) -> PathBuf {
     dir.join(format!("d{n}.npy"))
 }
 
-/// Error-driven greedy selection (SPEC 8, engineer 9's `src/selection/`) belongs here: it
-/// is not on this branch, so this stage reports that it did not run. When merging, call
-/// the greedy selector on `coll` with k = 12 and return a one-line summary.
-fn stage_greedy(_coll: &Collection) -> Option<String> {
-    None
+/// Error-driven greedy selection (SPEC 8) at k = 20: the Gram of all materials (closed
+/// form), then greedy; a one-line summary.
+fn stage_greedy(coll: &Collection) -> Option<String> {
+    use brdf_basis::selection::{greedy, Objective, ObjectiveParams, SearchParams};
+    let cpu = CpuBackend::new();
+    let t = Instant::now();
+    let op = ObjectiveParams::default()
+        .check()
+        .expect("objective params");
+    let obj = Objective::new(&cpu, coll, &op, &|_, _| {}).expect("objective");
+    let gram = t.elapsed().as_secs_f64();
+    let p = SearchParams::new(20)
+        .check(obj.names())
+        .expect("search params");
+    let sel = greedy(&obj, &p, &|_, _| {});
+    Some(format!(
+        "k 20, S {:.4e}, Gram {gram:.2} s, greedy {:.2} s",
+        sel.score,
+        t.elapsed().as_secs_f64() - gram
+    ))
 }
 
 /// One stage in this process; prints `RESULT ...`.

@@ -16,7 +16,7 @@ use std::path::PathBuf;
 /// Arguments of `select`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis select --method gcuk --json gcuk.json\n  brdf-basis select ../shared/data/ngan2005_ashikhmin_shirley.csv --method kmedoids -k 5 --runs 30 --json km5.json\n  brdf-basis select --method empirical --json empirical.json\n  brdf-basis select --method swap -k 5 --json swap5.json\n  brdf-basis select --method greedy -k 3 --candidates polished-gold,mirror-silver,matte-white-paint,red-acrylic-sheet --json mine.json"
+    after_help = "Examples:\n  brdf-basis select --method gcuk --json gcuk.json\n  brdf-basis select --method kmedoids -k 5 --runs 30 --json km5.json\n  brdf-basis select --method empirical --json empirical.json\n  brdf-basis select --method swap -k 5 --json swap5.json\n  brdf-basis select --method greedy -k 3 --candidates polished-gold,mirror-silver,matte-white-paint,red-acrylic-sheet --json mine.json"
 )]
 pub struct SelectArgs {
     /// Collection(s) (none: embedded default).
@@ -84,17 +84,6 @@ pub fn run_json(
         "loss": loss,
         "db_index": db,
     })
-}
-
-/// Runs k-medoids (the library's default algorithm, FasterPAM) for every k of `ks`,
-/// `runs` seeded runs each.
-pub fn kmedoids_runs(
-    d: &DistanceMatrix,
-    ks: &[usize],
-    runs: usize,
-    seed: u64,
-) -> anyhow::Result<Vec<serde_json::Value>> {
-    kmedoids_runs_with(d, ks, runs, seed, KMedoidsAlgorithm::default())
 }
 
 /// Runs k-medoids with `algorithm` for every k of `ks`, `runs` seeded runs each (in
