@@ -128,9 +128,10 @@ pub fn figure<D: Draw>(stem: &str, size: (u32, u32), d: &D) -> Result<Figure, Pl
     })
 }
 
-/// Colour of series `i` (a qualitative palette: Tableau 10).
+/// Colour of series `i` (a qualitative palette: Tableau 10, then ten darker or more
+/// saturated hues, so that up to 20 bases get distinct colours).
 pub fn series_colour(i: usize) -> RGBColor {
-    const P: [(u8, u8, u8); 10] = [
+    const P: [(u8, u8, u8); 20] = [
         (31, 119, 180),
         (255, 127, 14),
         (44, 160, 44),
@@ -141,6 +142,16 @@ pub fn series_colour(i: usize) -> RGBColor {
         (127, 127, 127),
         (188, 189, 34),
         (23, 190, 207),
+        (23, 63, 95),
+        (170, 80, 0),
+        (0, 100, 0),
+        (130, 0, 0),
+        (90, 50, 140),
+        (200, 170, 0),
+        (0, 128, 128),
+        (255, 0, 255),
+        (100, 100, 0),
+        (70, 130, 180),
     ];
     let (r, g, b) = P[i % P.len()];
     RGBColor(r, g, b)
