@@ -185,11 +185,12 @@ impl Objective {
 
     /// The objective from given Gram matrices (per channel `(N + 1)^2`, row-major, column 0
     /// the Lambertian `1/pi`, column `j + 1` material `j`).
-    pub fn from_grams(names: Vec<String>, grams: [Vec<f64>; 3]) -> Result<Self, SelectionError> {
+    pub fn from_grams(
+        names: Vec<String>,
+        mut grams: [Vec<f64>; 3],
+    ) -> Result<Self, SelectionError> {
         let n = names.len();
         let m = n + 1;
-        let mut cos: [Vec<f64>; 3] = Default::default();
-        let mut scale: [Vec<f64>; 3] = Default::default();
         for (c, g) in grams.iter().enumerate() {
             if g.len() != m * m {
                 return Err(SelectionError::GramShape {
@@ -209,6 +210,14 @@ impl Objective {
                     channel: c,
                 });
             }
+        }
+        let energy: Vec<[f64; 3]> = (0..n)
+            .map(|t| [0, 1, 2].map(|c| grams[c][(t + 1) * m + t + 1].max(0.0)))
+            .collect();
+        // Each Gram matrix becomes its cosine matrix in place (no second (N + 1)^2 copy:
+        // at N = 10,000 the three matrices alone are 2.4 GB).
+        let mut scale: [Vec<f64>; 3] = Default::default();
+        for (g, sc) in grams.iter_mut().zip(scale.iter_mut()) {
             let d: Vec<f64> = (0..m)
                 .map(|i| {
                     let v = g[i * m + i];
@@ -219,27 +228,18 @@ impl Objective {
                     }
                 })
                 .collect();
-            let mut s = vec![0.0; m * m];
-            s.par_chunks_mut(m).enumerate().for_each(|(i, row)| {
-                if d[i] == 0.0 {
-                    return;
+            for i in 0..m {
+                g[i * m + i] = if d[i] == 0.0 { 0.0 } else { 1.0 };
+                for j in i + 1..m {
+                    let sum = g[i * m + j] + g[j * m + i];
+                    let live = d[i] != 0.0 && d[j] != 0.0;
+                    g[i * m + j] = if live { 0.5 * sum / d[i] / d[j] } else { 0.0 };
+                    g[j * m + i] = if live { 0.5 * sum / d[j] / d[i] } else { 0.0 };
                 }
-                for (j, o) in row.iter_mut().enumerate() {
-                    *o = if i == j {
-                        1.0
-                    } else if d[j] > 0.0 {
-                        0.5 * (g[i * m + j] + g[j * m + i]) / d[i] / d[j]
-                    } else {
-                        0.0
-                    };
-                }
-            });
-            cos[c] = s;
-            scale[c] = d;
+            }
+            *sc = d;
         }
-        let energy: Vec<[f64; 3]> = (0..n)
-            .map(|t| [0, 1, 2].map(|c| grams[c][(t + 1) * m + t + 1].max(0.0)))
-            .collect();
+        let cos = grams;
         let share = energy
             .iter()
             .map(|e| {
