@@ -760,6 +760,9 @@ fn analytic_grams(coll: &Collection, cells: &CellSet) -> [Vec<f64>; 3] {
         .map(|u| u.beta.iter().zip(&mom.m1).map(|(b, m)| b * m).sum())
         .collect();
     let u = gram_rows(&rows, n, nij);
+    // Freed before the three (N + 1)^2 matrices are built (650 MB each at N = 10,000).
+    drop(rows);
+    drop(unit);
     let total = mom.total;
     [0, 1, 2].map(|c| {
         let m = n + 1;
