@@ -61,12 +61,7 @@ fn parse_tile(s: &str) -> anyhow::Result<(usize, usize)> {
 
 /// Computes and writes the matrix (or one tile of it).
 pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
-    let ext = a
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
+    let ext = super::output_extension(&a.out, "--out")?;
     if ext != "npy" && ext != "csv" {
         anyhow::bail!("{}: output must end in .npy or .csv", a.out.display());
     }

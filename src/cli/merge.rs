@@ -26,12 +26,7 @@ pub struct MergeArgs {
 
 /// Merges the tiles.
 pub fn run(g: &Global, a: MergeArgs) -> anyhow::Result<()> {
-    let ext = a
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
+    let ext = super::output_extension(&a.out, "--out")?;
     if ext != "npy" {
         anyhow::bail!("{}: merge writes a .npy", a.out.display());
     }

@@ -142,3 +142,14 @@ pub fn progress_bar(g: &Global, total: u64, what: &str) -> indicatif::ProgressBa
     pb.set_message(what.to_string());
     pb
 }
+
+/// Checks an output path before any work (`flag` names it in errors: its directory exists,
+/// it is not a directory, device or FIFO) and returns its extension, lower-case.
+pub fn output_extension(path: &std::path::Path, flag: &str) -> anyhow::Result<String> {
+    brdf_basis::io::atomic::check_output_path(path, flag)?;
+    Ok(path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase())
+}
