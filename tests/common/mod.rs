@@ -12,10 +12,42 @@ pub fn shared(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// The Ngan et al. 2005 Ashikhmin-Shirley table (100 materials).
+/// `../shared/data/<name>` when it exists. When it does not, prints `SKIP (no shared
+/// data) <test>: <path>` and returns `None`, so the README's test command passes on a
+/// clone that has only the repository; with `BRDF_BASIS_REQUIRE_SHARED=1` (set by
+/// `.ci/run`) a missing file is a failure instead.
+pub fn shared_or_skip(name: &str, test: &str) -> Option<PathBuf> {
+    let p = shared(name);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("BRDF_BASIS_REQUIRE_SHARED").is_ok_and(|v| v == "1") {
+        panic!(
+            "BRDF_BASIS_REQUIRE_SHARED=1 but the shared data file {} is missing ({test})",
+            p.display()
+        );
+    }
+    eprintln!("SKIP (no shared data) {test}: {} is missing", p.display());
+    None
+}
+
+/// The Ngan et al. 2005 Ashikhmin-Shirley table (100 materials), or `None` after
+/// printing SKIP when `../shared` is absent (see [`shared_or_skip`]).
+pub fn ngan_or_skip(test: &str) -> Option<Collection> {
+    let p = shared_or_skip("ngan2005_ashikhmin_shirley.csv", test)?;
+    Some(Collection::load(&p).expect("../shared/data/ngan2005_ashikhmin_shirley.csv"))
+}
+
+/// The Ngan et al. 2005 Ashikhmin-Shirley table (100 materials). Panics when absent:
+/// prefer [`ngan_or_skip`].
 pub fn ngan() -> Collection {
     Collection::load(&shared("ngan2005_ashikhmin_shirley.csv"))
         .expect("../shared/data/ngan2005_ashikhmin_shirley.csv")
+}
+
+/// The `brdf-basis` binary built for these tests, as a command.
+pub fn bin() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
 }
 
 /// The GPU back-end, opened once; `None` (after printing SKIP) when there is no adapter,
