@@ -4,7 +4,7 @@
 
 use crate::common::*;
 use brdf_basis::experiment::bases::Basis;
-use brdf_basis::experiment::clustering::ClusteringSet;
+use brdf_basis::select::runs::ClusteringSet;
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::experiment::statistics::Statistics;
 use std::path::Path;

@@ -8,7 +8,7 @@ use brdf_basis::experiment::bases::read_paper_bases;
 use brdf_basis::experiment::files::EmpiricalFile;
 use brdf_basis::experiment::report::{markdown, ReportContext};
 use brdf_basis::experiment::{
-    claims, clustering, evaluation, run as run_experiment, ExperimentParams, Stage, StageTiming,
+    claims, evaluation, run as run_experiment, ExperimentParams, Stage, StageTiming,
 };
 use brdf_basis::io::atomic::write_atomic;
 use brdf_basis::io::image::{write_exr, write_png, write_rgb8_image};
@@ -228,7 +228,7 @@ fn run_into(
     write_json(&out.join("clustering.json"), &e.clustering)?;
     write_text(
         &out.join("clustering_db.csv"),
-        &clustering::db_csv(&e.clustering),
+        &brdf_basis::select::runs::db_csv(&e.clustering),
     )?;
     write_json(&out.join("statistics.json"), &e.statistics)?;
     write_json(&out.join("bases.json"), &e.bases)?;

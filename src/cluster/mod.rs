@@ -118,6 +118,14 @@ pub enum ClusterError {
         /// The offending value.
         value: f64,
     },
+    /// No run has a defined Davies-Bouldin index.
+    #[error(
+        "the Davies-Bouldin index is undefined in all {runs} runs (two medoids at distance 0 in each: the matrix holds identical materials or is zero); no best run can be chosen"
+    )]
+    UndefinedDbIndex {
+        /// Number of runs.
+        runs: usize,
+    },
     /// At least one run (start) is needed.
     #[error("the number of runs (restarts) must be at least 1")]
     ZeroRuns,

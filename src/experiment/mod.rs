@@ -17,7 +17,6 @@
 
 pub mod bases;
 pub mod claims;
-pub mod clustering;
 pub mod evaluation;
 pub mod files;
 pub mod report;
@@ -32,13 +31,14 @@ use crate::eval::image_error::DisplayParams;
 use crate::eval::render::{RenderError, RenderParams};
 use crate::fit::{FitError, FitParams};
 use crate::merl::Weighting;
-use crate::select::{empirical, Empirical, EmpiricalParams};
-use crate::selection::cv::{cross_validate_with, CvParams, CvResult};
-use crate::selection::objective::{Objective, ObjectiveParams};
-use crate::selection::search::{error_driven_bases, Selection};
-use crate::selection::SelectionError;
+use crate::select::cv::{cross_validate_with, CvParams, CvResult};
+use crate::select::empirical::{empirical, Empirical, EmpiricalParams};
+use crate::select::objective::{Objective, ObjectiveParams};
+use crate::select::runs as clustering;
+use crate::select::runs::ClusteringSet;
+use crate::select::search::{error_driven_bases, Selection};
+use crate::select::SelectionError;
 use bases::Basis;
-use clustering::ClusteringSet;
 use evaluation::{EvalSettings, Evaluation};
 use statistics::Statistics;
 use std::path::PathBuf;

@@ -35,6 +35,7 @@
 
 use serde::{Deserialize, Serialize};
 
+pub mod incremental;
 pub mod lawson_hanson;
 pub mod pgd;
 

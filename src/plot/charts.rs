@@ -2,7 +2,7 @@
 //! against k, Nemenyi critical-difference diagram and errors per material (Fig. 4).
 
 use super::{e2s, figure, series_colour, Draw, Figure, PlotError};
-use crate::experiment::clustering::ClusteringSet;
+use crate::select::runs::ClusteringSet;
 use crate::experiment::evaluation::BasisErrors;
 use crate::experiment::statistics::FriedmanSummary;
 use plotters::coord::types::RangedCoordf64;
