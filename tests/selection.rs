@@ -88,7 +88,8 @@ fn known_best_basis_of_a_tiny_collection() {
             .check(&coll.names())
             .expect("p"),
         &|_, _| {},
-    ).unwrap();
+    )
+    .unwrap();
     assert!(sw.score < 1e-12, "{sw:?}");
     let gp = GaParams::default()
         .population(8)
@@ -242,11 +243,17 @@ fn swap_never_raises_s_and_ga_best_never_rises() {
                 .check(&names)
                 .expect("p"),
             &|_, _| {},
-        ).unwrap();
+        )
+        .unwrap();
         assert!(s.history.len() >= 2, "the start can be improved: {s:?}");
         assert!(s.history.windows(2).all(|w| w[1] < w[0]), "{:?}", s.history);
         assert!(
-            (s.history[0] - obj.score(&init, &(0..coll.len()).collect::<Vec<_>>()).unwrap()).abs() < 1e-15
+            (s.history[0]
+                - obj
+                    .score(&init, &(0..coll.len()).collect::<Vec<_>>())
+                    .unwrap())
+            .abs()
+                < 1e-15
         );
         assert!((s.score - s.history[s.history.len() - 1]).abs() < 1e-12);
     }

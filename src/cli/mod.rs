@@ -12,11 +12,11 @@ pub mod select;
 pub mod select_error;
 pub mod tabulate;
 
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
 use brdf_basis::engine::{open_backend, BackendChoice};
 use clap::{Args, Parser, Subcommand};
-use brdf_basis::atomic::OutputPlan;
 use std::path::{Path, PathBuf};
 
 /// Find small, expressive bases of BRDFs and fit materials as non-negative combinations
@@ -81,7 +81,7 @@ pub enum Command {
     Tabulate(tabulate::TabulateArgs),
     /// Pairwise distance matrix (BRDF_it or Euclidean) as .npy or .csv.
     Distance(distance::DistanceArgs),
-    /// Select a basis: empirical (Algorithm 1), k-medoids or GCUK.
+    /// Select a basis: empirical (Algorithm 1), kmedoids, gcuk, or by fitting error: greedy, swap, ga.
     Select(select::SelectArgs),
     /// Fit materials as non-negative combinations of a basis (NNLS per channel).
     Fit(fit::FitArgs),

@@ -5,10 +5,10 @@
 //! push a [`Basis`] in [`super::run`]'s `bases` stage; [`dedupe`] names coincident
 //! bases once, and the fits, tables and figures pick it up from there.
 
-use crate::select::runs::{best_run, ClusteringSet};
 use super::ExperimentError;
 use crate::collection::Collection;
 use crate::select::empirical::Empirical;
+use crate::select::runs::{best_run, ClusteringSet};
 use std::path::Path;
 
 /// Where a basis comes from.

@@ -387,9 +387,13 @@ mod tests {
     /// A cosine matrix of `m` random non-negative vectors of length `len` (the last one the
     /// target).
     fn random_cosine(m: usize, len: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let mut s = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         let mut next = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((s >> 33) as f64) / (1u64 << 31) as f64
         };
         let v: Vec<Vec<f64>> = (0..m).map(|_| (0..len).map(|_| next()).collect()).collect();
@@ -423,7 +427,10 @@ mod tests {
                 let mut all = cols.to_vec();
                 all.push(j);
                 let fresh = solve(g, &all, t).unwrap().1;
-                assert!((inc - fresh).abs() <= 1e-12, "seed {seed} j {j}: {inc} vs {fresh}");
+                assert!(
+                    (inc - fresh).abs() <= 1e-12,
+                    "seed {seed} j {j}: {inc} vs {fresh}"
+                );
             }
         }
     }

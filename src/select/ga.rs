@@ -7,10 +7,10 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 
 use super::objective::Objective;
+use super::search::argmin;
 use super::search::{Selection, ValidSearchParams};
 use super::SelectionError;
 use crate::backend::Progress;
-use super::search::argmin;
 
 /// Parameters of the genetic algorithm over k-subsets (builder; [`GaParams::check`]).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -245,4 +245,3 @@ fn crossover(rng: &mut ChaCha8Rng, a: &[usize], b: &[usize], k: usize) -> Vec<us
     }
     child
 }
-

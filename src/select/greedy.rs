@@ -1,10 +1,10 @@
 //! Greedy forward selection on `S(B; T)` (SPEC 8).
 
 use super::objective::Objective;
+use super::search::argmin;
 use super::search::{Selection, ValidSearchParams};
 use super::SelectionError;
 use crate::backend::Progress;
-use super::search::argmin;
 
 /// Greedy forward selection: `B_{i+1} = B_i + argmin_c S(B_i + c; T)`, ties to the
 /// earliest material. `progress(step, k)` after each step.
@@ -43,4 +43,3 @@ pub(crate) fn greedy_indices(
     }
     Ok(basis)
 }
-

@@ -210,10 +210,16 @@ pub fn best_run<'a>(
 
 /// Named runs with their indices, in order.
 pub fn named_runs(d: &DistanceMatrix, runs: &[Run]) -> Result<Vec<ClusteringRun>, ClusterError> {
-    runs.par_iter().map(|r| ClusteringRun::named(d, r)).collect()
+    runs.par_iter()
+        .map(|r| ClusteringRun::named(d, r))
+        .collect()
 }
 
-fn set(metric: &str, method: String, runs: Vec<ClusteringRun>) -> Result<ClusteringSet, ClusterError> {
+fn set(
+    metric: &str,
+    method: String,
+    runs: Vec<ClusteringRun>,
+) -> Result<ClusteringSet, ClusterError> {
     let best = best_run(&runs).cloned().ok_or(ClusterError::ZeroRuns)?;
     Ok(ClusteringSet {
         metric: metric.to_string(),

@@ -124,7 +124,10 @@ impl SearchParams {
                 targets: targets.len(),
             });
         }
-        for (name, v) in [("swap tolerance", self.swap_tol), ("tie tolerance", self.tie_tol)] {
+        for (name, v) in [
+            ("swap tolerance", self.swap_tol),
+            ("tie tolerance", self.tie_tol),
+        ] {
             if !(v.is_finite() && (0.0..1.0).contains(&v)) {
                 return Err(SelectionError::InvalidParam {
                     name,

@@ -1,11 +1,11 @@
 //! Swap refinement of a basis on `S(B; T)` (SPEC 8).
 
+use super::greedy::greedy_indices;
 use super::objective::Objective;
+use super::search::argmin;
 use super::search::{Selection, ValidSearchParams};
 use super::SelectionError;
 use crate::backend::Progress;
-use super::greedy::greedy_indices;
-use super::search::argmin;
 
 /// Swap refinement (SPEC 8): from `p.init` (or the greedy basis), apply the single
 /// exchange that lowers S the most while it lowers S by more than `swap_tol` relative.
@@ -61,4 +61,3 @@ pub fn swap(
     }
     Selection::new(obj, "swap", p, basis, history)
 }
-

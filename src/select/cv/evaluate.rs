@@ -54,7 +54,10 @@ impl<'a> Evaluator<'a> {
     /// The held-out material `t` of fold `f` fitted by `basis`.
     fn held_out(&self, basis: &[usize], f: usize, t: usize) -> Result<HeldOut, SelectionError> {
         let fit = self.obj.fit(basis, t)?;
-        let img = render_sphere(&self.rp, &combination_brdf(self.coll, basis, &fit.coefficients))?;
+        let img = render_sphere(
+            &self.rp,
+            &combination_brdf(self.coll, basis, &fit.coefficients),
+        )?;
         Ok(HeldOut {
             material: self.obj.names()[t].clone(),
             fold: f,
@@ -227,7 +230,6 @@ impl<'a> GridEval<'a> {
         mae
     }
 }
-
 
 /// Mean (NaN for no value).
 pub(crate) fn mean(v: &[f64]) -> f64 {

@@ -74,11 +74,13 @@ impl<'a> Fold<'a> {
     }
 
     fn distances(&self) -> Result<&DistanceMatrix, SelectionError> {
-        self.sub.as_ref().ok_or_else(|| SelectionError::InvalidParam {
-            name: "distances",
-            value: "none".into(),
-            expected: "a distance matrix for the clustering methods",
-        })
+        self.sub
+            .as_ref()
+            .ok_or_else(|| SelectionError::InvalidParam {
+                name: "distances",
+                value: "none".into(),
+                expected: "a distance matrix for the clustering methods",
+            })
     }
 
     fn to_collection(&self, local: &[usize]) -> Vec<usize> {
@@ -137,9 +139,8 @@ impl<'a> Fold<'a> {
                 self.to_collection(&order[..k])
             }
             CvMethod::Random => {
-                let mut rng = ChaCha8Rng::seed_from_u64(
-                    p.seed.wrapping_add(1000 * self.f as u64 + k as u64),
-                );
+                let mut rng =
+                    ChaCha8Rng::seed_from_u64(p.seed.wrapping_add(1000 * self.f as u64 + k as u64));
                 let mut b = self.to_collection(
                     &rand::seq::index::sample(&mut rng, self.train.len(), k).into_vec(),
                 );

@@ -114,7 +114,6 @@ pub struct CvResult {
     pub weighting: String,
 }
 
-
 /// Runs the cross-validation: builds the objective and (for clustering methods) the
 /// distance matrix of the whole collection once, then [`cross_validate_with`].
 pub fn cross_validate(
@@ -203,4 +202,3 @@ mod tests {
         assert_ne!(f, make_folds(23, 5, 8));
     }
 }
-

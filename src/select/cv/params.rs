@@ -59,7 +59,6 @@ impl CvMethod {
     pub(crate) fn error_driven(self) -> bool {
         matches!(self, CvMethod::Greedy | CvMethod::Swap | CvMethod::Ga)
     }
-
 }
 
 impl std::fmt::Display for CvMethod {
@@ -250,4 +249,3 @@ impl ValidCvParams {
         &self.p
     }
 }
-

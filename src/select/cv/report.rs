@@ -88,7 +88,6 @@ impl CvResult {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
