@@ -1,11 +1,11 @@
 //! `brdf-basis distance`.
 
 use super::Global;
-use brdf_basis::atomic::OutputPlan;
 use brdf_basis::distance::{
     collection_fingerprint, distance_matrix_banded, distance_tile, DistanceParams, LobeKind,
     Metric, DEFAULT_BAND_ROWS,
 };
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::io::matrix::{
     sidecar_path, write_csv, write_npy_with_sidecar, write_tile, MatrixSettings,
 };

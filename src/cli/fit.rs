@@ -1,10 +1,10 @@
 //! `brdf-basis fit`.
 
 use super::Global;
-use brdf_basis::atomic::OutputPlan;
 use brdf_basis::collection::Collection;
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary_to;
 use std::path::{Path, PathBuf};

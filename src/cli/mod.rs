@@ -12,11 +12,11 @@ pub mod select;
 pub mod select_error;
 pub mod tabulate;
 
-use brdf_basis::atomic::OutputPlan;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
 use brdf_basis::engine::{open_backend, BackendChoice};
 use clap::{Args, Parser, Subcommand};
+use brdf_basis::atomic::OutputPlan;
 use std::path::{Path, PathBuf};
 
 /// Find small, expressive bases of BRDFs and fit materials as non-negative combinations
