@@ -19,6 +19,7 @@ mod kmedoids;
 mod measured;
 mod reproduce;
 mod saved_matrix;
+mod select_defects;
 mod selection;
 mod shaders;
 mod tiles;

@@ -211,7 +211,7 @@ impl ExperimentParams {
             return Err(invalid(
                 "--k-max",
                 self.k_max,
-                format!("below the number of materials ({n})"),
+                format!("it must be below the number of materials ({n})"),
             ));
         }
         if self.gcuk_k_max < self.k_min || self.gcuk_k_max >= n {
