@@ -103,9 +103,10 @@ fn select_empty_empirical_basis_is_an_error() {
 fn select_undefined_db_index_is_an_error() {
     let d = scratch("zero-matrix");
     let m = d.join("zero.csv");
+    // Two pairs of identical materials: any 3 medoids include two at distance 0.
     std::fs::write(
         &m,
-        "material,a,b,c,d\na,0,0,0,0\nb,0,0,0,0\nc,0,0,0,0\nd,0,0,0,0\n",
+        "material,a,b,c,d\na,0,0,1,1\nb,0,0,1,1\nc,1,1,0,0\nd,1,1,0,0\n",
     )
     .unwrap();
     let json = d.join("k.json");
@@ -116,7 +117,7 @@ fn select_undefined_db_index_is_an_error() {
         "--method",
         "kmedoids",
         "-k",
-        "2",
+        "3",
         "--runs",
         "3",
         "--json",
@@ -180,7 +181,9 @@ fn select_distances_refuses_stride_and_metric() {
     let d = scratch("distances-stride");
     let m = d.join("m.csv");
     std::fs::write(&m, "material,a,b,c\na,0,1,2\nb,1,0,1.5\nc,2,1.5,0\n").unwrap();
-    for (flag, value) in [("--stride", "4"), ("--metric", "euclidean")] {
+    // A .npy's sidecar records the metric (a CSV's --metric only labels it).
+    let npy = d.join("m.npy");
+    for (flag, value, m) in [("--stride", "4", &m), ("--metric", "euclidean", &npy)] {
         let o = run(&[
             "select",
             "--distances",

@@ -322,7 +322,7 @@ fn search_and_cv_params_reject_bad_values() {
     let bad = |p: SearchParams| p.check(&names).expect_err("rejected");
     assert!(matches!(
         bad(SearchParams::new(0)),
-        SelectionError::InvalidParam { name: "k", .. }
+        SelectionError::InvalidParam { name: "-k", .. }
     ));
     assert!(matches!(
         bad(SearchParams::new(4)),
@@ -346,13 +346,13 @@ fn search_and_cv_params_reject_bad_values() {
     assert!(matches!(
         bad(SearchParams::new(1).targets(vec![])),
         SelectionError::InvalidParam {
-            name: "targets",
+            name: "--targets",
             ..
         }
     ));
     assert!(matches!(
         bad(SearchParams::new(2).init(vec![0])),
-        SelectionError::InvalidParam { name: "init", .. }
+        SelectionError::InvalidParam { name: "--init", .. }
     ));
     assert!(matches!(
         bad(SearchParams::new(1).candidates(vec![0, 1]).init(vec![2])),
@@ -384,7 +384,14 @@ fn search_and_cv_params_reject_bad_values() {
     cv(CvParams::default().methods(vec![CvMethod::Greedy, CvMethod::Greedy]));
     cv(CvParams::default().runs(0));
     cv(CvParams::default().render_size(0));
-    assert!(CvParams::default().ks(vec![16]).check(20).is_ok());
+    // A basis of the whole training fold leaves greedy, swap and ga no target to score.
+    cv(CvParams::default().ks(vec![16]));
+    assert!(CvParams::default().ks(vec![15]).check(20).is_ok());
+    assert!(CvParams::default()
+        .methods(vec![CvMethod::Kmedoids, CvMethod::Random])
+        .ks(vec![16])
+        .check(20)
+        .is_ok());
     assert!("kmeans".parse::<CvMethod>().is_err());
 }
 

@@ -66,7 +66,8 @@ pub struct SelectArgs {
     /// Selection method.
     #[arg(long, value_enum)]
     pub method: Method,
-    /// Distance for clustering: brdf-it or euclidean.
+    /// Distance for clustering: brdf-it or euclidean (with a CSV --distances: the label of
+    /// the matrix's metric).
     #[arg(long, default_value_t = Metric::BrdfIt)]
     pub metric: Metric,
     /// Grid cells and weights.
@@ -141,14 +142,20 @@ fn check_flags(a: &SelectArgs) -> anyhow::Result<()> {
             anyhow::bail!("--distances clusters a saved matrix: give no COLLECTION with it");
         }
         let g = &a.grid;
+        // A CSV matrix has no sidecar: --metric labels it.
+        let npy = a
+            .distances
+            .as_ref()
+            .and_then(|p| p.extension())
+            .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
         for (given, flag) in [
-            (a.metric != Metric::BrdfIt, "--metric"),
+            (npy && a.metric != Metric::BrdfIt, "--metric"),
             (g.stride != 1, "--stride"),
             (g.mask != Mask::Evaluation, "--mask"),
             (g.weighting != Weighting::Uniform, "--weighting"),
         ] {
             if given {
-                anyhow::bail!("{flag} does not apply with --distances: the saved matrix was computed with its own settings (see its sidecar)");
+                anyhow::bail!("{flag} does not apply with --distances: the saved matrix was computed with its own settings (a .npy's sidecar records them)");
             }
         }
     }
@@ -291,7 +298,7 @@ fn run_saved(g: &Global, a: &SelectArgs, path: &Path, out: OutputSet) -> anyhow:
             s.settings.metric.clone(),
             Some(s.collection_fingerprint.clone()),
         ),
-        None => ("unknown (CSV matrix)".to_string(), None),
+        None => (a.metric.to_string(), None),
     };
     let output = cluster(g, a, &saved.matrix, &metric, fingerprint)?;
     write(g, &a.json, &output, out)
