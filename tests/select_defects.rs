@@ -187,7 +187,7 @@ fn select_distances_refuses_stride_and_metric() {
         let o = run(&[
             "select",
             "--distances",
-            s(&m),
+            s(m),
             "--method",
             "kmedoids",
             "-k",

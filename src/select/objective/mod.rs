@@ -203,26 +203,7 @@ impl Objective {
         // at N = 10,000 the three matrices alone are 2.4 GB).
         let mut scale: [Vec<f64>; 3] = Default::default();
         for (g, sc) in grams.iter_mut().zip(scale.iter_mut()) {
-            let d: Vec<f64> = (0..m)
-                .map(|i| {
-                    let v = g[i * m + i];
-                    if v > f64::MIN_POSITIVE {
-                        v.sqrt()
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
-            for i in 0..m {
-                g[i * m + i] = if d[i] == 0.0 { 0.0 } else { 1.0 };
-                for j in i + 1..m {
-                    let sum = g[i * m + j] + g[j * m + i];
-                    let live = d[i] != 0.0 && d[j] != 0.0;
-                    g[i * m + j] = if live { 0.5 * sum / d[i] / d[j] } else { 0.0 };
-                    g[j * m + i] = if live { 0.5 * sum / d[j] / d[i] } else { 0.0 };
-                }
-            }
-            *sc = d;
+            *sc = incremental::cosine_in_place(m, g);
         }
         let cos = grams;
         let share = energy
