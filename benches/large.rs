@@ -162,7 +162,7 @@ fn child(stage: &str, n: usize, dir: &Path) {
         }
         "greedy" => match stage_greedy(&coll) {
             Some(s) => s,
-            None => "NOT RUN: error-driven selection (src/selection) is not on this branch".into(),
+            None => "NOT RUN: error-driven selection (src/select) is not on this branch".into(),
         },
         "empirical" => {
             let e = empirical(

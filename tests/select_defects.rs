@@ -507,3 +507,29 @@ fn cv_refuses_k_of_the_whole_training_fold_and_prints_readable_numbers() {
     );
     assert!(stdout(&o).contains("| greedy | 2 |"), "{}", stdout(&o));
 }
+
+/// Before: "--distances clusters a saved matrix (--method kmedoids or gcuk) and takes no
+/// COLLECTION" for a wrong method, when no COLLECTION was given.
+#[test]
+fn select_distances_with_a_wrong_method_says_so() {
+    let d = scratch("distances-method");
+    let m = d.join("m.csv");
+    std::fs::write(&m, "material,a,b,c\na,0,1,2\nb,1,0,1.5\nc,2,1.5,0\n").unwrap();
+    let o = run(&[
+        "select",
+        "--distances",
+        s(&m),
+        "--method",
+        "greedy",
+        "-k",
+        "2",
+        "--json",
+        s(&d.join("g.json")),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("needs --method kmedoids or gcuk") && !e.contains("COLLECTION"),
+        "{e}"
+    );
+}

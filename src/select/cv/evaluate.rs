@@ -260,4 +260,41 @@ mod tests {
         assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
     }
+
+    fn result(method: &str, v: &[f64]) -> CvMethodResult {
+        CvMethodResult {
+            method: method.into(),
+            k: 2,
+            fold_bases: vec![],
+            held_out: v
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| HeldOut {
+                    material: format!("m{i}"),
+                    fold: 0,
+                    rho: x,
+                    mae: x,
+                    image_error: x,
+                })
+                .collect(),
+            mean_rho: mean(v),
+            median_rho: median(v),
+            mean_mae: mean(v),
+            median_mae: median(v),
+            mean_image_error: mean(v),
+            median_image_error: median(v),
+        }
+    }
+
+    /// Before: any Wilcoxon error became p = 1.
+    #[test]
+    fn a_failed_wilcoxon_test_is_an_error_and_all_ties_give_p_1() {
+        let a = result("greedy", &[0.1, 0.2, 0.3]);
+        let same = result("swap", &[0.1, 0.2, 0.3]);
+        let t = paired_tests(&[2], &[a.clone(), same]).unwrap();
+        assert_eq!(t[0].wilcoxon_p, 1.0);
+        let nan = result("random", &[0.1, f64::NAN, 0.3]);
+        let e = paired_tests(&[2], &[a, nan]).unwrap_err().to_string();
+        assert!(e.contains("greedy vs random at k = 2 on rho"), "{e}");
+    }
 }
