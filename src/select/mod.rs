@@ -1,6 +1,6 @@
 //! Basis selection, every method in one tree (SPEC 5, 6, 8; the paper's Alg. 1 and VI-C):
 //!
-//! * [`empirical`]: the paper's Algorithm 1 (leave-one-out contributions).
+//! * [`empirical`](mod@empirical): the paper's Algorithm 1 (leave-one-out contributions).
 //! * [`runs`]: seeded multi-run k-medoids and GCUK on a distance matrix (the clustering
 //!   algorithms live in [`crate::cluster`]), with the one best-run rule ([`runs::best_run`]:
 //!   lowest Davies-Bouldin index, ties within [`crate::cluster::TIE_TOLERANCE`] to the
@@ -16,7 +16,7 @@
 //!   from one Gram matrix of all N materials per channel ([`Objective`]); every candidate
 //!   basis is then a small NNLS on a sub-matrix of it, never a pass over the grid (the
 //!   incremental solver is [`crate::nnls::incremental`]).
-//! * [`greedy`], [`swap`], [`ga`]: searches over k-subsets on `S` ([`search`] holds their
+//! * [`greedy`](mod@greedy), [`swap`](mod@swap), [`ga`](mod@ga): searches over k-subsets on `S` ([`search`] holds their
 //!   shared parameters and the [`Selection`] result).
 //! * [`cv`]: K-fold cross-validation over materials of every method (greedy, swap, ga,
 //!   kmedoids, gcuk, empirical, random), with paired Wilcoxon tests and a Markdown summary.
