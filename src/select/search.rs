@@ -136,7 +136,26 @@ impl SearchParams {
                 });
             }
         }
-        let init = match &self.init {
+        let init = self.checked_init(names, &candidates)?;
+        Ok(ValidSearchParams {
+            k: self.k,
+            candidates,
+            targets,
+            init,
+            swap_tol: self.swap_tol,
+            tie_tol: self.tie_tol,
+            max_swaps: self.max_swaps,
+        })
+    }
+
+    /// The starting basis, checked: exactly `k` distinct candidates.
+    fn checked_init(
+        &self,
+        names: &[String],
+        candidates: &[usize],
+    ) -> Result<Option<Vec<usize>>, SelectionError> {
+        let n = names.len();
+        Ok(match &self.init {
             None => None,
             Some(b) => {
                 if b.len() != self.k {
@@ -168,15 +187,6 @@ impl SearchParams {
                 }
                 Some(b.clone())
             }
-        };
-        Ok(ValidSearchParams {
-            k: self.k,
-            candidates,
-            targets,
-            init,
-            swap_tol: self.swap_tol,
-            tie_tol: self.tie_tol,
-            max_swaps: self.max_swaps,
         })
     }
 }
