@@ -1069,6 +1069,10 @@ mod tests {
             assert!(plan.file(&d.path().join("h.csv"), "--out").is_err());
             std::os::unix::fs::symlink(&input, d.path().join("l.csv")).unwrap();
             let e = plan.file(&d.path().join("l.csv"), "--out").unwrap_err();
+            assert!(e.to_string().contains("would overwrite the input"), "{e}");
+            std::fs::write(d.path().join("other"), "y").unwrap();
+            std::os::unix::fs::symlink("other", d.path().join("l2.csv")).unwrap();
+            let e = plan.file(&d.path().join("l2.csv"), "--out").unwrap_err();
             assert!(e.to_string().contains("symbolic link"), "{e}");
         }
         assert!(plan.file(&d.path().join("no/x.json"), "--json").is_err());

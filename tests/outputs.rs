@@ -98,8 +98,9 @@ struct Cmd {
     ext: &'static str,
     /// Flag naming `{OUT}`.
     flag: &'static str,
-    /// Arguments of the duplicate row: two outputs on `{OUT}`.
-    dup: Option<&'static [&'static str]>,
+    /// Arguments of the duplicate row (two outputs on `{OUT}`) and the two flags its
+    /// message must name.
+    dup: Option<(&'static [&'static str], [&'static str; 2])>,
 }
 
 const CMDS: &[Cmd] = &[
@@ -135,20 +136,26 @@ const CMDS: &[Cmd] = &[
         ],
         ext: "json",
         flag: "--json",
-        dup: Some(&[
-            "fit", "{IN}", "--basis", "m1,m2", "--targets", "m3", "--stride", "16", "--json",
-            "{OUT}", "--export", "{OUT}",
-        ]),
+        dup: Some((
+            &[
+                "fit", "{IN}", "--basis", "m1,m2", "--targets", "m3", "--stride", "16",
+                "--json", "{OUT}", "--export", "{OUT}",
+            ],
+            ["--json", "--export"],
+        )),
     },
     Cmd {
         name: "render",
         args: &["render", "{IN}", "--material", "m1", "--size", "8", "--out", "{OUT}"],
         ext: "exr",
         flag: "--out",
-        dup: Some(&[
-            "render", "{IN}", "--material", "m3", "--size", "8", "--fit", "f.json", "--out",
-            "r.exr", "--png", "{OUT}", "--heatmap", "{OUT}",
-        ]),
+        dup: Some((
+            &[
+                "render", "{IN}", "--material", "m3", "--size", "8", "--fit", "f.json",
+                "--out", "r.exr", "--png", "{OUT}", "--heatmap", "{OUT}",
+            ],
+            ["--png", "--heatmap"],
+        )),
     },
     Cmd {
         name: "reproduce",
@@ -169,10 +176,14 @@ const CMDS: &[Cmd] = &[
         ],
         ext: "json",
         flag: "--json",
-        dup: Some(&[
-            "cv", "{IN}", "--methods", "kmedoids", "-k", "2", "--folds", "2", "--runs", "1",
-            "--stride", "16", "--render-size", "8", "--json", "{OUT}", "--markdown", "{OUT}",
-        ]),
+        dup: Some((
+            &[
+                "cv", "{IN}", "--methods", "kmedoids", "-k", "2", "--folds", "2", "--runs",
+                "1", "--stride", "16", "--render-size", "8", "--json", "{OUT}", "--markdown",
+                "{OUT}",
+            ],
+            ["--json", "--markdown"],
+        )),
     },
     Cmd {
         name: "plot",
@@ -377,9 +388,12 @@ fn check_row(cmd: &Cmd, label: &str, row: &Hostile) -> Option<String> {
     let work = workdir();
     let (out, input) = set_up(cmd, row, work.path())?;
     let before = snapshot(work.path());
-    let template = match row {
-        Hostile::Duplicate => cmd.dup.expect("dup"),
-        _ => cmd.args,
+    let (template, flags) = match row {
+        Hostile::Duplicate => {
+            let (args, flags) = cmd.dup.expect("dup");
+            (args, flags.to_vec())
+        }
+        _ => (cmd.args, vec![cmd.flag]),
     };
     let args: Vec<String> = template
         .iter()
@@ -399,12 +413,8 @@ fn check_row(cmd: &Cmd, label: &str, row: &Hostile) -> Option<String> {
     if err.contains("panicked") {
         problems.push("panic".into());
     }
-    let flag = match row {
-        Hostile::Duplicate => "",
-        _ => cmd.flag,
-    };
-    if !err.contains(flag) || !err.contains(&base) {
-        problems.push(format!("message does not name `{flag}` and `{base}`"));
+    if !flags.iter().all(|f| err.contains(f)) || !err.contains(&base) {
+        problems.push(format!("message does not name {flags:?} and `{base}`"));
     }
     if before != after {
         problems.push(format!(
