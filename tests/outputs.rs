@@ -378,7 +378,13 @@ fn set_up(cmd: &Cmd, row: &Hostile, work: &Path) -> Option<(String, String)> {
                 eprintln!("n/a duplicate row of {}: a single output", cmd.name);
                 return None;
             }
-            Some((name("same"), "c.csv".into()))
+            // render's two outputs here are its PNGs (--png, --heatmap).
+            let same = if cmd.name == "render" {
+                "same.png".to_string()
+            } else {
+                name("same")
+            };
+            Some((same, "c.csv".into()))
         }
     }
 }
