@@ -70,7 +70,7 @@
 use crate::error::OutputError;
 use std::io::Write;
 use std::path::{Component, Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Mutex, MutexGuard};
 
 // ---------------------------------------------------------------------------------------
@@ -91,6 +91,24 @@ static PENDING: Mutex<Vec<Pending>> = Mutex::new(Vec::new());
 /// Held during a commit: a signal handler's [`remove_pending`] waits for it.
 static COMMIT: Mutex<()> = Mutex::new(());
 static SEQ: AtomicUsize = AtomicUsize::new(0);
+/// Set by [`remove_pending`]: no file or directory is created any more.
+static ABORTING: AtomicBool = AtomicBool::new(false);
+
+/// Whether [`remove_pending`] has run (a signal arrived): the process is about to exit,
+/// and every later write fails.
+pub fn interrupted() -> bool {
+    ABORTING.load(Ordering::SeqCst)
+}
+
+fn refuse_if_interrupted(path: &Path) -> Result<(), OutputError> {
+    if interrupted() {
+        return Err(io_err(
+            path,
+            std::io::Error::other("interrupted; no more output is written"),
+        ));
+    }
+    Ok(())
+}
 
 fn lock<T>(m: &'static Mutex<T>) -> MutexGuard<'static, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
@@ -111,6 +129,7 @@ fn unregister(p: &Pending) {
 /// that this process has not yet put in place, newest first. For signal handlers: call
 /// it, then exit. A commit in progress is finished first.
 pub fn remove_pending() {
+    ABORTING.store(true, Ordering::SeqCst);
     let _commit = lock(&COMMIT);
     let v = std::mem::take(&mut *lock(&PENDING));
     for p in v.iter().rev() {
@@ -160,6 +179,7 @@ fn write_file<F>(tmp: &Path, shown: &Path, fill: F) -> Result<(), OutputError>
 where
     F: FnOnce(&mut dyn Write) -> std::io::Result<()>,
 {
+    refuse_if_interrupted(shown)?;
     let result = (|| {
         let file = std::fs::OpenOptions::new()
             .write(true)
@@ -294,13 +314,6 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<(), OutputError> {
     }
 }
 
-/// Refuses an output path that names one of the `inputs` (the same file, through any
-/// spelling), which the command would otherwise overwrite with its result.
-pub fn check_not_input(path: &Path, what: &str, inputs: &[PathBuf]) -> Result<(), OutputError> {
-    let plan = OutputPlan::new(inputs);
-    plan.check_input(path, &key(path), what)
-}
-
 /// The directory `path` is in (`.` for a bare name).
 fn parent_of(path: &Path) -> PathBuf {
     match path.parent() {
@@ -372,6 +385,9 @@ fn file_id(path: &Path) -> Option<(u64, u64)> {
 // The plan.
 // ---------------------------------------------------------------------------------------
 
+/// Tells the entries of an owned tree (by file name) from any other file.
+pub type Owns = fn(&str) -> bool;
+
 #[derive(Debug, Clone)]
 struct Input {
     /// What it is, for messages (`collection`, `tile`, ...).
@@ -410,7 +426,7 @@ pub struct OutputPlan {
     inputs: Vec<Input>,
     planned: Vec<Planned>,
     /// Tree predicates, by index in `planned`.
-    trees: Vec<(usize, fn(&str) -> bool)>,
+    trees: Vec<(usize, Owns)>,
 }
 
 impl OutputPlan {
@@ -640,7 +656,7 @@ impl OutputPlan {
         path: &Path,
         flag: &str,
         force: bool,
-        owns: fn(&str) -> bool,
+        owns: Owns,
     ) -> Result<(), OutputError> {
         let k = self.common(path, flag)?;
         if let Some(i) = self
@@ -766,7 +782,7 @@ pub struct OutputSet {
     /// `(staged, target)`.
     staged: Vec<(PathBuf, PathBuf)>,
     /// `(target, staging root, owns)` of trees.
-    trees: Vec<(PathBuf, PathBuf, fn(&str) -> bool)>,
+    trees: Vec<(PathBuf, PathBuf, Owns)>,
     created: Vec<PathBuf>,
 }
 
@@ -785,6 +801,7 @@ impl OutputSet {
 
     /// Creates `dir` if it is missing (its parent must exist), remembering it.
     fn ensure_dir(&mut self, dir: &Path) -> Result<(), OutputError> {
+        refuse_if_interrupted(dir)?;
         if dir.is_dir() {
             return Ok(());
         }
@@ -801,6 +818,7 @@ impl OutputSet {
             return Ok(s.clone());
         }
         self.ensure_dir(dest)?;
+        refuse_if_interrupted(dest)?;
         let s = dest.join(format!(
             ".brdf-basis-stage-{}-{}",
             std::process::id(),
@@ -1051,6 +1069,10 @@ mod tests {
             assert!(plan.file(&d.path().join("h.csv"), "--out").is_err());
             std::os::unix::fs::symlink(&input, d.path().join("l.csv")).unwrap();
             let e = plan.file(&d.path().join("l.csv"), "--out").unwrap_err();
+            assert!(e.to_string().contains("would overwrite the input"), "{e}");
+            std::fs::write(d.path().join("other"), "y").unwrap();
+            std::os::unix::fs::symlink("other", d.path().join("l2.csv")).unwrap();
+            let e = plan.file(&d.path().join("l2.csv"), "--out").unwrap_err();
             assert!(e.to_string().contains("symbolic link"), "{e}");
         }
         assert!(plan.file(&d.path().join("no/x.json"), "--json").is_err());

@@ -49,6 +49,11 @@ fn main() -> std::process::ExitCode {
     }
     let code = match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(_) if brdf_basis::atomic::interrupted() => loop {
+            // A signal's handler is removing the outputs and exits with 130: this error
+            // is its consequence (a write refused), not the cause.
+            std::thread::park();
+        },
         Err(e) => {
             eprintln!("error: {}", error_message(&e));
             std::process::ExitCode::FAILURE

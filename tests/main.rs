@@ -17,6 +17,7 @@ mod grid;
 mod hardening;
 mod kmedoids;
 mod measured;
+mod outputs;
 mod reproduce;
 mod saved_matrix;
 mod select_defects;

@@ -278,9 +278,10 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let rho = fits.iter().map(|f| f.relative_residual).sum::<f64>() / fits.len() as f64;
     let rmae = fits.iter().map(|f| f.relative_mae).sum::<f64>() / fits.len() as f64;
     println!(
-        "wrote {} ({} targets, mean MAE {mean:.4e}, mean relative residual {rho:.3}, mean relative MAE {rmae:.3})",
+        "wrote {} ({} target{}, mean MAE {mean:.4e}, mean relative residual {rho:.3}, mean relative MAE {rmae:.3})",
         a.json.display(),
-        fits.len()
+        fits.len(),
+        if fits.len() == 1 { "" } else { "s" }
     );
     if let Some(dir) = &a.export {
         for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {

@@ -19,6 +19,7 @@ pub mod bases;
 pub mod claims;
 pub mod evaluation;
 pub mod files;
+pub mod layout;
 pub mod report;
 pub mod statistics;
 
