@@ -3,7 +3,8 @@
 
 use super::Global;
 use anyhow::Context;
-use brdf_basis::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
+use brdf_basis::eval::image_error::{DisplayParams, HeatmapScale};
+use brdf_basis::plot::heatmap::heatmap_with_colour_bar;
 use brdf_basis::experiment::bases::read_paper_bases;
 use brdf_basis::experiment::files::EmpiricalFile;
 use brdf_basis::experiment::report::{markdown, ReportContext};
@@ -177,6 +178,7 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
         ..Default::default()
     }
     .check(&coll)?;
+    brdf_basis::plot::font()?; // an unusable BRDF_BASIS_FONT is refused before any work
     let out = &a.out;
     let existed = out.exists();
     prepare_out(out, a.force)?;
@@ -251,12 +253,13 @@ fn run_into(
     let r = out.join("renders");
     write_exr(r.join("showcase-original.exr"), &show.original)?;
     write_png(r.join("showcase-original.png"), &show.original, &display)?;
-    for (name, _, img, _) in &show.approximations {
+    for a in &show.approximations {
+        let (name, img) = (&a.basis, &a.image);
         write_exr(r.join(format!("showcase-{name}.exr")), img)?;
         write_png(r.join(format!("showcase-{name}.png")), img, &display)?;
         write_rgb8_image(
             r.join(format!("showcase-{name}-heatmap.png")),
-            &heatmap(&show.original, img, &display, HeatmapScale::Fixed(scale))?,
+            &heatmap_with_colour_bar(&show.original, img, &display, HeatmapScale::Fixed(scale))?,
         )?;
     }
     let mut ctx = ReportContext::default();

@@ -35,6 +35,19 @@ pub struct BasisErrors {
     pub median_image_error: f64,
 }
 
+/// One basis's approximation of the showcase material.
+#[derive(Clone, Debug)]
+pub struct Approximation {
+    /// Basis name.
+    pub basis: String,
+    /// The basis's fit of the showcase material.
+    pub fit: FitTarget,
+    /// Render of the fit.
+    pub image: Image,
+    /// Normalised image error against the original's render.
+    pub image_error: f64,
+}
+
 /// The showcase material (paper Fig. 5): the original and each basis's approximation.
 #[derive(Clone, Debug)]
 pub struct Showcase {
@@ -42,8 +55,8 @@ pub struct Showcase {
     pub material: String,
     /// Render of the material.
     pub original: Image,
-    /// Per basis (basis order): name, its fit, its render and the normalised image error.
-    pub approximations: Vec<(String, FitTarget, Image, f64)>,
+    /// One per basis, basis order.
+    pub approximations: Vec<Approximation>,
 }
 
 /// Results of the evaluation stage.
@@ -175,12 +188,12 @@ pub fn evaluate(
             &combination_brdf(coll, &basis, &show_fit.coefficients),
         )?;
         let err = normalized_image_error(&show_orig, &img, &s.display)?;
-        approximations.push((
-            b.name.clone(),
-            FitTarget::new(&b.materials, &show_fit),
-            img,
-            err,
-        ));
+        approximations.push(Approximation {
+            basis: b.name.clone(),
+            fit: FitTarget::new(&b.materials, &show_fit),
+            image: img,
+            image_error: err,
+        });
         let mae: Vec<f64> = f.iter().map(|t| t.mae).collect();
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
         errors.push(BasisErrors {

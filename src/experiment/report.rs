@@ -208,11 +208,8 @@ fn statistics(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         let _ = writeln!(s, "**{key}** ({} methods x {} runs): chi2 = {}, p = {}; Iman-Davenport F = {}, p = {}; Nemenyi critical difference (alpha 0.05) = {}. Mean ranks: {}.\n", f.methods.len(), f.blocks, sig(f.statistic), sig(f.p_value), f.iman_davenport_f.map_or("inf".into(), sig), sig(f.iman_davenport_p), sig(f.nemenyi_cd), f.methods.iter().zip(&f.mean_ranks).map(|(m, r)| format!("{m} {r:.2}")).collect::<Vec<_>>().join(", "));
         ctx.figure(
             s,
-            &format!("cd-{}", key.trim_start_matches("friedman-")),
-            &format!(
-                "Nemenyi critical-difference diagram ({})",
-                key.trim_start_matches("friedman-")
-            ),
+            &format!("cd-{}", key.metric()),
+            &format!("Nemenyi critical-difference diagram ({})", key.metric()),
         );
     }
     if let Some(c) = &st.gcuk_euclidean_vs_brdf_it {
@@ -259,7 +256,7 @@ fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
             sig(b.median_mae),
             sig(b.mean_image_error),
             sig(b.median_image_error),
-            sig(a.3)
+            sig(a.image_error)
         );
     }
     ctx.figure(
