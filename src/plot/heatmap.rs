@@ -136,7 +136,7 @@ mod tests {
         let bx = heat.width + GAP + BAR_W / 2;
         let top = viridis(1.0).map(|v| (v * 255.0).round() as u8);
         let bottom = viridis(0.0).map(|v| (v * 255.0).round() as u8);
-        let near = |a: [u8; 3], b: [u8; 3]| a.iter().zip(&b).all(|(x, y)| x.abs_diff(*y) <= 8);
+        let near = |a: [u8; 3], b: [u8; 3]| a.iter().zip(&b).all(|(x, y)| x.abs_diff(*y) <= 16);
         assert!(near(px(bx, HEAD + 2), top), "{:?} vs {top:?}", px(bx, HEAD + 2));
         assert!(near(px(bx, HEAD + MIN_BAR_H - 3), bottom));
     }

@@ -124,8 +124,8 @@ fn sample<DB: DrawingBackend>(
         Marker::Dashed(c) => {
             for s in 0..3 {
                 area.draw(&PathElement::new(
-                    vec![(x + 9 * s, y), (x + 9 * s + 5, y)],
-                    c.stroke_width(2),
+                    vec![(x + 8 * s, y), (x + 8 * s + 4, y)],
+                    c.stroke_width(1),
                 ))
                 .map_err(e2s)?;
             }

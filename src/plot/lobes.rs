@@ -17,8 +17,9 @@ use plotters::prelude::*;
 pub const DECADES: f64 = 4.0;
 const FONT: &str = "sans-serif";
 const STEPS: usize = 719;
-/// Colour of the incident direction: a neutral grey, no series colour.
-const INCIDENT: RGBColor = RGBColor(110, 110, 110);
+/// Colour of the incident direction: a neutral near-black, dashed, so that it is taken for
+/// no curve (the series palette has a mid grey).
+const INCIDENT: RGBColor = RGBColor(40, 40, 40);
 const LEGEND_SIZE: u32 = 13;
 
 /// `(theta_o in degrees, mean RGB f)` along the plane of incidence.
@@ -195,9 +196,9 @@ impl LobePlot<'_> {
         chart
             .draw_series(DashedLineSeries::new(
                 vec![(0.0, 0.0), (DECADES * ti.sin(), DECADES * ti.cos())],
-                6,
                 4,
-                INCIDENT.stroke_width(2),
+                4,
+                INCIDENT.stroke_width(1),
             ))
             .map_err(e2s)?;
         if !(top > 0.0) {

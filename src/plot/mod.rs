@@ -191,7 +191,7 @@ pub fn no_font_message() -> Option<String> {
     match font() {
         Ok(FontSource::File(_)) => None,
         Ok(FontSource::NoneRequested) => Some(format!(
-            "{FONT_VAR}=none: the figures have no text (labels, legends, colour-bar values)"
+            "{FONT_VAR}=none: no font, so the figures have no text (labels, legends, colour-bar values)"
         )),
         Ok(FontSource::NotFound) => Some(format!(
             "no font found (looked for {}; set {FONT_VAR} to a .ttf file): the figures have no text (labels, legends, colour-bar values)",
