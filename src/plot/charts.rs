@@ -104,7 +104,7 @@ pub fn box_stats(v: &[f64]) -> Option<BoxStats> {
     let inside = || s.iter().copied().filter(|&x| lo_fence <= x && x <= hi_fence);
     // The quartiles lie inside the fences, so some data value does too.
     let low = inside().next().unwrap_or(q1);
-    let high = inside().last().unwrap_or(q3);
+    let high = inside().next_back().unwrap_or(q3);
     let outliers = s
         .iter()
         .copied()
@@ -120,8 +120,7 @@ pub fn box_stats(v: &[f64]) -> Option<BoxStats> {
     })
 }
 
-/// What Fig. 3's whiskers and points show (the figure's footer and the report's caption).
-pub const BOXPLOT_KEY: &str = "box: quartiles, bar: median; whiskers: the most extreme run within 1.5 IQR of the box (Tukey); dots: runs beyond";
+pub use crate::experiment::report::BOXPLOT_KEY;
 
 /// Fig. 3: DB box plots, one panel per metric, one box per method.
 pub struct DbBoxplots<'a> {
@@ -341,6 +340,28 @@ pub struct CdDiagram<'a> {
     pub friedman: &'a FriedmanSummary,
 }
 
+/// Methods by ascending mean rank, and the groups of methods not significantly different
+/// (mean ranks within the critical difference) as `(lowest, highest)` mean rank, none
+/// inside another.
+pub fn cd_groups(f: &FriedmanSummary) -> (Vec<usize>, Vec<(f64, f64)>) {
+    let mut order: Vec<usize> = (0..f.methods.len()).collect();
+    order.sort_by(|&a, &b| f.mean_ranks[a].total_cmp(&f.mean_ranks[b]));
+    let mut groups: Vec<(f64, f64)> = Vec::new();
+    for (a, &i) in order.iter().enumerate() {
+        let last = order[a..]
+            .iter()
+            .take_while(|&&j| f.mean_ranks[j] - f.mean_ranks[i] <= f.nemenyi_cd)
+            .last()
+            .copied()
+            .unwrap_or(i);
+        let g = (f.mean_ranks[i], f.mean_ranks[last]);
+        if last != i && !groups.iter().any(|h| h.0 <= g.0 && g.1 <= h.1) {
+            groups.push(g);
+        }
+    }
+    (order, groups)
+}
+
 impl Draw for CdDiagram<'_> {
     fn draw<DB: DrawingBackend>(
         &self,
@@ -390,22 +411,15 @@ impl Draw for CdDiagram<'_> {
             series_colour(3).stroke_width(3),
         ))
         .map_err(e2s)?;
-        // Groups not significantly different.
-        let mut order: Vec<usize> = (0..k).collect();
-        order.sort_by(|&a, &b| f.mean_ranks[a].total_cmp(&f.mean_ranks[b]));
-        let mut groups: Vec<(f64, f64)> = Vec::new();
-        for (a, &i) in order.iter().enumerate() {
-            let last = order[a..]
-                .iter()
-                .take_while(|&&j| f.mean_ranks[j] - f.mean_ranks[i] <= f.nemenyi_cd)
-                .last()
-                .copied()
-                .unwrap_or(i);
-            let g = (f.mean_ranks[i], f.mean_ranks[last]);
-            if last != i && !groups.iter().any(|h| h.0 <= g.0 && g.1 <= h.1) {
-                groups.push(g);
-            }
+        if text {
+            root.draw(&Text::new(
+                format!("CD = {}", tick_label(f.nemenyi_cd)),
+                (x_of(1.0 + f.nemenyi_cd) as i32 + 8, cd_y - 8),
+                style.clone(),
+            ))
+            .map_err(e2s)?;
         }
+        let (order, groups) = cd_groups(f);
         // Methods, sorted by rank: first half labelled on the left, second on the right.
         let top = axis_y + 30 + 6 * groups.len() as i32;
         let row = (h as i32 - top - 10) / ((k as i32 + 1) / 2 + 1).max(1);
@@ -489,7 +503,7 @@ fn name_area(targets: &[String]) -> u32 {
         .max()
         .unwrap_or(0);
     // The width estimate is generous (0.6 em); names average about 0.52 em.
-    widest * 9 / 10 + 30
+    widest * 3 / 4 + 28
 }
 
 impl Draw for ErrorsPerMaterial<'_> {
@@ -567,17 +581,10 @@ impl Draw for ErrorsPerMaterial<'_> {
                         .draw()
                         .map_err(e2s)?;
                     let y0 = $chart.y_range().start;
-                    for (x, name) in names.iter().enumerate() {
-                        let (px, py) = $chart.backend_coord(&(x as f64, y0));
-                        root.draw(&Text::new(
-                            name.clone(),
-                            (px + NAME_SIZE as i32 / 2, py + 6),
-                            (FONT, NAME_SIZE)
-                                .into_font()
-                                .transform(FontTransform::Rotate90),
-                        ))
-                        .map_err(e2s)?;
-                    }
+                    let at: Vec<(i32, i32)> = (0..names.len())
+                        .map(|x| $chart.backend_coord(&(x as f64, y0)))
+                        .collect();
+                    draw_names(root, &names, &at)?;
                 }
                 draw_lines(&mut $chart, self.errors, &order, self.mae, lo)?;
             }};
@@ -595,6 +602,25 @@ impl Draw for ErrorsPerMaterial<'_> {
         }
         Ok(())
     }
+}
+
+/// Material names written downwards under the x axis, one at each backend point of `at`.
+fn draw_names<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    names: &[String],
+    at: &[(i32, i32)],
+) -> Result<(), String> {
+    for (name, &(px, py)) in names.iter().zip(at) {
+        root.draw(&Text::new(
+            name.clone(),
+            (px + NAME_SIZE as i32 / 2, py + 6),
+            (FONT, NAME_SIZE)
+                .into_font()
+                .transform(FontTransform::Rotate90),
+        ))
+        .map_err(e2s)?;
+    }
+    Ok(())
 }
 
 fn draw_lines<'a, DB: DrawingBackend + 'a, Y: Ranged<ValueType = f64>>(

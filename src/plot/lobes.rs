@@ -201,7 +201,7 @@ impl LobePlot<'_> {
                 INCIDENT.stroke_width(1),
             ))
             .map_err(e2s)?;
-        if !(top > 0.0) {
+        if top <= 0.0 {
             if text {
                 chart
                     .draw_series([Text::new(
