@@ -303,8 +303,10 @@ fn showcase_best_rendering(e: &Experiment, out: &mut Vec<Claim>) {
             "VI-E",
             "On alum-bronze (Fig. 5) the empirical basis gives the best rendering.",
             format!(
-                "{}: best image error by {} ({:.4})",
-                s.material, best.basis, best.image_error
+                "{}: best image error by {} ({})",
+                s.material,
+                best.basis,
+                super::report::sig(best.image_error)
             ),
             (s.material == "alum-bronze")
                 .then_some(best.basis == "empirical" || best.basis == "paper-empirical"),

@@ -2,9 +2,15 @@
 //! DB box plots (Fig. 3), DB against k, Nemenyi critical-difference diagrams, errors per
 //! material (Fig. 4), the showcase comparison (Fig. 5) and specular-lobe polar plots.
 //!
-//! Text needs a font: [`font_available`] registers DejaVu Sans (or Liberation Sans) from
-//! the usual system paths at run time. Without one, figures are drawn without text (and
-//! the caller says so); nothing needs fontconfig at build time.
+//! Text needs a font: [`font`] registers the file named by `BRDF_BASIS_FONT`, or DejaVu
+//! Sans (or Liberation Sans) from the usual system paths, at run time; nothing needs
+//! fontconfig at build time. A font is an input like any other: a regular file of at most
+//! [`MAX_FONT_BYTES`]; an explicit `BRDF_BASIS_FONT` that cannot be used is an error
+//! naming the variable and the path, reported before any work. With no font found (or
+//! `BRDF_BASIS_FONT=none`) figures are still written, PNG and SVG, without text (plotters
+//! lays text out with the font in both), and the caller says so ([`no_font_message`]).
+//!
+//! [`report::report_figures`] builds the whole figure set of `reproduce`'s report.
 
 pub mod charts;
 pub mod heatmap;
@@ -130,7 +136,7 @@ pub enum FontSource {
 }
 
 /// Registers the figures' font as `sans-serif`, once per process, and says where it came
-/// from. An explicit [`FONT_VAR`] must name a usable font ([`read_font_file`]): a missing,
+/// from. An explicit [`FONT_VAR`] (set and not empty) must name a usable font ([`read_font_file`]): a missing,
 /// non-regular, oversized or unparsable file is an error naming the variable and the path
 /// (call this before long work, so the error comes first). Unset, the first usable file
 /// of [`FONT_PATHS`] is taken; with none, figures are drawn without text (text in PNGs
@@ -149,16 +155,11 @@ pub fn font() -> Result<&'static FontSource, FontError> {
                     reason: "not a TrueType or OpenType font".into(),
                 })
         };
-        match std::env::var_os(FONT_VAR) {
+        // Empty counts as unset (`BRDF_BASIS_FONT= brdf-basis ...`).
+        match std::env::var_os(FONT_VAR).filter(|v| !v.is_empty()) {
             Some(v) if v == "none" => Ok(FontSource::NoneRequested),
             Some(v) => {
                 let p = v.to_string_lossy().into_owned();
-                if p.is_empty() {
-                    return Err(FontError {
-                        path: p,
-                        reason: "empty".into(),
-                    });
-                }
                 let bytes = read_font_file(&p)?;
                 register(&p, bytes)
             }
