@@ -502,8 +502,8 @@ fn name_area(targets: &[String]) -> u32 {
         .map(|t| legend::text_width(&legend::short_name(t, NAME_CHARS), NAME_SIZE))
         .max()
         .unwrap_or(0);
-    // The width estimate is generous (0.6 em); names average about 0.52 em.
-    widest * 3 / 4 + 28
+    // Names are written downwards from 6 px below the axis; the axis title goes under them.
+    widest + 34
 }
 
 impl Draw for ErrorsPerMaterial<'_> {

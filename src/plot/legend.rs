@@ -40,9 +40,33 @@ impl Entry {
     }
 }
 
-/// Estimated width in pixels of `s` at `size` px (DejaVu Sans averages about 0.6 em).
+/// Width in pixels of `s` at `size` px: measured with the registered font, else
+/// estimated (DejaVu Sans averages about 0.6 em).
 pub fn text_width(s: &str, size: u32) -> u32 {
+    if super::with_text() {
+        if let Ok((w, _)) = (FONT, size).into_font().box_size(s) {
+            return w;
+        }
+    }
     (s.chars().count() as f64 * 0.6 * size as f64).ceil() as u32
+}
+
+/// `s` cut (with `...`) to fit `max_px` at `size` px.
+pub fn fit_text(s: &str, size: u32, max_px: u32) -> String {
+    if text_width(s, size) <= max_px {
+        return s.to_string();
+    }
+    // Longest prefix that fits, by bisection on the character count.
+    let (mut lo, mut hi) = (0usize, s.chars().count().min(4096));
+    while lo < hi {
+        let mid = (lo + hi).div_ceil(2);
+        if text_width(&short_name(s, mid), size) <= max_px {
+            lo = mid;
+        } else {
+            hi = mid - 1;
+        }
+    }
+    short_name(s, lo.max(3))
 }
 
 /// `name` cut to at most `max` characters (with `...`), so that a long material name does
@@ -230,6 +254,14 @@ mod tests {
         ] {
             assert_eq!(tick_label(v), want, "{v:e}");
         }
+    }
+
+    #[test]
+    fn fitted_text_fits() {
+        let long = "m".repeat(100_000);
+        let t = fit_text(&long, 18, 400);
+        assert!(text_width(&t, 18) <= 400 && t.ends_with("...") && t.len() > 10, "{t}");
+        assert_eq!(fit_text("short", 18, 400), "short");
     }
 
     #[test]

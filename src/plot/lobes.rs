@@ -103,7 +103,9 @@ impl Draw for LobePlot<'_> {
         text: bool,
     ) -> Result<(), String> {
         let root = if text {
-            root.titled(&self.title, (FONT, 18)).map_err(e2s)?
+            let w = root.dim_in_pixel().0.saturating_sub(20);
+            root.titled(&legend::fit_text(&self.title, 18, w), (FONT, 18))
+                .map_err(e2s)?
         } else {
             root.clone()
         };

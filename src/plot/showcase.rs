@@ -217,14 +217,14 @@ pub fn showcase_figure(
     };
     let scale = common_scale(s, display)?;
     let mut tiles = vec![(
-        format!("target: {}", s.material),
+        format!("target: {}", super::legend::short_name(&s.material, 22)),
         shrink(&display_image(&s.original, display).map_err(|e| err(e.to_string()))?),
         String::new(),
     )];
     let mut heat = Vec::new();
     for a in &s.approximations {
         tiles.push((
-            a.basis.clone(),
+            super::legend::short_name(&a.basis, 22),
             shrink(&display_image(&a.image, display).map_err(|e| err(e.to_string()))?),
             format!("image error {}", crate::experiment::report::sig(a.image_error)),
         ));
@@ -239,7 +239,9 @@ pub fn showcase_figure(
         scale,
         title: format!(
             "{}: renders (gamma {}, exposure {}, light (45, 45) deg) and per-pixel error heatmaps, scale 0 to {scale:.3}",
-            s.material, display.gamma, display.exposure
+            super::legend::short_name(&s.material, 60),
+            display.gamma,
+            display.exposure
         ),
     };
     let mut notes = Vec::new();
