@@ -18,6 +18,7 @@ mod grid;
 mod hardening;
 mod kmedoids;
 mod measured;
+mod outputs;
 mod reproduce;
 mod saved_matrix;
 mod selection;

@@ -80,34 +80,7 @@ pub fn short_name(name: &str, max: usize) -> String {
     }
 }
 
-/// A tick label: decades as `1e-4` (`0.001` to `1000` written out), other values with at
-/// most 4 significant digits and no float noise (`9.999999999999999e-5` is `1e-4`,
-/// `0.30000000000000004` is `0.3`).
-pub fn tick_label(v: f64) -> String {
-    if v == 0.0 {
-        return "0".into();
-    }
-    if !v.is_finite() {
-        return format!("{v}");
-    }
-    let e = v.abs().log10().floor() as i32;
-    // Round to 4 significant digits first: 9.9999e-5 becomes 1.000e-4.
-    let s = format!("{:.3e}", v);
-    let (m, exp) = s.split_once('e').unwrap_or((&s, "0"));
-    let exp: i32 = exp.parse().unwrap_or(e);
-    let m = m.trim_end_matches('0').trim_end_matches('.');
-    if (-3..=3).contains(&exp) {
-        let decimals = (3 - exp).max(0) as usize;
-        let t = format!("{:.*}", decimals, v);
-        let t = if t.contains('.') {
-            t.trim_end_matches('0').trim_end_matches('.').to_string()
-        } else {
-            t
-        };
-        return t;
-    }
-    format!("{m}e{exp}")
-}
+pub use crate::io::image::tick_label;
 
 /// Rows of width `width` px that [`draw_flow`] needs for `entries` at `size` px.
 pub fn flow_rows(entries: &[Entry], width: u32, size: u32) -> u32 {
