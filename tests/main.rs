@@ -11,6 +11,7 @@ mod cli;
 mod collection;
 mod determinism;
 mod distance;
+mod figures;
 mod fit;
 mod gpu_kernels;
 mod grid;

@@ -3,14 +3,14 @@
 
 use super::Global;
 use anyhow::Context;
-use brdf_basis::eval::image_error::DisplayParams;
-use brdf_basis::eval::shade::{combination_brdf, material_brdf, BrdfFn};
+use brdf_basis::eval::shade::{combination_brdf, material_brdf};
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::experiment::report::ReportContext;
 use brdf_basis::experiment::Experiment;
 use brdf_basis::atomic::{write_atomic, OutputPlan};
 use brdf_basis::io::image::{rgb8_png_bytes, write_rgb8_image};
-use brdf_basis::plot::{charts, font_available, lobes, showcase, Figure};
+use brdf_basis::plot::report::report_figures;
+use brdf_basis::plot::{font, lobes, no_font_message, Figure};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `plot`.
@@ -44,65 +44,19 @@ pub fn write_figure(dir: &Path, fig: &Figure) -> anyhow::Result<(PathBuf, PathBu
     Ok((svg, png))
 }
 
-/// The lobe curves of the showcase: the material, then its fit by each basis.
-pub fn showcase_curves(e: &Experiment) -> anyhow::Result<Vec<(String, BrdfFn)>> {
-    let coll = &e.collection;
-    let s = &e.evaluation.showcase;
-    let mut curves = vec![(
-        s.material.clone(),
-        material_brdf(&coll.get(&s.material)?.data),
-    )];
-    for ((name, fit, _, _), b) in s.approximations.iter().zip(&e.bases) {
-        let idx: Vec<usize> = b
-            .materials
-            .iter()
-            .map(|m| coll.index_of(m))
-            .collect::<Result<_, _>>()?;
-        let cols = fit
-            .columns(&b.materials)
-            .map_err(|m| anyhow::anyhow!("no coefficient for `{m}`"))?;
-        curves.push((name.clone(), combination_brdf(coll, &idx, &cols)));
-    }
-    Ok(curves)
-}
-
-/// Draws and writes every figure of the report into `dir`, listing them in `ctx`.
+/// Draws and writes every figure of the report into `dir`, listing them in `ctx` (the
+/// figure set is the library's [`report_figures`]).
 pub fn write_report_figures(
     e: &Experiment,
     dir: &Path,
     ctx: &mut ReportContext,
 ) -> anyhow::Result<()> {
-    let text = font_available().is_some();
-    if !text {
-        let msg = format!(
-            "no font found (looked for {}; set BRDF_BASIS_FONT to a .ttf file): the figures have no text (labels, legends, colour-bar values)",
-            brdf_basis::plot::FONT_PATHS[0]
-        );
+    let set = report_figures(e)?;
+    for msg in set.notes {
         eprintln!("warning: {msg}");
         ctx.notes.push(msg);
     }
-    let metrics: Vec<String> = e.settings.metrics.iter().map(|m| m.label.clone()).collect();
-    let mut figs = vec![
-        charts::histogram(&e.empirical.counts)?,
-        charts::db_boxplots(&metrics, &e.clustering)?,
-        charts::db_vs_k(&metrics, &e.clustering)?,
-        charts::errors_per_material(&e.evaluation.errors, true)?,
-        charts::errors_per_material(&e.evaluation.errors, false)?,
-        showcase::showcase_figure(&e.evaluation.showcase, &DisplayParams::default(), text)?,
-        lobes::lobe_plot(
-            "lobes-showcase",
-            &format!(
-                "{}: BRDF in the plane of incidence (mean RGB, log radius, 4 decades) and its fits",
-                e.evaluation.showcase.material
-            ),
-            &showcase_curves(e)?,
-            &[0.0, 30.0, 60.0, 75.0],
-        )?,
-    ];
-    for (key, f) in &e.statistics.friedman {
-        figs.push(charts::cd_diagram(key.trim_start_matches("friedman-"), f)?);
-    }
-    for f in &figs {
+    for f in &set.figures {
         write_figure(dir, f)?;
         let rel = format!("figures/{}.png", f.stem);
         ctx.figures.push((f.stem.clone(), rel));
@@ -112,6 +66,7 @@ pub fn write_report_figures(
 
 /// Runs `plot`.
 pub fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
+    font()?; // an unusable BRDF_BASIS_FONT is refused before any work
     if let Some(bad) = a.angles.iter().find(|t| !(0.0..90.0).contains(*t)) {
         anyhow::bail!("--angles: {bad} is not an incident angle in [0, 90) degrees");
     }
@@ -148,10 +103,8 @@ pub fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
         );
         curves.push((label, combination_brdf(&coll, &basis, &cols)));
     }
-    if font_available().is_none() {
-        eprintln!(
-            "warning: no font found: the plot has no text (set BRDF_BASIS_FONT to a .ttf file)"
-        );
+    if let Some(msg) = no_font_message() {
+        eprintln!("warning: {msg}");
     }
     let fig = lobes::lobe_plot(
         "lobes",
@@ -162,6 +115,9 @@ pub fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
         &curves,
         &a.angles,
     )?;
+    for msg in &fig.notes {
+        eprintln!("warning: {msg}");
+    }
     if ext == "svg" {
         out.stage(&a.out, |w| w.write_all(fig.svg.as_bytes()))?;
     } else {

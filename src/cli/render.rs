@@ -2,7 +2,7 @@
 
 use super::Global;
 use anyhow::Context;
-use brdf_basis::eval::image_error::{heatmap, normalized_image_error, DisplayParams, HeatmapScale};
+use brdf_basis::eval::image_error::{normalized_image_error, DisplayParams, HeatmapScale};
 use brdf_basis::eval::render::{render_sphere, RenderParams};
 use brdf_basis::eval::shade::{combination_brdf, material_brdf};
 use brdf_basis::experiment::files::FitFile;
@@ -84,6 +84,13 @@ pub fn plan_image(
 
 /// Renders.
 pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
+    if a.heatmap.is_some() {
+        // The heatmap's colour bar is labelled: an unusable BRDF_BASIS_FONT is refused now.
+        brdf_basis::plot::font()?;
+        if let Some(msg) = brdf_basis::plot::no_font_message() {
+            eprintln!("warning: {msg}");
+        }
+    }
     let mut plan = OutputPlan::new(&a.collection);
     if let Some(f) = &a.fit {
         // Never open a FIFO or a device (reading one could block forever).
@@ -140,7 +147,12 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     if a.fit.is_some() {
         err = Some(normalized_image_error(&original, &image, &display)?);
         if let Some(h) = &a.heatmap {
-            let map = heatmap(&original, &image, &display, HeatmapScale::MaxError)?;
+            let map = brdf_basis::plot::heatmap::heatmap_with_colour_bar(
+                &original,
+                &image,
+                &display,
+                HeatmapScale::MaxError,
+            )?;
             let png = rgb8_png_bytes(h, map.width, map.height, &map.data)?;
             out.stage(h, |w| w.write_all(&png))?;
         }

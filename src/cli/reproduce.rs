@@ -97,6 +97,7 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
         ..Default::default()
     }
     .check(&coll)?;
+    brdf_basis::plot::font()?; // an unusable BRDF_BASIS_FONT is refused before any work
     let mut out = plan.into_set()?;
     let root = out.tree_root(&a.out)?;
     let written = run_into(g, &coll, &params, &root)?;

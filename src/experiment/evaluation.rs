@@ -35,6 +35,19 @@ pub struct BasisErrors {
     pub median_image_error: f64,
 }
 
+/// One basis's approximation of the showcase material.
+#[derive(Clone, Debug)]
+pub struct Approximation {
+    /// Basis name.
+    pub basis: String,
+    /// The basis's fit of the showcase material.
+    pub fit: FitTarget,
+    /// Render of the fit.
+    pub image: Image,
+    /// Normalised image error against the original's render.
+    pub image_error: f64,
+}
+
 /// The showcase material (paper Fig. 5): the original and each basis's approximation.
 #[derive(Clone, Debug)]
 pub struct Showcase {
@@ -42,8 +55,8 @@ pub struct Showcase {
     pub material: String,
     /// Render of the material.
     pub original: Image,
-    /// Per basis (basis order): name, its fit, its render and the normalised image error.
-    pub approximations: Vec<(String, FitTarget, Image, f64)>,
+    /// One per basis, basis order.
+    pub approximations: Vec<Approximation>,
 }
 
 /// Results of the evaluation stage.
@@ -106,6 +119,60 @@ pub fn combine(images: &[&Image], coefficients: &[[f64; 3]]) -> Image {
         *v = sum as f32;
     }
     out
+}
+
+/// The paper's showcase material (Fig. 5).
+pub const PAPER_SHOWCASE: &str = "alum-bronze";
+
+/// Exponent a showcase's highlight should have: a lobe of visible size on a 256 px sphere
+/// (neither a single bright pixel, n ~ 1e4, nor a blur across the sphere, n ~ 1).
+pub const SHOWCASE_EXPONENT: f64 = 100.0;
+
+/// Smallest mean diffuse albedo of a showcase: enough for the sphere to show under the
+/// display mapping, so the render is not a highlight on black.
+pub const SHOWCASE_MIN_DIFFUSE: f64 = 0.05;
+
+/// Smallest highlight-to-body contrast of a showcase, `s (n + 1) F0 / (8 d)` (means over
+/// RGB): the peak of the specular lobe, about `s (n + 1) F0 / (8 pi)` in the mirror
+/// direction near normal incidence, over the diffuse `d / pi`. Below it the highlight is
+/// lost in the body (Ngan's teflon: 0.45).
+pub const SHOWCASE_MIN_CONTRAST: f64 = 3.0;
+
+/// The default showcase among `targets` (collection indices, not empty):
+/// [`PAPER_SHOWCASE`] when it is a target; else a moderately glossy material whose
+/// render shows its lobe on a visible body: among the analytic targets with a specular
+/// lobe (mean `s > 0`), a body (mean diffuse albedo `>=` [`SHOWCASE_MIN_DIFFUSE`]) and a
+/// highlight that stands out (contrast `>=` [`SHOWCASE_MIN_CONTRAST`]), the one whose
+/// exponent is nearest [`SHOWCASE_EXPONENT`] on a log scale (ties: the first); without
+/// such a target, the analytic target with a lobe nearest that exponent; else the first
+/// target (measured collections).
+pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
+    if let Some(&t) = targets
+        .iter()
+        .find(|&&t| coll.names()[t] == PAPER_SHOWCASE)
+    {
+        return t;
+    }
+    let mean = |v: &[f64; 3]| (v[0] + v[1] + v[2]) / 3.0;
+    let nearest = |need_body: bool| {
+        targets
+            .iter()
+            .filter_map(|&t| {
+                let a = coll.materials()[t].analytic()?;
+                let lobe = mean(&a.s) > 0.0 && a.n.is_finite() && a.n > 0.0;
+                let d = mean(&a.d);
+                let contrast = mean(&a.s) * (a.n + 1.0) * a.f0 / (8.0 * d);
+                let body = d >= SHOWCASE_MIN_DIFFUSE && contrast >= SHOWCASE_MIN_CONTRAST;
+                (lobe && (body || !need_body))
+                    .then(|| (t, (a.n.log10() - SHOWCASE_EXPONENT.log10()).abs()))
+            })
+            .fold(None, |best: Option<(usize, f64)>, c| match best {
+                Some(b) if b.1 <= c.1 => Some(b),
+                _ => Some(c),
+            })
+            .map(|b| b.0)
+    };
+    nearest(true).or_else(|| nearest(false)).unwrap_or(targets[0])
 }
 
 /// Fits `targets` by every basis, renders fits and originals, and the showcase.
@@ -175,12 +242,12 @@ pub fn evaluate(
             &combination_brdf(coll, &basis, &show_fit.coefficients),
         )?;
         let err = normalized_image_error(&show_orig, &img, &s.display)?;
-        approximations.push((
-            b.name.clone(),
-            FitTarget::new(&b.materials, &show_fit),
-            img,
-            err,
-        ));
+        approximations.push(Approximation {
+            basis: b.name.clone(),
+            fit: FitTarget::new(&b.materials, &show_fit),
+            image: img,
+            image_error: err,
+        });
         let mae: Vec<f64> = f.iter().map(|t| t.mae).collect();
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
         errors.push(BasisErrors {
@@ -214,6 +281,37 @@ mod tests {
 
     /// A combination rendered from its columns' renders equals the direct render of the
     /// combined BRDF (f32 rounding apart).
+    fn analytic(rows: &str) -> Collection {
+        let csv = format!("material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n{rows}");
+        crate::collection::parse_csv(csv.as_bytes(), std::path::Path::new("test.csv")).unwrap()
+    }
+
+    #[test]
+    fn showcase_is_the_papers_else_moderately_glossy_with_a_body() {
+        let c = analytic(
+            "dot,0.0,0.0,0.0,1,1,1,0.5,120\n\
+             tiny,0.3,0.3,0.3,1,1,1,0.5,10000\n\
+             glossy,0.3,0.3,0.3,1,1,1,0.5,300\n\
+             matte,0.5,0.5,0.5,0,0,0,0.5,1\n\
+             near,0.2,0.2,0.2,1,1,1,0.5,40\n\
+             faint,0.5,0.5,0.5,0.1,0.1,0.1,0.04,100\n\
+             alum-bronze,0.1,0.1,0.1,1,1,1,0.5,1350\n\
+             dot-far,0.0,0.0,0.0,1,1,1,0.5,5\n",
+        );
+        let idx = |n: &str| c.index_of(n).unwrap();
+        // The paper's material wins whenever it is a target.
+        assert_eq!(default_showcase(&c, &[0, 1, 2, 6]), idx("alum-bronze"));
+        // |log10(300 / 100)| = 0.48 > |log10(40 / 100)| = 0.40: `near`; `dot` has no body.
+        assert_eq!(default_showcase(&c, &[0, 1, 2, 3, 4]), idx("near"));
+        assert_eq!(default_showcase(&c, &[0, 1, 2, 3]), idx("glossy"));
+        // n = 100 exactly, but a highlight of contrast 0.1 * 101 * 0.04 / 4 = 0.1: lost.
+        assert_eq!(default_showcase(&c, &[5, 0, 1, 2, 3]), idx("glossy"));
+        // No target with a body: the lobe nearest the exponent.
+        assert_eq!(default_showcase(&c, &[7, 0]), idx("dot"));
+        // No lobe at all: the first target.
+        assert_eq!(default_showcase(&c, &[3]), idx("matte"));
+    }
+
     #[test]
     fn combined_render_equals_direct_render() {
         let coll = Collection::embedded_default();

@@ -26,7 +26,9 @@ use crate::distance::{collection_fingerprint, DistanceParams, Metric, DEFAULT_BA
 use crate::error::{DistanceError, OutputError};
 use crate::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
 use crate::eval::render::RenderError;
-use crate::io::image::{write_exr, write_png, write_rgb8_image};
+use crate::io::image::{
+    font_registered, with_colour_bar, write_exr, write_png, write_rgb8_image, HEATMAP_QUANTITY,
+};
 use crate::io::json::write_json;
 use crate::io::matrix::{sidecar_path, write_csv, write_npy_with_sidecar, MatrixSettings};
 use crate::merl::Weighting;
@@ -178,7 +180,8 @@ pub fn write_files(
     let p = r.join("showcase-original.png");
     write_png(&p, &show.original, &display)?;
     rel(&p);
-    for (name, _, img, _) in &show.approximations {
+    for a in &show.approximations {
+        let (name, img) = (&a.basis, &a.image);
         let p = r.join(format!("showcase-{name}.exr"));
         write_exr(&p, img)?;
         rel(&p);
@@ -186,15 +189,19 @@ pub fn write_files(
         write_png(&p, img, &display)?;
         rel(&p);
         let p = r.join(format!("showcase-{name}-heatmap.png"));
-        write_rgb8_image(
-            &p,
-            &heatmap(
-                &show.original,
-                img,
-                &display,
-                HeatmapScale::Fixed(heatmap_scale),
-            )?,
+        let heat = heatmap(
+            &show.original,
+            img,
+            &display,
+            HeatmapScale::Fixed(heatmap_scale),
         )?;
+        // With its colour bar, labelled when a font is registered (`plot::font`).
+        let bar = with_colour_bar(&heat, heatmap_scale, HEATMAP_QUANTITY, font_registered())
+            .map_err(|message| OutputError::Encode {
+                path: p.clone(),
+                message,
+            })?;
+        write_rgb8_image(&p, &bar)?;
         rel(&p);
     }
     Ok(written)

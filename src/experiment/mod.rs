@@ -118,8 +118,8 @@ pub struct ExperimentParams {
     pub render_size: u32,
     /// Render size of the showcase (default 256).
     pub showcase_size: u32,
-    /// Showcase material (default: `alum-bronze` when it is a target, else the first
-    /// target).
+    /// Showcase material (default: [`evaluation::default_showcase`]: `alum-bronze` when it
+    /// is a target, else a moderately glossy target whose render shows its lobe).
     pub showcase: Option<String>,
     /// First seed (default 1).
     pub seed: u64,
@@ -543,13 +543,9 @@ pub fn run(
     if targets.is_empty() {
         return Err(ExperimentError::NoTargets);
     }
-    let showcase = vp.showcase.unwrap_or_else(|| {
-        targets
-            .iter()
-            .copied()
-            .find(|&t| coll.names()[t] == "alum-bronze")
-            .unwrap_or(targets[0])
-    });
+    let showcase = vp
+        .showcase
+        .unwrap_or_else(|| evaluation::default_showcase(coll, &targets));
     let settings = EvalSettings {
         fit: fit_params,
         small: RenderParams::default()

@@ -61,6 +61,19 @@ pub fn markdown(e: &Experiment, ctx: &ReportContext) -> String {
     s
 }
 
+/// What Fig. 3's boxes, whiskers and points show (its caption here, its footer in the
+/// figure).
+pub const BOXPLOT_KEY: &str = "box: quartiles, bar: median; whiskers: the most extreme run within 1.5 IQR of the box (Tukey); dots: runs beyond";
+
+/// `n` and `noun`, plural unless `n` is 1 (`1 target`, `2 targets`).
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
 /// Formats a value with 4 significant digits.
 pub fn sig(v: f64) -> String {
     if !v.is_finite() {
@@ -192,7 +205,10 @@ fn clustering(e: &Experiment, ctx: &ReportContext, s: &mut String) {
     ctx.figure(
         s,
         "fig3-db-boxplots",
-        "Fig. 3: DB index of every run, per method and metric",
+        &format!(
+            "Fig. 3: DB index of every run, per method and metric ({})",
+            BOXPLOT_KEY
+        ),
     );
     ctx.figure(
         s,
@@ -208,11 +224,8 @@ fn statistics(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         let _ = writeln!(s, "**{key}** ({} methods x {} runs): chi2 = {}, p = {}; Iman-Davenport F = {}, p = {}; Nemenyi critical difference (alpha 0.05) = {}. Mean ranks: {}.\n", f.methods.len(), f.blocks, sig(f.statistic), sig(f.p_value), f.iman_davenport_f.map_or("inf".into(), sig), sig(f.iman_davenport_p), sig(f.nemenyi_cd), f.methods.iter().zip(&f.mean_ranks).map(|(m, r)| format!("{m} {r:.2}")).collect::<Vec<_>>().join(", "));
         ctx.figure(
             s,
-            &format!("cd-{}", key.trim_start_matches("friedman-")),
-            &format!(
-                "Nemenyi critical-difference diagram ({})",
-                key.trim_start_matches("friedman-")
-            ),
+            &format!("cd-{}", key.metric()),
+            &format!("Nemenyi critical-difference diagram ({})", key.metric()),
         );
     }
     if let Some(c) = &st.gcuk_euclidean_vs_brdf_it {
@@ -247,7 +260,7 @@ fn bases(e: &Experiment, _: &ReportContext, s: &mut String) {
 
 fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
     let ev = &e.evaluation;
-    let _ = writeln!(s, "\n## Fits of the {} materials in no basis\n\nEvery basis fits the same targets (the materials in none of the bases above). MAE: weighted mean |fit - target| over the evaluation mask, mean over RGB; image error: normalised mean absolute difference of {1}x{1} px sphere renders after display mapping; per material in `fit_errors.csv`.\n", ev.targets.len(), e.settings.render_size);
+    let _ = writeln!(s, "\n## Fits of the {} in no basis\n\nEvery basis fits the same targets (the materials in none of the bases above). MAE: weighted mean |fit - target| over the evaluation mask, mean over RGB; image error: normalised mean absolute difference of {1}x{1} px sphere renders after display mapping; per material in `fit_errors.csv`.\n", count(ev.targets.len(), "material"), e.settings.render_size);
     let _ = writeln!(s, "| basis | size | mean MAE | median MAE | mean image error | median image error | {} image error |\n|---|---|---|---|---|---|---|", ev.showcase.material);
     for (b, a) in ev.errors.iter().zip(&ev.showcase.approximations) {
         let _ = writeln!(
@@ -259,20 +272,20 @@ fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
             sig(b.median_mae),
             sig(b.mean_image_error),
             sig(b.median_image_error),
-            sig(a.3)
+            sig(a.image_error)
         );
     }
     ctx.figure(
         s,
         "fig4a-mae",
-        "Fig. 4a: MAE on reflectance per material, sorted by the first basis",
+        "Fig. 4a: MAE on reflectance per material, sorted by the MAE of the first basis (the same order as Fig. 4b)",
     );
     ctx.figure(
         s,
         "fig4b-image-error",
-        "Fig. 4b: normalised image error per material, sorted by the first basis",
+        "Fig. 4b: normalised image error per material, in the order of Fig. 4a (the MAE of the first basis)",
     );
-    ctx.figure(s, "fig5-showcase", &format!("Fig. 5: {} (top: target and each basis's approximation; bottom: per-pixel error heatmaps on a common scale)", ev.showcase.material));
+    ctx.figure(s, "fig5-showcase", &format!("Fig. 5: {} (top: target and each basis's approximation; bottom: per-pixel error heatmaps on a common scale; `renders/` has each heatmap with its colour bar)", ev.showcase.material));
 }
 
 fn cross_validation(e: &Experiment, _: &ReportContext, s: &mut String) {
@@ -330,4 +343,24 @@ fn timings(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         "| total | {:.2} |",
         all.iter().map(|t| t.seconds).sum::<f64>()
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_are_singular_for_one() {
+        assert_eq!(count(1, "target"), "1 target");
+        assert_eq!(count(0, "target"), "0 targets");
+        assert_eq!(count(62, "material"), "62 materials");
+    }
+
+    #[test]
+    fn sig_keeps_four_digits_without_e0() {
+        assert_eq!(sig(6.6871), "6.6871");
+        assert_eq!(sig(24.075), "24.0750");
+        assert_eq!(sig(6.302e-4), "6.302e-4");
+        assert_eq!(sig(f64::INFINITY), "inf");
+    }
 }

@@ -53,6 +53,55 @@ pub struct PairComparison {
     pub median_b: f64,
 }
 
+/// The key of a metric's Friedman summary in `statistics.json`: written
+/// `friedman-<metric>` (SPEC-cli), read back only with that prefix, held as the metric.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct FriedmanKey {
+    metric: String,
+}
+
+impl FriedmanKey {
+    /// The key's prefix in `statistics.json`.
+    pub const PREFIX: &'static str = "friedman-";
+
+    /// The key of `metric`'s summary.
+    pub fn new(metric: impl Into<String>) -> Self {
+        FriedmanKey {
+            metric: metric.into(),
+        }
+    }
+
+    /// The metric label (`euclidean`, `brdf-it`, ...).
+    pub fn metric(&self) -> &str {
+        &self.metric
+    }
+}
+
+impl std::fmt::Display for FriedmanKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}{}", Self::PREFIX, self.metric)
+    }
+}
+
+impl serde::Serialize for FriedmanKey {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for FriedmanKey {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let key = String::deserialize(d)?;
+        match key.strip_prefix(Self::PREFIX) {
+            Some(m) if !m.is_empty() => Ok(FriedmanKey::new(m)),
+            _ => Err(serde::de::Error::custom(format!(
+                "unknown key `{key}` (expected `gcuk-euclidean-vs-brdf-it`, `not_computed` or `{}<metric>`)",
+                Self::PREFIX
+            ))),
+        }
+    }
+}
+
 /// `statistics.json`.
 #[derive(Clone, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Statistics {
@@ -68,7 +117,14 @@ pub struct Statistics {
     pub not_computed: Vec<String>,
     /// `friedman-<metric>` entries.
     #[serde(flatten)]
-    pub friedman: BTreeMap<String, FriedmanSummary>,
+    pub friedman: BTreeMap<FriedmanKey, FriedmanSummary>,
+}
+
+impl Statistics {
+    /// The Friedman summary of `metric`, if computed.
+    pub fn friedman_of(&self, metric: &str) -> Option<&FriedmanSummary> {
+        self.friedman.get(&FriedmanKey::new(metric))
+    }
 }
 
 /// Median of finite-or-infinite values (mean of the middle two for an even count).
@@ -97,7 +153,7 @@ pub fn compare(metrics: &[String], sets: &[ClusteringSet], runs: usize) -> Stati
         match f {
             Ok((f, n)) => {
                 out.friedman.insert(
-                    format!("friedman-{m}"),
+                    FriedmanKey::new(m.as_str()),
                     FriedmanSummary {
                         methods: cols.iter().map(|c| c.method.clone()).collect(),
                         blocks: f.blocks,
@@ -147,4 +203,40 @@ pub fn compare(metrics: &[String], sets: &[ClusteringSet], runs: usize) -> Stati
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn summary() -> FriedmanSummary {
+        FriedmanSummary {
+            methods: vec!["a".into(), "b".into()],
+            blocks: 3,
+            statistic: 3.0,
+            p_value: 0.08,
+            mean_ranks: vec![1.0, 2.0],
+            iman_davenport_f: None,
+            iman_davenport_p: 0.0,
+            nemenyi_cd: 1.13,
+            median_db: vec![0.1, 0.2],
+        }
+    }
+
+    /// Keys are written `friedman-<metric>` as before, read back typed, and a key without
+    /// the prefix is refused instead of being taken for a metric.
+    #[test]
+    fn friedman_keys_round_trip_and_are_checked() {
+        let mut st = Statistics::default();
+        st.friedman.insert(FriedmanKey::new("brdf-it"), summary());
+        let text = serde_json::to_string(&st).unwrap();
+        assert!(text.contains("\"friedman-brdf-it\":{"), "{text}");
+        let back: Statistics = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, st);
+        assert_eq!(back.friedman_of("brdf-it"), Some(&summary()));
+        assert_eq!(back.friedman.keys().next().unwrap().metric(), "brdf-it");
+        let bad = text.replace("friedman-brdf-it", "brdf-it");
+        let err = serde_json::from_str::<Statistics>(&bad).unwrap_err();
+        assert!(err.to_string().contains("brdf-it"), "{err}");
+    }
 }

@@ -7,6 +7,7 @@
 //! The radius is logarithmic: [`DECADES`] decades below the panel's largest value, with a
 //! guide circle per decade.
 
+use super::legend::{self, Entry, Marker};
 use super::{e2s, figure, series_colour, Draw, Figure, PlotError};
 use crate::eval::shade::BrdfFn;
 use plotters::coord::Shift;
@@ -16,6 +17,10 @@ use plotters::prelude::*;
 pub const DECADES: f64 = 4.0;
 const FONT: &str = "sans-serif";
 const STEPS: usize = 719;
+/// Colour of the incident direction: a neutral near-black, dashed, so that it is taken for
+/// no curve (the series palette has a mid grey).
+const INCIDENT: RGBColor = RGBColor(40, 40, 40);
+const LEGEND_SIZE: u32 = 13;
 
 /// `(theta_o in degrees, mean RGB f)` along the plane of incidence.
 pub fn lobe_samples(f: &BrdfFn, theta_i_deg: f64) -> Vec<(f64, f64)> {
@@ -41,6 +46,56 @@ pub struct LobePlot<'a> {
     pub angles: &'a [f64],
 }
 
+impl LobePlot<'_> {
+    fn colour(i: usize) -> RGBColor {
+        if i == 0 {
+            BLACK
+        } else {
+            series_colour(i - 1)
+        }
+    }
+
+    fn legend(&self) -> Vec<Entry> {
+        let mut e: Vec<Entry> = self
+            .curves
+            .iter()
+            .enumerate()
+            .map(|(i, (name, _))| {
+                Entry::new(
+                    legend::short_name(name, 40),
+                    Marker::Line(Self::colour(i), if i == 0 { 3 } else { 2 }),
+                )
+            })
+            .collect();
+        e.push(Entry::new(
+            "incident direction (towards the light)",
+            Marker::Dashed(INCIDENT),
+        ));
+        e
+    }
+
+    fn legend_height(&self, width: u32) -> u32 {
+        legend::flow_rows(&self.legend(), width, LEGEND_SIZE) * legend::row_height(LEGEND_SIZE)
+            + 8
+    }
+}
+
+/// Curves that are zero (or not finite) at every sampled direction of every panel: they
+/// cannot be drawn on a log radius, and a blank plot must not pass for a result.
+pub fn zero_curves(curves: &[(String, BrdfFn)], angles: &[f64]) -> Vec<String> {
+    curves
+        .iter()
+        .filter(|(_, f)| {
+            angles.iter().all(|&a| {
+                lobe_samples(f, a)
+                    .iter()
+                    .all(|p| !(p.1 > 0.0 && p.1.is_finite()))
+            })
+        })
+        .map(|(n, _)| n.clone())
+        .collect()
+}
+
 impl Draw for LobePlot<'_> {
     fn draw<DB: DrawingBackend>(
         &self,
@@ -48,112 +103,133 @@ impl Draw for LobePlot<'_> {
         text: bool,
     ) -> Result<(), String> {
         let root = if text {
-            root.titled(&self.title, (FONT, 18)).map_err(e2s)?
+            let w = root.dim_in_pixel().0.saturating_sub(20);
+            root.titled(&legend::fit_text(&self.title, 18, w), (FONT, 18))
+                .map_err(e2s)?
         } else {
             root.clone()
         };
-        let (body, legend) = root
-            .split_vertically(root.dim_in_pixel().1 - 30 * (self.curves.len() as u32).div_ceil(4));
+        let (w, h) = root.dim_in_pixel();
+        let (body, legend_area) = root.split_vertically(h - self.legend_height(w));
         let panels = body.split_evenly((1, self.angles.len().max(1)));
         for (&a, area) in self.angles.iter().zip(panels) {
-            let samples: Vec<Vec<(f64, f64)>> = self
-                .curves
-                .iter()
-                .map(|(_, f)| lobe_samples(f, a))
+            self.panel(&area, a, text)?;
+        }
+        legend::draw_flow(&legend_area, &self.legend(), LEGEND_SIZE, text)
+    }
+
+    fn notes(&self) -> Vec<String> {
+        zero_curves(self.curves, self.angles)
+            .into_iter()
+            .map(|n| {
+                format!(
+                    "lobe plot: the BRDF of `{}` is 0 at every direction plotted, so it has no curve (log radius)",
+                    legend::short_name(&n, 60)
+                )
+            })
+            .collect()
+    }
+}
+
+impl LobePlot<'_> {
+    /// One panel: guide circles, surface, normal, incident direction and the curves.
+    fn panel<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        a: f64,
+        text: bool,
+    ) -> Result<(), String> {
+        let samples: Vec<Vec<(f64, f64)>> = self
+            .curves
+            .iter()
+            .map(|(_, f)| lobe_samples(f, a))
+            .collect();
+        let top = samples
+            .iter()
+            .flatten()
+            .map(|p| p.1)
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max);
+        let log_top = if top > 0.0 { top.log10().ceil() } else { 0.0 };
+        let radius = |v: f64| (v.max(1e-300).log10() - (log_top - DECADES)).max(0.0);
+        let mut b = ChartBuilder::on(area);
+        b.margin(8);
+        if text {
+            b.caption(format!("theta_i = {a} deg"), (FONT, 15));
+        }
+        let mut chart = b
+            .build_cartesian_2d(-DECADES * 1.05..DECADES * 1.05, -0.05..DECADES * 1.05)
+            .map_err(e2s)?;
+        for d in 1..=DECADES as usize {
+            let r = d as f64;
+            let pts: Vec<(f64, f64)> = (0..=90)
+                .map(|s| {
+                    let t = std::f64::consts::PI * s as f64 / 90.0;
+                    (r * t.cos(), r * t.sin())
+                })
                 .collect();
-            let top = samples.iter().flatten().map(|p| p.1).fold(0.0, f64::max);
-            if top <= 0.0 || !top.is_finite() {
-                continue;
-            }
-            let log_top = top.log10().ceil();
-            let radius = |v: f64| (v.max(1e-300).log10() - (log_top - DECADES)).max(0.0);
-            let mut b = ChartBuilder::on(&area);
-            b.margin(8);
-            if text {
-                b.caption(format!("theta_i = {a} deg"), (FONT, 15));
-            }
-            let mut chart = b
-                .build_cartesian_2d(-DECADES * 1.05..DECADES * 1.05, -0.05..DECADES * 1.05)
+            chart
+                .draw_series(LineSeries::new(pts, RGBColor(200, 200, 200)))
                 .map_err(e2s)?;
-            for d in 1..=DECADES as usize {
-                let r = d as f64;
-                let pts: Vec<(f64, f64)> = (0..=90)
-                    .map(|s| {
-                        let t = std::f64::consts::PI * s as f64 / 90.0;
-                        (r * t.cos(), r * t.sin())
-                    })
-                    .collect();
+            if text && top > 0.0 {
                 chart
-                    .draw_series(LineSeries::new(pts, RGBColor(200, 200, 200)))
-                    .map_err(e2s)?;
-                if text {
-                    chart
-                        .draw_series([Text::new(
-                            format!("1e{}", log_top as i64 - DECADES as i64 + d as i64),
-                            (r * 0.94, -0.02),
-                            (FONT, 10).into_font(),
-                        )])
-                        .map_err(e2s)?;
-                }
-            }
-            // Surface and normal, incident direction.
-            chart
-                .draw_series(LineSeries::new(
-                    vec![(-DECADES, 0.0), (DECADES, 0.0)],
-                    BLACK,
-                ))
-                .map_err(e2s)?;
-            chart
-                .draw_series(LineSeries::new(
-                    vec![(0.0, 0.0), (0.0, DECADES)],
-                    RGBColor(160, 160, 160),
-                ))
-                .map_err(e2s)?;
-            let ti = a.to_radians();
-            chart
-                .draw_series(LineSeries::new(
-                    vec![(0.0, 0.0), (DECADES * ti.sin(), DECADES * ti.cos())],
-                    RGBColor(230, 160, 0).stroke_width(2),
-                ))
-                .map_err(e2s)?;
-            for (i, s) in samples.iter().enumerate().rev() {
-                let c = if i == 0 { BLACK } else { series_colour(i - 1) };
-                let pts: Vec<(f64, f64)> = s
-                    .iter()
-                    .map(|&(to, v)| {
-                        let r = radius(v);
-                        let t = to.to_radians();
-                        (r * t.sin(), r * t.cos())
-                    })
-                    .collect();
-                chart
-                    .draw_series(LineSeries::new(
-                        pts,
-                        c.stroke_width(if i == 0 { 3 } else { 2 }),
-                    ))
+                    .draw_series([Text::new(
+                        format!("1e{}", log_top as i64 - DECADES as i64 + d as i64),
+                        (r * 0.94, -0.02),
+                        (FONT, 10).into_font(),
+                    )])
                     .map_err(e2s)?;
             }
         }
-        if text {
-            let (w, _) = legend.dim_in_pixel();
-            let col = (w / 4) as i32;
-            for (i, (name, _)) in self.curves.iter().enumerate() {
-                let c = if i == 0 { BLACK } else { series_colour(i - 1) };
-                let (x, y) = (10 + col * (i as i32 % 4), 8 + 26 * (i as i32 / 4));
-                legend
-                    .draw(&PathElement::new(
-                        vec![(x, y + 8), (x + 24, y + 8)],
-                        c.stroke_width(3),
-                    ))
-                    .map_err(e2s)?;
-                legend
-                    .draw(&Text::new(
-                        name.clone(),
-                        (x + 30, y),
+        // Surface and normal, incident direction.
+        chart
+            .draw_series(LineSeries::new(
+                vec![(-DECADES, 0.0), (DECADES, 0.0)],
+                BLACK,
+            ))
+            .map_err(e2s)?;
+        chart
+            .draw_series(LineSeries::new(
+                vec![(0.0, 0.0), (0.0, DECADES)],
+                RGBColor(160, 160, 160),
+            ))
+            .map_err(e2s)?;
+        let ti = a.to_radians();
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(0.0, 0.0), (DECADES * ti.sin(), DECADES * ti.cos())],
+                4,
+                4,
+                INCIDENT.stroke_width(1),
+            ))
+            .map_err(e2s)?;
+        if top <= 0.0 {
+            if text {
+                chart
+                    .draw_series([Text::new(
+                        "BRDF = 0 in this plane",
+                        (-DECADES * 0.45, DECADES * 0.5),
                         (FONT, 13).into_font(),
-                    ))
+                    )])
                     .map_err(e2s)?;
             }
+            return Ok(());
+        }
+        for (i, s) in samples.iter().enumerate().rev() {
+            let pts: Vec<(f64, f64)> = s
+                .iter()
+                .map(|&(to, v)| {
+                    let r = radius(v);
+                    let t = to.to_radians();
+                    (r * t.sin(), r * t.cos())
+                })
+                .collect();
+            chart
+                .draw_series(LineSeries::new(
+                    pts,
+                    Self::colour(i).stroke_width(if i == 0 { 3 } else { 2 }),
+                ))
+                .map_err(e2s)?;
         }
         Ok(())
     }
@@ -169,14 +245,12 @@ pub fn lobe_plot(
     if curves.is_empty() || angles.is_empty() {
         return Err(PlotError::NoData(stem.into()));
     }
-    let rows = (curves.len() as u32).div_ceil(4);
-    figure(
-        stem,
-        (330 * angles.len() as u32, 230 + 30 * rows),
-        &LobePlot {
-            title: title.to_string(),
-            curves,
-            angles,
-        },
-    )
+    let plot = LobePlot {
+        title: title.to_string(),
+        curves,
+        angles,
+    };
+    let w = 330 * angles.len() as u32;
+    let h = 230 + plot.legend_height(w);
+    figure(stem, (w, h), &plot)
 }

@@ -22,8 +22,8 @@ const LABEL: u32 = 34;
 /// least 1e-6), rounded up to two significant digits.
 pub fn common_scale(s: &Showcase, display: &DisplayParams) -> Result<f64, PlotError> {
     let mut max = 1e-6f64;
-    for (_, _, img, _) in &s.approximations {
-        let e = pixel_errors(&s.original, img, display).map_err(|e| PlotError::Draw {
+    for a in &s.approximations {
+        let e = pixel_errors(&s.original, &a.image, display).map_err(|e| PlotError::Draw {
             stem: "fig5-showcase".into(),
             message: e.to_string(),
         })?;
@@ -217,19 +217,19 @@ pub fn showcase_figure(
     };
     let scale = common_scale(s, display)?;
     let mut tiles = vec![(
-        format!("target: {}", s.material),
+        format!("target: {}", super::legend::short_name(&s.material, 22)),
         shrink(&display_image(&s.original, display).map_err(|e| err(e.to_string()))?),
         String::new(),
     )];
     let mut heat = Vec::new();
-    for (name, _, img, e) in &s.approximations {
+    for a in &s.approximations {
         tiles.push((
-            name.clone(),
-            shrink(&display_image(img, display).map_err(|e| err(e.to_string()))?),
-            format!("image error {e:.4}"),
+            super::legend::short_name(&a.basis, 22),
+            shrink(&display_image(&a.image, display).map_err(|e| err(e.to_string()))?),
+            format!("image error {}", crate::experiment::report::sig(a.image_error)),
         ));
         heat.push(shrink(
-            &heatmap(&s.original, img, display, HeatmapScale::Fixed(scale))
+            &heatmap(&s.original, &a.image, display, HeatmapScale::Fixed(scale))
                 .map_err(|e| err(e.to_string()))?,
         ));
     }
@@ -239,9 +239,18 @@ pub fn showcase_figure(
         scale,
         title: format!(
             "{}: renders (gamma {}, exposure {}, light (45, 45) deg) and per-pixel error heatmaps, scale 0 to {scale:.3}",
-            s.material, display.gamma, display.exposure
+            super::legend::short_name(&s.material, 60),
+            display.gamma,
+            display.exposure
         ),
     };
+    let mut notes = Vec::new();
+    if s.original.data.iter().all(|&v| v == 0.0) {
+        notes.push(format!(
+            "Fig. 5: the render of `{}` is black (its BRDF is 0 under this light), so its error heatmaps show the approximations themselves",
+            super::legend::short_name(&s.material, 60)
+        ));
+    }
     let size = layout.size();
     let mut svg = String::new();
     {
@@ -283,6 +292,7 @@ pub fn showcase_figure(
             height: size.1,
             data: buf,
         },
+        notes,
     })
 }
 

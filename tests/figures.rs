@@ -1,0 +1,267 @@
+//! Figures: fonts are inputs like any other (regular, bounded, errors naming
+//! `BRDF_BASIS_FONT` and the path, before any work), box-plot whiskers at the data, tick
+//! labels without float noise, Fig. 4a/4b named and in one order, heatmap colour bars and
+//! a zero BRDF said, not drawn as a blank figure.
+
+use crate::common::*;
+use brdf_basis::experiment::evaluation::BasisErrors;
+use brdf_basis::plot::charts::{box_stats, errors_per_material, material_order};
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// Runs `c`, killing it after `limit` (a hang is a failure, not a stuck test run).
+fn run_within(mut c: Command, limit: Duration) -> Output {
+    let mut child = c
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let t = Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if t.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("still running after {limit:?}: {c:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().expect("output")
+}
+
+fn plot_with_font(font: &str, out: &Path) -> Output {
+    let mut c = bin();
+    c.env("BRDF_BASIS_FONT", font)
+        .args(["--quiet", "plot", "--material", "polished-gold", "--out"])
+        .arg(out);
+    run_within(c, Duration::from_secs(30))
+}
+
+fn err(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `BRDF_BASIS_FONT=/dev/zero` read forever; a missing or unusable font was ignored
+/// without a word. Now each is an error naming the variable and the path, and nothing is
+/// written.
+#[test]
+fn unusable_fonts_are_refused_naming_the_variable_and_path() {
+    let d = tmp();
+    let not_font = d.path().join("notes.ttf");
+    std::fs::write(&not_font, b"these are not glyphs").expect("write");
+    let huge = d.path().join("huge.ttf");
+    std::fs::File::create(&huge)
+        .and_then(|f| f.set_len(65 << 20))
+        .expect("sparse file");
+    let missing = d.path().join("nosuch.ttf");
+    let cases = [
+        ("/dev/zero".to_string(), "not a regular file"),
+        (d.path().display().to_string(), "not a regular file"),
+        (missing.display().to_string(), "No such file"),
+        (not_font.display().to_string(), "not a TrueType or OpenType font"),
+        (huge.display().to_string(), "64 MiB"),
+    ];
+    for (i, (font, why)) in cases.iter().enumerate() {
+        let out = d.path().join(format!("l{i}.svg"));
+        let o = plot_with_font(font, &out);
+        let e = err(&o);
+        assert!(!o.status.success(), "{font}: accepted");
+        assert!(e.contains(&format!("BRDF_BASIS_FONT={font}")), "{font}: {e}");
+        assert!(e.contains(why), "{font}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
+        assert!(!out.exists(), "{font}: output written");
+    }
+}
+
+/// `reproduce` and `render --heatmap` refuse an unusable font before any work.
+#[test]
+fn unusable_font_is_refused_before_reproduce_and_render_work() {
+    let d = tmp();
+    let out = d.path().join("r");
+    let mut c = bin();
+    c.env("BRDF_BASIS_FONT", "/dev/zero")
+        .args(["--quiet", "--backend", "cpu", "reproduce", "--runs", "2", "--out"])
+        .arg(&out);
+    let t = Instant::now();
+    let o = run_within(c, Duration::from_secs(30));
+    assert!(!o.status.success());
+    assert!(err(&o).contains("BRDF_BASIS_FONT=/dev/zero"), "{}", err(&o));
+    assert!(!out.exists(), "output directory created before the font check");
+    assert!(t.elapsed() < Duration::from_secs(20));
+
+    let fits = d.path().join("f.json");
+    let o = bin()
+        .args(["--quiet", "--backend", "cpu", "fit", "--basis"])
+        .args(["mirror-silver,matte-white-paint", "--targets", "polished-gold", "--json"])
+        .arg(&fits)
+        .output()
+        .expect("fit");
+    assert!(o.status.success(), "{}", err(&o));
+    let mut c = bin();
+    c.env("BRDF_BASIS_FONT", d.path().join("nosuch.ttf"))
+        .args(["--quiet", "--backend", "cpu", "render", "--material", "polished-gold"])
+        .args(["--size", "16", "--fit"])
+        .arg(&fits)
+        .arg("--out")
+        .arg(d.path().join("g.exr"))
+        .arg("--heatmap")
+        .arg(d.path().join("h.png"));
+    let o = run_within(c, Duration::from_secs(30));
+    assert!(!o.status.success());
+    assert!(err(&o).contains("nosuch.ttf"), "{}", err(&o));
+    assert!(!d.path().join("h.png").exists() && !d.path().join("g.exr").exists());
+}
+
+/// A heatmap PNG carries its colour bar: wider than the render, with the viridis ends in
+/// a column right of it.
+#[test]
+fn heatmap_png_has_a_colour_bar() {
+    let d = tmp();
+    let fits = d.path().join("f.json");
+    let o = bin()
+        .args(["--quiet", "--backend", "cpu", "fit", "--basis"])
+        .args(["mirror-silver,matte-white-paint", "--targets", "polished-gold", "--json"])
+        .arg(&fits)
+        .output()
+        .expect("fit");
+    assert!(o.status.success(), "{}", err(&o));
+    let heat = d.path().join("h.png");
+    let o = bin()
+        .args(["--quiet", "--backend", "cpu", "render", "--material", "polished-gold"])
+        .args(["--size", "64", "--fit"])
+        .arg(&fits)
+        .arg("--out")
+        .arg(d.path().join("g.exr"))
+        .arg("--heatmap")
+        .arg(&heat)
+        .output()
+        .expect("render");
+    assert!(o.status.success(), "{}", err(&o));
+    let img = image::open(&heat).expect("png").to_rgb8();
+    assert!(img.width() > 64 + 20 && img.height() >= 64, "{:?}", img.dimensions());
+    // Somewhere right of the render: a column going from yellow (top) to purple (bottom).
+    let yellow = (65..img.width()).any(|x| {
+        (0..img.height()).any(|y| {
+            let p = img.get_pixel(x, y).0;
+            p[0] > 230 && p[1] > 210 && p[2] < 60
+        })
+    });
+    let purple = (65..img.width()).any(|x| {
+        (0..img.height()).any(|y| {
+            let p = img.get_pixel(x, y).0;
+            p[0] < 80 && p[1] < 20 && p[2] > 70 && p[2] < 100
+        })
+    });
+    assert!(yellow && purple, "no colour bar right of the heatmap");
+}
+
+/// A material whose BRDF is zero everywhere is said to be so (a warning, and text in the
+/// figure), not drawn as a blank plot that passes for a result.
+#[test]
+fn zero_material_lobe_plot_is_said_not_blank() {
+    let d = tmp();
+    let csv = d.path().join("z.csv");
+    std::fs::write(
+        &csv,
+        "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\nzero,0,0,0,0,0,0,0.5,10\nred,0.5,0,0,0.2,0.2,0.2,0.5,100\n",
+    )
+    .expect("write");
+    let out = d.path().join("z.svg");
+    let o = bin()
+        .arg("plot")
+        .arg(&csv)
+        .args(["--material", "zero", "--angles", "0,45", "--out"])
+        .arg(&out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", err(&o));
+    let e = err(&o);
+    assert!(e.contains("warning") && e.contains("`zero` is 0"), "{e}");
+    if brdf_basis::plot::with_text() {
+        let svg = std::fs::read_to_string(&out).expect("svg");
+        assert!(svg.contains("BRDF = 0 in this plane"), "no note in the figure");
+    }
+}
+
+/// Whiskers were plotters' Tukey fences: values no run had (0.69 and 4.19 here, when every
+/// run lies in [1, 3.4]), and an axis fitted to the data clipped them.
+#[test]
+fn box_whiskers_are_data_values() {
+    let runs = [1.0, 2.0, 2.0, 2.5, 3.0, 3.4];
+    let q = box_stats(&runs).expect("stats");
+    assert_eq!((q.q1, q.median, q.q3), (2.0, 2.25, 2.875));
+    assert_eq!((q.low, q.high), (1.0, 3.4));
+    assert!(q.outliers.is_empty());
+    let fences = plotters::data::Quartiles::new(&runs).values();
+    assert!(f64::from(fences[0]) < 1.0 && f64::from(fences[4]) > 3.4, "{fences:?}");
+    // Outliers beyond 1.5 IQR are points; the whisker stops at the last run inside.
+    let q = box_stats(&[1.0, 2.0, 3.0, 4.0, 100.0, f64::NAN]).expect("stats");
+    assert_eq!((q.low, q.high, q.outliers.clone()), (1.0, 4.0, vec![100.0]));
+    // One run: everything is that run.
+    let q = box_stats(&[0.7]).expect("stats");
+    assert_eq!((q.q1, q.q3, q.low, q.high), (0.7, 0.7, 0.7, 0.7));
+    assert!(box_stats(&[f64::INFINITY]).is_none());
+}
+
+/// The text of every `<text>` element of an SVG.
+fn texts(svg: &str) -> Vec<String> {
+    svg.split("<text")
+        .skip(1)
+        .filter_map(|t| {
+            let body = &t[t.find('>')? + 1..];
+            Some(body[..body.find("</text>")?].trim().to_string())
+        })
+        .collect()
+}
+
+fn errors(basis: &str, mae: &[f64], img: &[f64]) -> BasisErrors {
+    BasisErrors {
+        basis: basis.into(),
+        size: 3,
+        mae: mae.to_vec(),
+        image_error: img.to_vec(),
+        mean_mae: 0.0,
+        median_mae: 0.0,
+        mean_image_error: 0.0,
+        median_image_error: 0.0,
+    }
+}
+
+/// Fig. 4a and 4b name the materials on the x axis, in the same order (by the first
+/// basis's MAE, whatever the image errors), and their log ticks read `1e-4`, not
+/// `9.999999999999999e-5`.
+#[test]
+fn fig4_names_materials_in_one_order_with_clean_ticks() {
+    if !brdf_basis::plot::with_text() {
+        eprintln!("SKIP (no font) fig4_names_materials_in_one_order_with_clean_ticks");
+        return;
+    }
+    let targets: Vec<String> = ["alpha-paint", "beta-metal", "gamma-wood", "delta-stone"]
+        .map(String::from)
+        .to_vec();
+    let e = vec![
+        errors("one", &[3e-3, 1e-5, 0.2, 4e-4], &[0.01, 0.3, 0.02, 0.5]),
+        errors("two", &[2e-3, 2e-5, 0.1, 5e-4], &[0.02, 0.2, 0.01, 0.4]),
+    ];
+    assert_eq!(material_order(&e), vec![1, 3, 0, 2]);
+    let order_in = |svg: &str| -> Vec<usize> {
+        let mut at: Vec<(usize, usize)> = targets
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (svg.find(&format!("\n{t}\n")).unwrap_or_else(|| panic!("{t} not named")), i))
+            .collect();
+        at.sort();
+        at.into_iter().map(|p| p.1).collect()
+    };
+    let a = errors_per_material(&targets, &e, true).expect("4a");
+    let b = errors_per_material(&targets, &e, false).expect("4b");
+    assert_eq!(order_in(&a.svg), vec![1, 3, 0, 2]);
+    assert_eq!(order_in(&b.svg), vec![1, 3, 0, 2]);
+    for svg in [&a.svg, &b.svg] {
+        for t in texts(svg) {
+            assert!(!t.contains("9999") && !t.contains("0000"), "float noise in `{t}`");
+        }
+    }
+    // plotters writes a text element's content on a line of its own.
+    assert!(a.svg.contains("\n1e-4\n") || a.svg.contains("\n0.001\n"), "no decade tick");
+}
