@@ -5,7 +5,7 @@
 use crate::common::*;
 use brdf_basis::experiment::bases::Basis;
 use brdf_basis::experiment::clustering::ClusteringSet;
-use brdf_basis::experiment::files::FitFile;
+use brdf_basis::fit::file::FitFile;
 use brdf_basis::experiment::statistics::Statistics;
 use std::path::Path;
 use std::process::Command;

@@ -2,10 +2,10 @@
 
 use super::Global;
 use brdf_basis::distance::{
-    collection_fingerprint, distance_matrix_banded, distance_tile, DistanceParams, LobeKind,
-    Metric, DEFAULT_BAND_ROWS,
+    distance_matrix_banded, distance_tile, DistanceParams, LobeKind, Metric, DEFAULT_BAND_ROWS,
 };
-use brdf_basis::io::matrix::{write_csv, write_npy_with_sidecar, write_tile, MatrixSettings};
+use brdf_basis::io::saved::{write_csv, write_npy_with_sidecar, write_tile};
+use brdf_basis::io::sidecar::MatrixSettings;
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
@@ -105,7 +105,7 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
             &t,
             &coll.names(),
             &settings,
-            &collection_fingerprint(&coll),
+            &coll.fingerprint(),
         )?;
         if !g.quiet {
             eprintln!(
@@ -113,7 +113,7 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
                 a.out.display(),
                 t.rows.start,
                 t.rows.end,
-                p.metric
+                p.metric()
             );
         }
         return Ok(());
@@ -121,17 +121,17 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     let d = distance_matrix_banded(backend.as_ref(), &coll, &p, a.band_rows, &progress)?;
     pb.finish_and_clear();
     match ext.as_str() {
-        "npy" => write_npy_with_sidecar(&a.out, &d, &settings, &collection_fingerprint(&coll))?,
+        "npy" => write_npy_with_sidecar(&a.out, &d, &settings, &coll.fingerprint())?,
         _ => write_csv(&a.out, &d)?,
     }
     if !g.quiet {
         eprintln!(
             "wrote {} ({n} x {n} {}, lobe {}, mask {}, weighting {})",
             a.out.display(),
-            p.metric,
-            p.lobe,
-            p.mask,
-            p.weighting
+            p.metric(),
+            p.lobe(),
+            p.mask(),
+            p.weighting()
         );
     }
     Ok(())

@@ -1,7 +1,7 @@
 //! `brdf-basis merge`.
 
 use super::Global;
-use brdf_basis::io::matrix::merge_tiles;
+use brdf_basis::io::merge::merge_tiles;
 use std::path::PathBuf;
 
 /// Arguments of `merge`.

@@ -14,7 +14,7 @@ pub mod tabulate;
 
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
-use brdf_basis::engine::{open_backend, BackendChoice};
+use brdf_basis::backend::BackendChoice;
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -119,7 +119,7 @@ pub fn load_collection(paths: &[PathBuf]) -> anyhow::Result<Collection> {
 
 /// Opens the back-end chosen by `--backend`.
 pub fn backend(g: &Global) -> anyhow::Result<Box<dyn Backend>> {
-    let b = open_backend(g.backend)?;
+    let b = brdf_basis::backend::open(g.backend)?;
     if !g.quiet {
         eprintln!("backend: {}", b.name());
     }

@@ -4,8 +4,8 @@ use super::Global;
 use anyhow::Context;
 use brdf_basis::eval::image_error::{heatmap, normalized_image_error, DisplayParams, HeatmapScale};
 use brdf_basis::eval::render::{render_sphere, RenderParams};
-use brdf_basis::eval::shade::{combination_brdf, material_brdf};
-use brdf_basis::experiment::files::FitFile;
+use brdf_basis::eval::shade::material_brdf;
+use brdf_basis::fit::file::FitFile;
 use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
 use brdf_basis::io::image::{exr_bytes, png_bytes, rgb8_png_bytes};
 use std::path::PathBuf;
@@ -124,15 +124,7 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     let image = match &a.fit {
         None => original.clone(),
         Some(path) => {
-            let file = FitFile::read(path)?;
-            let (_, coef) = file.columns_of(&a.material, path)?;
-            let basis: Vec<usize> = file
-                .basis
-                .iter()
-                .map(|n| coll.index_of(n))
-                .collect::<Result<_, _>>()
-                .with_context(|| format!("{}: basis material", path.display()))?;
-            render_sphere(&params, &combination_brdf(&coll, &basis, &coef))?
+            render_sphere(&params, &FitFile::combination_from(path, &coll, &a.material)?)?
         }
     };
     // All outputs staged, then renamed into place together: a failure leaves none.

@@ -13,7 +13,7 @@ use brdf_basis::experiment::{
 use brdf_basis::io::atomic::write_atomic;
 use brdf_basis::io::image::{write_exr, write_png, write_rgb8_image};
 use brdf_basis::io::json::write_json;
-use brdf_basis::io::matrix::{write_csv, write_npy};
+use brdf_basis::io::saved::{write_csv, write_npy};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -274,11 +274,11 @@ fn run_saved(g: &Global, a: &SelectArgs, path: &std::path::Path) -> anyhow::Resu
         );
     }
     brdf_basis::io::atomic::check_output_path(&a.json, "--json")?;
-    let saved = brdf_basis::io::matrix::load_saved_matrix(path)?;
+    let saved = brdf_basis::io::saved::load_saved_matrix(path)?;
     check_clustering(a, saved.matrix.names().len())?;
     let metric = saved
         .sidecar
-        .map_or(a.metric.to_string(), |s| s.settings.metric);
+        .map_or(a.metric.to_string(), |s| s.settings.metric.to_string());
     let value = cluster_json(a, &saved.matrix, &metric, g.seed)?;
     write_json(&a.json, &value)?;
     if !g.quiet {

@@ -103,7 +103,7 @@ pub fn distance_band(
     let n = coll.len();
     let nb = super_blocks(n, band_rows);
     let range = |a: usize| a * band_rows..((a + 1) * band_rows).min(n);
-    match p.metric {
+    match p.metric() {
         Metric::Euclidean => {
             let params: Vec<(f64, f64)> = coll
                 .materials()
@@ -131,7 +131,7 @@ pub fn distance_band(
                     "no grid cell is valid in every material of the collection".into(),
                 )));
             }
-            let all = lobes(coll, p.lobe);
+            let all = lobes(coll, p.lobe());
             let calls: u64 = rows.clone().map(|a| (nb - a) as u64).sum();
             let per_call = cells.len() as u64;
             let total = calls * per_call;

@@ -2,7 +2,7 @@
 //! fit mask and normalised image errors of sphere renders (paper Fig. 4 and 5).
 
 use super::bases::Basis;
-use super::files::{FitFile, FitTarget};
+use crate::fit::file::{FitFile, FitTarget};
 use super::statistics::median;
 use super::ExperimentError;
 use crate::backend::Backend;

@@ -1,6 +1,13 @@
-//! File input and output: atomic writes, `.npy`, CSV matrices, images.
+//! File input and output: `.npy` ([`npy`]), the sidecar of a saved matrix ([`sidecar`]),
+//! saved matrices written and loaded with their checks ([`saved`]), tile merging
+//! ([`merge`]), JSON and images.
 
 pub mod atomic;
 pub mod image;
 pub mod json;
-pub mod matrix;
+pub mod merge;
+pub mod npy;
+pub mod saved;
+pub mod sidecar;
+
+pub use saved::MatrixFileError;

@@ -15,6 +15,11 @@ use crate::merl::{CellSet, GridTables, Mask, Weighting};
 use crate::nnls::{lawson_hanson, pgd, GramBatch, NnlsError, NnlsSolution};
 use crate::separable::{CellMoments, SeparableLobe};
 use rayon::prelude::*;
+use std::num::NonZeroUsize;
+
+pub mod diagnostics;
+pub mod export;
+pub mod file;
 
 /// Errors of fitting.
 #[derive(Debug, thiserror::Error)]
@@ -56,6 +61,9 @@ pub enum FitError {
         /// The stride.
         stride: usize,
     },
+    /// A grid stride of 0 (1 is the full grid).
+    #[error("a grid stride of 0 is meaningless: give --stride 1 (the full grid) or more")]
+    ZeroStride,
     /// Back-end failure.
     #[error(transparent)]
     Backend(#[from] BackendError),
@@ -179,17 +187,17 @@ pub const LAMBERTIAN: Lobe = Lobe::Analytic(LobeParams {
     n: 1.0,
 });
 
-/// The cells of a fit: the mask, restricted to cells valid in every measured material.
-pub fn fit_cells(coll: &Collection, idx: &[usize], p: &FitParams) -> CellSet {
-    let sub = coll.subset(idx);
-    let dp = crate::distance::ValidDistanceParams {
-        metric: crate::distance::Metric::BrdfIt,
-        mask: p.mask,
-        weighting: p.weighting,
-        lobe: crate::distance::LobeKind::Full,
-        stride: p.stride.max(1),
-    };
-    crate::distance::cell_set(&sub, &dp)
+/// The cells of a fit of the materials `idx` of `coll`: the mask on the grid
+/// sub-sampled by the stride, restricted to cells valid in every measured one of them
+/// ([`CellSet::for_collection`]). A stride of 0 is refused.
+pub fn fit_cells(coll: &Collection, idx: &[usize], p: &FitParams) -> Result<CellSet, FitError> {
+    let stride = NonZeroUsize::new(p.stride).ok_or(FitError::ZeroStride)?;
+    Ok(CellSet::for_collection(
+        &coll.subset(idx),
+        p.mask,
+        p.weighting,
+        stride,
+    ))
 }
 
 /// Lobes in separable form when every one is analytic.
@@ -344,7 +352,7 @@ pub fn fit(
     }
     let mut all: Vec<usize> = basis.to_vec();
     all.extend_from_slice(targets);
-    let cells = fit_cells(coll, &all, p);
+    let cells = fit_cells(coll, &all, p)?;
     if cells.cells.is_empty() {
         return Err(FitError::NoCells {
             mask: p.mask,
