@@ -17,9 +17,7 @@
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::cluster::{GcukParams, KMedoidsParams};
 use brdf_basis::collection::{parse_csv, Collection};
-use brdf_basis::distance::{
-    distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS,
-};
+use brdf_basis::distance::{distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS};
 use brdf_basis::io::saved::{load_saved_matrix, write_npy_with_sidecar};
 use brdf_basis::io::sidecar::MatrixSettings;
 use brdf_basis::select::{empirical, EmpiricalParams};

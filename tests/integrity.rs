@@ -173,7 +173,11 @@ fn fit_file_of_another_collection_is_refused_by_render_and_plot() {
         &["render", "--size", "16", "--out"][..],
         &["plot", "--out"][..],
     ] {
-        let out = d.join(if args[0] == "render" { "r.exr" } else { "p.svg" });
+        let out = d.join(if args[0] == "render" {
+            "r.exr"
+        } else {
+            "p.svg"
+        });
         let err = refused(
             cli()
                 .arg(args[0])
@@ -185,16 +189,28 @@ fn fit_file_of_another_collection_is_refused_by_render_and_plot() {
         );
         assert!(err.contains("fits.json"), "{err}");
         assert!(err.contains("another collection"), "{err}");
-        assert!(err.contains(&coll.fingerprint()) && err.contains(&theirs), "{err}");
+        assert!(
+            err.contains(&coll.fingerprint()) && err.contains(&theirs),
+            "{err}"
+        );
         assert!(!out.exists());
     }
     // A fit file without a fingerprint (written before it was recorded) is refused too.
     let mut v = read_json(&fits);
-    v.as_object_mut().expect("object").remove("collection_fingerprint");
+    v.as_object_mut()
+        .expect("object")
+        .remove("collection_fingerprint");
     write_json(&fits, &v);
     let err = refused(
         cli()
-            .args(["render", "--material", "gloss-red-enamel", "--size", "16", "--fit"])
+            .args([
+                "render",
+                "--material",
+                "gloss-red-enamel",
+                "--size",
+                "16",
+                "--fit",
+            ])
             .arg(&fits)
             .arg("--out")
             .arg(d.join("r.exr")),
@@ -206,7 +222,14 @@ fn fit_file_of_another_collection_is_refused_by_render_and_plot() {
     v["collection_fingerprint"] = coll.fingerprint().into();
     write_json(&fits, &v);
     ok(cli()
-        .args(["render", "--material", "gloss-red-enamel", "--size", "16", "--fit"])
+        .args([
+            "render",
+            "--material",
+            "gloss-red-enamel",
+            "--size",
+            "16",
+            "--fit",
+        ])
         .arg(&fits)
         .arg("--out")
         .arg(d.join("r.exr")));
@@ -229,7 +252,10 @@ fn short_npy_says_how_many_bytes_were_expected_and_found() {
     let bytes = std::fs::read(&npy).expect("read");
     std::fs::write(&npy, &bytes[..bytes.len() - 12]).expect("truncate");
     let msg = load_saved_matrix(&npy).expect_err("short").to_string();
-    assert!(msg.contains(&format!("has {} bytes", bytes.len() - 12)), "{msg}");
+    assert!(
+        msg.contains(&format!("has {} bytes", bytes.len() - 12)),
+        "{msg}"
+    );
     assert!(msg.contains("4 stray bytes"), "{msg}");
 }
 
@@ -259,12 +285,27 @@ fn npy_headers_with_other_key_orders_quotes_spacing_and_versions_are_read() {
     let dir = tmp();
     let data = [0.0, 1.0, 2.0, 1.0, 0.0, 3.0];
     for (k, (major, header)) in [
-        (1, "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }"),
-        (1, "{\"descr\": \"<f8\", \"fortran_order\": False, \"shape\": (2, 3)}"),
-        (1, "{'shape': (2, 3), 'fortran_order': False, 'descr': '<f8'}"),
+        (
+            1,
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }",
+        ),
+        (
+            1,
+            "{\"descr\": \"<f8\", \"fortran_order\": False, \"shape\": (2, 3)}",
+        ),
+        (
+            1,
+            "{'shape': (2, 3), 'fortran_order': False, 'descr': '<f8'}",
+        ),
         (1, "{'descr':'<f8','fortran_order':False,'shape':(2,3)}"),
-        (2, "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }"),
-        (3, "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }"),
+        (
+            2,
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }",
+        ),
+        (
+            3,
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }",
+        ),
     ]
     .into_iter()
     .enumerate()
@@ -277,8 +318,14 @@ fn npy_headers_with_other_key_orders_quotes_spacing_and_versions_are_read() {
     }
     // Not float64 little-endian C order: refused saying why.
     for (header, want) in [
-        ("{'descr': '>f8', 'fortran_order': False, 'shape': (2, 3)}", "`>f8`"),
-        ("{'descr': '<f8', 'fortran_order': True, 'shape': (2, 3)}", "Fortran"),
+        (
+            "{'descr': '>f8', 'fortran_order': False, 'shape': (2, 3)}",
+            "`>f8`",
+        ),
+        (
+            "{'descr': '<f8', 'fortran_order': True, 'shape': (2, 3)}",
+            "Fortran",
+        ),
     ] {
         let p = dir.path().join("bad.npy");
         std::fs::write(&p, npy_with_header(1, header, &data)).expect("write");
@@ -319,7 +366,10 @@ fn merge_leaves_nothing_behind_on_error() {
     std::fs::create_dir(d.join("m.names.json")).expect("dir");
     let err = refused(cli().arg("merge").args(&t).arg("--out").arg(&out));
     assert!(err.contains("m.names.json"), "{err}");
-    assert!(!out.exists(), "the matrix was put in place without its sidecar");
+    assert!(
+        !out.exists(),
+        "the matrix was put in place without its sidecar"
+    );
     assert_eq!(leftovers(d), Vec::<String>::new());
     std::fs::remove_dir(d.join("m.names.json")).expect("rmdir");
     ok(cli().arg("merge").args(&t).arg("--out").arg(&out));
@@ -387,7 +437,14 @@ fn merge_says_in_words_what_differs() {
             "--out",
         ])
         .arg(&e2));
-    let err = refused(cli().arg("merge").arg(&t[0]).arg(&e2).arg("--out").arg(d.join("m.npy")));
+    let err = refused(
+        cli()
+            .arg("merge")
+            .arg(&t[0])
+            .arg(&e2)
+            .arg("--out")
+            .arg(d.join("m.npy")),
+    );
     assert!(err.contains("--metric euclidean vs brdf-it"), "{err}");
     assert!(!err.contains("MatrixSettings"), "{err}");
     // Same fingerprint, other names (a sidecar rewritten with a valid checksum): the
@@ -400,17 +457,39 @@ fn merge_says_in_words_what_differs() {
         serde_json::to_string_pretty(&side).expect("json"),
     )
     .expect("write");
-    let err = refused(cli().arg("merge").args(&t).arg("--out").arg(d.join("m.npy")));
+    let err = refused(
+        cli()
+            .arg("merge")
+            .args(&t)
+            .arg("--out")
+            .arg(d.join("m.npy")),
+    );
     assert!(err.contains("another collection"), "{err}");
     assert!(err.contains("material 0 is"), "{err}");
     // Another collection: both fingerprints, which differ.
     let other = other_collection(d);
     let f2 = d.join("f2.npy");
     ok(cli()
-        .args(["distance", "--stride", "6", "--band-rows", "8", "--tile", "2/2", "--out"])
+        .args([
+            "distance",
+            "--stride",
+            "6",
+            "--band-rows",
+            "8",
+            "--tile",
+            "2/2",
+            "--out",
+        ])
         .arg(&f2)
         .arg(&other));
-    let err = refused(cli().arg("merge").arg(&t[0]).arg(&f2).arg("--out").arg(d.join("m.npy")));
+    let err = refused(
+        cli()
+            .arg("merge")
+            .arg(&t[0])
+            .arg(&f2)
+            .arg("--out")
+            .arg(d.join("m.npy")),
+    );
     let ours = Collection::embedded_default().fingerprint();
     let theirs = Collection::load(&other).expect("other").fingerprint();
     assert_ne!(ours, theirs);

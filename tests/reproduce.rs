@@ -5,8 +5,8 @@
 use crate::common::*;
 use brdf_basis::experiment::bases::Basis;
 use brdf_basis::experiment::clustering::ClusteringSet;
-use brdf_basis::fit::file::FitFile;
 use brdf_basis::experiment::statistics::Statistics;
+use brdf_basis::fit::file::FitFile;
 use std::path::Path;
 use std::process::Command;
 

@@ -57,10 +57,7 @@ fn saved_npy_and_csv_cluster_exactly_like_a_computed_matrix() {
     assert_eq!(side.n, coll.len());
     assert_eq!(side.settings.metric.to_string(), "brdf-it");
     assert_eq!(side.settings.stride, 4);
-    assert_eq!(
-        side.collection_fingerprint,
-        coll.fingerprint()
-    );
+    assert_eq!(side.collection_fingerprint, coll.fingerprint());
     assert_eq!(side.npy_bytes, std::fs::metadata(&npy).expect("meta").len());
     // npy and csv load to the same matrix.
     let a = load_saved_matrix(&npy).expect("npy");

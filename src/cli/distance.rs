@@ -100,13 +100,7 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
             &progress,
         )?;
         pb.finish_and_clear();
-        write_tile(
-            &a.out,
-            &t,
-            &coll.names(),
-            &settings,
-            &coll.fingerprint(),
-        )?;
+        write_tile(&a.out, &t, &coll.names(), &settings, &coll.fingerprint())?;
         if !g.quiet {
             eprintln!(
                 "wrote {} (tile {i}/{count}: rows {}..{} of {n} x {n} {})",

@@ -2,7 +2,9 @@
 
 use super::Global;
 use brdf_basis::fit::diagnostics::{fit_warnings, MAX_WARNINGS};
-use brdf_basis::fit::export::{combination_grid, export_file_names, export_index_csv, EXPORT_INDEX};
+use brdf_basis::fit::export::{
+    combination_grid, export_file_names, export_index_csv, EXPORT_INDEX,
+};
 use brdf_basis::fit::file::FitFile;
 use brdf_basis::fit::{fit, FitParams, GramMode, Solver};
 use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
@@ -177,4 +179,3 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     }
     Ok(())
 }
-

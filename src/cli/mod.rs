@@ -13,8 +13,8 @@ pub mod select_error;
 pub mod tabulate;
 
 use brdf_basis::backend::Backend;
-use brdf_basis::collection::Collection;
 use brdf_basis::backend::BackendChoice;
+use brdf_basis::collection::Collection;
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 

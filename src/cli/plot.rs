@@ -4,9 +4,9 @@
 use super::Global;
 use brdf_basis::eval::image_error::DisplayParams;
 use brdf_basis::eval::shade::{combination_brdf, material_brdf, BrdfFn};
-use brdf_basis::fit::file::FitFile;
 use brdf_basis::experiment::report::ReportContext;
 use brdf_basis::experiment::Experiment;
+use brdf_basis::fit::file::FitFile;
 use brdf_basis::io::atomic::write_atomic;
 use brdf_basis::io::image::write_rgb8_image;
 use brdf_basis::plot::{charts, font_available, lobes, showcase, Figure};

@@ -123,9 +123,10 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     let original = render_sphere(&params, &material_brdf(&coll.materials()[target].data))?;
     let image = match &a.fit {
         None => original.clone(),
-        Some(path) => {
-            render_sphere(&params, &FitFile::combination_from(path, &coll, &a.material)?)?
-        }
+        Some(path) => render_sphere(
+            &params,
+            &FitFile::combination_from(path, &coll, &a.material)?,
+        )?,
     };
     // All outputs staged, then renamed into place together: a failure leaves none.
     let mut out = OutputSet::new();

@@ -75,4 +75,3 @@ pub fn fit_warnings(
     }
     w
 }
-

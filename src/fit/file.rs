@@ -266,4 +266,3 @@ impl FitFile {
         Ok((t, cols))
     }
 }
-

@@ -4,7 +4,9 @@
 //! leaves no temporary file), and [`merge_tiles`] does both and commits.
 
 use super::npy::{npy_header, read_npy_header, scan_npy_2d, NpyDigest, NpyRows};
-use super::sidecar::{collection_difference, read_sidecar, sidecar_path, stage_sidecar, MatrixSidecar};
+use super::sidecar::{
+    collection_difference, read_sidecar, sidecar_path, stage_sidecar, MatrixSidecar,
+};
 use super::MatrixFileError;
 use crate::atomic::OutputSet;
 use crate::distance::{entry_fault, BadEntry};
@@ -156,12 +158,8 @@ pub fn plan_merge(tiles: &[TileFile]) -> Result<MergePlan, MatrixFileError> {
             first.sidecar.names.len()
         )));
     }
-    super::saved::check_matrix_names(&first.sidecar.names).map_err(|m| {
-        merr(format!(
-            "{}: {m}",
-            sidecar_path(&planned[0].path).display()
-        ))
-    })?;
+    super::saved::check_matrix_names(&first.sidecar.names)
+        .map_err(|m| merr(format!("{}: {m}", sidecar_path(&planned[0].path).display())))?;
     let mut template = first.sidecar.clone();
     template.tile = None;
     Ok(MergePlan {
@@ -262,10 +260,10 @@ fn write_rows(
     buf.clear();
     buf.resize((b - a) * n, 0.0);
     let mut seg = vec![0.0; b - a];
-    for s in 0..t {
-        let s0 = plan.tiles[s].rows.start;
-        for (r, j) in plan.tiles[s].rows.clone().enumerate() {
-            files[s].read_at(r, a - s0, &mut seg)?;
+    for (tile, file) in plan.tiles[..t].iter().zip(files.iter_mut()) {
+        let s0 = tile.rows.start;
+        for (r, j) in tile.rows.clone().enumerate() {
+            file.read_at(r, a - s0, &mut seg)?;
             for (i, &v) in seg.iter().enumerate() {
                 buf[i * n + j] = v;
             }

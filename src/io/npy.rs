@@ -259,7 +259,10 @@ impl<'a> Literal<'a> {
             }
         }
         if self.peek().is_some() {
-            return Err(format!("text after the closing `}}` at character {}", self.at));
+            return Err(format!(
+                "text after the closing `}}` at character {}",
+                self.at
+            ));
         }
         Ok(out)
     }
@@ -503,7 +506,12 @@ impl NpyRows {
     }
 
     /// Reads `out.len()` values of row `row` from column `col` into `out`.
-    pub fn read_at(&mut self, row: usize, col: usize, out: &mut [f64]) -> Result<(), MatrixFileError> {
+    pub fn read_at(
+        &mut self,
+        row: usize,
+        col: usize,
+        out: &mut [f64],
+    ) -> Result<(), MatrixFileError> {
         let at = self.header.data_offset + 8 * (row * self.header.cols + col) as u64;
         self.buf.resize(8 * out.len(), 0);
         let path = &self.path;
@@ -540,12 +548,27 @@ mod tests {
     #[test]
     fn wrong_headers_say_what_is_wrong() {
         for (h, want) in [
-            ("{'descr': '>f8', 'fortran_order': False, 'shape': (3, 3)}", "`>f8`"),
-            ("{'descr': '<f8', 'fortran_order': True, 'shape': (3, 3)}", "Fortran"),
-            ("{'descr': '<f8', 'fortran_order': False, 'shape': (3,)}", "two-dimensional"),
+            (
+                "{'descr': '>f8', 'fortran_order': False, 'shape': (3, 3)}",
+                "`>f8`",
+            ),
+            (
+                "{'descr': '<f8', 'fortran_order': True, 'shape': (3, 3)}",
+                "Fortran",
+            ),
+            (
+                "{'descr': '<f8', 'fortran_order': False, 'shape': (3,)}",
+                "two-dimensional",
+            ),
             ("{'descr': '<f8', 'fortran_order': False}", "no `shape`"),
-            ("{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3), 'x': 1}", "unexpected value"),
-            ("{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3)} x", "after the closing"),
+            (
+                "{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3), 'x': 1}",
+                "unexpected value",
+            ),
+            (
+                "{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3)} x",
+                "after the closing",
+            ),
             ("{'descr': '<f8', 'descr': '<f8'}", "twice"),
         ] {
             let e = parse_header_dict(h).expect_err(h);

@@ -2,7 +2,9 @@
 //! loading one back with every check ([`load_saved_matrix`]).
 
 use super::npy::{read_npy_2d, stage_npy_2d, write_npy_2d};
-use super::sidecar::{read_sidecar, sidecar_path, stage_sidecar, MatrixSettings, MatrixSidecar, TileInfo};
+use super::sidecar::{
+    read_sidecar, sidecar_path, stage_sidecar, MatrixSettings, MatrixSidecar, TileInfo,
+};
 use crate::atomic::{write_atomic, OutputSet};
 use crate::distance::{check_entries, DistanceMatrix, Tile};
 use crate::error::OutputError;
@@ -91,7 +93,12 @@ pub enum MatrixFileError {
 
 impl MatrixFileError {
     /// A bad entry `(row, col)` of the matrix of `names` in `path`.
-    pub(crate) fn entry(path: &Path, names: &[String], e: crate::distance::BadEntry, tol: f64) -> Self {
+    pub(crate) fn entry(
+        path: &Path,
+        names: &[String],
+        e: crate::distance::BadEntry,
+        tol: f64,
+    ) -> Self {
         MatrixFileError::Entry {
             path: path.to_path_buf(),
             row: e.row,

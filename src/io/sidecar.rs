@@ -85,7 +85,11 @@ impl MatrixSettings {
                 out.push(format!("{what} {a} vs {b}"));
             }
         };
-        diff("--metric", self.metric.to_string(), other.metric.to_string());
+        diff(
+            "--metric",
+            self.metric.to_string(),
+            other.metric.to_string(),
+        );
         diff("--lobe", self.lobe.to_string(), other.lobe.to_string());
         diff(
             "--weighting",
@@ -93,7 +97,11 @@ impl MatrixSettings {
             other.weighting.to_string(),
         );
         diff("--mask", self.mask.to_string(), other.mask.to_string());
-        diff("--stride", self.stride.to_string(), other.stride.to_string());
+        diff(
+            "--stride",
+            self.stride.to_string(),
+            other.stride.to_string(),
+        );
         diff(
             "--band-rows",
             self.band_rows.to_string(),
@@ -289,7 +297,8 @@ pub fn read_sidecar(npy: &Path) -> Result<MatrixSidecar, MatrixFileError> {
         return Err(MatrixFileError::Names {
             path: sp,
             message: format!(
-                "{} names for N = {} materials",
+                "the sidecar of {} lists {} names for N = {} materials",
+                npy.display(),
                 side.names.len(),
                 side.n
             ),
@@ -318,11 +327,7 @@ pub fn collection_difference(a: &MatrixSidecar, b: &MatrixSidecar) -> Option<Str
         ));
     }
     if a.names.len() != b.names.len() {
-        return Some(format!(
-            "{} vs {} materials",
-            a.names.len(),
-            b.names.len()
-        ));
+        return Some(format!("{} vs {} materials", a.names.len(), b.names.len()));
     }
     let i = a.names.iter().zip(&b.names).position(|(x, y)| x != y)?;
     Some(format!(
