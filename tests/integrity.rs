@@ -403,8 +403,9 @@ fn merge_refuses_a_fifo_tile_and_leaves_no_temporary_file() {
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
     if child.try_wait().expect("wait").is_none() {
-        // Still blocked on the FIFO: interrupt it as a user would.
-        unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+        // Still blocked on the FIFO: stop it as a user or a batch system would
+        // (SIGTERM: SIGINT is ignored by processes started in the background).
+        unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
     }
     let status = child.wait().expect("wait");
     assert!(!status.success());
