@@ -523,3 +523,18 @@ fn info_names_the_backend_by_its_flag() {
     assert!(text.contains("requested: --backend cpu"), "{text}");
     assert!(!text.contains("Cpu"), "{text}");
 }
+
+#[test]
+fn a_stride_that_leaves_no_cell_is_explained_as_such() {
+    let dir = tmp();
+    let err = refused(
+        cli()
+            .args(["distance", "--stride", "90", "--out"])
+            .arg(dir.path().join("d.npy")),
+    );
+    assert!(
+        err.contains("no cell on the grid sub-sampled with --stride 90"),
+        "{err}"
+    );
+    assert!(!err.contains("valid in every material"), "{err}");
+}

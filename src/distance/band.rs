@@ -127,8 +127,23 @@ pub fn distance_band(
         Metric::BrdfIt => {
             let cells = cell_set(coll, p);
             if cells.is_empty() {
+                let grid = crate::merl::CellSet::new(p.mask(), p.weighting(), p.stride());
+                let why = if grid.is_empty() {
+                    format!(
+                        "the {} mask has no cell on the grid sub-sampled with --stride {}: use a smaller --stride",
+                        p.mask(),
+                        p.stride()
+                    )
+                } else {
+                    format!(
+                        "none of the {} cells of the {} mask at --stride {} is valid in every measured material of the collection",
+                        grid.len(),
+                        p.mask(),
+                        p.stride()
+                    )
+                };
                 return Err(DistanceError::Backend(crate::error::BackendError::Invalid(
-                    "no grid cell is valid in every material of the collection".into(),
+                    why,
                 )));
             }
             let all = lobes(coll, p.lobe());
