@@ -295,6 +295,17 @@ pub fn write_merged(
     set: &mut OutputSet,
     out: &Path,
 ) -> Result<MatrixSidecar, MatrixFileError> {
+    let chunk = (MERGE_CHUNK_BYTES / 8 / plan.n().max(1)).max(1);
+    write_merged_in_chunks(plan, set, out, chunk)
+}
+
+/// [`write_merged`] assembling `chunk` rows at a time.
+fn write_merged_in_chunks(
+    plan: &MergePlan,
+    set: &mut OutputSet,
+    out: &Path,
+    chunk: usize,
+) -> Result<MatrixSidecar, MatrixFileError> {
     let n = plan.n();
     let names = &plan.template.names;
     let stamps: Vec<_> = plan
@@ -307,7 +318,6 @@ pub fn write_merged(
         .iter()
         .map(|t| NpyRows::open(&t.path))
         .collect::<Result<_, _>>()?;
-    let chunk = (MERGE_CHUNK_BYTES / 8 / n.max(1)).max(1);
     let mut failure: Option<MatrixFileError> = None;
     let mut digest = None;
     let staged = set.stage(out, |w| {
@@ -363,4 +373,56 @@ pub fn merge_tiles(tiles: &[PathBuf], out: &Path) -> Result<MatrixSidecar, Matri
     let side = write_merged(&plan, &mut set, out)?;
     set.commit()?;
     Ok(side)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::cpu::CpuBackend;
+    use crate::collection::Collection;
+    use crate::distance::{distance_matrix_banded, distance_tile, DistanceParams};
+    use crate::io::saved::{write_npy_with_sidecar, write_tile};
+    use crate::io::sidecar::MatrixSettings;
+
+    #[test]
+    fn merging_in_chunks_of_any_size_gives_the_whole_matrix_byte_for_byte() {
+        let coll = Collection::embedded_default();
+        let p = DistanceParams::default()
+            .stride(9)
+            .check(&coll)
+            .expect("params");
+        let cpu = CpuBackend::new();
+        let band = 4;
+        let settings = MatrixSettings::of(&p, band);
+        let fp = coll.fingerprint();
+        let dir = tempfile::tempdir().expect("dir");
+        let whole = dir.path().join("whole.npy");
+        let d = distance_matrix_banded(&cpu, &coll, &p, band, &|_, _| {}).expect("d");
+        write_npy_with_sidecar(&whole, &d, &settings, &fp).expect("whole");
+        let tiles: Vec<TileFile> = (1..=3)
+            .map(|i| {
+                let t = distance_tile(&cpu, &coll, &p, band, i, 3, &|_, _| {}).expect("tile");
+                let path = dir.path().join(format!("t{i}.npy"));
+                write_tile(&path, &t, &coll.names(), &settings, &fp).expect("write");
+                TileFile::open(&path).expect("open")
+            })
+            .collect();
+        let plan = plan_merge(&tiles).expect("plan");
+        for chunk in [1, 2, 3, 7, 1000] {
+            let out = dir.path().join(format!("m{chunk}.npy"));
+            let mut set = OutputSet::new();
+            write_merged_in_chunks(&plan, &mut set, &out, chunk).expect("merge");
+            set.commit().expect("commit");
+            assert_eq!(
+                std::fs::read(&out).expect("m"),
+                std::fs::read(&whole).expect("w"),
+                "chunk {chunk}"
+            );
+            assert_eq!(
+                std::fs::read(sidecar_path(&out)).expect("m"),
+                std::fs::read(sidecar_path(&whole)).expect("w"),
+                "chunk {chunk}"
+            );
+        }
+    }
 }
