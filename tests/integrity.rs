@@ -538,3 +538,36 @@ fn a_stride_that_leaves_no_cell_is_explained_as_such() {
     );
     assert!(!err.contains("valid in every material"), "{err}");
 }
+
+#[cfg(unix)]
+#[test]
+fn plot_refuses_a_fifo_as_fit_file_instead_of_blocking() {
+    let dir = tmp();
+    let fifo = dir.path().join("fits.json");
+    let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).expect("path");
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo");
+    let mut child = cli()
+        .args(["plot", "--material", "gloss-red-enamel", "--fit"])
+        .arg(&fifo)
+        .arg("--out")
+        .arg(dir.path().join("p.svg"))
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let t0 = std::time::Instant::now();
+    while child.try_wait().expect("wait").is_none() && t0.elapsed().as_secs() < 5 {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let blocked = child.try_wait().expect("wait").is_none();
+    if blocked {
+        unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    }
+    let out = child.wait_with_output().expect("wait");
+    assert!(!blocked, "plot blocked reading a FIFO");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("fits.json") && err.contains("not a regular file"),
+        "{err}"
+    );
+}

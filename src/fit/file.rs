@@ -19,6 +19,9 @@ use crate::fit::{FitParams, TargetFit};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// Largest `fit` JSON read (a fit of 10,000 targets by a basis of 20 is about 20 MB).
+pub const MAX_FIT_FILE_BYTES: u64 = 1 << 30;
+
 /// Errors reading a `fit` JSON file.
 #[non_exhaustive]
 #[derive(Debug, thiserror::Error)]
@@ -179,12 +182,26 @@ impl FitFile {
     }
 
     /// Reads and parses `path`.
+    /// Only a regular file of at most [`MAX_FIT_FILE_BYTES`] is read (a FIFO or a
+    /// device is refused before it is opened, so reading never blocks).
     pub fn read(path: &Path) -> Result<Self, FitFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| FitFileError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        serde_json::from_str(&text).map_err(|e| FitFileError::Parse {
+        use crate::error::CollectionError;
+        let text =
+            crate::collection::read_regular(path, MAX_FIT_FILE_BYTES).map_err(|e| match e {
+                CollectionError::Io { source, .. } => FitFileError::Io {
+                    path: path.to_path_buf(),
+                    source,
+                },
+                CollectionError::NotRegular { kind, .. } => FitFileError::Parse {
+                    path: path.to_path_buf(),
+                    message: format!("is {kind}, not a regular file"),
+                },
+                other => FitFileError::Parse {
+                    path: path.to_path_buf(),
+                    message: other.to_string(),
+                },
+            })?;
+        serde_json::from_slice(&text).map_err(|e| FitFileError::Parse {
             path: path.to_path_buf(),
             message: e.to_string(),
         })
