@@ -18,6 +18,7 @@ mod hardening;
 mod integrity;
 mod kmedoids;
 mod measured;
+mod outputs;
 mod reproduce;
 mod saved_matrix;
 mod selection;

@@ -1,11 +1,12 @@
 //! `brdf-basis distance`.
 
 use super::Global;
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::distance::{
     distance_matrix_banded, distance_tile, DistanceParams, LobeKind, Metric, DEFAULT_BAND_ROWS,
 };
-use brdf_basis::io::saved::{write_csv, write_npy_with_sidecar, write_tile};
-use brdf_basis::io::sidecar::MatrixSettings;
+use brdf_basis::io::saved::{csv_bytes, stage_npy_with_sidecar, stage_tile};
+use brdf_basis::io::sidecar::{sidecar_path, MatrixSettings};
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
@@ -61,7 +62,7 @@ fn parse_tile(s: &str) -> anyhow::Result<(usize, usize)> {
 
 /// Computes and writes the matrix (or one tile of it).
 pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
-    let ext = super::output_extension(&a.out, "--out")?;
+    let ext = super::extension(&a.out);
     if ext != "npy" && ext != "csv" {
         anyhow::bail!("{}: output must end in .npy or .csv", a.out.display());
     }
@@ -70,6 +71,14 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
         anyhow::bail!("{}: a tile (--tile) is written as .npy", a.out.display());
     }
     brdf_basis::distance::band::check_band_rows(a.band_rows)?;
+    // Every output path before the work (the sidecar too: it replaces only a sidecar).
+    let mut plan = OutputPlan::new(&a.collection);
+    if ext == "npy" {
+        super::plan_matrix(&mut plan, &a.out, "--out")?;
+    } else {
+        plan.file(&a.out, "--out")?;
+    }
+    let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let mut p = DistanceParams::default()
         .metric(a.metric)
@@ -100,33 +109,43 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
             &progress,
         )?;
         pb.finish_and_clear();
-        write_tile(&a.out, &t, &coll.names(), &settings, &coll.fingerprint())?;
-        if !g.quiet {
-            eprintln!(
-                "wrote {} (tile {i}/{count}: rows {}..{} of {n} x {n} {})",
-                a.out.display(),
-                t.rows.start,
-                t.rows.end,
-                p.metric()
-            );
-        }
+        stage_tile(
+            &mut out,
+            &a.out,
+            &t,
+            &coll.names(),
+            &settings,
+            &coll.fingerprint(),
+        )?;
+        out.commit()?;
+        println!(
+            "wrote {} (tile {i}/{count}: rows {}..{} of {n} x {n} {})",
+            a.out.display(),
+            t.rows.start,
+            t.rows.end,
+            p.metric()
+        );
+        println!("wrote {}", sidecar_path(&a.out).display());
         return Ok(());
     }
     let d = distance_matrix_banded(backend.as_ref(), &coll, &p, a.band_rows, &progress)?;
     pb.finish_and_clear();
-    match ext.as_str() {
-        "npy" => write_npy_with_sidecar(&a.out, &d, &settings, &coll.fingerprint())?,
-        _ => write_csv(&a.out, &d)?,
+    if ext == "npy" {
+        stage_npy_with_sidecar(&mut out, &a.out, &d, &settings, &coll.fingerprint())?;
+    } else {
+        out.stage(&a.out, |w| w.write_all(&csv_bytes(&d)?))?;
     }
-    if !g.quiet {
-        eprintln!(
-            "wrote {} ({n} x {n} {}, lobe {}, mask {}, weighting {})",
-            a.out.display(),
-            p.metric(),
-            p.lobe(),
-            p.mask(),
-            p.weighting()
-        );
+    out.commit()?;
+    println!(
+        "wrote {} ({n} x {n} {}, lobe {}, mask {}, weighting {})",
+        a.out.display(),
+        p.metric(),
+        p.lobe(),
+        p.mask(),
+        p.weighting()
+    );
+    if ext == "npy" {
+        println!("wrote {}", sidecar_path(&a.out).display());
     }
     Ok(())
 }

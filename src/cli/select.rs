@@ -273,7 +273,7 @@ fn run_saved(g: &Global, a: &SelectArgs, path: &std::path::Path) -> anyhow::Resu
             "--distances clusters a saved matrix (--method kmedoids or gcuk) and takes no COLLECTION"
         );
     }
-    brdf_basis::io::atomic::check_output_path(&a.json, "--json")?;
+    brdf_basis::atomic::check_output_path(&a.json, "--json")?;
     let saved = brdf_basis::io::saved::load_saved_matrix(path)?;
     check_clustering(a, saved.matrix.names().len())?;
     let metric = saved

@@ -20,6 +20,7 @@ pub mod claims;
 pub mod clustering;
 pub mod evaluation;
 pub mod files;
+pub mod layout;
 pub mod report;
 pub mod statistics;
 

@@ -1,8 +1,7 @@
-//! File input and output: `.npy` ([`npy`]), the sidecar of a saved matrix ([`sidecar`]),
-//! saved matrices written and loaded with their checks ([`saved`]), tile merging
-//! ([`merge`]), JSON and images.
+//! File input and output, written through [`crate::atomic`]: `.npy` ([`npy`]), the
+//! sidecar of a saved matrix ([`sidecar`]), saved matrices written and loaded with their
+//! checks ([`saved`]), tile merging ([`merge`]), JSON and images.
 
-pub mod atomic;
 pub mod image;
 pub mod json;
 pub mod merge;
