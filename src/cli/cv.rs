@@ -3,8 +3,8 @@
 use super::select_error::check_output;
 use super::Global;
 use anyhow::Context;
-use brdf_basis::atomic::write_atomic;
 use brdf_basis::distance::Metric;
+use brdf_basis::atomic::write_atomic;
 use brdf_basis::io::json::write_json;
 use brdf_basis::selection::{cross_validate, CvMethod, CvParams, GaParams, ObjectiveParams};
 use std::path::PathBuf;
