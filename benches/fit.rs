@@ -50,7 +50,7 @@ fn main() {
         stride: 3,
         ..Default::default()
     };
-    let cells = fit_cells(&coll, &(0..coll.len()).collect::<Vec<_>>(), &p);
+    let cells = fit_cells(&coll, &(0..coll.len()).collect::<Vec<_>>(), &p).expect("cells");
     let (g, h30, bb30) = channel_gram(
         &CpuBackend::new(),
         &coll,

@@ -17,10 +17,9 @@
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::cluster::{GcukParams, KMedoidsParams};
 use brdf_basis::collection::{parse_csv, Collection};
-use brdf_basis::distance::{
-    collection_fingerprint, distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS,
-};
-use brdf_basis::io::matrix::{load_saved_matrix, write_npy_with_sidecar, MatrixSettings};
+use brdf_basis::distance::{distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS};
+use brdf_basis::io::saved::{load_saved_matrix, write_npy_with_sidecar};
+use brdf_basis::io::sidecar::MatrixSettings;
 use brdf_basis::select::empirical::{empirical, EmpiricalParams};
 use rand::{Rng, SeedableRng};
 use std::path::{Path, PathBuf};
@@ -122,7 +121,7 @@ fn child(stage: &str, n: usize, dir: &Path) {
                 &matrix_path(dir, n),
                 &d,
                 &MatrixSettings::of(&p, DEFAULT_BAND_ROWS),
-                &collection_fingerprint(&coll),
+                &coll.fingerprint(),
             )
             .expect("write");
             let cells = brdf_basis::distance::cell_set(&coll, &p).len();
@@ -174,7 +173,7 @@ fn child(stage: &str, n: usize, dir: &Path) {
             .expect("empirical");
             let links: usize = e.contributors.values().map(Vec::len).sum();
             // Digest of every target's contributor list (order-sensitive), to compare runs.
-            let mut h = brdf_basis::io::matrix::Fnv64::new();
+            let mut h = brdf_basis::hash::Hasher::new();
             for (t, c) in &e.contributors {
                 h.write(t.as_bytes());
                 for name in c {

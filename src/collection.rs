@@ -220,6 +220,29 @@ impl Collection {
         self.materials.iter().all(|m| m.analytic().is_some())
     }
 
+    /// The fingerprint of the collection: XXH3-64 ([`crate::hash`]) over every
+    /// material's name (length-prefixed) and its parameters (analytic) or table values
+    /// (measured), little-endian, as 16 hex digits. Saved matrices, tiles and fit files
+    /// carry it, so that results of different collections are never mixed.
+    pub fn fingerprint(&self) -> String {
+        let mut h = crate::hash::Hasher::new();
+        for m in &self.materials {
+            h.write(&(m.name.len() as u64).to_le_bytes());
+            h.write(m.name.as_bytes());
+            match &m.data {
+                MaterialData::Analytic(a) => {
+                    h.write(b"A");
+                    h.write_f64s(&[a.d[0], a.d[1], a.d[2], a.s[0], a.s[1], a.s[2], a.f0, a.n]);
+                }
+                MaterialData::Measured(t) => {
+                    h.write(b"M");
+                    h.write_f32s(&t.rgb);
+                }
+            }
+        }
+        h.hex()
+    }
+
     /// A new collection with the materials at `idx`, in that order.
     pub fn subset(&self, idx: &[usize]) -> Self {
         let mut c = Self::new();
@@ -419,4 +442,42 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionErro
         });
     }
     Ok(out)
+}
+
+impl crate::merl::CellSet {
+    /// The cells of `mask` on the grid sub-sampled every `stride` cells, restricted to
+    /// the cells valid in every measured material of `coll` (weights renormalised to sum
+    /// 1 when any is measured): the cells every reduction over `coll` runs over.
+    pub fn for_collection(
+        coll: &Collection,
+        mask: crate::merl::Mask,
+        weighting: crate::merl::Weighting,
+        stride: std::num::NonZeroUsize,
+    ) -> Self {
+        let mut cs = Self::new(mask, weighting, stride.get());
+        let tables: Vec<&MerlTable> = coll
+            .materials()
+            .iter()
+            .filter_map(|m| match &m.data {
+                MaterialData::Measured(t) => Some(t.as_ref()),
+                MaterialData::Analytic(_) => None,
+            })
+            .collect();
+        if !tables.is_empty() {
+            let keep: Vec<bool> = cs
+                .cells
+                .iter()
+                .map(|&c| tables.iter().all(|t| t.is_valid(c as usize)))
+                .collect();
+            let mut k = keep.iter();
+            cs.cells.retain(|_| *k.next().unwrap_or(&false));
+            let mut k = keep.iter();
+            cs.weights.retain(|_| *k.next().unwrap_or(&false));
+            let total: f64 = cs.weights.iter().sum();
+            if total > 0.0 {
+                cs.weights.iter_mut().for_each(|w| *w /= total);
+            }
+        }
+        cs
+    }
 }

@@ -17,7 +17,7 @@ fn check_backend_against_reference(backends: &[&dyn Backend]) {
                 .check(&coll)
                 .expect("params");
             let cells = cell_set(&coll, &p);
-            let reference = reference_pairwise_f64(&lobes(&coll, p.lobe), &cells);
+            let reference = reference_pairwise_f64(&lobes(&coll, p.lobe()), &cells);
             for b in backends {
                 let d = distance_matrix(*b, &coll, &p, &|_, _| {}).expect("distance");
                 let r = max_rel(&d.condensed(), &reference, 1e-300);
@@ -110,12 +110,12 @@ fn matrix_files_round_trip() {
     let d = distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("d");
     let dir = tmp();
     let npy = dir.path().join("d.npy");
-    brdf_basis::io::matrix::write_npy(&npy, &d).expect("npy");
-    let (n, data) = brdf_basis::io::matrix::read_npy(&npy).expect("read npy");
-    assert_eq!(n, 4);
-    assert_eq!(data, d.as_full());
+    brdf_basis::io::saved::write_npy(&npy, &d).expect("npy");
+    let read = brdf_basis::io::npy::read_npy_2d(&npy).expect("read npy");
+    assert_eq!((read.rows, read.cols), (4, 4));
+    assert_eq!(read.data, d.as_full());
     let csv = dir.path().join("d.csv");
-    brdf_basis::io::matrix::write_csv(&csv, &d).expect("csv");
+    brdf_basis::io::saved::write_csv(&csv, &d).expect("csv");
     let text = std::fs::read_to_string(&csv).expect("read");
     let mut lines = text.lines();
     assert_eq!(

@@ -150,7 +150,7 @@ fn check_solvers_on(backend: &dyn Backend, gram: GramMode) {
             ..Default::default()
         };
         let fits = fit(backend, &c, &basis, &targets, &p, &|_, _| {}).expect("fit");
-        let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p);
+        let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p).expect("cells");
         let mut worst = 0f64;
         let mut worst_kkt = 0f64;
         for (f, &t) in fits.iter().zip(&targets).step_by(3) {
@@ -202,7 +202,7 @@ fn gpu_gram_matches_cpu_gram() {
     };
     let c = ngan();
     let p = FitParams::default();
-    let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p);
+    let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p).expect("cells");
     let basis = idx(&c, &BASIS5);
     let targets: Vec<usize> = (0..40).collect();
     for ch in 0..3 {
@@ -338,7 +338,7 @@ fn separable_gram_matches_the_grid_pass() {
             stride: 2,
             ..Default::default()
         };
-        let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p);
+        let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p).expect("cells");
         let basis = idx(&c, &BASIS5);
         let targets: Vec<usize> = (0..c.len()).collect();
         for ch in 0..3 {

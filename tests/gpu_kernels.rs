@@ -303,7 +303,7 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
         stride: 2,
         ..Default::default()
     };
-    let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p);
+    let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p).expect("cells");
     let cpu = CpuBackend::new();
     let (mut worst, mut worst_kkt, mut over) = (0f64, 0f64, 0usize);
     for ch in 0..3 {

@@ -16,6 +16,7 @@ mod fit;
 mod gpu_kernels;
 mod grid;
 mod hardening;
+mod integrity;
 mod kmedoids;
 mod measured;
 mod outputs;

@@ -3,9 +3,10 @@
 //! naming the file and the offending row and column.
 
 use crate::common::*;
-use brdf_basis::io::matrix::{
-    load_saved_matrix, read_sidecar, sidecar_path, write_npy_2d, MatrixFileError,
-};
+use brdf_basis::io::npy::write_npy_2d;
+use brdf_basis::io::saved::load_saved_matrix;
+use brdf_basis::io::sidecar::{read_sidecar, sidecar_path};
+use brdf_basis::io::MatrixFileError;
 use std::path::Path;
 use std::process::Command;
 
@@ -54,12 +55,9 @@ fn saved_npy_and_csv_cluster_exactly_like_a_computed_matrix() {
     let coll = brdf_basis::collection::Collection::embedded_default();
     assert_eq!(side.names, coll.names());
     assert_eq!(side.n, coll.len());
-    assert_eq!(side.settings.metric, "brdf-it");
+    assert_eq!(side.settings.metric.to_string(), "brdf-it");
     assert_eq!(side.settings.stride, 4);
-    assert_eq!(
-        side.collection_fingerprint,
-        brdf_basis::distance::collection_fingerprint(&coll)
-    );
+    assert_eq!(side.collection_fingerprint, coll.fingerprint());
     assert_eq!(side.npy_bytes, std::fs::metadata(&npy).expect("meta").len());
     // npy and csv load to the same matrix.
     let a = load_saved_matrix(&npy).expect("npy");
@@ -97,7 +95,8 @@ fn npy_without_sidecar_or_with_a_mismatched_one_is_refused() {
     run_ok(bin().args(["distance", "--stride", "6", "--out"]).arg(&npy));
     let side = std::fs::read(sidecar_path(&npy)).expect("sidecar");
     // A matrix rewritten without its sidecar (another collection, same size): checksum.
-    let (n, mut data) = brdf_basis::io::matrix::read_npy(&npy).expect("read");
+    let read = brdf_basis::io::npy::read_npy_2d(&npy).expect("read");
+    let (n, mut data) = (read.rows, read.data);
     data[1] *= 2.0;
     data[n] *= 2.0;
     write_npy_2d(&npy, n, n, &data).expect("rewrite");
@@ -144,23 +143,21 @@ fn non_square_matrices_are_refused() {
     write_npy_2d(&p, 2, 3, &[0.0; 6]).expect("npy");
     std::fs::write(
         sidecar_path(&p),
-        serde_json::to_string(&brdf_basis::io::matrix::MatrixSidecar {
-            format: brdf_basis::io::matrix::SIDECAR_FORMAT.into(),
-            n: 2,
-            names: vec!["a".into(), "b".into()],
-            settings: brdf_basis::io::matrix::MatrixSettings {
-                metric: "brdf-it".into(),
-                lobe: "specular".into(),
-                weighting: "uniform".into(),
-                mask: "evaluation".into(),
+        serde_json::to_string(&brdf_basis::io::sidecar::MatrixSidecar::new(
+            vec!["a".into(), "b".into()],
+            brdf_basis::io::sidecar::MatrixSettings {
+                metric: brdf_basis::distance::Metric::BrdfIt,
+                lobe: brdf_basis::distance::LobeKind::Specular,
+                weighting: brdf_basis::merl::Weighting::Uniform,
+                mask: brdf_basis::merl::Mask::Evaluation,
                 stride: 1,
                 band_rows: 1024,
             },
-            collection_fingerprint: "0".into(),
-            tile: None,
-            npy_bytes: 0,
-            npy_fnv64: "0".into(),
-        })
+            "0".into(),
+            2,
+            None,
+            brdf_basis::io::npy::NpyDigest { bytes: 0, xxh3: 0 },
+        ))
         .expect("json"),
     )
     .expect("sidecar");

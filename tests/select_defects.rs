@@ -401,7 +401,7 @@ fn select_output_round_trips_with_its_fingerprint() {
     let coll = brdf_basis::collection::Collection::load(&base).unwrap();
     assert_eq!(
         out.collection_fingerprint(),
-        Some(brdf_basis::distance::collection_fingerprint(&coll).as_str())
+        Some(coll.fingerprint().as_str())
     );
     assert_eq!(out.basis().len(), 2);
     assert!(matches!(out, SelectOutput::ErrorDriven(_)));

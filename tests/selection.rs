@@ -206,7 +206,7 @@ fn grid_check(coll: &Collection, op: &ObjectiveParams, basis: &[usize]) {
     let cpu = CpuBackend::new();
     let fp = op.fit_params();
     let fits = fit(&cpu, coll, basis, &targets, &fp, &|_, _| {}).expect("fit");
-    let cells = fit_cells(coll, &(0..n).collect::<Vec<_>>(), &fp);
+    let cells = fit_cells(coll, &(0..n).collect::<Vec<_>>(), &fp).expect("cells");
     let mut worst = 0.0f64;
     let mut s_grid = 0.0;
     for (f, &t) in fits.iter().zip(&targets) {

@@ -85,7 +85,7 @@ fn banding_does_not_change_any_value() {
     let single = distance_matrix_banded(&cpu, &coll, &p, 1024, &|_, _| {}).expect("single");
     let cells = brdf_basis::distance::cell_set(&coll, &p);
     let direct = cpu
-        .pairwise_l1(&lobes(&coll, p.lobe), &cells, &|_, _| {})
+        .pairwise_l1(&lobes(&coll, p.lobe()), &cells, &|_, _| {})
         .expect("direct");
     assert_eq!(single.condensed(), direct);
     for band in [4, 12, 20] {

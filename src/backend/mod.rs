@@ -7,8 +7,10 @@
 
 pub mod blocks;
 pub mod cpu;
+mod open;
 
 pub use blocks::{PairOp, BLOCK};
+pub use open::{open, BackendChoice};
 
 use crate::error::BackendError;
 use crate::merl::{CellSet, MerlTable};

@@ -1,14 +1,12 @@
 //! `brdf-basis distance`.
 
 use super::Global;
-use brdf_basis::distance::{
-    collection_fingerprint, distance_matrix_banded, distance_tile, DistanceParams, LobeKind,
-    Metric, DEFAULT_BAND_ROWS,
-};
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::io::matrix::{
-    sidecar_path, write_csv, write_npy_with_sidecar, write_tile, MatrixSettings,
+use brdf_basis::distance::{
+    distance_matrix_banded, distance_tile, DistanceParams, LobeKind, Metric, DEFAULT_BAND_ROWS,
 };
+use brdf_basis::io::saved::{csv_bytes, stage_npy_with_sidecar, stage_tile};
+use brdf_basis::io::sidecar::{sidecar_path, MatrixSettings};
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
@@ -111,14 +109,13 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
             &progress,
         )?;
         pb.finish_and_clear();
-        let npy = out.stage_path(&a.out)?;
-        out.stage_path(&sidecar_path(&a.out))?;
-        write_tile(
-            &npy,
+        stage_tile(
+            &mut out,
+            &a.out,
             &t,
             &coll.names(),
             &settings,
-            &collection_fingerprint(&coll),
+            &coll.fingerprint(),
         )?;
         out.commit()?;
         println!(
@@ -126,28 +123,26 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
             a.out.display(),
             t.rows.start,
             t.rows.end,
-            p.metric
+            p.metric()
         );
         println!("wrote {}", sidecar_path(&a.out).display());
         return Ok(());
     }
     let d = distance_matrix_banded(backend.as_ref(), &coll, &p, a.band_rows, &progress)?;
     pb.finish_and_clear();
-    let staged = out.stage_path(&a.out)?;
     if ext == "npy" {
-        out.stage_path(&sidecar_path(&a.out))?;
-        write_npy_with_sidecar(&staged, &d, &settings, &collection_fingerprint(&coll))?;
+        stage_npy_with_sidecar(&mut out, &a.out, &d, &settings, &coll.fingerprint())?;
     } else {
-        write_csv(&staged, &d)?;
+        out.stage(&a.out, |w| w.write_all(&csv_bytes(&d)?))?;
     }
     out.commit()?;
     println!(
         "wrote {} ({n} x {n} {}, lobe {}, mask {}, weighting {})",
         a.out.display(),
-        p.metric,
-        p.lobe,
-        p.mask,
-        p.weighting
+        p.metric(),
+        p.lobe(),
+        p.mask(),
+        p.weighting()
     );
     if ext == "npy" {
         println!("wrote {}", sidecar_path(&a.out).display());

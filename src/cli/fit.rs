@@ -1,11 +1,13 @@
 //! `brdf-basis fit`.
 
 use super::Global;
-use brdf_basis::collection::Collection;
-use brdf_basis::experiment::files::FitFile;
-use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::merl::grid::{cell_info, N_CELLS};
+use brdf_basis::fit::diagnostics::{fit_warnings, MAX_WARNINGS};
+use brdf_basis::fit::export::{
+    combination_grid, export_file_names, export_index_csv, EXPORT_INDEX,
+};
+use brdf_basis::fit::file::FitFile;
+use brdf_basis::fit::{fit, FitParams, GramMode, Solver};
 use brdf_basis::merl::write_binary_to;
 use std::path::{Path, PathBuf};
 
@@ -43,135 +45,6 @@ pub struct FitArgs {
     /// mapping material names to files.
     #[arg(long)]
     pub export: Option<PathBuf>,
-}
-
-/// The fitted combination on the full grid, channel-planar (invalid cells -1), as
-/// `write_binary` takes it.
-pub fn combination_grid(coll: &Collection, basis: &[usize], f: &TargetFit) -> Vec<f32> {
-    let cells: Vec<u32> = (0..N_CELLS as u32).collect();
-    let mut rgb = vec![-1f32; 3 * N_CELLS];
-    for c in 0..3 {
-        let v = combination_values(coll, basis, f, c, &cells);
-        for (cell, x) in v.into_iter().enumerate() {
-            if cell_info(cell).valid {
-                rgb[c * N_CELLS + cell] = x as f32;
-            }
-        }
-    }
-    rgb
-}
-
-/// A file name for material `name` that no name can turn into another path: ASCII
-/// letters, digits, `-`, `_` and `.` are kept, anything else (`/`, `\`, spaces, control
-/// characters, non-ASCII) becomes `_`; leading dots are dropped (no `..`, no hidden
-/// file); at most 100 characters; an empty result becomes `material`.
-pub fn file_stem_for(name: &str) -> String {
-    let mut s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    s = s.trim_start_matches('.').chars().take(100).collect();
-    if s.is_empty() {
-        s = "material".into();
-    }
-    s
-}
-
-/// File names (`<stem>.binary`) for the targets, sanitised by [`file_stem_for`] and made
-/// unique (case-insensitively, for case-insensitive file systems) by a `-2`, `-3`, ...
-/// suffix, in target order.
-pub fn export_file_names(names: &[&str]) -> Vec<String> {
-    let mut taken = std::collections::HashSet::new();
-    names
-        .iter()
-        .map(|n| {
-            let stem = file_stem_for(n);
-            let mut cand = stem.clone();
-            let mut k = 2;
-            while !taken.insert(cand.to_lowercase()) {
-                cand = format!("{stem}-{k}");
-                k += 1;
-            }
-            format!("{cand}.binary")
-        })
-        .collect()
-}
-
-/// Relative residual above which a fit is reported as meaningless: the basis explains
-/// less than half of the target's weighted energy.
-pub const WARN_RELATIVE_RESIDUAL: f64 = 0.5;
-
-/// Relative MAE above which a fit is reported as meaningless: its mean absolute error is
-/// close to the target's own mean (a black material would do about as well).
-pub const WARN_RELATIVE_MAE: f64 = 0.75;
-
-/// Warnings printed one per line; the rest are counted.
-pub const MAX_WARNINGS: usize = 8;
-
-/// Diffuse albedo above which a fitted combination is reported as unphysical.
-pub const WARN_ALBEDO: f64 = 1.0;
-
-/// Warnings about a fit that ran but whose numbers may mean little.
-pub fn fit_warnings(
-    coll: &Collection,
-    basis: &[usize],
-    targets: &[usize],
-    fits: &[TargetFit],
-) -> Vec<String> {
-    let mut w = Vec::new();
-    for &t in targets {
-        if basis.contains(&t) {
-            w.push(format!(
-                "target `{}` is in the basis: its fit is exact and says nothing about the basis",
-                coll.materials()[t].name
-            ));
-        }
-    }
-    for f in fits {
-        // Diffuse albedo of the combination (analytic basis): above 1 it reflects more
-        // light than it receives, a sign that the basis was stretched to mimic the target.
-        let analytic: Option<Vec<_>> = basis
-            .iter()
-            .map(|&b| coll.materials()[b].analytic())
-            .collect();
-        if let Some(ps) = analytic {
-            let albedo: Vec<f64> = (0..3)
-                .map(|c| {
-                    f.coefficients[0][c]
-                        + ps.iter()
-                            .zip(&f.coefficients[1..])
-                            .map(|(p, a)| a[c] * p.d[c])
-                            .sum::<f64>()
-                })
-                .collect();
-            let worst = albedo.iter().cloned().fold(0.0, f64::max);
-            if worst > WARN_ALBEDO {
-                w.push(format!(
-                    "the fit of `{}` has a diffuse albedo of {worst:.3} (above 1: it reflects more light than it receives); the basis cannot represent it and its numbers mean little",
-                    f.material
-                ));
-                continue;
-            }
-        }
-        if f.relative_mae > WARN_RELATIVE_MAE {
-            w.push(format!(
-                "the fit of `{}` is almost as far from it as a black material (relative MAE {:.2}, relative residual {:.2}): this basis cannot represent it",
-                f.material, f.relative_mae, f.relative_residual
-            ));
-        } else if f.relative_residual > WARN_RELATIVE_RESIDUAL {
-            w.push(format!(
-                "the fit of `{}` explains little of it (relative residual {:.2}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
-                f.material, f.relative_residual
-            ));
-        }
-    }
-    w
 }
 
 /// Runs the fits.
@@ -250,15 +123,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
             let rgb = combination_grid(&coll, &basis, f);
             out.stage(&dir.join(file), |w| write_binary_to(w, &rgb))?;
         }
-        let mut index = Vec::new();
-        {
-            let mut wr = csv::Writer::from_writer(&mut index);
-            wr.write_record(["material", "file"])?;
-            for (n, file) in names.iter().zip(&files) {
-                wr.write_record([*n, file.as_str()])?;
-            }
-            wr.flush()?;
-        }
+        let index = export_index_csv(&names, &files)?;
         out.stage(&dir.join(EXPORT_INDEX), |w| w.write_all(&index))?;
         if !g.quiet {
             for (n, file) in names.iter().zip(&files) {
@@ -354,6 +219,3 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
     }
     Some(files)
 }
-
-/// Name of the CSV (`material,file`) that `--export` writes beside the `.binary` files.
-pub const EXPORT_INDEX: &str = "index.csv";

@@ -3,7 +3,7 @@
 use super::Global;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
-use brdf_basis::engine::BackendChoice;
+use brdf_basis::backend::BackendChoice;
 use brdf_basis::gpu::GpuContext;
 
 /// Arguments of `info`.
@@ -25,7 +25,7 @@ pub fn run(g: &Global, _a: InfoArgs) -> anyhow::Result<()> {
         (Some(Err(e)), BackendChoice::Gpu) => anyhow::bail!("{e}"),
         _ => "cpu",
     };
-    println!("backend: {chosen} (requested: {:?})", g.backend);
+    println!("backend: {chosen} (requested: --backend {})", g.backend);
     match gpu {
         Some(Ok(c)) => {
             println!("adapter: {}", c.info.name);

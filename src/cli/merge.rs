@@ -2,7 +2,8 @@
 
 use super::Global;
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::io::matrix::{merge_tiles, sidecar_path};
+use brdf_basis::io::merge::{plan_merge, write_merged, TileFile};
+use brdf_basis::io::sidecar::sidecar_path;
 use std::path::PathBuf;
 
 /// Arguments of `merge`.
@@ -38,8 +39,14 @@ pub fn run(g: &Global, a: MergeArgs) -> anyhow::Result<()> {
         plan.input_named(t, "tile");
     }
     super::plan_matrix(&mut plan, &a.out, "--out")?;
-    let _checked = plan.into_set()?;
-    let side = merge_tiles(&a.tiles, &a.out)?;
+    let mut out = plan.into_set()?;
+    let tiles: Vec<TileFile> = a
+        .tiles
+        .iter()
+        .map(|t| TileFile::open(t))
+        .collect::<Result<_, _>>()?;
+    let side = write_merged(&plan_merge(&tiles)?, &mut out, &a.out)?;
+    out.commit()?;
     let _ = g;
     println!(
         "wrote {} ({} x {} {}, from {} tiles)",

@@ -12,11 +12,11 @@ pub mod select;
 pub mod select_error;
 pub mod tabulate;
 
-use brdf_basis::backend::Backend;
-use brdf_basis::collection::Collection;
-use brdf_basis::engine::{open_backend, BackendChoice};
-use clap::{Args, Parser, Subcommand};
 use brdf_basis::atomic::OutputPlan;
+use brdf_basis::backend::Backend;
+use brdf_basis::backend::BackendChoice;
+use brdf_basis::collection::Collection;
+use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
 /// Find small, expressive bases of BRDFs and fit materials as non-negative combinations
@@ -120,7 +120,7 @@ pub fn load_collection(paths: &[PathBuf]) -> anyhow::Result<Collection> {
 
 /// Opens the back-end chosen by `--backend`.
 pub fn backend(g: &Global) -> anyhow::Result<Box<dyn Backend>> {
-    let b = open_backend(g.backend)?;
+    let b = brdf_basis::backend::open(g.backend)?;
     if !g.quiet {
         eprintln!("backend: {}", b.name());
     }
@@ -157,7 +157,7 @@ pub fn extension(path: &Path) -> String {
 pub fn plan_matrix(plan: &mut OutputPlan, npy: &Path, flag: &str) -> anyhow::Result<()> {
     plan.file(npy, flag)?;
     plan.owned_file(
-        &brdf_basis::io::matrix::sidecar_path(npy),
+        &brdf_basis::io::sidecar::sidecar_path(npy),
         flag,
         "matrix sidecar written by brdf-basis (it holds no `format: brdf-basis-matrix/...`)",
         is_matrix_sidecar,

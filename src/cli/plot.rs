@@ -2,12 +2,11 @@
 //! writing of `reproduce`'s figures.
 
 use super::Global;
-use anyhow::Context;
-use brdf_basis::eval::shade::{combination_brdf, material_brdf};
-use brdf_basis::experiment::files::FitFile;
+use brdf_basis::atomic::{write_atomic, OutputPlan};
+use brdf_basis::eval::shade::material_brdf;
 use brdf_basis::experiment::report::ReportContext;
 use brdf_basis::experiment::Experiment;
-use brdf_basis::atomic::{write_atomic, OutputPlan};
+use brdf_basis::fit::file::FitFile;
 use brdf_basis::io::image::{rgb8_png_bytes, write_rgb8_image};
 use brdf_basis::plot::report::report_figures;
 use brdf_basis::plot::{font, lobes, no_font_message, Figure};
@@ -87,21 +86,14 @@ pub fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
         material_brdf(&coll.materials()[idx].data),
     )];
     for path in &a.fit {
-        let file = FitFile::read(path)?;
-        let (_, cols) = file.columns_of(&a.material, path)?;
-        let basis: Vec<usize> = file
-            .basis
-            .iter()
-            .map(|n| coll.index_of(n))
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("{}: basis material", path.display()))?;
+        let brdf = FitFile::combination_from(path, &coll, &a.material)?;
         let label = format!(
             "fit by {}",
             path.file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default()
         );
-        curves.push((label, combination_brdf(&coll, &basis, &cols)));
+        curves.push((label, brdf));
     }
     if let Some(msg) = no_font_message() {
         eprintln!("warning: {msg}");

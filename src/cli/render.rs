@@ -2,11 +2,11 @@
 
 use super::Global;
 use anyhow::Context;
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::eval::image_error::{normalized_image_error, DisplayParams, HeatmapScale};
 use brdf_basis::eval::render::{render_sphere, RenderParams};
-use brdf_basis::eval::shade::{combination_brdf, material_brdf};
-use brdf_basis::experiment::files::FitFile;
-use brdf_basis::atomic::OutputPlan;
+use brdf_basis::eval::shade::material_brdf;
+use brdf_basis::fit::file::FitFile;
 use brdf_basis::io::image::{exr_bytes, png_bytes, rgb8_png_bytes};
 use std::path::PathBuf;
 
@@ -124,17 +124,10 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     let original = render_sphere(&params, &material_brdf(&coll.materials()[target].data))?;
     let image = match &a.fit {
         None => original.clone(),
-        Some(path) => {
-            let file = FitFile::read(path)?;
-            let (_, coef) = file.columns_of(&a.material, path)?;
-            let basis: Vec<usize> = file
-                .basis
-                .iter()
-                .map(|n| coll.index_of(n))
-                .collect::<Result<_, _>>()
-                .with_context(|| format!("{}: basis material", path.display()))?;
-            render_sphere(&params, &combination_brdf(&coll, &basis, &coef))?
-        }
+        Some(path) => render_sphere(
+            &params,
+            &FitFile::combination_from(path, &coll, &a.material)?,
+        )?,
     };
     // All outputs staged, then renamed into place together: a failure leaves none.
     let exr = exr_bytes(&a.out, &image)?;

@@ -6,7 +6,7 @@ use super::Global;
 use brdf_basis::atomic::{OutputPlan, OutputSet};
 use brdf_basis::cluster::{ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsParams};
 use brdf_basis::distance::{
-    collection_fingerprint, distance_matrix, DistanceMatrix, DistanceParams, Metric,
+    distance_matrix, DistanceMatrix, DistanceParams, Metric,
 };
 use brdf_basis::experiment::ExperimentParams;
 use brdf_basis::fit::FitParams;
@@ -241,7 +241,7 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
         return run_saved(g, &a, path, out);
     }
     let coll = super::load_collection(&a.collection)?;
-    let fingerprint = Some(collection_fingerprint(&coll));
+    let fingerprint = Some(coll.fingerprint());
     if a.method.error_driven() {
         let sel = super::select_error::run(g, &coll, a.method.name(), a.k, &a.grid, &a.error)?;
         let output = SelectOutput::ErrorDriven(brdf_basis::select::output::ErrorDrivenOutput {
@@ -291,11 +291,11 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
 
 /// Clusters a saved matrix (`--distances`): no collection, no back-end.
 fn run_saved(g: &Global, a: &SelectArgs, path: &Path, out: OutputSet) -> anyhow::Result<()> {
-    let saved = brdf_basis::io::matrix::load_saved_matrix(path)?;
+    let saved = brdf_basis::io::saved::load_saved_matrix(path)?;
     check_clustering(a, saved.matrix.names().len())?;
     let (metric, fingerprint) = match &saved.sidecar {
         Some(s) => (
-            s.settings.metric.clone(),
+            s.settings.metric.to_string(),
             Some(s.collection_fingerprint.clone()),
         ),
         None => (a.metric.to_string(), None),

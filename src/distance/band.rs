@@ -103,7 +103,7 @@ pub fn distance_band(
     let n = coll.len();
     let nb = super_blocks(n, band_rows);
     let range = |a: usize| a * band_rows..((a + 1) * band_rows).min(n);
-    match p.metric {
+    match p.metric() {
         Metric::Euclidean => {
             let params: Vec<(f64, f64)> = coll
                 .materials()
@@ -127,11 +127,26 @@ pub fn distance_band(
         Metric::BrdfIt => {
             let cells = cell_set(coll, p);
             if cells.is_empty() {
+                let grid = crate::merl::CellSet::new(p.mask(), p.weighting(), p.stride());
+                let why = if grid.is_empty() {
+                    format!(
+                        "the {} mask has no cell on the grid sub-sampled with --stride {}: use a smaller --stride",
+                        p.mask(),
+                        p.stride()
+                    )
+                } else {
+                    format!(
+                        "none of the {} cells of the {} mask at --stride {} is valid in every measured material of the collection",
+                        grid.len(),
+                        p.mask(),
+                        p.stride()
+                    )
+                };
                 return Err(DistanceError::Backend(crate::error::BackendError::Invalid(
-                    "no grid cell is valid in every material of the collection".into(),
+                    why,
                 )));
             }
-            let all = lobes(coll, p.lobe);
+            let all = lobes(coll, p.lobe());
             let calls: u64 = rows.clone().map(|a| (nb - a) as u64).sum();
             let per_call = cells.len() as u64;
             let total = calls * per_call;

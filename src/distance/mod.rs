@@ -7,12 +7,13 @@ pub mod matrix;
 
 pub use band::{distance_matrix_banded, distance_tile, Tile, DEFAULT_BAND_ROWS};
 
-pub use matrix::{DistanceMatrix, Distances};
+pub use matrix::{check_entries, entry_fault, BadEntry, DistanceMatrix, Distances, EntryFault};
 
 use crate::backend::{condensed_index, Backend, Lobe, LobeParams, Progress};
 use crate::collection::{Collection, MaterialData};
 use crate::error::DistanceError;
 use crate::merl::{CellSet, Mask, Weighting};
+use std::num::NonZeroUsize;
 
 /// Which distance.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -85,19 +86,38 @@ impl Default for DistanceParams {
     }
 }
 
-/// Parameters checked against a collection.
-#[derive(Clone, Debug)]
+/// Parameters checked against a collection ([`DistanceParams::check`]); read them
+/// through the accessors.
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ValidDistanceParams {
-    /// Metric.
-    pub metric: Metric,
-    /// Mask.
-    pub mask: Mask,
-    /// Weighting.
-    pub weighting: Weighting,
+    metric: Metric,
+    mask: Mask,
+    weighting: Weighting,
+    lobe: LobeKind,
+    stride: NonZeroUsize,
+}
+
+impl ValidDistanceParams {
+    /// The metric.
+    pub fn metric(&self) -> Metric {
+        self.metric
+    }
+    /// The mask.
+    pub fn mask(&self) -> Mask {
+        self.mask
+    }
+    /// The weighting.
+    pub fn weighting(&self) -> Weighting {
+        self.weighting
+    }
     /// The lobe actually used.
-    pub lobe: LobeKind,
-    /// Stride.
-    pub stride: usize,
+    pub fn lobe(&self) -> LobeKind {
+        self.lobe
+    }
+    /// The grid stride (at least 1).
+    pub fn stride(&self) -> usize {
+        self.stride.get()
+    }
 }
 
 impl DistanceParams {
@@ -147,19 +167,17 @@ impl DistanceParams {
                 return Err(DistanceError::SpecularOfMeasured(m.name.clone()));
             }
         }
-        if self.stride == 0 {
-            return Err(DistanceError::UnknownOption {
-                what: "stride",
-                found: "0".into(),
-                expected: "an integer >= 1",
-            });
-        }
+        let stride = NonZeroUsize::new(self.stride).ok_or(DistanceError::UnknownOption {
+            what: "stride",
+            found: "0".into(),
+            expected: "an integer >= 1",
+        })?;
         Ok(ValidDistanceParams {
             metric: self.metric,
             mask: self.mask,
             weighting: self.weighting,
             lobe,
-            stride: self.stride,
+            stride,
         })
     }
 }
@@ -190,36 +208,9 @@ pub fn lobes(coll: &Collection, kind: LobeKind) -> Vec<Lobe> {
 }
 
 /// The cells a distance runs over: the mask, restricted to cells valid in every measured
-/// material of the collection.
+/// material of the collection ([`CellSet::for_collection`]).
 pub fn cell_set(coll: &Collection, p: &ValidDistanceParams) -> CellSet {
-    let mut cs = CellSet::new(p.mask, p.weighting, p.stride);
-    let tables: Vec<_> = coll
-        .materials()
-        .iter()
-        .filter_map(|m| {
-            if let MaterialData::Measured(t) = &m.data {
-                Some(t.clone())
-            } else {
-                None
-            }
-        })
-        .collect();
-    if !tables.is_empty() {
-        let keep: Vec<bool> = cs
-            .cells
-            .iter()
-            .map(|&c| tables.iter().all(|t| t.is_valid(c as usize)))
-            .collect();
-        let mut k = keep.iter();
-        cs.cells.retain(|_| *k.next().unwrap_or(&false));
-        let mut k = keep.iter();
-        cs.weights.retain(|_| *k.next().unwrap_or(&false));
-        let total: f64 = cs.weights.iter().sum();
-        if total > 0.0 {
-            cs.weights.iter_mut().for_each(|w| *w /= total);
-        }
-    }
-    cs
+    CellSet::for_collection(coll, p.mask, p.weighting, p.stride)
 }
 
 /// Computes the distance matrix of `coll` on `backend`, in super-blocks of
@@ -231,32 +222,6 @@ pub fn distance_matrix(
     progress: Progress<'_>,
 ) -> Result<DistanceMatrix, DistanceError> {
     distance_matrix_banded(backend, coll, p, DEFAULT_BAND_ROWS, progress)
-}
-
-/// A fingerprint of a collection: FNV-1a (64 bit) over every material's name and its
-/// parameters (analytic) or table values (measured), as 16 hex digits. Tiles and saved
-/// matrices carry it so that pieces of different collections are never mixed.
-pub fn collection_fingerprint(coll: &Collection) -> String {
-    let mut h = crate::io::matrix::Fnv64::new();
-    for m in coll.materials() {
-        h.write(&(m.name.len() as u64).to_le_bytes());
-        h.write(m.name.as_bytes());
-        match &m.data {
-            MaterialData::Analytic(a) => {
-                h.write(b"A");
-                for v in a.d.iter().chain(&a.s).chain([&a.f0, &a.n]) {
-                    h.write(&v.to_le_bytes());
-                }
-            }
-            MaterialData::Measured(t) => {
-                h.write(b"M");
-                for v in &t.rgb {
-                    h.write(&v.to_le_bytes());
-                }
-            }
-        }
-    }
-    format!("{:016x}", h.finish())
 }
 
 /// f64 reference of BRDF_it (slow, single pass per pair over the cells; for tests).

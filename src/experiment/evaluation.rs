@@ -2,7 +2,6 @@
 //! fit mask and normalised image errors of sphere renders (paper Fig. 4 and 5).
 
 use super::bases::Basis;
-use super::files::{FitFile, FitTarget};
 use super::statistics::median;
 use super::ExperimentError;
 use crate::backend::Backend;
@@ -10,6 +9,7 @@ use crate::collection::Collection;
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
+use crate::fit::file::{FitFile, FitTarget};
 use crate::fit::{fit, FitParams};
 use rayon::prelude::*;
 use std::collections::{BTreeSet, HashMap};

@@ -22,7 +22,7 @@
 
 use super::report::{markdown, ReportContext};
 use super::{claims, clustering, evaluation, files::EmpiricalFile, Experiment, StageTiming};
-use crate::distance::{collection_fingerprint, DistanceParams, Metric, DEFAULT_BAND_ROWS};
+use crate::distance::{DistanceParams, Metric, DEFAULT_BAND_ROWS};
 use crate::error::{DistanceError, OutputError};
 use crate::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
 use crate::eval::render::RenderError;
@@ -30,7 +30,8 @@ use crate::io::image::{
     font_registered, with_colour_bar, write_exr, write_png, write_rgb8_image, HEATMAP_QUANTITY,
 };
 use crate::io::json::write_json;
-use crate::io::matrix::{sidecar_path, write_csv, write_npy_with_sidecar, MatrixSettings};
+use crate::io::saved::{write_csv, write_npy_with_sidecar};
+use crate::io::sidecar::{sidecar_path, MatrixSettings};
 use crate::merl::Weighting;
 use std::path::{Path, PathBuf};
 
@@ -130,7 +131,7 @@ pub fn write_files(
 ) -> Result<Vec<PathBuf>, LayoutError> {
     let mut written = Vec::new();
     let mut rel = |p: &Path| written.push(p.strip_prefix(dir).unwrap_or(p).to_path_buf());
-    let fingerprint = collection_fingerprint(&e.collection);
+    let fingerprint = e.collection.fingerprint();
     for (i, (m, d)) in e.settings.metrics.iter().zip(&e.distances).enumerate() {
         let npy = dir.join(format!("distance-{}.npy", m.label));
         write_npy_with_sidecar(&npy, d, &matrix_settings(e, i)?, &fingerprint)?;

@@ -426,7 +426,7 @@ pub fn run(
             lobe: if *metric == Metric::Euclidean {
                 String::new()
             } else {
-                dp.lobe.to_string()
+                dp.lobe().to_string()
             },
         });
     }

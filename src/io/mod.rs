@@ -1,6 +1,12 @@
-//! File input and output: `.npy`, CSV matrices, images, JSON (written through
-//! [`crate::atomic`]).
+//! File input and output, written through [`crate::atomic`]: `.npy` ([`npy`]), the
+//! sidecar of a saved matrix ([`sidecar`]), saved matrices written and loaded with their
+//! checks ([`saved`]), tile merging ([`merge`]), JSON and images.
 
 pub mod image;
 pub mod json;
-pub mod matrix;
+pub mod merge;
+pub mod npy;
+pub mod saved;
+pub mod sidecar;
+
+pub use saved::MatrixFileError;

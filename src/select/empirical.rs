@@ -62,7 +62,7 @@ pub fn empirical(
         return Err(FitError::EmptyBasis);
     }
     let all: Vec<usize> = (0..n).collect();
-    let cells = fit_cells(coll, &all, &p.fit);
+    let cells = fit_cells(coll, &all, &p.fit)?;
     let names = coll.names();
     let mut contributes = vec![vec![false; n]; n];
     let lh = lawson_hanson::LhParams::default();
@@ -319,7 +319,7 @@ mod tests {
             stride,
             ..Default::default()
         };
-        let cells = fit_cells(coll, &all, &fp);
+        let cells = fit_cells(coll, &all, &fp).expect("stride >= 1");
         let mut lobes = vec![LAMBERTIAN];
         lobes.extend(coll.materials().iter().map(|m| channel_lobe(&m.data, c)));
         let sep = separable_lobes(&lobes).expect("analytic");
@@ -336,7 +336,7 @@ mod tests {
                 stride,
                 ..Default::default()
             };
-            let cells = fit_cells(&coll, &all, &fp);
+            let cells = fit_cells(&coll, &all, &fp).expect("stride >= 1");
             let mom = CellMoments::new(&GridTables::new(), &cells);
             for c in 0..3 {
                 let (want, sep) = full_gram(&coll, c, stride);

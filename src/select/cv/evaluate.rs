@@ -163,7 +163,8 @@ pub(crate) struct GridEval<'a> {
 impl<'a> GridEval<'a> {
     fn new(coll: &'a Collection, fp: &FitParams) -> Self {
         let all: Vec<usize> = (0..coll.len()).collect();
-        let cells = fit_cells(coll, &all, fp);
+        let cells = fit_cells(coll, &all, fp)
+            .expect("the stride of checked objective parameters is at least 1");
         let tables = GridTables::new();
         let moments = (fp.gram == GramMode::Auto && coll.all_analytic())
             .then(|| CellMoments::new(&tables, &cells));

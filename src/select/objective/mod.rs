@@ -146,7 +146,7 @@ impl Objective {
             });
         }
         let all: Vec<usize> = (0..n).collect();
-        let cells = fit_cells(coll, &all, &p.fit_params());
+        let cells = fit_cells(coll, &all, &p.fit_params())?;
         if cells.is_empty() {
             return Err(SelectionError::Fit(crate::fit::FitError::Backend(
                 crate::error::BackendError::Invalid(

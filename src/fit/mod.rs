@@ -15,6 +15,11 @@ use crate::merl::{CellSet, GridTables, Mask, Weighting};
 use crate::nnls::{lawson_hanson, pgd, GramBatch, NnlsError, NnlsSolution};
 use crate::separable::{CellMoments, SeparableLobe};
 use rayon::prelude::*;
+use std::num::NonZeroUsize;
+
+pub mod diagnostics;
+pub mod export;
+pub mod file;
 
 /// Errors of fitting.
 #[derive(Debug, thiserror::Error)]
@@ -56,6 +61,9 @@ pub enum FitError {
         /// The stride.
         stride: usize,
     },
+    /// A grid stride of 0 (1 is the full grid).
+    #[error("a grid stride of 0 is meaningless: give --stride 1 (the full grid) or more")]
+    ZeroStride,
     /// Back-end failure.
     #[error(transparent)]
     Backend(#[from] BackendError),
@@ -179,17 +187,17 @@ pub const LAMBERTIAN: Lobe = Lobe::Analytic(LobeParams {
     n: 1.0,
 });
 
-/// The cells of a fit: the mask, restricted to cells valid in every measured material.
-pub fn fit_cells(coll: &Collection, idx: &[usize], p: &FitParams) -> CellSet {
-    let sub = coll.subset(idx);
-    let dp = crate::distance::ValidDistanceParams {
-        metric: crate::distance::Metric::BrdfIt,
-        mask: p.mask,
-        weighting: p.weighting,
-        lobe: crate::distance::LobeKind::Full,
-        stride: p.stride.max(1),
-    };
-    crate::distance::cell_set(&sub, &dp)
+/// The cells of a fit of the materials `idx` of `coll`: the mask on the grid
+/// sub-sampled by the stride, restricted to cells valid in every measured one of them
+/// ([`CellSet::for_collection`]). A stride of 0 is refused.
+pub fn fit_cells(coll: &Collection, idx: &[usize], p: &FitParams) -> Result<CellSet, FitError> {
+    let stride = NonZeroUsize::new(p.stride).ok_or(FitError::ZeroStride)?;
+    Ok(CellSet::for_collection(
+        &coll.subset(idx),
+        p.mask,
+        p.weighting,
+        stride,
+    ))
 }
 
 /// Lobes in separable form when every one is analytic.
@@ -344,7 +352,7 @@ pub fn fit(
     }
     let mut all: Vec<usize> = basis.to_vec();
     all.extend_from_slice(targets);
-    let cells = fit_cells(coll, &all, p);
+    let cells = fit_cells(coll, &all, p)?;
     if cells.cells.is_empty() {
         return Err(FitError::NoCells {
             mask: p.mask,
@@ -381,68 +389,23 @@ pub fn fit(
             .zip(&bbs)
             .for_each(|(n, &b)| *n += b);
         let sols = solve_channel(backend, m, &g, &hs, &bbs, p.solver)?;
-        let mut lobes = vec![LAMBERTIAN];
-        lobes.extend(
-            basis
-                .iter()
-                .map(|&b| channel_lobe(&coll.materials()[b].data, c)),
+        let errs = grid_errors(
+            coll,
+            basis,
+            targets,
+            &sols,
+            &cells,
+            moments.as_ref(),
+            c,
+            &cpu,
         );
-        let errs: Vec<(f64, f64, f64)> = match (moments.as_ref(), separable_lobes(&lobes)) {
-            (Some(mom), Some(cols)) => {
-                // Every lobe analytic: one multiply-add per cell from per-(i, j) tables.
-                let refs: Vec<&SeparableLobe> = cols.iter().collect();
-                let t = GridTables::new();
-                targets
-                    .par_iter()
-                    .zip(&sols)
-                    .map(|(&ti, s)| {
-                        let target = match channel_lobe(&coll.materials()[ti].data, c) {
-                            Lobe::Analytic(tp) => SeparableLobe::new(&t, &tp),
-                            Lobe::Measured { .. } => {
-                                unreachable!("moments exist only when every material is analytic")
-                            }
-                        };
-                        let (sq, ab) =
-                            mom.errors(&SeparableLobe::combination(&refs, &s.x), &target);
-                        let (_, l1) = mom.errors(&SeparableLobe::combination(&[], &[]), &target);
-                        (sq.sqrt(), ab, l1)
-                    })
-                    .collect()
-            }
-            _ => {
-                // On the grid, in f64, cell by cell.
-                let cols: Vec<Vec<f64>> = lobes
-                    .iter()
-                    .map(|l| cpu.values_f64(l, &cells.cells))
-                    .collect();
-                targets
-                    .par_iter()
-                    .zip(&sols)
-                    .map(|(&t, s)| {
-                        let b = cpu
-                            .values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
-                        let (mut sq, mut ab, mut l1) = (0.0, 0.0, 0.0);
-                        for (i, (&bv, &w)) in b.iter().zip(&cells.weights).enumerate() {
-                            let fitv: f64 = cols.iter().zip(&s.x).map(|(col, &a)| a * col[i]).sum();
-                            let r = fitv - bv;
-                            sq += w * r * r;
-                            ab += w * r.abs();
-                            l1 += w * bv.abs();
-                        }
-                        (sq.sqrt(), ab, l1)
-                    })
-                    .collect()
-            }
-        };
-        for (((f, s), (res, mae, l1)), tl1) in
-            fits.iter_mut().zip(&sols).zip(errs).zip(&mut target_l1)
-        {
-            *tl1 += l1;
+        for (((f, s), e), tl1) in fits.iter_mut().zip(&sols).zip(errs).zip(&mut target_l1) {
+            *tl1 += e.l1;
             for (k, &a) in s.x.iter().enumerate() {
                 f.coefficients[k][c] = a;
             }
-            f.residual[c] = res;
-            f.mae += mae / 3.0;
+            f.residual[c] = e.residual;
+            f.mae += e.mae / 3.0;
             f.kkt[c] = s.max_kkt_violation;
             f.iterations[c] = s.iterations;
         }
@@ -455,6 +418,92 @@ pub fn fit(
         f.relative_mae = if l1 > 0.0 { 3.0 * f.mae / l1 } else { 0.0 };
     }
     Ok(fits)
+}
+
+/// Grid errors of one channel's fit of one target.
+struct ChannelErrors {
+    /// `sqrt(sum_s w_s r_s^2)`.
+    residual: f64,
+    /// `sum_s w_s |r_s|`.
+    mae: f64,
+    /// `sum_s w_s |b_s|` (the target's own weighted L1 norm).
+    l1: f64,
+}
+
+/// The errors of channel `c` of every target's fit `sols` on the grid, in f64: from the
+/// separable cell moments when every lobe is analytic (and `moments` were built), else
+/// cell by cell.
+#[allow(clippy::too_many_arguments)]
+fn grid_errors(
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    sols: &[NnlsSolution],
+    cells: &CellSet,
+    moments: Option<&CellMoments>,
+    c: usize,
+    cpu: &CpuBackend,
+) -> Vec<ChannelErrors> {
+    let mut lobes = vec![LAMBERTIAN];
+    lobes.extend(
+        basis
+            .iter()
+            .map(|&b| channel_lobe(&coll.materials()[b].data, c)),
+    );
+    match (moments, separable_lobes(&lobes)) {
+        (Some(mom), Some(cols)) => {
+            // Every lobe analytic: one multiply-add per cell from per-(i, j) tables.
+            let refs: Vec<&SeparableLobe> = cols.iter().collect();
+            let t = GridTables::new();
+            targets
+                .par_iter()
+                .zip(sols)
+                .map(|(&ti, s)| {
+                    let target = match channel_lobe(&coll.materials()[ti].data, c) {
+                        Lobe::Analytic(tp) => SeparableLobe::new(&t, &tp),
+                        Lobe::Measured { .. } => {
+                            unreachable!("moments exist only when every material is analytic")
+                        }
+                    };
+                    let (sq, ab) = mom.errors(&SeparableLobe::combination(&refs, &s.x), &target);
+                    let (_, l1) = mom.errors(&SeparableLobe::combination(&[], &[]), &target);
+                    ChannelErrors {
+                        residual: sq.sqrt(),
+                        mae: ab,
+                        l1,
+                    }
+                })
+                .collect()
+        }
+        _ => {
+            // On the grid, in f64, cell by cell.
+            let cols: Vec<Vec<f64>> = lobes
+                .iter()
+                .map(|l| cpu.values_f64(l, &cells.cells))
+                .collect();
+            targets
+                .par_iter()
+                .zip(sols)
+                .map(|(&t, s)| {
+                    let b =
+                        cpu.values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
+                    let (mut sq, mut ab, mut l1) = (0.0, 0.0, 0.0);
+                    for (i, (&bv, &w)) in b.iter().zip(&cells.weights).enumerate() {
+                        let fitv: f64 = cols.iter().zip(&s.x).map(|(col, &a)| a * col[i]).sum();
+                        let r = fitv - bv;
+                        sq += w * r * r;
+                        ab += w * r.abs();
+                        l1 += w * bv.abs();
+                    }
+                    ChannelErrors {
+                        residual: sq.sqrt(),
+                        mae: ab,
+                        l1,
+                    }
+                })
+                .collect()
+        }
+    }
 }
 
 /// The fitted combination of channel `c` at the given cells (f64).

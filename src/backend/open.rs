@@ -1,13 +1,13 @@
 //! Choosing a back-end: `auto` (a hardware GPU when there is one, else the CPU
 //! back-end), `gpu` (any adapter, software ones included) or `cpu`.
 
-use crate::backend::cpu::CpuBackend;
-use crate::backend::Backend;
+use super::cpu::CpuBackend;
+use super::Backend;
 use crate::error::GpuError;
 use crate::gpu::{GpuBackend, GpuContext};
 
 /// Which back-end to run on (spellings `auto`, `gpu`, `cpu` from the `clap::ValueEnum`
-/// derive, the one parser of option values).
+/// derive, the one parser of option values; [`Display`](std::fmt::Display) writes them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum BackendChoice {
     /// A hardware GPU if there is one, else the CPU back-end (faster than a software
@@ -20,8 +20,25 @@ pub enum BackendChoice {
     Cpu,
 }
 
+impl BackendChoice {
+    /// The command-line spelling: `auto`, `gpu` or `cpu`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BackendChoice::Auto => "auto",
+            BackendChoice::Gpu => "gpu",
+            BackendChoice::Cpu => "cpu",
+        }
+    }
+}
+
+impl std::fmt::Display for BackendChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// Opens the chosen back-end.
-pub fn open_backend(choice: BackendChoice) -> Result<Box<dyn Backend>, GpuError> {
+pub fn open(choice: BackendChoice) -> Result<Box<dyn Backend>, GpuError> {
     match choice {
         BackendChoice::Cpu => Ok(Box::new(CpuBackend::new())),
         BackendChoice::Gpu => Ok(Box::new(GpuBackend::new()?)),
@@ -29,5 +46,19 @@ pub fn open_backend(choice: BackendChoice) -> Result<Box<dyn Backend>, GpuError>
             Ok(ctx) if !ctx.is_software() => Ok(Box::new(GpuBackend::with_context(ctx)?)),
             _ => Ok(Box::new(CpuBackend::new())),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn choices_print_as_their_flag_values() {
+        use clap::ValueEnum;
+        for c in BackendChoice::value_variants() {
+            let name = c.to_possible_value().expect("named").get_name().to_string();
+            assert_eq!(c.to_string(), name);
+        }
     }
 }

@@ -1,0 +1,77 @@
+//! Diagnostics of a fit that ran but whose numbers may mean little: a target in the
+//! basis, an unphysical albedo, a fit about as far from its target as a black material,
+//! or one that explains little of it.
+
+use super::TargetFit;
+use crate::collection::Collection;
+
+/// Relative residual above which a fit is reported as meaningless: the basis explains
+/// less than half of the target's weighted energy.
+pub const WARN_RELATIVE_RESIDUAL: f64 = 0.5;
+
+/// Relative MAE above which a fit is reported as meaningless: its mean absolute error is
+/// close to the target's own mean (a black material would do about as well).
+pub const WARN_RELATIVE_MAE: f64 = 0.75;
+
+/// Warnings printed one per line; the rest are counted.
+pub const MAX_WARNINGS: usize = 8;
+
+/// Diffuse albedo above which a fitted combination is reported as unphysical.
+pub const WARN_ALBEDO: f64 = 1.0;
+
+/// Warnings about a fit that ran but whose numbers may mean little.
+pub fn fit_warnings(
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    fits: &[TargetFit],
+) -> Vec<String> {
+    let mut w = Vec::new();
+    for &t in targets {
+        if basis.contains(&t) {
+            w.push(format!(
+                "target `{}` is in the basis: its fit is exact and says nothing about the basis",
+                coll.materials()[t].name
+            ));
+        }
+    }
+    for f in fits {
+        // Diffuse albedo of the combination (analytic basis): above 1 it reflects more
+        // light than it receives, a sign that the basis was stretched to mimic the target.
+        let analytic: Option<Vec<_>> = basis
+            .iter()
+            .map(|&b| coll.materials()[b].analytic())
+            .collect();
+        if let Some(ps) = analytic {
+            let albedo: Vec<f64> = (0..3)
+                .map(|c| {
+                    f.coefficients[0][c]
+                        + ps.iter()
+                            .zip(&f.coefficients[1..])
+                            .map(|(p, a)| a[c] * p.d[c])
+                            .sum::<f64>()
+                })
+                .collect();
+            let worst = albedo.iter().cloned().fold(0.0, f64::max);
+            if worst > WARN_ALBEDO {
+                w.push(format!(
+                    "the fit of `{}` has a diffuse albedo of {worst:.3} (above 1: it reflects more light than it receives); the basis cannot represent it and its numbers mean little",
+                    f.material
+                ));
+                continue;
+            }
+        }
+        if f.relative_mae > WARN_RELATIVE_MAE {
+            w.push(format!(
+                "the fit of `{}` is almost as far from it as a black material (relative MAE {:.2}, relative residual {:.2}): this basis cannot represent it",
+                f.material, f.relative_mae, f.relative_residual
+            ));
+        } else if f.relative_residual > WARN_RELATIVE_RESIDUAL {
+            w.push(format!(
+                "the fit of `{}` explains little of it (relative residual {:.2}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
+                f.material, f.relative_residual
+            ));
+        }
+    }
+    w
+}

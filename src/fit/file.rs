@@ -1,0 +1,285 @@
+//! The `fit` JSON schema (SPEC-cli): one type written by `fit` and `reproduce` and read by
+//! `render --fit`, `plot --fit` and the tests.
+//!
+//! ```json
+//! {"collection_fingerprint": "<16 hex digits>", "collection_size": N,
+//!  "basis": [names], "weighting", "mask",
+//!  "targets": [{"material", "lambertian": [r, g, b],
+//!               "coefficients": {"<basis name>": [r, g, b], ...}, "mae", "residual": [r, g, b]}]}
+//! ```
+//!
+//! The Lambertian term sits beside the basis coefficients, so a basis material may be
+//! called anything, `lambertian` included. The file carries the fingerprint and size of
+//! the collection it was fitted on ([`Collection::fingerprint`]); a reader given another
+//! collection refuses it ([`FitFile::check_collection`]), since the same names may
+//! stand for other materials there.
+
+use crate::collection::Collection;
+use crate::fit::{FitParams, TargetFit};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Largest `fit` JSON read (a fit of 10,000 targets by a basis of 20 is about 20 MB).
+pub const MAX_FIT_FILE_BYTES: u64 = 1 << 30;
+
+/// Errors reading a `fit` JSON file.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
+pub enum FitFileError {
+    /// The file could not be read.
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The file is not a `fit` JSON (names the line and column of the problem).
+    #[error("{path}: not a `fit` JSON file: {message}")]
+    Parse {
+        /// File.
+        path: PathBuf,
+        /// serde's message, with line and column.
+        message: String,
+    },
+    /// The file was fitted on another collection than the one given.
+    #[error("{path}: fitted on another collection ({file_size} materials, fingerprint {file_fingerprint}) than the one given ({given_size} materials, fingerprint {given_fingerprint}): the same names may stand for other materials there; give the collection the fit was made on, or fit again")]
+    OtherCollection {
+        /// File.
+        path: PathBuf,
+        /// Fingerprint recorded in the file.
+        file_fingerprint: String,
+        /// Size recorded in the file.
+        file_size: usize,
+        /// Fingerprint of the collection given.
+        given_fingerprint: String,
+        /// Its size.
+        given_size: usize,
+    },
+    /// The file records no collection fingerprint.
+    #[error("{path}: records no collection fingerprint (written by an older brdf-basis), so it cannot be checked against the collection given; fit again with `brdf-basis fit`")]
+    NoFingerprint {
+        /// File.
+        path: PathBuf,
+    },
+    /// A basis material of the file is not in the collection.
+    #[error("{path}: basis material: {source}")]
+    Basis {
+        /// File.
+        path: PathBuf,
+        /// The lookup error.
+        source: crate::error::CollectionError,
+    },
+    /// The file holds no fit of the material asked for.
+    #[error("{path}: no fit of `{material}` (fitted: {available})")]
+    NoTarget {
+        /// File.
+        path: PathBuf,
+        /// Material asked for.
+        material: String,
+        /// The targets in the file, comma-separated (at most 10).
+        available: String,
+    },
+    /// A target lacks the coefficient of a basis material.
+    #[error("{path}: the fit of `{material}` has no coefficient for basis material `{basis}`")]
+    MissingCoefficient {
+        /// File.
+        path: PathBuf,
+        /// Target.
+        material: String,
+        /// Basis material.
+        basis: String,
+    },
+}
+
+/// The fit of one target as written to JSON.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FitTarget {
+    /// Target material.
+    pub material: String,
+    /// Lambertian (white diffuse) coefficient, RGB.
+    pub lambertian: [f64; 3],
+    /// Coefficient of each basis material, RGB, by name.
+    pub coefficients: BTreeMap<String, [f64; 3]>,
+    /// Weighted mean absolute error over the fit mask, averaged over channels.
+    pub mae: f64,
+    /// `sqrt(sum_s w_s r_s^2)` per channel.
+    pub residual: [f64; 3],
+    /// Largest scaled KKT violation per channel (diagnostic; optional on input).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kkt: Option<[f64; 3]>,
+    /// Solver iterations per channel (diagnostic; optional on input).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<[usize; 3]>,
+}
+
+/// A `fit` JSON file.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FitFile {
+    /// [`Collection::fingerprint`] of the collection fitted (absent in files written
+    /// before it was recorded; such files are refused by [`FitFile::check_collection`]).
+    #[serde(default)]
+    pub collection_fingerprint: Option<String>,
+    /// Number of materials of that collection.
+    #[serde(default)]
+    pub collection_size: Option<usize>,
+    /// Basis materials, in column order.
+    pub basis: Vec<String>,
+    /// `uniform` or `solid-angle`.
+    pub weighting: String,
+    /// `evaluation` or `valid`.
+    pub mask: String,
+    /// One entry per fitted target.
+    pub targets: Vec<FitTarget>,
+}
+
+impl FitTarget {
+    /// From a library fit with basis `names` (in column order).
+    pub fn new(names: &[String], f: &TargetFit) -> Self {
+        FitTarget {
+            material: f.material.clone(),
+            lambertian: f.coefficients[0],
+            coefficients: names
+                .iter()
+                .cloned()
+                .zip(f.coefficients[1..].iter().copied())
+                .collect(),
+            mae: f.mae,
+            residual: f.residual,
+            kkt: Some(f.kkt),
+            iterations: Some(f.iterations),
+        }
+    }
+
+    /// Coefficient table in column order (Lambertian, then `basis`): what
+    /// [`crate::eval::shade::combination_brdf`] takes. `None` names the missing material.
+    pub fn columns(&self, basis: &[String]) -> Result<Vec<[f64; 3]>, String> {
+        let mut out = vec![self.lambertian];
+        for b in basis {
+            out.push(*self.coefficients.get(b).ok_or_else(|| b.clone())?);
+        }
+        Ok(out)
+    }
+}
+
+impl FitFile {
+    /// The fits of `targets` by `basis` (collection indices) with parameters `p`.
+    pub fn new(coll: &Collection, basis: &[usize], fits: &[TargetFit], p: &FitParams) -> Self {
+        let names: Vec<String> = basis
+            .iter()
+            .map(|&b| coll.materials()[b].name.clone())
+            .collect();
+        FitFile {
+            collection_fingerprint: Some(coll.fingerprint()),
+            collection_size: Some(coll.len()),
+            targets: fits.iter().map(|f| FitTarget::new(&names, f)).collect(),
+            basis: names,
+            weighting: p.weighting.to_string(),
+            mask: p.mask.to_string(),
+        }
+    }
+
+    /// Reads and parses `path`.
+    /// Only a regular file of at most [`MAX_FIT_FILE_BYTES`] is read (a FIFO or a
+    /// device is refused before it is opened, so reading never blocks).
+    pub fn read(path: &Path) -> Result<Self, FitFileError> {
+        use crate::error::CollectionError;
+        let text =
+            crate::collection::read_regular(path, MAX_FIT_FILE_BYTES).map_err(|e| match e {
+                CollectionError::Io { source, .. } => FitFileError::Io {
+                    path: path.to_path_buf(),
+                    source,
+                },
+                CollectionError::NotRegular { kind, .. } => FitFileError::Parse {
+                    path: path.to_path_buf(),
+                    message: format!("is {kind}, not a regular file"),
+                },
+                other => FitFileError::Parse {
+                    path: path.to_path_buf(),
+                    message: other.to_string(),
+                },
+            })?;
+        serde_json::from_slice(&text).map_err(|e| FitFileError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Refuses the file unless it was fitted on `coll` (same fingerprint and size);
+    /// `path` names the file in errors.
+    pub fn check_collection(&self, coll: &Collection, path: &Path) -> Result<(), FitFileError> {
+        let (Some(fp), Some(size)) = (&self.collection_fingerprint, self.collection_size) else {
+            return Err(FitFileError::NoFingerprint {
+                path: path.to_path_buf(),
+            });
+        };
+        let given = coll.fingerprint();
+        if *fp != given || size != coll.len() {
+            return Err(FitFileError::OtherCollection {
+                path: path.to_path_buf(),
+                file_fingerprint: fp.clone(),
+                file_size: size,
+                given_fingerprint: given,
+                given_size: coll.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The fitted BRDF of `material`: the file at `path` read, checked against `coll`
+    /// ([`FitFile::check_collection`]), its basis resolved in `coll` and the combination
+    /// formed ([`crate::eval::shade::combination_brdf`]).
+    pub fn combination_from(
+        path: &Path,
+        coll: &Collection,
+        material: &str,
+    ) -> Result<crate::eval::shade::BrdfFn, FitFileError> {
+        let file = Self::read(path)?;
+        file.check_collection(coll, path)?;
+        let (_, coef) = file.columns_of(material, path)?;
+        let basis: Vec<usize> = file
+            .basis
+            .iter()
+            .map(|n| coll.index_of(n))
+            .collect::<Result<_, _>>()
+            .map_err(|source| FitFileError::Basis {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        Ok(crate::eval::shade::combination_brdf(coll, &basis, &coef))
+    }
+
+    /// The fit of `material` and its coefficient table in column order (Lambertian,
+    /// then [`FitFile::basis`]); `path` names the file in errors.
+    pub fn columns_of(
+        &self,
+        material: &str,
+        path: &Path,
+    ) -> Result<(&FitTarget, Vec<[f64; 3]>), FitFileError> {
+        let t = self
+            .targets
+            .iter()
+            .find(|t| t.material == material)
+            .ok_or_else(|| FitFileError::NoTarget {
+                path: path.to_path_buf(),
+                material: material.to_string(),
+                available: self
+                    .targets
+                    .iter()
+                    .take(10)
+                    .map(|t| t.material.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })?;
+        let cols = t
+            .columns(&self.basis)
+            .map_err(|basis| FitFileError::MissingCoefficient {
+                path: path.to_path_buf(),
+                material: material.to_string(),
+                basis,
+            })?;
+        Ok((t, cols))
+    }
+}
