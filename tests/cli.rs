@@ -1,15 +1,9 @@
 //! The command line, run as a user would.
 
 use crate::common::*;
+use brdf_basis::collection::Collection;
 use brdf_basis::merl::binary::{read_binary, FILE_BYTES, SCALE};
 use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS};
-use std::process::Command;
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_brdf-basis"));
-    c.arg("--quiet");
-    c
-}
 
 fn backend_flag() -> &'static str {
     if gpu("cli backend").is_some() {
@@ -21,11 +15,16 @@ fn backend_flag() -> &'static str {
 
 #[test]
 fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
+    const TEST: &str = "tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model";
+    let Some(csv) = shared_or_skip("ngan2005_ashikhmin_shirley.csv", TEST) else {
+        return;
+    };
+    let ngan = Collection::load(&csv).expect("ngan");
     let dir = tmp();
     let out = dir.path().join("g.binary");
-    let st = bin()
+    let st = bin_quiet()
         .args(["--backend", backend_flag(), "tabulate"])
-        .arg(shared("ngan2005_ashikhmin_shirley.csv"))
+        .arg(&csv)
         .args(["--material", "gold-metallic-paint", "--out"])
         .arg(&out)
         .status()
@@ -42,7 +41,7 @@ fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
         std::fs::read(&again).expect("b")
     );
     // Equal to the f64 model within f32 rounding (plus the GPU's 1e-4 where it is used).
-    let m = *ngan()
+    let m = *ngan
         .get("gold-metallic-paint")
         .expect("gold")
         .analytic()
@@ -75,7 +74,7 @@ fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
 
 #[test]
 fn info_names_the_adapter_backend_and_limits() {
-    let out = bin().args(["info"]).output().expect("run");
+    let out = bin_quiet().args(["info"]).output().expect("run");
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -95,7 +94,7 @@ fn distance_on_the_embedded_default_writes_csv_and_npy() {
     let dir = tmp();
     for ext in ["csv", "npy"] {
         let out = dir.path().join(format!("d.{ext}"));
-        let st = bin()
+        let st = bin_quiet()
             .args(["--backend", "cpu", "distance", "--stride", "4", "--out"])
             .arg(&out)
             .status()
@@ -114,7 +113,7 @@ fn errors_name_the_problem_and_exit_non_zero() {
         "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\nx,0,0,0,0,0,0,1.5,3\n",
     )
     .expect("write");
-    let out = bin()
+    let out = bin_quiet()
         .args(["distance"])
         .arg(&bad)
         .args(["--out", "x.csv"])
@@ -126,7 +125,7 @@ fn errors_name_the_problem_and_exit_non_zero() {
         err.contains("bad.csv") && err.contains("line 2") && err.contains("F0"),
         "{err}"
     );
-    let out = bin()
+    let out = bin_quiet()
         .args(["tabulate", "--material", "nope", "--out"])
         .arg(dir.path().join("n.binary"))
         .output()
@@ -137,7 +136,7 @@ fn errors_name_the_problem_and_exit_non_zero() {
         !dir.path().join("n.binary").exists(),
         "nothing half-written"
     );
-    let out = bin()
+    let out = bin_quiet()
         .args(["distance", "--metric", "cosine", "--out", "x.csv"])
         .output()
         .expect("run");

@@ -11,7 +11,7 @@ const HEADER: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n";
 
 /// Runs the binary in `cwd` with `args`; kills it and panics after 60 s (a hang).
 fn run_in(cwd: &Path, args: &[&str]) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+    let mut child = bin()
         .args(args)
         .current_dir(cwd)
         .stdin(Stdio::null())
@@ -67,12 +67,6 @@ fn files_under(dir: &Path) -> Vec<PathBuf> {
     }
     out.sort();
     out
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).expect("write");
-    p
 }
 
 #[test]
@@ -556,7 +550,7 @@ fn messages_name_things_once_and_plainly() {
 #[test]
 fn no_loader_noise_without_xdg_runtime_dir() {
     for quiet in [true, false] {
-        let mut c = Command::new(env!("CARGO_BIN_EXE_brdf-basis"));
+        let mut c = bin();
         c.env_remove("XDG_RUNTIME_DIR").arg("--backend").arg("auto");
         if quiet {
             c.arg("--quiet");
@@ -578,7 +572,7 @@ fn no_loader_noise_without_xdg_runtime_dir() {
 #[test]
 fn an_interrupted_export_leaves_nothing() {
     let dir = tmp();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+    let mut child = bin()
         .args([
             "--backend",
             "cpu",
@@ -700,7 +694,7 @@ fn outputs_never_replace_inputs_or_devices() {
 #[cfg(unix)]
 #[test]
 fn a_closed_stdout_pipe_is_no_panic() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+    let mut child = bin()
         .args(["--backend", "cpu", "info"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
