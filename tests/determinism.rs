@@ -28,7 +28,7 @@ fn both(
     gpu: &dyn Backend,
     p: DistanceParams,
 ) -> (DistanceMatrix, DistanceMatrix) {
-    let p = p.check(&coll).expect("params");
+    let p = p.check(coll).expect("params");
     let cpu = distance_matrix(&CpuBackend::new(), coll, &p, &|_, _| {}).expect("cpu");
     let gpu = distance_matrix(gpu, coll, &p, &|_, _| {}).expect("gpu");
     (cpu, gpu)

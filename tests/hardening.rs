@@ -134,7 +134,7 @@ fn control_characters_and_commas_in_names_are_rejected() {
     write(
         dir.path(),
         "ctl.csv",
-        &format!("{HEADER}\"red\x1b[31m\",0.1,0.1,0.1,0.5,0.5,0.5,0.9,100\n"),
+        format!("{HEADER}\"red\x1b[31m\",0.1,0.1,0.1,0.5,0.5,0.5,0.9,100\n"),
     );
     let o = run_in(dir.path(), &["info", "x"]);
     assert!(!o.status.success());
@@ -154,7 +154,7 @@ fn control_characters_and_commas_in_names_are_rejected() {
     write(
         dir.path(),
         "comma.csv",
-        &format!("{HEADER}\"a,b\",0.1,0.1,0.1,0.5,0.5,0.5,0.9,100\n"),
+        format!("{HEADER}\"a,b\",0.1,0.1,0.1,0.5,0.5,0.5,0.9,100\n"),
     );
     let o = run_in(
         dir.path(),
@@ -222,7 +222,7 @@ fn tabulate_refuses_values_that_are_not_finite_f32() {
     write(
         dir.path(),
         "c.csv",
-        &format!(
+        format!(
             "{HEADER}big-n,0.1,0.1,0.1,0.5,0.5,0.5,0.9,1e300\nbig-s,0.1,0.1,0.1,1e38,0.5,0.5,0.9,100\n"
         ),
     );
@@ -241,7 +241,7 @@ fn tabulate_refuses_values_that_are_not_finite_f32() {
     write(
         dir.path(),
         "s.csv",
-        &format!("{HEADER}big-s,0.1,0.1,0.1,1e38,0.5,0.5,0.9,100\n"),
+        format!("{HEADER}big-s,0.1,0.1,0.1,1e38,0.5,0.5,0.9,100\n"),
     );
     let o = run_in(
         dir.path(),
@@ -634,7 +634,7 @@ fn outputs_never_replace_inputs_or_devices() {
     write(
         dir.path(),
         "c.csv",
-        &format!("{HEADER}ok,0.2,0.1,0.1,0.5,0.5,0.5,0.5,50\n"),
+        format!("{HEADER}ok,0.2,0.1,0.1,0.5,0.5,0.5,0.5,50\n"),
     );
     let o = run_in(
         dir.path(),

@@ -48,7 +48,7 @@ fn err(bytes: &[u8], name: &str) -> (MerlError, String) {
 #[test]
 fn reads_a_valid_file() {
     let d = tmp();
-    let p = write(d.path(), "ok.binary", &valid_bytes());
+    let p = write(d.path(), "ok.binary", valid_bytes());
     let t = read_binary(&p).expect("valid");
     assert_eq!(t.valid_count(), 1_096_216);
     let c = flat(10, 20, 30);
