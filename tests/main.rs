@@ -15,6 +15,7 @@ mod fit;
 mod gpu_kernels;
 mod grid;
 mod hardening;
+mod hygiene;
 mod kmedoids;
 mod measured;
 mod reproduce;
