@@ -43,6 +43,9 @@ fn main() -> std::process::ExitCode {
         }
     }
     let args = cli::Cli::parse();
+    if let Some(w) = brdf_basis::backend::cpu::cap_global_threads() {
+        eprintln!("warning: {w}");
+    }
     let code = match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

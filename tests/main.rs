@@ -16,6 +16,7 @@ mod gpu_kernels;
 mod grid;
 mod hardening;
 mod hygiene;
+mod inputs;
 mod kmedoids;
 mod measured;
 mod reproduce;

@@ -2,6 +2,7 @@
 
 use super::Global;
 use brdf_basis::collection::Collection;
+use brdf_basis::error::short_name;
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
 use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
@@ -129,7 +130,7 @@ pub fn fit_warnings(
         if basis.contains(&t) {
             w.push(format!(
                 "target `{}` is in the basis: its fit is exact and says nothing about the basis",
-                coll.materials()[t].name
+                short_name(&coll.materials()[t].name)
             ));
         }
     }
@@ -154,7 +155,7 @@ pub fn fit_warnings(
             if worst > WARN_ALBEDO {
                 w.push(format!(
                     "the fit of `{}` has a diffuse albedo of {worst:.3} (above 1: it reflects more light than it receives); the basis cannot represent it and its numbers mean little",
-                    f.material
+                    short_name(&f.material)
                 ));
                 continue;
             }
@@ -162,12 +163,12 @@ pub fn fit_warnings(
         if f.relative_mae > WARN_RELATIVE_MAE {
             w.push(format!(
                 "the fit of `{}` is almost as far from it as a black material (relative MAE {:.2}, relative residual {:.2}): this basis cannot represent it",
-                f.material, f.relative_mae, f.relative_residual
+                short_name(&f.material), f.relative_mae, f.relative_residual
             ));
         } else if f.relative_residual > WARN_RELATIVE_RESIDUAL {
             w.push(format!(
                 "the fit of `{}` explains little of it (relative residual {:.2}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
-                f.material, f.relative_residual
+                short_name(&f.material), f.relative_residual
             ));
         }
     }
@@ -196,7 +197,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         if targets[..i].contains(&t) {
             anyhow::bail!(
                 "--targets: material `{}` is given twice",
-                coll.materials()[t].name
+                short_name(&coll.materials()[t].name)
             );
         }
     }
@@ -284,7 +285,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         if !g.quiet {
             for (n, file) in names.iter().zip(&files) {
                 if format!("{n}.binary") != *file {
-                    eprintln!("export: `{}` -> {file}", n.escape_debug());
+                    eprintln!("export: `{}` -> {file}", short_name(n));
                 }
             }
         }

@@ -268,9 +268,20 @@ pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
 
 /// Clusters a saved matrix (`--distances`): no collection, no back-end.
 fn run_saved(g: &Global, a: &SelectArgs, path: &std::path::Path) -> anyhow::Result<()> {
-    if !a.collection.is_empty() || !matches!(a.method.as_str(), "kmedoids" | "gcuk") {
+    if !a.collection.is_empty() {
         anyhow::bail!(
-            "--distances clusters a saved matrix (--method kmedoids or gcuk) and takes no COLLECTION"
+            "--distances clusters a saved matrix and takes no COLLECTION (given: {})",
+            a.collection
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    if !matches!(a.method.as_str(), "kmedoids" | "gcuk") {
+        anyhow::bail!(
+            "--distances works with --method kmedoids or gcuk only (a saved matrix holds distances, not materials); --method {} needs a COLLECTION instead",
+            a.method
         );
     }
     brdf_basis::io::atomic::check_output_path(&a.json, "--json")?;

@@ -54,10 +54,11 @@ pub fn tile_blocks(
         });
     }
     if count > nb {
-        return Err(DistanceError::UnknownOption {
-            what: "tile count",
-            found: count.to_string(),
-            expected: "at most the number of bands (materials / --band-rows, rounded up)",
+        return Err(DistanceError::TooManyTiles {
+            count,
+            bands: nb,
+            materials: n,
+            band_rows,
         });
     }
     // Cumulative pair counts: cum[a] = pairs of rows 0..a.
@@ -128,7 +129,7 @@ pub fn distance_band(
             let cells = cell_set(coll, p);
             if cells.is_empty() {
                 return Err(DistanceError::Backend(crate::error::BackendError::Invalid(
-                    "no grid cell is valid in every material of the collection".into(),
+                    crate::merl::grid::no_cells_reason(p.mask, p.stride, "the collection"),
                 )));
             }
             let all = lobes(coll, p.lobe);

@@ -36,7 +36,7 @@ pub enum FitFileError {
         message: String,
     },
     /// The file holds no fit of the material asked for.
-    #[error("{path}: no fit of `{material}` (fitted: {available})")]
+    #[error("{path}: no fit of `{}` (fitted: {available})", crate::error::short_name(.material))]
     NoTarget {
         /// File.
         path: PathBuf,
@@ -46,7 +46,7 @@ pub enum FitFileError {
         available: String,
     },
     /// A target lacks the coefficient of a basis material.
-    #[error("{path}: the fit of `{material}` has no coefficient for basis material `{basis}`")]
+    #[error("{path}: the fit of `{}` has no coefficient for basis material `{}`", crate::error::short_name(.material), crate::error::short_name(.basis))]
     MissingCoefficient {
         /// File.
         path: PathBuf,
@@ -167,7 +167,7 @@ impl FitFile {
                     .targets
                     .iter()
                     .take(10)
-                    .map(|t| t.material.as_str())
+                    .map(|t| crate::error::short_name(&t.material).to_string())
                     .collect::<Vec<_>>()
                     .join(", "),
             })?;
