@@ -205,9 +205,8 @@ fn a_huge_rayon_thread_count_is_capped_with_a_warning() {
     assert!(o.status.success(), "{}", stderr(&o));
     let max = max_threads();
     assert!(
-        stderr(&o).contains(&format!(
-            "warning: RAYON_NUM_THREADS=100000 is more than 4 threads per CPU"
-        )) && stderr(&o).contains(&format!("using {max} threads")),
+        stderr(&o).contains("warning: RAYON_NUM_THREADS=100000 is more than 4 threads per CPU")
+            && stderr(&o).contains(&format!("using {max} threads")),
         "{}",
         stderr(&o)
     );
