@@ -20,6 +20,13 @@ fn shared(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// Writes `line` to the process's standard error directly, past the test harness's
+/// capture of `eprintln!`, so that a SKIP shows in a plain `cargo test` run.
+fn visible(line: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "{line}");
+}
+
 /// `../shared/data/<name>` when it exists. When it does not, prints `SKIP (no shared
 /// data) <test>: <path>` and returns `None`, so the README's test command passes on a
 /// clone that has only the repository; with `BRDF_BASIS_REQUIRE_SHARED=1` (set by
@@ -35,7 +42,10 @@ pub fn shared_or_skip(name: &str, test: &str) -> Option<PathBuf> {
             p.display()
         );
     }
-    eprintln!("SKIP (no shared data) {test}: {} is missing", p.display());
+    visible(&format!(
+        "SKIP (no shared data) {test}: {} is missing",
+        p.display()
+    ));
     None
 }
 
@@ -118,7 +128,7 @@ pub fn gpu(test: &str) -> Option<&'static GpuBackend> {
             if std::env::var("BRDF_BASIS_REQUIRE_GPU").is_ok_and(|v| v == "1") {
                 panic!("BRDF_BASIS_REQUIRE_GPU=1 but no GPU adapter: {e}");
             }
-            eprintln!("SKIP (no adapter) {test}: {e}");
+            visible(&format!("SKIP (no adapter) {test}: {e}"));
             None
         }
     }
