@@ -3,25 +3,23 @@
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
+use brdf_basis::collection::Collection;
 use brdf_basis::distance::*;
 use brdf_basis::error::DistanceError;
 use brdf_basis::merl::{Mask, Weighting};
 
-fn check_backend_against_reference(backends: &[&dyn Backend]) {
-    let Some(coll) = ngan_or_skip("check_backend_against_reference") else {
-        return;
-    };
+fn check_backend_against_reference(coll: &Collection, backends: &[&dyn Backend]) {
     for mask in [Mask::Evaluation, Mask::Valid] {
         for weighting in [Weighting::Uniform, Weighting::SolidAngle] {
             let p = DistanceParams::default()
                 .mask(mask)
                 .weighting(weighting)
-                .check(&coll)
+                .check(coll)
                 .expect("params");
-            let cells = cell_set(&coll, &p);
-            let reference = reference_pairwise_f64(&lobes(&coll, p.lobe), &cells);
+            let cells = cell_set(coll, &p);
+            let reference = reference_pairwise_f64(&lobes(coll, p.lobe), &cells);
             for b in backends {
-                let d = distance_matrix(*b, &coll, &p, &|_, _| {}).expect("distance");
+                let d = distance_matrix(*b, coll, &p, &|_, _| {}).expect("distance");
                 let r = max_rel(&d.condensed(), &reference, 1e-300);
                 eprintln!("{} {mask} {weighting}: max relative error {r:e}", b.name());
                 assert!(r <= 1e-4, "{} {mask} {weighting}: {r:e} > 1e-4", b.name());
@@ -32,10 +30,14 @@ fn check_backend_against_reference(backends: &[&dyn Backend]) {
 
 #[test]
 fn full_ngan_table_gpu_and_cpu_match_f64_reference() {
+    const TEST: &str = "full_ngan_table_gpu_and_cpu_match_f64_reference";
+    let Some(coll) = ngan_or_skip(TEST) else {
+        return;
+    };
     let cpu = CpuBackend::new();
-    match gpu("full_ngan_table_gpu_and_cpu_match_f64_reference") {
-        Some(g) => check_backend_against_reference(&[g, &cpu]),
-        None => check_backend_against_reference(&[&cpu]),
+    match gpu(TEST) {
+        Some(g) => check_backend_against_reference(&coll, &[g, &cpu]),
+        None => check_backend_against_reference(&coll, &[&cpu]),
     }
 }
 
