@@ -21,7 +21,7 @@ use brdf_basis::distance::{
     collection_fingerprint, distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS,
 };
 use brdf_basis::io::matrix::{load_saved_matrix, write_npy_with_sidecar, MatrixSettings};
-use brdf_basis::select::{empirical, EmpiricalParams};
+use brdf_basis::select::empirical::{empirical, EmpiricalParams};
 use rand::{Rng, SeedableRng};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -80,7 +80,7 @@ fn matrix_path(dir: &Path, n: usize) -> PathBuf {
 /// Error-driven greedy selection (SPEC 8) at k = 20: the Gram of all materials (closed
 /// form), then greedy; a one-line summary.
 fn stage_greedy(coll: &Collection) -> Option<String> {
-    use brdf_basis::selection::{greedy, Objective, ObjectiveParams, SearchParams};
+    use brdf_basis::select::{greedy, Objective, ObjectiveParams, SearchParams};
     let cpu = CpuBackend::new();
     let t = Instant::now();
     let op = ObjectiveParams::default()
@@ -91,7 +91,7 @@ fn stage_greedy(coll: &Collection) -> Option<String> {
     let p = SearchParams::new(20)
         .check(obj.names())
         .expect("search params");
-    let sel = greedy(&obj, &p, &|_, _| {});
+    let sel = greedy(&obj, &p, &|_, _| {}).unwrap();
     Some(format!(
         "k 20, S {:.4e}, Gram {gram:.2} s, greedy {:.2} s",
         sel.score,
@@ -162,7 +162,7 @@ fn child(stage: &str, n: usize, dir: &Path) {
         }
         "greedy" => match stage_greedy(&coll) {
             Some(s) => s,
-            None => "NOT RUN: error-driven selection (src/selection) is not on this branch".into(),
+            None => "NOT RUN: error-driven selection (src/select) is not on this branch".into(),
         },
         "empirical" => {
             let e = empirical(

@@ -8,7 +8,7 @@
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::brdf::AshikhminShirley;
 use brdf_basis::collection::{Collection, Material, MaterialData};
-use brdf_basis::selection::{
+use brdf_basis::select::{
     cross_validate, ga, greedy, swap, CvParams, GaParams, Objective, ObjectiveParams, SearchParams,
 };
 use rand::{Rng, SeedableRng};
@@ -53,7 +53,7 @@ fn greedy_fresh(obj: &Objective, k: usize) -> (Vec<usize>, f64) {
         for c in all.iter().copied().filter(|c| !b.contains(c)) {
             let mut t = b.clone();
             t.push(c);
-            let sc = obj.score(&t, &all);
+            let sc = obj.score(&t, &all).unwrap();
             if sc < best.0 {
                 best = (sc, c);
             }
@@ -109,8 +109,8 @@ fn main() {
         let names = coll.names();
         for k in [5, 12] {
             let p = SearchParams::new(k).check(&names).expect("p");
-            let (g, tg) = timed(|| greedy(&obj, &p, &|_, _| {}));
-            let (s, ts) = timed(|| swap(&obj, &p, &|_, _| {}));
+            let (g, tg) = timed(|| greedy(&obj, &p, &|_, _| {}).unwrap());
+            let (s, ts) = timed(|| swap(&obj, &p, &|_, _| {}).unwrap());
             println!(
                 "k = {k:2}: greedy {tg} (S {:.5}); swap from scratch (greedy + {} swaps) {ts} (S {:.5})",
                 g.score,
@@ -123,7 +123,7 @@ fn main() {
                 fb == g.indices
             );
             let gp = GaParams::default().seed(1).check().expect("ga");
-            let (r, tga) = timed(|| ga(&obj, &p, &gp, &|_, _| {}));
+            let (r, tga) = timed(|| ga(&obj, &p, &gp, &|_, _| {}).unwrap());
             println!(
                 "k = {k:2}: ga (population 40, 60 generations) {tga} (S {:.5})",
                 r.score
@@ -142,7 +142,7 @@ fn main() {
     let big = synthetic(1000, 7);
     let (obj, tgram) = timed(|| Objective::new(&cpu, &big, &op, &|_, _| {}).expect("objective"));
     let p = SearchParams::new(20).check(&big.names()).expect("p");
-    let (g, tg) = timed(|| greedy(&obj, &p, &|_, _| {}));
+    let (g, tg) = timed(|| greedy(&obj, &p, &|_, _| {}).unwrap());
     println!(
         "1,000 synthetic materials: Gram {tgram}, greedy k = 20 {tg} (S {:.5})",
         g.score

@@ -36,6 +36,5 @@ pub mod merl;
 pub mod nnls;
 pub mod plot;
 pub mod select;
-pub mod selection;
 pub mod separable;
 pub mod stats;

@@ -16,20 +16,28 @@ fn main() -> std::process::ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let runtime_dir = private_runtime_dir();
-    // SIGINT, SIGTERM, SIGHUP: remove the temporary files of outputs being written (and
-    // the directories created for them), then exit 130 as shells expect after Ctrl-C.
+    // Parse first: `--help`, `--version` and usage errors exit here, before anything
+    // (the private runtime directory, the signal handler's thread) exists.
+    let args = cli::Cli::parse();
+    if let Some(w) = brdf_basis::backend::cpu::cap_global_threads() {
+        eprintln!("warning: {w}");
+    }
+    // Removed on every later exit: normal return, error, panic (the guard's drop) and a
+    // signal (the handler).
+    let runtime = RuntimeDir(private_runtime_dir());
+    // SIGINT, SIGTERM, SIGHUP: remove the staged outputs, the directories created for
+    // them and the runtime directory, then exit 130 as shells expect after Ctrl-C.
     // A signal ignored at start (SIGINT for a background job of a script, SIGHUP under
     // nohup) stays ignored, as the caller meant.
     #[cfg(unix)]
     let ignored = [libc::SIGINT, libc::SIGHUP].map(|sig| (sig, is_ignored(sig)));
-    let handler_dir = runtime_dir.clone();
+    let handler_dir = runtime.0.clone();
     let _ = ctrlc::set_handler(move || {
         brdf_basis::atomic::remove_pending();
         if let Some(d) = &handler_dir {
             let _ = std::fs::remove_dir_all(d);
         }
-        eprintln!("error: interrupted; no output written");
+        eprintln!("error: interrupted; the outputs not yet in place were removed");
         std::process::exit(130);
     });
     #[cfg(unix)]
@@ -42,21 +50,31 @@ fn main() -> std::process::ExitCode {
             }
         }
     }
-    let args = cli::Cli::parse();
-    if let Some(w) = brdf_basis::backend::cpu::cap_global_threads() {
-        eprintln!("warning: {w}");
-    }
     let code = match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(_) if brdf_basis::atomic::interrupted() => loop {
+            // A signal's handler is removing the outputs and exits with 130: this error
+            // is its consequence (a write refused), not the cause.
+            std::thread::park();
+        },
         Err(e) => {
             eprintln!("error: {}", error_message(&e));
             std::process::ExitCode::FAILURE
         }
     };
-    if let Some(d) = &runtime_dir {
-        let _ = std::fs::remove_dir_all(d);
-    }
+    drop(runtime);
     code
+}
+
+/// The private runtime directory, removed when dropped.
+struct RuntimeDir(Option<std::path::PathBuf>);
+
+impl Drop for RuntimeDir {
+    fn drop(&mut self) {
+        if let Some(d) = &self.0 {
+            let _ = std::fs::remove_dir_all(d);
+        }
+    }
 }
 
 /// Whether `sig` is ignored (SIG_IGN) in this process.
@@ -90,8 +108,8 @@ fn error_message(e: &anyhow::Error) -> String {
 /// When `XDG_RUNTIME_DIR` is unset or not an absolute path to a directory, the Vulkan
 /// loader's Wayland probe prints `error: XDG_RUNTIME_DIR is invalid or not set` (twice)
 /// on every GPU start, `--quiet` or not. Point it, for this process only, at a private
-/// (mode 0700) directory under the temporary directory, removed at exit. Runs first in
-/// `main`, before any thread exists. Returns the directory created.
+/// (mode 0700) directory under the temporary directory, removed at exit. Runs in `main`
+/// before any thread exists (`set_var`). Returns the directory created.
 fn private_runtime_dir() -> Option<std::path::PathBuf> {
     let current = std::env::var_os("XDG_RUNTIME_DIR").map(std::path::PathBuf::from);
     if current.is_some_and(|d| d.is_absolute() && d.is_dir()) {

@@ -7,7 +7,7 @@ use brdf_basis::backend::Backend;
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::*;
 use brdf_basis::nnls::{lawson_hanson, GramProblem};
-use brdf_basis::select::{empirical, EmpiricalParams};
+use brdf_basis::select::empirical::{empirical, EmpiricalParams};
 use std::path::Path;
 
 /// The paper's kmedoids5 basis (Table I), by Ngan names.

@@ -1,7 +1,7 @@
 //! Untrusted inputs: a CSV with a duplicate column, a `.binary` rewritten while it is
 //! read or holding values beyond f32, a thread count that would take minutes to start, a
-//! 10 MB material name, and the messages for a stride, a tile count and a `--distances`
-//! call that used to mislead.
+//! 10 MB material name, and the messages for a stride and a tile count that used to
+//! mislead.
 
 use crate::common::*;
 use brdf_basis::backend::cpu::{max_threads, CpuBackend};
@@ -372,53 +372,6 @@ fn too_many_tiles_names_the_number_of_bands() {
     let bands = n.div_ceil(8);
     assert!(
         bands < 9 && err.contains(&format!("make {bands} bands: use at most {bands} tiles")),
-        "{err}"
-    );
-}
-
-#[test]
-fn select_distances_with_a_collection_method_does_not_claim_a_collection_was_given() {
-    let d = tmp();
-    let o = bin_cpu()
-        .args([
-            "select",
-            "--distances",
-            "m.npy",
-            "--method",
-            "greedy",
-            "-k",
-            "2",
-        ])
-        .args(["--json", "s.json"])
-        .current_dir(d.path())
-        .output()
-        .expect("run");
-    assert!(!o.status.success());
-    let err = stderr(&o);
-    assert!(
-        !err.contains("takes no COLLECTION")
-            && err.contains("--method kmedoids or gcuk only")
-            && err.contains("--method greedy needs a COLLECTION"),
-        "{err}"
-    );
-    // With a collection given, that is what it says.
-    let o = bin_cpu()
-        .args([
-            "select",
-            "--distances",
-            "m.npy",
-            "--method",
-            "kmedoids",
-            "-k",
-            "2",
-        ])
-        .args(["--json", "s.json", "ngan.csv"])
-        .current_dir(d.path())
-        .output()
-        .expect("run");
-    let err = stderr(&o);
-    assert!(
-        err.contains("takes no COLLECTION (given: ngan.csv)"),
         "{err}"
     );
 }

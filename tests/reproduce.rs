@@ -4,9 +4,9 @@
 
 use crate::common::*;
 use brdf_basis::experiment::bases::Basis;
-use brdf_basis::experiment::clustering::ClusteringSet;
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::experiment::statistics::Statistics;
+use brdf_basis::select::runs::ClusteringSet;
 use std::path::Path;
 use std::process::Command;
 

@@ -6,7 +6,7 @@ use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::{channel_lobe, fit, fit_cells};
-use brdf_basis::selection::{
+use brdf_basis::select::{
     cross_validate, ga, greedy, swap, CvMethod, CvParams, GaParams, Objective, ObjectiveParams,
     SearchParams, SelectionError,
 };
@@ -53,7 +53,7 @@ fn known_best_basis_of_a_tiny_collection() {
     // Exhaustive: {a1, b1, c1} is the only 3-subset that fits everything exactly.
     let scores: Vec<(f64, Vec<usize>)> = subsets(6, 3)
         .into_iter()
-        .map(|b| (obj.score(&b, &all), b))
+        .map(|b| (obj.score(&b, &all).unwrap(), b))
         .collect();
     let mut runner_up = f64::INFINITY;
     for (s, b) in &scores {
@@ -66,7 +66,7 @@ fn known_best_basis_of_a_tiny_collection() {
     eprintln!("families: second-best 3-subset S = {runner_up:e}");
     assert!(runner_up > 1e-8, "{runner_up:e}");
     let p = SearchParams::new(3).check(&coll.names()).expect("params");
-    let g = greedy(&obj, &p, &|_, _| {});
+    let g = greedy(&obj, &p, &|_, _| {}).unwrap();
     let mut gb = g.basis.clone();
     gb.sort();
     assert_eq!(gb, vec!["a1", "b1", "c1"], "{g:?}");
@@ -85,17 +85,18 @@ fn known_best_basis_of_a_tiny_collection() {
             .check(&coll.names())
             .expect("p"),
         &|_, _| {},
-    );
+    )
+    .unwrap();
     assert!(sw.score < 1e-12, "{sw:?}");
     let gp = GaParams::default()
         .population(8)
         .generations(15)
         .check()
         .expect("ga");
-    let r = ga(&obj, &p, &gp, &|_, _| {});
+    let r = ga(&obj, &p, &gp, &|_, _| {}).unwrap();
     assert_eq!(r.basis, vec!["a1", "b1", "c1"], "{r:?}");
     // rho of a family member by its generator is 0; of another family's, positive.
-    assert!(obj.rho(&[0], 2) < 1e-12 && obj.rho(&[0], 1) > 1e-3);
+    assert!(obj.rho(&[0], 2).unwrap() < 1e-12 && obj.rho(&[0], 1).unwrap() > 1e-3);
 }
 
 #[test]
@@ -110,11 +111,11 @@ fn incremental_scores_and_greedy_steps_match_fresh_solves() {
     let mut worst = 0.0f64;
     for basis in [vec![], vec![3], vec![1, 8, 12], vec![0, 2, 5, 9, 13]] {
         let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
-        let inc = obj.scores_adding(&basis, &all, &cands);
+        let inc = obj.scores_adding(&basis, &all, &cands).unwrap();
         for (&c, &s) in cands.iter().zip(&inc) {
             let mut b = basis.clone();
             b.push(c);
-            let fresh = obj.score(&b, &all);
+            let fresh = obj.score(&b, &all).unwrap();
             worst = worst.max((s - fresh).abs());
         }
     }
@@ -134,18 +135,18 @@ fn incremental_scores_and_greedy_steps_match_fresh_solves() {
             .copied()
             .filter(|c| !basis.contains(c))
             .collect();
-        let inc = objf.scores_adding(&basis, &allf, &cands);
+        let inc = objf.scores_adding(&basis, &allf, &cands).unwrap();
         for (&c, &s) in cands.iter().zip(&inc) {
             let mut b = basis.clone();
             b.push(c);
-            worst = worst.max((s - objf.score(&b, &allf)).abs());
+            worst = worst.max((s - objf.score(&b, &allf).unwrap()).abs());
         }
     }
     eprintln!("incremental vs fresh S: worst difference {worst:e}");
     assert!(worst < 1e-12, "{worst:e}");
     // Each greedy step is the argmin over fresh scores (ties: earliest).
     let p = SearchParams::new(5).check(&coll.names()).expect("p");
-    let g = greedy(&obj, &p, &|_, _| {});
+    let g = greedy(&obj, &p, &|_, _| {}).unwrap();
     let mut b: Vec<usize> = Vec::new();
     for (step, name) in g.basis.iter().enumerate() {
         let best = all
@@ -155,7 +156,7 @@ fn incremental_scores_and_greedy_steps_match_fresh_solves() {
             .map(|c| {
                 let mut t = b.clone();
                 t.push(c);
-                (obj.score(&t, &all), c)
+                (obj.score(&t, &all).unwrap(), c)
             })
             .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))
             .expect("a candidate");
@@ -165,13 +166,13 @@ fn incremental_scores_and_greedy_steps_match_fresh_solves() {
     }
     // Swap ends at a local optimum no single exchange improves by more than 1e-9, no worse
     // than greedy, and the exhaustive optimum is no better than it by construction.
-    let s = swap(&obj, &p, &|_, _| {});
+    let s = swap(&obj, &p, &|_, _| {}).unwrap();
     assert!(s.score <= g.score);
     for pos in 0..5 {
         for c in (0..n).filter(|c| !s.indices.contains(c)) {
             let mut t = s.indices.clone();
             t[pos] = c;
-            assert!(obj.score(&t, &all) >= s.score * (1.0 - 1e-9) - 1e-15);
+            assert!(obj.score(&t, &all).unwrap() >= s.score * (1.0 - 1e-9) - 1e-15);
         }
     }
 }
@@ -227,9 +228,9 @@ fn grid_check(coll: &Collection, op: &ObjectiveParams, basis: &[usize]) {
         }
         let rho_grid = num / den;
         s_grid += rho_grid / targets.len() as f64;
-        worst = worst.max((obj.rho(basis, t) - rho_grid).abs());
+        worst = worst.max((obj.rho(basis, t).unwrap() - rho_grid).abs());
     }
-    let s_gram = obj.score(basis, &targets);
+    let s_gram = obj.score(basis, &targets).unwrap();
     eprintln!("S gram {s_gram:e} vs grid {s_grid:e}; worst rho difference {worst:e}");
     assert!(worst < 1e-9 && (s_gram - s_grid).abs() < 1e-9, "{worst:e}");
 }
@@ -250,11 +251,17 @@ fn swap_never_raises_s_and_ga_best_never_rises() {
                 .check(&names)
                 .expect("p"),
             &|_, _| {},
-        );
+        )
+        .unwrap();
         assert!(s.history.len() >= 2, "the start can be improved: {s:?}");
         assert!(s.history.windows(2).all(|w| w[1] < w[0]), "{:?}", s.history);
         assert!(
-            (s.history[0] - obj.score(&init, &(0..coll.len()).collect::<Vec<_>>())).abs() < 1e-15
+            (s.history[0]
+                - obj
+                    .score(&init, &(0..coll.len()).collect::<Vec<_>>())
+                    .unwrap())
+            .abs()
+                < 1e-15
         );
         assert!((s.score - s.history[s.history.len() - 1]).abs() < 1e-12);
     }
@@ -265,7 +272,7 @@ fn swap_never_raises_s_and_ga_best_never_rises() {
         .seed(5)
         .check()
         .expect("ga");
-    let r = ga(&obj, &p, &gp, &|_, _| {});
+    let r = ga(&obj, &p, &gp, &|_, _| {}).unwrap();
     assert_eq!(r.history.len(), 21);
     assert!(
         r.history.windows(2).all(|w| w[1] <= w[0]),
@@ -274,7 +281,7 @@ fn swap_never_raises_s_and_ga_best_never_rises() {
     );
     assert_eq!(r.score, *r.history.last().expect("history"));
     // Same seed: byte-identical JSON; another seed: another run.
-    let again = ga(&obj, &p, &gp, &|_, _| {});
+    let again = ga(&obj, &p, &gp, &|_, _| {}).unwrap();
     assert_eq!(
         serde_json::to_string(&r).expect("json"),
         serde_json::to_string(&again).expect("json")
@@ -285,7 +292,7 @@ fn swap_never_raises_s_and_ga_best_never_rises() {
         .seed(6)
         .check()
         .expect("ga");
-    let r2 = ga(&obj, &p, &other, &|_, _| {});
+    let r2 = ga(&obj, &p, &other, &|_, _| {}).unwrap();
     assert_ne!(r.history, r2.history);
 }
 
@@ -304,17 +311,17 @@ fn candidates_and_targets_restrict_the_search() {
         .targets(targets.clone())
         .check(&names)
         .expect("p");
-    let g = greedy(&obj, &p, &|_, _| {});
+    let g = greedy(&obj, &p, &|_, _| {}).unwrap();
     assert!(g.indices.iter().all(|i| cands.contains(i)));
     let best = subsets(4, 2)
         .into_iter()
         .map(|s| {
             let b: Vec<usize> = s.iter().map(|&i| cands[i]).collect();
-            (obj.score(&b, &targets), b)
+            (obj.score(&b, &targets).unwrap(), b)
         })
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .expect("some");
-    let s = swap(&obj, &p, &|_, _| {});
+    let s = swap(&obj, &p, &|_, _| {}).unwrap();
     assert!(s.score <= g.score && s.score >= best.0 - 1e-15);
     assert_eq!(s.targets, targets.len());
     assert_eq!(basis_names(&obj, &s.indices), s.basis);
@@ -326,7 +333,7 @@ fn search_and_cv_params_reject_bad_values() {
     let bad = |p: SearchParams| p.check(&names).expect_err("rejected");
     assert!(matches!(
         bad(SearchParams::new(0)),
-        SelectionError::InvalidParam { name: "k", .. }
+        SelectionError::InvalidParam { name: "-k", .. }
     ));
     assert!(matches!(
         bad(SearchParams::new(4)),
@@ -350,13 +357,13 @@ fn search_and_cv_params_reject_bad_values() {
     assert!(matches!(
         bad(SearchParams::new(1).targets(vec![])),
         SelectionError::InvalidParam {
-            name: "targets",
+            name: "--targets",
             ..
         }
     ));
     assert!(matches!(
         bad(SearchParams::new(2).init(vec![0])),
-        SelectionError::InvalidParam { name: "init", .. }
+        SelectionError::InvalidParam { name: "--init", .. }
     ));
     assert!(matches!(
         bad(SearchParams::new(1).candidates(vec![0, 1]).init(vec![2])),
@@ -388,7 +395,14 @@ fn search_and_cv_params_reject_bad_values() {
     cv(CvParams::default().methods(vec![CvMethod::Greedy, CvMethod::Greedy]));
     cv(CvParams::default().runs(0));
     cv(CvParams::default().render_size(0));
-    assert!(CvParams::default().ks(vec![16]).check(20).is_ok());
+    // A basis of the whole training fold leaves greedy, swap and ga no target to score.
+    cv(CvParams::default().ks(vec![16]));
+    assert!(CvParams::default().ks(vec![15]).check(20).is_ok());
+    assert!(CvParams::default()
+        .methods(vec![CvMethod::Kmedoids, CvMethod::Random])
+        .ks(vec![16])
+        .check(20)
+        .is_ok());
     assert!("kmeans".parse::<CvMethod>().is_err());
 }
 
@@ -406,13 +420,13 @@ fn measured_and_analytic_copies_select_the_same_greedy_basis() {
             .expect("push");
     }
     let p = SearchParams::new(4).check(&coll.names()).expect("p");
-    let a = greedy(&objective(&coll, 3), &p, &|_, _| {});
-    let m = greedy(&objective(&measured, 3), &p, &|_, _| {});
+    let a = greedy(&objective(&coll, 3), &p, &|_, _| {}).unwrap();
+    let m = greedy(&objective(&measured, 3), &p, &|_, _| {}).unwrap();
     let gpu_m = gpu("measured greedy").map(|g| {
         let op = ObjectiveParams::default().stride(3).check().expect("p");
         let obj =
             Objective::new(g as &dyn Backend, &measured, &op, &|_, _| {}).expect("gpu objective");
-        greedy(&obj, &p, &|_, _| {})
+        greedy(&obj, &p, &|_, _| {}).unwrap()
     });
     eprintln!(
         "analytic {:?} {:e}; measured {:?} {:e}",
@@ -494,7 +508,7 @@ fn cross_validation_is_complete_honest_and_reproducible() {
         .iter()
         .map(|m| coll.index_of(m).expect("m"))
         .collect();
-    let held: Vec<&brdf_basis::selection::cv::HeldOut> =
+    let held: Vec<&brdf_basis::select::cv::HeldOut> =
         sw.held_out.iter().filter(|h| h.fold == 1).collect();
     let targets: Vec<usize> = held
         .iter()

@@ -1,12 +1,9 @@
 //! `brdf-basis cv`: cross-validated comparison of basis-selection methods (SPEC 8).
 
-use super::select_error::check_output;
 use super::Global;
-use anyhow::Context;
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::distance::Metric;
-use brdf_basis::io::atomic::write_atomic;
-use brdf_basis::io::json::write_json;
-use brdf_basis::selection::{cross_validate, CvMethod, CvParams, GaParams, ObjectiveParams};
+use brdf_basis::select::{cross_validate, CvMethod, CvParams, GaParams, ObjectiveParams};
 use std::path::PathBuf;
 
 /// Arguments of `cv`.
@@ -17,36 +14,33 @@ use std::path::PathBuf;
 pub struct CvArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
-    /// Methods, comma-separated: greedy, swap, ga, kmedoids, gcuk, empirical, random.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "greedy,swap,kmedoids,gcuk,empirical,random"
-    )]
+    /// Methods, comma-separated: greedy, swap, ga, kmedoids, gcuk, empirical, random
+    /// [default: greedy,swap,kmedoids,gcuk,empirical,random].
+    #[arg(long, value_delimiter = ',')]
     pub methods: Vec<String>,
-    /// Basis sizes, comma-separated.
-    #[arg(short = 'k', value_delimiter = ',', default_value = "5,12")]
+    /// Basis sizes, comma-separated [default: 5,12].
+    #[arg(short = 'k', value_delimiter = ',')]
     pub k: Vec<usize>,
     /// Number of folds.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = CvParams::default().folds)]
     pub folds: usize,
     /// Distance of the clustering methods: brdf-it or euclidean.
-    #[arg(long, default_value = "brdf-it")]
+    #[arg(long, default_value_t = CvParams::default().metric)]
     pub metric: Metric,
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
     /// k-medoids restarts and GCUK runs per fold.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = CvParams::default().runs)]
     pub runs: usize,
     /// ga: population size.
-    #[arg(long, default_value_t = 40)]
+    #[arg(long, default_value_t = GaParams::default().population)]
     pub ga_population: usize,
     /// ga: generations.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = GaParams::default().generations)]
     pub ga_generations: usize,
     /// Render size in pixels for the image errors.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = CvParams::default().render_size)]
     pub render_size: u32,
     /// Output JSON.
     #[arg(long)]
@@ -58,19 +52,30 @@ pub struct CvArgs {
 
 /// Runs the cross-validation.
 pub fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
-    check_output(&a.json)?;
+    // Every output path before the work (two outputs on one path are refused).
+    let mut plan = OutputPlan::new(&a.collection);
+    plan.file(&a.json, "--json")?;
     if let Some(m) = &a.markdown {
-        check_output(m)?;
+        plan.file(m, "--markdown")?;
     }
+    let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let methods: Vec<CvMethod> = a
-        .methods
-        .iter()
-        .map(|m| m.trim().parse())
-        .collect::<Result<_, _>>()?;
+    let d = CvParams::default();
+    let methods: Vec<CvMethod> = if a.methods.is_empty() {
+        d.methods.clone()
+    } else {
+        a.methods
+            .iter()
+            .map(|m| m.trim().parse())
+            .collect::<Result<_, _>>()?
+    };
     let p = CvParams {
         methods,
-        ks: a.k.clone(),
+        ks: if a.k.is_empty() {
+            d.ks.clone()
+        } else {
+            a.k.clone()
+        },
         folds: a.folds,
         seed: g.seed,
         objective: ObjectiveParams::default()
@@ -93,15 +98,20 @@ pub fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
         pb.set_position(d);
     })?;
     pb.finish_and_clear();
-    write_json(&a.json, &res)?;
+    let json = serde_json::to_string_pretty(&res)?;
+    out.stage(&a.json, |w| {
+        w.write_all(json.as_bytes())?;
+        w.write_all(b"\n")
+    })?;
     if let Some(m) = &a.markdown {
         let text = res.markdown();
-        write_atomic(m, |w| w.write_all(text.as_bytes()))
-            .with_context(|| format!("writing {}", m.display()))?;
+        out.stage(m, |w| w.write_all(text.as_bytes()))?;
     }
-    if !g.quiet {
-        eprint!("{}", res.table_markdown());
-        eprintln!("wrote {}", a.json.display());
+    out.commit()?;
+    print!("{}", res.table_markdown());
+    println!("wrote {}", a.json.display());
+    if let Some(m) = &a.markdown {
+        println!("wrote {}", m.display());
     }
     Ok(())
 }

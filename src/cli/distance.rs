@@ -5,7 +5,10 @@ use brdf_basis::distance::{
     collection_fingerprint, distance_matrix_banded, distance_tile, DistanceParams, LobeKind,
     Metric, DEFAULT_BAND_ROWS,
 };
-use brdf_basis::io::matrix::{write_csv, write_npy_with_sidecar, write_tile, MatrixSettings};
+use brdf_basis::atomic::OutputPlan;
+use brdf_basis::io::matrix::{
+    sidecar_path, write_csv, write_npy_with_sidecar, write_tile, MatrixSettings,
+};
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
@@ -61,7 +64,7 @@ fn parse_tile(s: &str) -> anyhow::Result<(usize, usize)> {
 
 /// Computes and writes the matrix (or one tile of it).
 pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
-    let ext = super::output_extension(&a.out, "--out")?;
+    let ext = super::extension(&a.out);
     if ext != "npy" && ext != "csv" {
         anyhow::bail!("{}: output must end in .npy or .csv", a.out.display());
     }
@@ -70,6 +73,14 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
         anyhow::bail!("{}: a tile (--tile) is written as .npy", a.out.display());
     }
     brdf_basis::distance::band::check_band_rows(a.band_rows)?;
+    // Every output path before the work (the sidecar too: it replaces only a sidecar).
+    let mut plan = OutputPlan::new(&a.collection);
+    if ext == "npy" {
+        super::plan_matrix(&mut plan, &a.out, "--out")?;
+    } else {
+        plan.file(&a.out, "--out")?;
+    }
+    let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let mut p = DistanceParams::default()
         .metric(a.metric)
@@ -100,39 +111,46 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
             &progress,
         )?;
         pb.finish_and_clear();
+        let npy = out.stage_path(&a.out)?;
+        out.stage_path(&sidecar_path(&a.out))?;
         write_tile(
-            &a.out,
+            &npy,
             &t,
             &coll.names(),
             &settings,
             &collection_fingerprint(&coll),
         )?;
-        if !g.quiet {
-            eprintln!(
-                "wrote {} (tile {i}/{count}: rows {}..{} of {n} x {n} {})",
-                a.out.display(),
-                t.rows.start,
-                t.rows.end,
-                p.metric
-            );
-        }
+        out.commit()?;
+        println!(
+            "wrote {} (tile {i}/{count}: rows {}..{} of {n} x {n} {})",
+            a.out.display(),
+            t.rows.start,
+            t.rows.end,
+            p.metric
+        );
+        println!("wrote {}", sidecar_path(&a.out).display());
         return Ok(());
     }
     let d = distance_matrix_banded(backend.as_ref(), &coll, &p, a.band_rows, &progress)?;
     pb.finish_and_clear();
-    match ext.as_str() {
-        "npy" => write_npy_with_sidecar(&a.out, &d, &settings, &collection_fingerprint(&coll))?,
-        _ => write_csv(&a.out, &d)?,
+    let staged = out.stage_path(&a.out)?;
+    if ext == "npy" {
+        out.stage_path(&sidecar_path(&a.out))?;
+        write_npy_with_sidecar(&staged, &d, &settings, &collection_fingerprint(&coll))?;
+    } else {
+        write_csv(&staged, &d)?;
     }
-    if !g.quiet {
-        eprintln!(
-            "wrote {} ({n} x {n} {}, lobe {}, mask {}, weighting {})",
-            a.out.display(),
-            p.metric,
-            p.lobe,
-            p.mask,
-            p.weighting
-        );
+    out.commit()?;
+    println!(
+        "wrote {} ({n} x {n} {}, lobe {}, mask {}, weighting {})",
+        a.out.display(),
+        p.metric,
+        p.lobe,
+        p.mask,
+        p.weighting
+    );
+    if ext == "npy" {
+        println!("wrote {}", sidecar_path(&a.out).display());
     }
     Ok(())
 }

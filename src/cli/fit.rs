@@ -5,10 +5,10 @@ use brdf_basis::collection::Collection;
 use brdf_basis::error::short_name;
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::fit::{combination_values, fit, FitParams, GramMode, Solver, TargetFit};
-use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary_to;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
@@ -177,6 +177,9 @@ pub fn fit_warnings(
 
 /// Runs the fits.
 pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
+    // Output paths before the work: a typo costs no computation.
+    let mut plan = OutputPlan::new(&a.collection);
+    plan.file(&a.json, "--json")?;
     let coll = super::load_collection(&a.collection)?;
     let basis: Vec<usize> = a
         .basis
@@ -207,36 +210,14 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         );
     }
     let (solver, gram) = (a.solver, a.gram);
-    // Output paths before the work: a typo costs no computation.
-    check_output_path(&a.json, "--json")?;
-    check_not_input(&a.json, "--json", &a.collection)?;
     if let Some(dir) = &a.export {
-        if dir.exists() && !dir.is_dir() {
-            anyhow::bail!("--export {}: exists and is not a directory", dir.display());
-        }
         let names: Vec<&str> = targets
             .iter()
             .map(|&t| coll.materials()[t].name.as_str())
             .collect();
-        if dir.is_dir() {
-            for file in export_file_names(&names)
-                .iter()
-                .map(String::as_str)
-                .chain([EXPORT_INDEX])
-            {
-                check_output_path(&dir.join(file), "--export")?;
-                check_not_input(&dir.join(file), "--export", &a.collection)?;
-            }
-        } else if let Some(parent) = dir.ancestors().skip(1).find(|p| p.exists()) {
-            if !parent.is_dir() {
-                anyhow::bail!(
-                    "--export {}: {} is not a directory",
-                    dir.display(),
-                    parent.display()
-                );
-            }
-        }
+        plan_export(&mut plan, dir, &export_file_names(&names))?;
     }
+    let mut out = plan.into_set()?;
     let p = FitParams {
         mask: a.grid.mask,
         weighting: a.grid.weighting,
@@ -263,11 +244,9 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     }
     // Every file is staged and renamed into place only when all are written: a failed
     // export leaves neither the JSON nor the other exports (nor a created directory).
-    let mut out = OutputSet::new();
+    let names: Vec<&str> = fits.iter().map(|f| f.material.as_str()).collect();
+    let files = export_file_names(&names);
     if let Some(dir) = &a.export {
-        out.create_dir_all(dir)?;
-        let names: Vec<&str> = fits.iter().map(|f| f.material.as_str()).collect();
-        let files = export_file_names(&names);
         for (f, file) in fits.iter().zip(&files) {
             let rgb = combination_grid(&coll, &basis, f);
             out.stage(&dir.join(file), |w| write_binary_to(w, &rgb))?;
@@ -296,24 +275,85 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         w.write_all(b"\n")
     })?;
     out.commit()?;
-    if !g.quiet {
-        let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
-        let rho = fits.iter().map(|f| f.relative_residual).sum::<f64>() / fits.len() as f64;
-        let rmae = fits.iter().map(|f| f.relative_mae).sum::<f64>() / fits.len() as f64;
-        eprintln!(
-            "wrote {} ({} targets, mean MAE {mean:.4e}, mean relative residual {rho:.3}, mean relative MAE {rmae:.3})",
-            a.json.display(),
-            fits.len()
-        );
-        if let Some(dir) = &a.export {
-            eprintln!(
-                "wrote {} fitted .binary files and {EXPORT_INDEX} to {}",
-                fits.len(),
-                dir.display()
-            );
+    let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
+    let rho = fits.iter().map(|f| f.relative_residual).sum::<f64>() / fits.len() as f64;
+    let rmae = fits.iter().map(|f| f.relative_mae).sum::<f64>() / fits.len() as f64;
+    println!(
+        "wrote {} ({} target{}, mean MAE {mean:.4e}, mean relative residual {rho:.3}, mean relative MAE {rmae:.3})",
+        a.json.display(),
+        fits.len(),
+        if fits.len() == 1 { "" } else { "s" }
+    );
+    if let Some(dir) = &a.export {
+        for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
+            println!("wrote {}", dir.join(file).display());
         }
     }
     Ok(())
+}
+
+/// Plans `--export DIR` with the export file names `files`: DIR (created if missing),
+/// its `index.csv` and the `.binary` files. DIR may hold an earlier export: its index
+/// and the files that index lists are ours and replaced, and the listed files this
+/// export does not write are removed at commit (no stale material survives). Any other
+/// file of a name this export writes is refused, never replaced.
+fn plan_export(plan: &mut OutputPlan, dir: &Path, files: &[String]) -> anyhow::Result<()> {
+    plan.dir(dir, "--export")?;
+    let index = dir.join(EXPORT_INDEX);
+    let earlier = if index.is_file() {
+        read_export_index(&index)
+    } else {
+        None
+    };
+    plan.owned_file(
+        &index,
+        "--export",
+        "file index written by `fit --export` (header `material,file`)",
+        |p| read_export_index(p).is_some(),
+    )?;
+    let owned = earlier.unwrap_or_default();
+    for f in files {
+        plan.owned_file(
+            &dir.join(f),
+            "--export",
+            "fitted material listed in the index.csv of an earlier export",
+            |_| owned.contains(f),
+        )?;
+    }
+    for stale in owned.iter().filter(|f| !files.contains(f)) {
+        plan.remove(&dir.join(stale), "--export")?;
+    }
+    Ok(())
+}
+
+/// The files an export index lists, when `path` is one (`material,file` header, plain
+/// `.binary` file names, at most 64 MiB read); `None` otherwise.
+fn read_export_index(path: &Path) -> Option<Vec<String>> {
+    use std::io::Read;
+    let mut text = Vec::new();
+    std::fs::File::open(path)
+        .ok()?
+        .take(64 << 20)
+        .read_to_end(&mut text)
+        .ok()?;
+    let mut r = csv::Reader::from_reader(text.as_slice());
+    if r.headers().ok()?.iter().collect::<Vec<_>>() != ["material", "file"] {
+        return None;
+    }
+    let mut files = Vec::new();
+    for rec in r.records() {
+        let rec = rec.ok()?;
+        let f = rec.get(1)?;
+        let plain = !f.is_empty()
+            && !f.starts_with('.')
+            && f.ends_with(".binary")
+            && !f.contains(['/', '\\']);
+        if !plain {
+            return None;
+        }
+        files.push(f.to_string());
+    }
+    Some(files)
 }
 
 /// Name of the CSV (`material,file`) that `--export` writes beside the `.binary` files.

@@ -1,7 +1,8 @@
 //! `brdf-basis merge`.
 
 use super::Global;
-use brdf_basis::io::matrix::merge_tiles;
+use brdf_basis::atomic::OutputPlan;
+use brdf_basis::io::matrix::{merge_tiles, sidecar_path};
 use std::path::PathBuf;
 
 /// Arguments of `merge`.
@@ -26,23 +27,28 @@ pub struct MergeArgs {
 
 /// Merges the tiles.
 pub fn run(g: &Global, a: MergeArgs) -> anyhow::Result<()> {
-    let ext = super::output_extension(&a.out, "--out")?;
+    let ext = super::extension(&a.out);
     if ext != "npy" {
         anyhow::bail!("{}: merge writes a .npy", a.out.display());
     }
-    if a.tiles.iter().any(|t| t == &a.out) {
-        anyhow::bail!("{}: the output is also one of the tiles", a.out.display());
+    // Every output path before the work: not a tile or a tile's sidecar (any spelling),
+    // the sidecar replaces only a sidecar, the directory is writable.
+    let mut plan = OutputPlan::new(&[]);
+    for t in &a.tiles {
+        plan.input_named(t, "tile");
     }
+    super::plan_matrix(&mut plan, &a.out, "--out")?;
+    let _checked = plan.into_set()?;
     let side = merge_tiles(&a.tiles, &a.out)?;
-    if !g.quiet {
-        eprintln!(
-            "wrote {} ({} x {} {}, from {} tiles)",
-            a.out.display(),
-            side.n,
-            side.n,
-            side.settings.metric,
-            a.tiles.len()
-        );
-    }
+    let _ = g;
+    println!(
+        "wrote {} ({} x {} {}, from {} tiles)",
+        a.out.display(),
+        side.n,
+        side.n,
+        side.settings.metric,
+        a.tiles.len()
+    );
+    println!("wrote {}", sidecar_path(&a.out).display());
     Ok(())
 }

@@ -16,7 +16,8 @@ use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
 use brdf_basis::engine::{open_backend, BackendChoice};
 use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
+use brdf_basis::atomic::OutputPlan;
+use std::path::{Path, PathBuf};
 
 /// Find small, expressive bases of BRDFs and fit materials as non-negative combinations
 /// of them (GPU through wgpu/Vulkan, or a fast multi-threaded CPU back-end).
@@ -80,7 +81,7 @@ pub enum Command {
     Tabulate(tabulate::TabulateArgs),
     /// Pairwise distance matrix (BRDF_it or Euclidean) as .npy or .csv.
     Distance(distance::DistanceArgs),
-    /// Select a basis: empirical (Algorithm 1), k-medoids or GCUK.
+    /// Select a basis: empirical (Algorithm 1), kmedoids, gcuk, or by fitting error: greedy, swap, ga.
     Select(select::SelectArgs),
     /// Fit materials as non-negative combinations of a basis (NNLS per channel).
     Fit(fit::FitArgs),
@@ -143,13 +144,38 @@ pub fn progress_bar(g: &Global, total: u64, what: &str) -> indicatif::ProgressBa
     pb
 }
 
-/// Checks an output path before any work (`flag` names it in errors: its directory exists,
-/// it is not a directory, device or FIFO) and returns its extension, lower-case.
-pub fn output_extension(path: &std::path::Path, flag: &str) -> anyhow::Result<String> {
-    brdf_basis::io::atomic::check_output_path(path, flag)?;
-    Ok(path
-        .extension()
+/// The extension of an output path, lower-case (`""` when none).
+pub fn extension(path: &Path) -> String {
+    path.extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
-        .to_ascii_lowercase())
+        .to_ascii_lowercase()
+}
+
+/// Plans a `.npy` matrix output and its `.names.json` sidecar: the sidecar replaces only
+/// an earlier matrix sidecar (any format version), never another file of that name.
+pub fn plan_matrix(plan: &mut OutputPlan, npy: &Path, flag: &str) -> anyhow::Result<()> {
+    plan.file(npy, flag)?;
+    plan.owned_file(
+        &brdf_basis::io::matrix::sidecar_path(npy),
+        flag,
+        "matrix sidecar written by brdf-basis (it holds no `format: brdf-basis-matrix/...`)",
+        is_matrix_sidecar,
+    )?;
+    Ok(())
+}
+
+/// Whether `path` is a matrix sidecar written by brdf-basis: a JSON object whose
+/// `format` starts with `brdf-basis-matrix/` (read at most 64 MiB).
+pub fn is_matrix_sidecar(path: &Path) -> bool {
+    use std::io::Read;
+    let mut text = String::new();
+    let read = std::fs::File::open(path)
+        .and_then(|f| f.take(64 << 20).read_to_string(&mut text))
+        .is_ok();
+    read && serde_json::from_str::<serde_json::Value>(&text).is_ok_and(|v| {
+        v.get("format")
+            .and_then(|f| f.as_str())
+            .is_some_and(|f| f.starts_with("brdf-basis-matrix/"))
+    })
 }

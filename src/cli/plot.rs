@@ -8,8 +8,8 @@ use brdf_basis::eval::shade::{combination_brdf, material_brdf, BrdfFn};
 use brdf_basis::experiment::files::FitFile;
 use brdf_basis::experiment::report::ReportContext;
 use brdf_basis::experiment::Experiment;
-use brdf_basis::io::atomic::write_atomic;
-use brdf_basis::io::image::write_rgb8_image;
+use brdf_basis::atomic::{write_atomic, OutputPlan};
+use brdf_basis::io::image::{rgb8_png_bytes, write_rgb8_image};
 use brdf_basis::plot::{charts, font_available, lobes, showcase, Figure};
 use std::path::{Path, PathBuf};
 
@@ -112,20 +112,21 @@ pub fn write_report_figures(
 
 /// Runs `plot`.
 pub fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
-    let coll = super::load_collection(&a.collection)?;
-    let idx = coll.index_of(&a.material)?;
     if let Some(bad) = a.angles.iter().find(|t| !(0.0..90.0).contains(*t)) {
         anyhow::bail!("--angles: {bad} is not an incident angle in [0, 90) degrees");
     }
-    let ext = a
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or_default()
-        .to_ascii_lowercase();
+    let ext = super::extension(&a.out);
     if ext != "svg" && ext != "png" {
         anyhow::bail!("--out {}: give a .svg or .png file name", a.out.display());
     }
+    let mut plan = OutputPlan::new(&a.collection);
+    for f in &a.fit {
+        plan.input_named(f, "fit file");
+    }
+    plan.file(&a.out, "--out")?;
+    let mut out = plan.into_set()?;
+    let coll = super::load_collection(&a.collection)?;
+    let idx = coll.index_of(&a.material)?;
     let mut curves = vec![(
         a.material.clone(),
         material_brdf(&coll.materials()[idx].data),
@@ -162,12 +163,13 @@ pub fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
         &a.angles,
     )?;
     if ext == "svg" {
-        write_atomic(&a.out, |w| w.write_all(fig.svg.as_bytes()))?;
+        out.stage(&a.out, |w| w.write_all(fig.svg.as_bytes()))?;
     } else {
-        write_rgb8_image(&a.out, &fig.png)?;
+        let png = rgb8_png_bytes(&a.out, fig.png.width, fig.png.height, &fig.png.data)?;
+        out.stage(&a.out, |w| w.write_all(&png))?;
     }
-    if !g.quiet {
-        eprintln!("wrote {}", a.out.display());
-    }
+    out.commit()?;
+    let _ = g;
+    println!("wrote {}", a.out.display());
     Ok(())
 }

@@ -6,7 +6,7 @@ use brdf_basis::eval::image_error::{heatmap, normalized_image_error, DisplayPara
 use brdf_basis::eval::render::{render_sphere, RenderParams};
 use brdf_basis::eval::shade::{combination_brdf, material_brdf};
 use brdf_basis::experiment::files::FitFile;
-use brdf_basis::io::atomic::{check_not_input, check_output_path, OutputSet};
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::io::image::{exr_bytes, png_bytes, rgb8_png_bytes};
 use std::path::PathBuf;
 
@@ -62,10 +62,14 @@ fn parse_light(s: &str) -> Result<(f64, f64), String> {
     Ok((t, p))
 }
 
-/// Checks an output path before the work: its directory exists and its extension is the
-/// format written (`ext`, case-insensitive).
-pub fn check_image_path(path: &std::path::Path, flag: &str, ext: &str) -> anyhow::Result<()> {
-    check_output_path(path, flag)?;
+/// Plans an output image before the work ([`OutputPlan::file`]) and checks that its
+/// extension is the format written (`ext`, case-insensitive).
+pub fn plan_image(
+    plan: &mut OutputPlan,
+    path: &std::path::Path,
+    flag: &str,
+    ext: &str,
+) -> anyhow::Result<()> {
     let found = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     if !found.eq_ignore_ascii_case(ext) {
         anyhow::bail!(
@@ -74,28 +78,13 @@ pub fn check_image_path(path: &std::path::Path, flag: &str, ext: &str) -> anyhow
             if ext == "exr" { "OpenEXR" } else { "PNG" }
         );
     }
+    plan.file(path, flag)?;
     Ok(())
 }
 
 /// Renders.
 pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
-    check_image_path(&a.out, "--out", "exr")?;
-    let mut paths = vec![a.out.clone()];
-    for (p, flag) in [(&a.png, "--png"), (&a.heatmap, "--heatmap")] {
-        if let Some(p) = p {
-            check_image_path(p, flag, "png")?;
-            if paths.contains(p) {
-                anyhow::bail!(
-                    "{flag} {}: the same file is given for two outputs",
-                    p.display()
-                );
-            }
-            paths.push(p.clone());
-        }
-    }
-    for p in &paths {
-        check_not_input(p, "output", &a.collection)?;
-    }
+    let mut plan = OutputPlan::new(&a.collection);
     if let Some(f) = &a.fit {
         // Never open a FIFO or a device (reading one could block forever).
         let meta = std::fs::metadata(f).with_context(|| format!("--fit {}", f.display()))?;
@@ -106,10 +95,15 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
                 brdf_basis::merl::binary::file_kind(&meta)
             );
         }
-        if paths.contains(f) {
-            anyhow::bail!("--fit {}: is also given as an output", f.display());
+        plan.input_named(f, "fit file");
+    }
+    plan_image(&mut plan, &a.out, "--out", "exr")?;
+    for (p, flag) in [(&a.png, "--png"), (&a.heatmap, "--heatmap")] {
+        if let Some(p) = p {
+            plan_image(&mut plan, p, flag, "png")?;
         }
     }
+    let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let target = coll.index_of(&a.material)?;
     let params = RenderParams::default()
@@ -136,7 +130,6 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
         }
     };
     // All outputs staged, then renamed into place together: a failure leaves none.
-    let mut out = OutputSet::new();
     let exr = exr_bytes(&a.out, &image)?;
     out.stage(&a.out, |w| w.write_all(&exr))?;
     if let Some(p) = &a.png {
@@ -156,8 +149,12 @@ pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     if let Some(err) = err {
         println!("normalized image error: {err:.6}");
     }
-    if !g.quiet {
-        eprintln!("wrote {}", a.out.display());
+    let _ = g;
+    for p in [Some(&a.out), a.png.as_ref(), a.heatmap.as_ref()]
+        .into_iter()
+        .flatten()
+    {
+        println!("wrote {}", p.display());
     }
     Ok(())
 }

@@ -1,19 +1,16 @@
 //! `brdf-basis reproduce`: the paper's section VI end to end ([`brdf_basis::experiment`]);
-//! this module parses the arguments, checks the output directory and writes the files.
+//! this module translates the arguments, plans the output tree (checked before any
+//! work, written whole at the end or not at all) and calls the library's writers
+//! ([`brdf_basis::experiment::layout`]).
 
 use super::Global;
 use anyhow::Context;
-use brdf_basis::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
+use brdf_basis::atomic::OutputPlan;
+use brdf_basis::eval::image_error::DisplayParams;
 use brdf_basis::experiment::bases::read_paper_bases;
-use brdf_basis::experiment::files::EmpiricalFile;
-use brdf_basis::experiment::report::{markdown, ReportContext};
-use brdf_basis::experiment::{
-    claims, clustering, evaluation, run as run_experiment, ExperimentParams, Stage, StageTiming,
-};
-use brdf_basis::io::atomic::write_atomic;
-use brdf_basis::io::image::{write_exr, write_png, write_rgb8_image};
-use brdf_basis::io::json::write_json;
-use brdf_basis::io::matrix::{write_csv, write_npy};
+use brdf_basis::experiment::layout;
+use brdf_basis::experiment::report::ReportContext;
+use brdf_basis::experiment::{run as run_experiment, ExperimentParams, Stage, StageTiming};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -25,29 +22,31 @@ use std::time::Instant;
 pub struct ReproduceArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
-    /// Output directory (created; must be empty unless --force).
+    /// Output directory (created, its parent must exist; an existing one must be empty
+    /// unless --force). Written whole at the end, or not at all.
     #[arg(long)]
     pub out: PathBuf,
-    /// Clear the files of an earlier `reproduce` from --out first (other files: refused).
+    /// Replace the files of an earlier `reproduce` in --out (any other file: refused);
+    /// they are kept until the new run is complete.
     #[arg(long)]
     pub force: bool,
     /// Runs per clustering configuration (paper: 30).
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = ExperimentParams::default().runs)]
     pub runs: usize,
     /// Grid stride for distances and fits (1 = full grid).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = ExperimentParams::default().stride)]
     pub stride: usize,
     /// Smallest k of k-medoids and GCUK (paper: 5).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = ExperimentParams::default().k_min)]
     pub k_min: usize,
     /// Largest k of k-medoids (paper: 12).
-    #[arg(long, default_value_t = 12)]
+    #[arg(long, default_value_t = ExperimentParams::default().k_max)]
     pub k_max: usize,
     /// GCUK k_max (paper: 20).
-    #[arg(long, default_value_t = 20)]
+    #[arg(long, default_value_t = ExperimentParams::default().gcuk_k_max)]
     pub gcuk_k_max: usize,
     /// Render size in pixels for the image errors.
-    #[arg(long, default_value_t = 96)]
+    #[arg(long, default_value_t = ExperimentParams::default().render_size)]
     pub render_size: u32,
     /// Material shown in full-size renders, heatmaps and lobe plots (default: alum-bronze
     /// when it is evaluated, else the first evaluated material).
@@ -57,105 +56,26 @@ pub struct ReproduceArgs {
     #[arg(long)]
     pub paper_bases: Option<PathBuf>,
     /// Folds of the cross-validation of every selection method (0: none).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = ExperimentParams::default().cv_folds)]
     pub cv_folds: usize,
     /// k-medoids restarts and GCUK runs per fold in the cross-validation.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = ExperimentParams::default().cv_runs)]
     pub cv_runs: usize,
     /// Leave out the bases chosen by fitting error (greedy, swap).
     #[arg(long)]
     pub no_selection: bool,
 }
 
-/// What `reproduce` may find in an output directory it clears with --force.
-fn ours(name: &str) -> bool {
-    matches!(
-        name,
-        "report.md"
-            | "statistics.json"
-            | "clustering.json"
-            | "clustering_db.csv"
-            | "bases.json"
-            | "empirical.json"
-            | "fit_errors.csv"
-            | "summary.json"
-            | "selection.json"
-            | "cv.json"
-            | "renders"
-            | "figures"
-    ) || (name.starts_with("fit-") && name.ends_with(".json"))
-        || (name.starts_with("distance-") && (name.ends_with(".npy") || name.ends_with(".csv")))
-}
-
-/// Creates `out` or checks it is empty (with `force`: removes what an earlier run wrote,
-/// refusing when anything else is there), then checks it is writable: before any work.
-fn prepare_out(out: &Path, force: bool) -> anyhow::Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
-    let entries: Vec<_> = std::fs::read_dir(out)
-        .with_context(|| format!("--out {}", out.display()))?
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("--out {}", out.display()))?;
-    if !entries.is_empty() {
-        if !force {
-            anyhow::bail!(
-                "--out {}: the directory is not empty ({} entries); choose a new directory, or add --force to clear the files of an earlier run",
-                out.display(),
-                entries.len()
-            );
-        }
-        if let Some(e) = entries
-            .iter()
-            .find(|e| !ours(&e.file_name().to_string_lossy()))
-        {
-            anyhow::bail!(
-                "--out {}: --force clears only the files `reproduce` writes, and `{}` is not one of them; remove it or choose another directory",
-                out.display(),
-                e.file_name().to_string_lossy()
-            );
-        }
-        for e in entries {
-            let p = e.path();
-            if p.is_dir() {
-                std::fs::remove_dir_all(&p)
-            } else {
-                std::fs::remove_file(&p)
-            }
-            .with_context(|| format!("removing {}", p.display()))?;
-        }
-    }
-    for sub in ["renders", "figures"] {
-        std::fs::create_dir_all(out.join(sub))
-            .with_context(|| format!("{}", out.join(sub).display()))?;
-    }
-    let probe = out.join(".brdf-basis-probe");
-    write_text(&probe, "").with_context(|| format!("--out {}: not writable", out.display()))?;
-    std::fs::remove_file(&probe).with_context(|| format!("{}", probe.display()))?;
-    Ok(())
-}
-
-fn write_text(path: &Path, text: &str) -> anyhow::Result<()> {
-    write_atomic(path, |w| w.write_all(text.as_bytes()))?;
-    Ok(())
-}
-
-/// `summary.json`: the settings, the per-basis errors, the claims and the timings.
-#[derive(serde::Serialize, serde::Deserialize)]
-pub struct Summary {
-    /// Settings as run.
-    pub settings: brdf_basis::experiment::Settings,
-    /// Evaluation targets.
-    pub targets: Vec<String>,
-    /// Errors per basis.
-    pub errors: Vec<evaluation::BasisErrors>,
-    /// The paper's claims checked.
-    pub claims: Vec<claims::Claim>,
-    /// Wall time per stage.
-    pub timings: Vec<StageTiming>,
-}
-
 /// Runs everything.
 pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     let started = Instant::now();
+    // The output tree before any work: a new directory (its parent exists), an empty one,
+    // or with --force one holding only an earlier run's files; writable.
+    let mut plan = OutputPlan::new(&a.collection);
+    if let Some(p) = &a.paper_bases {
+        plan.input_named(p, "paper-bases file");
+    }
+    plan.tree(&a.out, "--out", a.force, layout::is_output)?;
     let coll = super::load_collection(&a.collection)?;
     let paper_bases = match &a.paper_bases {
         Some(p) => read_paper_bases(p, &coll)?,
@@ -177,38 +97,30 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
         ..Default::default()
     }
     .check(&coll)?;
-    let out = &a.out;
-    let existed = out.exists();
-    prepare_out(out, a.force)?;
-    let result = run_into(g, &a, &coll, &params, started);
-    if result.is_err() {
-        // The directory was empty (or cleared) before: leave nothing partial behind.
-        let _ = if existed {
-            std::fs::read_dir(out).map(|rd| {
-                for e in rd.flatten() {
-                    let p = e.path();
-                    let _ = if p.is_dir() {
-                        std::fs::remove_dir_all(&p)
-                    } else {
-                        std::fs::remove_file(&p)
-                    };
-                }
-            })
-        } else {
-            std::fs::remove_dir_all(out)
-        };
+    let mut out = plan.into_set()?;
+    let root = out.tree_root(&a.out)?;
+    let written = run_into(g, &coll, &params, &root)?;
+    out.commit()?;
+    for f in &written {
+        println!("wrote {}", a.out.join(f).display());
     }
-    result
+    println!(
+        "wrote {} ({} files, {:.1} s)",
+        a.out.join(layout::REPORT).display(),
+        written.len(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
+/// Runs the experiment and writes its files into `root` (the staging root of --out);
+/// returns the files written, relative to it.
 fn run_into(
     g: &Global,
-    a: &ReproduceArgs,
     coll: &brdf_basis::collection::Collection,
     params: &brdf_basis::experiment::ValidExperimentParams,
-    started: Instant,
-) -> anyhow::Result<()> {
-    let out = &a.out;
+    root: &Path,
+) -> anyhow::Result<Vec<PathBuf>> {
     let backend = super::backend(g)?;
     let bars = StageBars::new(g);
     let e = run_experiment(backend.as_ref(), coll, params, &|s, d, t| {
@@ -217,76 +129,31 @@ fn run_into(
     bars.finish();
 
     let t_files = Instant::now();
-    for (m, d) in e.settings.metrics.iter().zip(&e.distances) {
-        write_npy(&out.join(format!("distance-{}.npy", m.label)), d)?;
-        write_csv(&out.join(format!("distance-{}.csv", m.label)), d)?;
-    }
-    write_json(
-        &out.join("empirical.json"),
-        &EmpiricalFile::from(&e.empirical),
+    let scale = brdf_basis::plot::showcase::common_scale(
+        &e.evaluation.showcase,
+        &DisplayParams::default(),
     )?;
-    write_json(&out.join("clustering.json"), &e.clustering)?;
-    write_text(
-        &out.join("clustering_db.csv"),
-        &clustering::db_csv(&e.clustering),
-    )?;
-    write_json(&out.join("statistics.json"), &e.statistics)?;
-    write_json(&out.join("bases.json"), &e.bases)?;
-    if !e.selections.is_empty() {
-        write_json(&out.join("selection.json"), &e.selections)?;
-    }
-    if let Some(cv) = &e.cv {
-        write_json(&out.join("cv.json"), cv)?;
-    }
-    for (b, f) in e.bases.iter().zip(&e.evaluation.fits) {
-        write_json(&out.join(format!("fit-{}.json", b.name)), f)?;
-    }
-    write_text(
-        &out.join("fit_errors.csv"),
-        &evaluation::errors_csv(&e.evaluation),
-    )?;
-    let display = DisplayParams::default();
-    let show = &e.evaluation.showcase;
-    let scale = brdf_basis::plot::showcase::common_scale(show, &display)?;
-    let r = out.join("renders");
-    write_exr(r.join("showcase-original.exr"), &show.original)?;
-    write_png(r.join("showcase-original.png"), &show.original, &display)?;
-    for (name, _, img, _) in &show.approximations {
-        write_exr(r.join(format!("showcase-{name}.exr")), img)?;
-        write_png(r.join(format!("showcase-{name}.png")), img, &display)?;
-        write_rgb8_image(
-            r.join(format!("showcase-{name}-heatmap.png")),
-            &heatmap(&show.original, img, &display, HeatmapScale::Fixed(scale))?,
-        )?;
-    }
+    let mut written = layout::write_files(&e, root, scale)?;
     let mut ctx = ReportContext::default();
     ctx.timings.push(StageTiming {
         stage: "files".into(),
         seconds: t_files.elapsed().as_secs_f64(),
     });
     let t_fig = Instant::now();
-    super::plot::write_report_figures(&e, &out.join("figures"), &mut ctx)?;
+    let figures = root.join(layout::FIGURES);
+    std::fs::create_dir(&figures).with_context(|| format!("{}", figures.display()))?;
+    super::plot::write_report_figures(&e, &figures, &mut ctx)?;
+    for (stem, _) in &ctx.figures {
+        for ext in ["svg", "png"] {
+            written.push(Path::new(layout::FIGURES).join(format!("{stem}.{ext}")));
+        }
+    }
     ctx.timings.push(StageTiming {
         stage: "figures".into(),
         seconds: t_fig.elapsed().as_secs_f64(),
     });
-    let summary = Summary {
-        settings: e.settings.clone(),
-        targets: e.evaluation.targets.clone(),
-        errors: e.evaluation.errors.clone(),
-        claims: claims::check(&e),
-        timings: e.timings.iter().chain(&ctx.timings).cloned().collect(),
-    };
-    write_json(&out.join("summary.json"), &summary)?;
-    write_text(&out.join("report.md"), &markdown(&e, &ctx))?;
-    if !g.quiet {
-        eprintln!(
-            "wrote {} ({:.1} s)",
-            out.join("report.md").display(),
-            started.elapsed().as_secs_f64()
-        );
-    }
-    Ok(())
+    written.extend(layout::write_summary_and_report(&e, &ctx, root)?);
+    Ok(written)
 }
 
 /// One progress bar per stage.

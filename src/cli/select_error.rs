@@ -1,12 +1,11 @@
 //! `brdf-basis select --method greedy|swap|ga`: bases chosen by fitting error (SPEC 8).
 
-use super::select::SelectArgs;
 use super::Global;
 use anyhow::Context;
 use brdf_basis::collection::Collection;
-use brdf_basis::io::json::write_json;
-use brdf_basis::selection::{ga, greedy, swap, GaParams, Objective, ObjectiveParams, SearchParams};
-use std::path::Path;
+use brdf_basis::select::{
+    ga, greedy, swap, GaParams, Objective, ObjectiveParams, SearchParams, Selection,
+};
 
 /// Flags of the error-driven methods (flattened into `select`).
 #[derive(clap::Args, Debug, Clone)]
@@ -21,18 +20,54 @@ pub struct ErrorArgs {
     /// population. Exactly k materials.
     #[arg(long, value_delimiter = ',')]
     pub init: Vec<String>,
-    /// ga: population size.
-    #[arg(long, default_value_t = 40)]
-    pub ga_population: usize,
-    /// ga: generations.
-    #[arg(long, default_value_t = 60)]
-    pub ga_generations: usize,
-    /// ga: crossover probability.
-    #[arg(long, default_value_t = 0.9)]
-    pub ga_crossover: f64,
+    /// ga: population size [default: 40].
+    #[arg(long)]
+    pub ga_population: Option<usize>,
+    /// ga: generations [default: 60].
+    #[arg(long)]
+    pub ga_generations: Option<usize>,
+    /// ga: crossover probability [default: 0.9].
+    #[arg(long)]
+    pub ga_crossover: Option<f64>,
     /// ga: per-gene mutation probability (default 1/k).
     #[arg(long)]
     pub ga_mutation: Option<f64>,
+}
+
+impl ErrorArgs {
+    /// The first of these flags given, if any (for methods they do not apply to).
+    pub fn given(&self) -> Option<&'static str> {
+        [
+            (!self.candidates.is_empty(), "--candidates"),
+            (!self.targets.is_empty(), "--targets"),
+            (!self.init.is_empty(), "--init"),
+        ]
+        .into_iter()
+        .chain(self.ga_given())
+        .find(|(given, _)| *given)
+        .map(|(_, flag)| flag)
+    }
+
+    fn ga_given(&self) -> [(bool, &'static str); 4] {
+        [
+            (self.ga_population.is_some(), "--ga-population"),
+            (self.ga_generations.is_some(), "--ga-generations"),
+            (self.ga_crossover.is_some(), "--ga-crossover"),
+            (self.ga_mutation.is_some(), "--ga-mutation"),
+        ]
+    }
+
+    /// The GA parameters: the library defaults ([`GaParams::default`]) with the flags given.
+    pub fn ga_params(&self, seed: u64) -> GaParams {
+        let d = GaParams::default();
+        let mut gp = GaParams::default()
+            .population(self.ga_population.unwrap_or(d.population))
+            .generations(self.ga_generations.unwrap_or(d.generations))
+            .crossover_prob(self.ga_crossover.unwrap_or(d.crossover_prob))
+            .seed(seed);
+        gp.mutation_prob = self.ga_mutation;
+        gp
+    }
 }
 
 /// Collection indices of comma-separated names (empty: `None`).
@@ -48,46 +83,38 @@ pub fn indices(coll: &Collection, names: &[String]) -> anyhow::Result<Option<Vec
     ))
 }
 
-/// Fails early when `path`'s directory does not exist (before any long computation).
-pub fn check_output(path: &Path) -> anyhow::Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    anyhow::ensure!(
-        dir.is_dir(),
-        "{}: the output directory {} does not exist",
-        path.display(),
-        dir.display()
-    );
-    Ok(())
-}
-
-/// Runs greedy, swap or ga and writes the SPEC-cli JSON.
-pub fn run(g: &Global, a: &SelectArgs) -> anyhow::Result<()> {
-    check_output(&a.json)?;
-    let coll = super::load_collection(&a.collection)?;
-    let k = a.k.context(
+/// Runs greedy, swap or ga (`method`) on `coll` (the output paths are checked by the
+/// caller, before this).
+pub fn run(
+    g: &Global,
+    coll: &Collection,
+    method: &str,
+    k: Option<usize>,
+    grid: &super::GridArgs,
+    e: &ErrorArgs,
+) -> anyhow::Result<Selection> {
+    let k = k.context(
         "give the basis size with -k K (greedy, swap and ga choose exactly k materials)",
     )?;
-    let e = &a.error;
+    if method != "ga" {
+        if let Some((_, flag)) = e.ga_given().into_iter().find(|(given, _)| *given) {
+            anyhow::bail!("{flag} applies to --method ga, not to {method}");
+        }
+    }
+    if method == "greedy" && !e.init.is_empty() {
+        anyhow::bail!("--init applies to swap and ga, not to greedy");
+    }
     let mut sp = SearchParams::new(k);
-    sp.candidates = indices(&coll, &e.candidates)?;
-    sp.targets = indices(&coll, &e.targets)?;
-    sp.init = indices(&coll, &e.init)?;
+    sp.candidates = indices(coll, &e.candidates)?;
+    sp.targets = indices(coll, &e.targets)?;
+    sp.init = indices(coll, &e.init)?;
     let names = coll.names();
     let vsp = sp.check(&names)?;
-    let mut gp = GaParams::default()
-        .population(e.ga_population)
-        .generations(e.ga_generations)
-        .crossover_prob(e.ga_crossover)
-        .seed(g.seed);
-    gp.mutation_prob = e.ga_mutation;
-    let vgp = gp.check()?;
+    let vgp = e.ga_params(g.seed).check()?;
     let op = ObjectiveParams::default()
-        .mask(a.grid.mask)
-        .weighting(a.grid.weighting)
-        .stride(a.grid.stride)
+        .mask(grid.mask)
+        .weighting(grid.weighting)
+        .stride(grid.stride)
         .check()?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "gram");
@@ -95,25 +122,14 @@ pub fn run(g: &Global, a: &SelectArgs) -> anyhow::Result<()> {
         pb.set_length(total);
         pb.set_position(done);
     };
-    let obj = Objective::new(backend.as_ref(), &coll, &op, &progress)?;
-    pb.set_message(a.method.clone());
+    let obj = Objective::new(backend.as_ref(), coll, &op, &progress)?;
+    pb.set_message(method.to_string());
     pb.set_position(0);
-    let sel = match a.method.as_str() {
-        "greedy" => greedy(&obj, &vsp, &progress),
-        "swap" => swap(&obj, &vsp, &progress),
-        _ => ga(&obj, &vsp, &vgp, &progress),
+    let sel = match method {
+        "greedy" => greedy(&obj, &vsp, &progress)?,
+        "swap" => swap(&obj, &vsp, &progress)?,
+        _ => ga(&obj, &vsp, &vgp, &progress)?,
     };
     pb.finish_and_clear();
-    write_json(&a.json, &sel)?;
-    if !g.quiet {
-        eprintln!(
-            "{} k = {}: S = {:.6e} with {} -> {}",
-            sel.method,
-            sel.k,
-            sel.score,
-            sel.basis.join(","),
-            a.json.display()
-        );
-    }
-    Ok(())
+    Ok(sel)
 }

@@ -5,9 +5,9 @@ use anyhow::Context;
 use brdf_basis::backend::Lobe;
 use brdf_basis::collection::MaterialData;
 use brdf_basis::fit::channel_lobe;
-use brdf_basis::io::atomic::{check_not_input, check_output_path};
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
-use brdf_basis::merl::write_binary;
+use brdf_basis::merl::write_binary_to;
 use std::path::PathBuf;
 
 /// Arguments of `tabulate`.
@@ -28,8 +28,9 @@ pub struct TabulateArgs {
 
 /// Writes the material on the full MERL grid (invalid cells = -1).
 pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
-    check_output_path(&a.out, "--out")?;
-    check_not_input(&a.out, "--out", &a.collection)?;
+    let mut plan = OutputPlan::new(&a.collection);
+    plan.file(&a.out, "--out")?;
+    let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let m = coll.get(&a.material)?;
     let mut rgb = vec![0f32; 3 * N_CELLS];
@@ -61,13 +62,12 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
         }
         MaterialData::Measured(t) => rgb.copy_from_slice(&t.rgb),
     }
-    write_binary(&a.out, &rgb)?;
-    if !g.quiet {
-        eprintln!(
-            "wrote {} ({} bytes)",
-            a.out.display(),
-            std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0)
-        );
-    }
+    out.stage(&a.out, |w| write_binary_to(w, &rgb))?;
+    out.commit()?;
+    println!(
+        "wrote {} ({} bytes)",
+        a.out.display(),
+        std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0)
+    );
     Ok(())
 }

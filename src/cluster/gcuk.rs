@@ -59,7 +59,8 @@ use crate::distance::Distances;
 /// Draws per individual before initialisation gives up.
 const MAX_INIT_DRAWS: usize = 1000;
 
-/// Parameters of [`Gcuk`]; the defaults are the paper's settings (VI-C) with seed 0.
+/// Parameters of [`Gcuk`]; the defaults are the paper's settings (VI-C) with seed 1 (as the
+/// command line's `--seed`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct GcukParams {
     /// Minimum number of clusters of a valid individual, `>= 2` (default 5).
@@ -74,7 +75,7 @@ pub struct GcukParams {
     pub crossover_prob: f64,
     /// Per-slot mutation probability in `[0, 1]` (default 0.0: no mutation, as the paper).
     pub mutation_prob: f64,
-    /// Seed of the run (default 0).
+    /// Seed of the run (default 1).
     pub seed: u64,
     /// Relative margin of the best-individual comparison, in `[0, 1)` (default
     /// [`TIE_TOLERANCE`]; 0: strict).
@@ -90,7 +91,7 @@ impl Default for GcukParams {
             generations: 10,
             crossover_prob: 1.0,
             mutation_prob: 0.0,
-            seed: 0,
+            seed: 1,
             tolerance: TIE_TOLERANCE,
         }
     }

@@ -33,10 +33,7 @@ fn check_labels<D: Distances + ?Sized>(d: &D, labels: &[usize]) -> Result<usize,
     labels.iter().for_each(|&l| seen[l] = true);
     let nonempty = seen.iter().filter(|&&s| s).count();
     if nonempty < 2 {
-        return Err(ClusterError::KOutOfRange {
-            k: nonempty,
-            n: d.len(),
-        });
+        return Err(ClusterError::OneNonEmptyCluster { n: d.len() });
     }
     Ok(k)
 }
@@ -150,7 +147,7 @@ mod tests {
         );
         assert_eq!(
             dunn(&d, &[1, 1, 1]),
-            Err(ClusterError::KOutOfRange { k: 1, n: 3 })
+            Err(ClusterError::OneNonEmptyCluster { n: 3 })
         );
     }
 }

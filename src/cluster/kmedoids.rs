@@ -97,7 +97,8 @@ pub struct KMedoidsParams {
     pub max_iter: usize,
     /// Number of runs, at least 1 (default 1).
     pub restarts: usize,
-    /// Seed of the random starts: run `r` uses `seed + r` (default 0).
+    /// Seed of the random starts: run `r` uses `seed + r` (default 1, as the command
+    /// line's `--seed`).
     pub seed: u64,
     /// Initialisation (default [`KMedoidsInit::Build`]).
     pub init: KMedoidsInit,
@@ -107,14 +108,14 @@ pub struct KMedoidsParams {
 
 impl KMedoidsParams {
     /// Parameters for `k` clusters with the defaults: FasterPAM, 100 iterations, 1 run,
-    /// seed 0, BUILD, tolerance [`TIE_TOLERANCE`].
+    /// seed 1, BUILD, tolerance [`TIE_TOLERANCE`].
     pub fn new(k: usize) -> Self {
         Self {
             k,
             algorithm: KMedoidsAlgorithm::FasterPam,
             max_iter: 100,
             restarts: 1,
-            seed: 0,
+            seed: 1,
             init: KMedoidsInit::Build,
             tolerance: TIE_TOLERANCE,
         }

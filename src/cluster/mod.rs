@@ -118,6 +118,22 @@ pub enum ClusterError {
         /// The offending value.
         value: f64,
     },
+    /// Every item falls in one cluster, so the silhouette and Dunn index are undefined.
+    #[error(
+        "all {n} materials fall in one cluster (the other medoids attract none: the distances are all zero or tied), so the silhouette and Dunn index are undefined"
+    )]
+    OneNonEmptyCluster {
+        /// Number of items.
+        n: usize,
+    },
+    /// No run has a defined Davies-Bouldin index.
+    #[error(
+        "the Davies-Bouldin index is undefined in all {runs} runs (two medoids at distance 0 in each: the matrix holds identical materials or is zero); no best run can be chosen"
+    )]
+    UndefinedDbIndex {
+        /// Number of runs.
+        runs: usize,
+    },
     /// At least one run (start) is needed.
     #[error("the number of runs (restarts) must be at least 1")]
     ZeroRuns,

@@ -5,10 +5,10 @@
 //! push a [`Basis`] in [`super::run`]'s `bases` stage; [`dedupe`] names coincident
 //! bases once, and the fits, tables and figures pick it up from there.
 
-use super::clustering::{best_run, ClusteringSet};
 use super::ExperimentError;
 use crate::collection::Collection;
-use crate::select::Empirical;
+use crate::select::empirical::Empirical;
+use crate::select::runs::{best_run, ClusteringSet};
 use std::path::Path;
 
 /// Where a basis comes from.
@@ -123,7 +123,7 @@ pub fn our_bases(
 
 /// The basis of an error-driven selection (`greedy-k5`, `swap-k12`, ...), with its
 /// in-sample score in the note.
-pub fn error_driven_basis(s: &crate::selection::search::Selection) -> Basis {
+pub fn error_driven_basis(s: &crate::select::search::Selection) -> Basis {
     let source = if s.method == "swap" {
         BasisSource::Swap
     } else {

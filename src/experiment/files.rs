@@ -215,8 +215,8 @@ pub struct EmpiricalFile {
     pub basis: Vec<String>,
 }
 
-impl From<&crate::select::Empirical> for EmpiricalFile {
-    fn from(e: &crate::select::Empirical) -> Self {
+impl From<&crate::select::empirical::Empirical> for EmpiricalFile {
+    fn from(e: &crate::select::empirical::Empirical) -> Self {
         EmpiricalFile {
             method: "empirical".into(),
             histogram: e.histogram.clone(),

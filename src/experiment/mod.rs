@@ -17,9 +17,9 @@
 
 pub mod bases;
 pub mod claims;
-pub mod clustering;
 pub mod evaluation;
 pub mod files;
+pub mod layout;
 pub mod report;
 pub mod statistics;
 
@@ -32,13 +32,14 @@ use crate::eval::image_error::DisplayParams;
 use crate::eval::render::{RenderError, RenderParams};
 use crate::fit::{FitError, FitParams};
 use crate::merl::Weighting;
-use crate::select::{empirical, Empirical, EmpiricalParams};
-use crate::selection::cv::{cross_validate_with, CvParams, CvResult};
-use crate::selection::objective::{Objective, ObjectiveParams};
-use crate::selection::search::{error_driven_bases, Selection};
-use crate::selection::SelectionError;
+use crate::select::cv::{cross_validate_with, CvParams, CvResult};
+use crate::select::empirical::{empirical, Empirical, EmpiricalParams};
+use crate::select::objective::{Objective, ObjectiveParams};
+use crate::select::runs as clustering;
+use crate::select::runs::ClusteringSet;
+use crate::select::search::{error_driven_bases, Selection};
+use crate::select::SelectionError;
 use bases::Basis;
-use clustering::ClusteringSet;
 use evaluation::{EvalSettings, Evaluation};
 use statistics::Statistics;
 use std::path::PathBuf;
@@ -211,7 +212,7 @@ impl ExperimentParams {
             return Err(invalid(
                 "--k-max",
                 self.k_max,
-                format!("below the number of materials ({n})"),
+                format!("it must be below the number of materials ({n})"),
             ));
         }
         if self.gcuk_k_max < self.k_min || self.gcuk_k_max >= n {

@@ -151,7 +151,7 @@ fn clustering(e: &Experiment, ctx: &ReportContext, s: &mut String) {
             .iter()
             .filter(|c| c.metric == m.label && c.method.starts_with("kmedoids"))
             .collect();
-        let pick = |f: &dyn Fn(&super::clustering::ClusteringSet) -> f64| {
+        let pick = |f: &dyn Fn(&crate::select::runs::ClusteringSet) -> f64| {
             km.iter()
                 .map(|c| (f(c), c.best.k))
                 .max_by(|a, b| a.0.total_cmp(&b.0))

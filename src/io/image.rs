@@ -10,7 +10,7 @@ use std::path::Path;
 use crate::error::OutputError;
 use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
 use crate::eval::render::{sphere_mask, Image};
-use crate::io::atomic::write_atomic;
+use crate::atomic::write_atomic;
 
 fn encode_error(path: &Path, message: String) -> OutputError {
     OutputError::Encode {

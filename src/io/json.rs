@@ -1,6 +1,6 @@
 //! JSON results, written atomically.
 
-use super::atomic::write_atomic;
+use crate::atomic::write_atomic;
 use crate::error::OutputError;
 use std::path::Path;
 

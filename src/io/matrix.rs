@@ -1,6 +1,6 @@
 //! Distance matrices on disk: NumPy `.npy` (float64, C order) and CSV.
 
-use super::atomic::write_atomic;
+use crate::atomic::write_atomic;
 use crate::distance::DistanceMatrix;
 use crate::error::OutputError;
 use std::path::Path;

@@ -1,6 +1,6 @@
-//! File input and output: atomic writes, `.npy`, CSV matrices, images.
+//! File input and output: `.npy`, CSV matrices, images, JSON (written through
+//! [`crate::atomic`]).
 
-pub mod atomic;
 pub mod image;
 pub mod json;
 pub mod matrix;

@@ -35,6 +35,7 @@
 
 use serde::{Deserialize, Serialize};
 
+pub mod incremental;
 pub mod lawson_hanson;
 pub mod pgd;
 
@@ -358,20 +359,8 @@ pub(crate) struct ScaledGram {
 impl ScaledGram {
     /// Scales a validated `G`.
     pub(crate) fn new(m: usize, g: &[f64]) -> Self {
-        let diag = (0..m).map(|i| g[i * m + i]);
-        let d: Vec<f64> = diag
-            .map(|v| if v > f64::MIN_POSITIVE { v.sqrt() } else { 0.0 })
-            .collect();
-        let mut gs = vec![0.0; m * m];
-        for i in 0..m {
-            for j in 0..m {
-                if i == j && d[i] > 0.0 {
-                    gs[i * m + j] = 1.0;
-                } else if i != j && d[i] > 0.0 && d[j] > 0.0 {
-                    gs[i * m + j] = 0.5 * (g[i * m + j] + g[j * m + i]) / d[i] / d[j];
-                }
-            }
-        }
+        let mut gs = g[..m * m].to_vec();
+        let d = incremental::cosine_in_place(m, &mut gs);
         Self { m, d, gs }
     }
 

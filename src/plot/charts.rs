@@ -2,9 +2,9 @@
 //! against k, Nemenyi critical-difference diagram and errors per material (Fig. 4).
 
 use super::{e2s, figure, series_colour, Draw, Figure, PlotError};
-use crate::experiment::clustering::ClusteringSet;
 use crate::experiment::evaluation::BasisErrors;
 use crate::experiment::statistics::FriedmanSummary;
+use crate::select::runs::ClusteringSet;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;

@@ -1,0 +1,427 @@
+//! The objective of SPEC 8 from one Gram matrix of all N materials per channel.
+//!
+//! Per channel `c` the Gram matrix `F` of the columns `[1/pi, f_1,c .. f_N,c]` over the fit
+//! cells (SPEC 5: evaluation mask by default, weights normalised) is computed once: in
+//! closed form from the separable tables when every material is analytic (f64, exact up to
+//! rounding), else by one pass of the back-end over the grid. It is kept as the cosine
+//! matrix `C_ij = F_ij / sqrt(F_ii F_jj)`, so that the fit of target `t` by columns `P` is
+//! the NNLS problem `min ||A~ y - b~||^2` with unit columns and a unit target:
+//! `G = C_PP`, `h = C_Pt`, `bb = 1`, and its optimum `q` is the target's residual energy
+//! relative to its own energy. Then `rho(t; B) = sum_c F_tt,c q_c / sum_c F_tt,c`.
+//! Measured in units of the target energy, the Gram-form residual `q` carries a rounding
+//! error of a few 1e-16, so `rho` needs no pass over the grid (the tests check it against
+//! grid residuals within 1e-9).
+//!
+//! # Incremental evaluation of "basis + one candidate"
+//! For the current basis the exact solution of every (target, channel) is kept, and each
+//! candidate is evaluated by bordering its Cholesky factor by one column
+//! ([`crate::nnls::incremental`]): `O(p^2)` per target and channel, with `p <= k + 1`.
+
+use crate::backend::{Backend, Progress};
+use crate::collection::Collection;
+use crate::fit::{channel_lobe, fit_cells, gram_full, FitParams, GramMode, LAMBERTIAN};
+use crate::merl::{Mask, Weighting};
+use crate::nnls::incremental::{self, ChanState, Cosine};
+use crate::nnls::NnlsError;
+use rayon::prelude::*;
+
+use super::SelectionError;
+
+mod gram;
+use gram::analytic_grams;
+
+/// Parameters of the objective: the fit cells and how the Gram matrices are computed.
+/// Defaults: evaluation mask, uniform weights, full grid (stride 1), automatic Gram
+/// (separable closed form for analytic collections, else one back-end pass).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectiveParams {
+    /// Fit mask (default evaluation).
+    pub mask: Mask,
+    /// Weighting (default uniform).
+    pub weighting: Weighting,
+    /// Grid sub-sampling stride, `>= 1` (default 1).
+    pub stride: usize,
+    /// Gram mode (default auto).
+    pub gram: GramMode,
+}
+
+impl Default for ObjectiveParams {
+    fn default() -> Self {
+        Self {
+            mask: Mask::Evaluation,
+            weighting: Weighting::Uniform,
+            stride: 1,
+            gram: GramMode::Auto,
+        }
+    }
+}
+
+impl ObjectiveParams {
+    /// Sets the mask.
+    pub fn mask(mut self, m: Mask) -> Self {
+        self.mask = m;
+        self
+    }
+    /// Sets the weighting.
+    pub fn weighting(mut self, w: Weighting) -> Self {
+        self.weighting = w;
+        self
+    }
+    /// Sets the grid stride.
+    pub fn stride(mut self, s: usize) -> Self {
+        self.stride = s;
+        self
+    }
+    /// Sets the Gram mode.
+    pub fn gram(mut self, g: GramMode) -> Self {
+        self.gram = g;
+        self
+    }
+    /// Validates: `1 <= stride <= 90`.
+    pub fn check(&self) -> Result<ValidObjectiveParams, SelectionError> {
+        if self.stride == 0 || self.stride > 90 {
+            return Err(SelectionError::InvalidParam {
+                name: "stride",
+                value: self.stride.to_string(),
+                expected: "an integer in 1..=90",
+            });
+        }
+        Ok(ValidObjectiveParams(self.clone()))
+    }
+    /// The matching fit parameters (exact solver).
+    pub fn fit_params(&self) -> FitParams {
+        FitParams {
+            mask: self.mask,
+            weighting: self.weighting,
+            stride: self.stride,
+            gram: self.gram,
+            ..FitParams::default()
+        }
+    }
+}
+
+/// Validated [`ObjectiveParams`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ValidObjectiveParams(ObjectiveParams);
+
+impl ValidObjectiveParams {
+    /// The parameters.
+    pub fn params(&self) -> &ObjectiveParams {
+        &self.0
+    }
+}
+
+/// The SPEC 8 objective of a collection: cosine Gram matrices of all materials per channel.
+#[derive(Clone, Debug)]
+pub struct Objective {
+    names: Vec<String>,
+    /// Per channel: `(N + 1)^2` cosine matrix (column 0 Lambertian, `j + 1` material `j`),
+    /// unit diagonal, zero rows and columns for zero columns.
+    cos: [Vec<f64>; 3],
+    /// Per channel: `sqrt(F_ii)` of every column (0 for a zero column).
+    scale: [Vec<f64>; 3],
+    /// Per material: `F_tt` per channel (the target energy `sum_s w_s b_c(s)^2`).
+    energy: Vec<[f64; 3]>,
+    /// Per material: `F_tt,c / sum_c F_tt,c` (0 for a black material).
+    share: Vec<[f64; 3]>,
+}
+
+impl Objective {
+    /// Builds the objective of `coll`: one Gram matrix of all materials per channel (the
+    /// separable closed form when every material is analytic and the mode is auto, else one
+    /// back-end pass per channel over the fit cells).
+    pub fn new(
+        backend: &dyn Backend,
+        coll: &Collection,
+        p: &ValidObjectiveParams,
+        progress: Progress<'_>,
+    ) -> Result<Self, SelectionError> {
+        let p = p.params();
+        let n = coll.len();
+        if n == 0 {
+            return Err(SelectionError::InvalidParam {
+                name: "collection",
+                value: "0 materials".into(),
+                expected: "at least one material",
+            });
+        }
+        let all: Vec<usize> = (0..n).collect();
+        let cells = fit_cells(coll, &all, &p.fit_params());
+        if cells.is_empty() {
+            return Err(SelectionError::Fit(crate::fit::FitError::Backend(
+                crate::error::BackendError::Invalid(crate::merl::grid::no_cells_reason(
+                    p.mask,
+                    p.stride,
+                    "the collection",
+                )),
+            )));
+        }
+        let grams = if p.gram == GramMode::Auto && coll.all_analytic() {
+            analytic_grams(coll, &cells)
+        } else {
+            let mut out: [Vec<f64>; 3] = Default::default();
+            for (c, o) in out.iter_mut().enumerate() {
+                let mut lobes = vec![LAMBERTIAN];
+                lobes.extend(coll.materials().iter().map(|m| channel_lobe(&m.data, c)));
+                *o = gram_full(backend, &lobes, &cells, n + 1, GramMode::Grid, progress)?;
+            }
+            out
+        };
+        Self::from_grams(coll.names(), grams)
+    }
+
+    /// The objective from given Gram matrices (per channel `(N + 1)^2`, row-major, column 0
+    /// the Lambertian `1/pi`, column `j + 1` material `j`).
+    pub fn from_grams(
+        names: Vec<String>,
+        mut grams: [Vec<f64>; 3],
+    ) -> Result<Self, SelectionError> {
+        let n = names.len();
+        let m = n + 1;
+        for (c, g) in grams.iter().enumerate() {
+            if g.len() != m * m {
+                return Err(SelectionError::GramShape {
+                    channel: c,
+                    expected: m * m,
+                    found: g.len(),
+                });
+            }
+            if let Some(i) = g.iter().position(|v| !v.is_finite()) {
+                let col = (i / m).max(i % m);
+                return Err(SelectionError::NonFinite {
+                    material: if col == 0 {
+                        "lambertian".into()
+                    } else {
+                        names[col - 1].clone()
+                    },
+                    channel: c,
+                });
+            }
+        }
+        let energy: Vec<[f64; 3]> = (0..n)
+            .map(|t| [0, 1, 2].map(|c| grams[c][(t + 1) * m + t + 1].max(0.0)))
+            .collect();
+        // Each Gram matrix becomes its cosine matrix in place (no second (N + 1)^2 copy:
+        // at N = 10,000 the three matrices alone are 2.4 GB).
+        let mut scale: [Vec<f64>; 3] = Default::default();
+        for (g, sc) in grams.iter_mut().zip(scale.iter_mut()) {
+            *sc = incremental::cosine_in_place(m, g);
+        }
+        let cos = grams;
+        let share = energy
+            .iter()
+            .map(|e| {
+                let tot: f64 = e.iter().sum();
+                if tot > 0.0 {
+                    e.map(|v| v / tot)
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect();
+        Ok(Self {
+            names,
+            cos,
+            scale,
+            energy,
+            share,
+        })
+    }
+
+    /// Number of materials.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// True when there is no material.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    /// Material names, in collection order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Target energy `sum_s w_s b_c(s)^2` of material `t` per channel.
+    pub fn energy(&self, t: usize) -> [f64; 3] {
+        self.energy[t]
+    }
+
+    /// The cosine matrix of channel `c` (column 0 Lambertian, `j + 1` material `j`).
+    #[inline]
+    fn view(&self, c: usize) -> Cosine<'_> {
+        let m = self.names.len() + 1;
+        Cosine::new(m, &self.cos[c]).expect("the cosine matrices are (N + 1)^2")
+    }
+
+    /// The error of a rejected solve of target `t`, channel `c`.
+    fn solve_error(&self, t: usize, c: usize, e: NnlsError) -> SelectionError {
+        SelectionError::Solve {
+            material: self.names[t].clone(),
+            channel: c,
+            source: e,
+        }
+    }
+
+    /// Exact NNLS of target `t`, channel `c`, on the Gram columns `cols` (0 = Lambertian):
+    /// coefficients and the relative residual `q`. A rejected problem (which a finite
+    /// cosine matrix with a unit or zero diagonal never is) is an error naming the target.
+    fn solve(&self, c: usize, cols: &[usize], t: usize) -> Result<(Vec<f64>, f64), SelectionError> {
+        incremental::solve(self.view(c), cols, t + 1).map_err(|e| self.solve_error(t, c, e))
+    }
+
+    /// `rho(t; B)` of SPEC 8 from the Gram matrices (exact Lawson-Hanson per channel).
+    pub fn rho(&self, basis: &[usize], t: usize) -> Result<f64, SelectionError> {
+        let cols = basis_cols(basis);
+        let mut rho = 0.0;
+        for c in (0..3).filter(|&c| self.share[t][c] > 0.0) {
+            rho += self.share[t][c] * self.solve(c, &cols, t)?.1;
+        }
+        Ok(rho)
+    }
+
+    /// The exact fit of target `t` by `basis` (SPEC 5) from the Gram matrices:
+    /// coefficients per column (0 = Lambertian, then the basis in order), RGB, in the
+    /// units of the materials, and `rho(t; basis)`.
+    pub fn fit(&self, basis: &[usize], t: usize) -> Result<ObjectiveFit, SelectionError> {
+        let cols = basis_cols(basis);
+        let mut coef = vec![[0.0; 3]; cols.len()];
+        let mut rho = 0.0;
+        for c in (0..3).filter(|&c| self.share[t][c] > 0.0) {
+            let (x, q) = self.solve(c, &cols, t)?;
+            rho += self.share[t][c] * q;
+            let dt = self.scale[c][t + 1];
+            for ((a, &y), &col) in coef.iter_mut().zip(&x).zip(&cols) {
+                let dj = self.scale[c][col];
+                if y > 0.0 && dj > 0.0 {
+                    a[c] = y * dt / dj;
+                }
+            }
+        }
+        Ok(ObjectiveFit {
+            coefficients: coef,
+            rho,
+        })
+    }
+
+    /// Which materials of `basis` contribute (a coefficient > 0 in some channel) to the
+    /// exact fit of target `t` (the empirical selection's count, SPEC 5).
+    pub fn contributors(&self, basis: &[usize], t: usize) -> Result<Vec<bool>, SelectionError> {
+        let cols = basis_cols(basis);
+        let mut used = vec![false; basis.len()];
+        for c in (0..3).filter(|&c| self.share[t][c] > 0.0) {
+            let (x, _) = self.solve(c, &cols, t)?;
+            for (u, &v) in used.iter_mut().zip(&x[1..]) {
+                *u |= v > 0.0;
+            }
+        }
+        Ok(used)
+    }
+
+    /// `S(B; T)`: the mean of `rho(t; B)` over `t` in `targets` not in `basis`; an error
+    /// when no target remains (the mean of nothing is no score).
+    pub fn score(&self, basis: &[usize], targets: &[usize]) -> Result<f64, SelectionError> {
+        let left: Vec<usize> = targets
+            .iter()
+            .copied()
+            .filter(|t| !basis.contains(t))
+            .collect();
+        if left.is_empty() {
+            return Err(SelectionError::NoTargetLeft {
+                basis: basis.len(),
+                targets: targets.len(),
+            });
+        }
+        let rhos: Vec<f64> = left
+            .par_iter()
+            .map(|&t| self.rho(basis, t))
+            .collect::<Result<_, _>>()?;
+        Ok(rhos.iter().sum::<f64>() / left.len() as f64)
+    }
+
+    /// The solution state of target `t` by `basis` in every channel.
+    fn state(&self, basis: &[usize], t: usize) -> Result<[ChanState; 3], SelectionError> {
+        let cols = basis_cols(basis);
+        let mut out: [ChanState; 3] = Default::default();
+        for (c, o) in out.iter_mut().enumerate() {
+            if self.share[t][c] > 0.0 {
+                *o = ChanState::new(self.view(c), &cols, t + 1)
+                    .map_err(|e| self.solve_error(t, c, e))?;
+            }
+        }
+        Ok(out)
+    }
+
+    /// `S(B + c; T)` for every `c` of `candidates` (`c` not in `basis`), from the states of
+    /// `basis` (the mean excludes `basis` and `c` from the targets; `+inf` when none
+    /// remains, so such a candidate is never chosen).
+    pub fn scores_adding(
+        &self,
+        basis: &[usize],
+        targets: &[usize],
+        candidates: &[usize],
+    ) -> Result<Vec<f64>, SelectionError> {
+        let live: Vec<usize> = targets
+            .iter()
+            .copied()
+            .filter(|t| !basis.contains(t))
+            .collect();
+        let states: Vec<[ChanState; 3]> = live
+            .par_iter()
+            .map(|&t| self.state(basis, t))
+            .collect::<Result<_, _>>()?;
+        let cols = basis_cols(basis);
+        // Candidates in blocks, so that each target's state is read once per block and the
+        // block's cosine rows stay in cache; each candidate still sums its targets in
+        // order, so the result does not depend on the blocking or the threads.
+        const BLOCK: usize = 16;
+        let blocks: Vec<Vec<f64>> = candidates
+            .par_chunks(BLOCK)
+            .map(|block| {
+                let mut sums = vec![0.0; block.len()];
+                let mut counts = vec![0usize; block.len()];
+                let mut scratch = Vec::new();
+                for (&t, st) in live.iter().zip(&states) {
+                    for (b, &cand) in block.iter().enumerate() {
+                        if t == cand {
+                            continue;
+                        }
+                        counts[b] += 1;
+                        for (c, ch) in st.iter().enumerate() {
+                            if ch.is_active() {
+                                let q = ch
+                                    .q_adding(self.view(c), &cols, cand + 1, t + 1, &mut scratch)
+                                    .map_err(|e| self.solve_error(t, c, e))?;
+                                sums[b] += self.share[t][c] * q;
+                            }
+                        }
+                    }
+                }
+                Ok(sums
+                    .iter()
+                    .zip(&counts)
+                    .map(|(&s, &n)| if n == 0 { f64::INFINITY } else { s / n as f64 })
+                    .collect())
+            })
+            .collect::<Result<_, SelectionError>>()?;
+        Ok(blocks.concat())
+    }
+}
+
+/// The exact fit of one target by a basis, from the Gram matrices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectiveFit {
+    /// Coefficients per column (0 = Lambertian, then the basis in order), RGB, in the
+    /// units of the materials.
+    pub coefficients: Vec<[f64; 3]>,
+    /// `rho(t; basis)` of SPEC 8.
+    pub rho: f64,
+}
+
+/// Gram columns of a basis: the Lambertian (0), then `j + 1` per material.
+fn basis_cols(basis: &[usize]) -> Vec<usize> {
+    std::iter::once(0)
+        .chain(basis.iter().map(|&b| b + 1))
+        .collect()
+}
