@@ -93,7 +93,10 @@ fn synthetic(n: usize, seed: u64) -> Collection {
 fn main() {
     let path =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/ngan2005_ashikhmin_shirley.csv");
-    let coll = Collection::load(&path).unwrap_or_else(|_| Collection::embedded_default());
+    let coll = Collection::load(&path).unwrap_or_else(|e| {
+        eprintln!("{e}: using the embedded default collection");
+        Collection::embedded_default()
+    });
     let cpu = CpuBackend::new();
     let op = ObjectiveParams::default().check().expect("params");
     let only_big = std::env::var("BENCH_BIG").is_ok_and(|v| v == "1");

@@ -1,28 +1,14 @@
 // Shared definitions of every brdf-basis kernel. Each kernel is compiled as
 // common.wgsl + <kernel>.wgsl (see src/gpu/mod.rs).
 
-// An analytic lobe kd / pi + ks * rho_s(F0, n).
-// Keep in sync with `LobeParams` in src/brdf/lobe.rs.
-struct Lobe {
-    kd: f32,
-    ks: f32,
-    f0: f32,
-    n: f32,
-}
-
-const INV_PI: f32 = 0.31830988618379067;
-const INV_8PI: f32 = 0.039788735772973836;
-
-// Offsets into the grid-table buffer (720 f32). Keep in sync with `TABLE_*` in
+// Offsets into the grid-table buffer (T_LEN f32). Keep in sync with `TABLE_*` in
 // src/gpu/mod.rs.
 const T_COS_H: u32 = 0u;
 const T_SIN_H: u32 = 90u;
-const T_LOG2_COS_H: u32 = 180u;
-const T_COS_D: u32 = 270u;
-const T_SIN_D: u32 = 360u;
-const T_SCHLICK_D: u32 = 450u;
-const T_ABS_COS_P: u32 = 540u;
-const T_LEN: u32 = 720u;
+const T_COS_D: u32 = 180u;
+const T_SIN_D: u32 = 270u;
+const T_ABS_COS_P: u32 = 360u;
+const T_LEN: u32 = 540u;
 
 // Packed lobe values (src/gpu/pairwise/, src/gpu/tabulate.rs): texel k of an rgba32float texture of width
 // TEX_W holds rows 4b .. 4b + 3 at cell c of a chunk, k = b * chunk + c. Keep in sync with

@@ -26,7 +26,7 @@ const BPI: u32 = 8u;
 const NIJ: u32 = 8100u;
 
 @group(0) @binding(0) var<uniform> pp: PackParams;
-@group(0) @binding(1) var<uniform> tables: array<vec4<f32>, 180>;
+@group(0) @binding(1) var<uniform> tables: array<vec4<f32>, T_LEN / 4u>;
 @group(0) @binding(2) var<storage, read> cells: array<u32>;
 @group(0) @binding(3) var<storage, read> weights: array<f32>;
 @group(0) @binding(4) var packed: texture_storage_2d<rgba32float, write>;

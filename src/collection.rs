@@ -258,7 +258,7 @@ impl Collection {
         let mut scored: Vec<(usize, &str)> = self
             .materials
             .iter()
-            .map(|m| (edit_distance(name, &m.name), m.name.as_str()))
+            .map(|m| (strsim::levenshtein(name, &m.name), m.name.as_str()))
             .filter(|(d, n)| *d <= 3.max(name.len() / 3) || n.contains(name))
             .collect();
         scored.sort();
@@ -268,21 +268,6 @@ impl Collection {
             .map(|(_, n)| n.to_string())
             .collect()
     }
-}
-
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut cur = vec![i + 1; b.len() + 1];
-        for (j, &cb) in b.iter().enumerate() {
-            cur[j + 1] = (prev[j] + usize::from(ca != cb))
-                .min(prev[j + 1] + 1)
-                .min(cur[j] + 1);
-        }
-        prev = cur;
-    }
-    prev[b.len()]
 }
 
 /// Largest analytic CSV read (a table of 10,000 materials is about 1 MB).
@@ -355,6 +340,20 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionErro
             path: path.to_path_buf(),
         });
     }
+    for (j, name) in headers.iter().enumerate() {
+        if let Some(i) = headers
+            .iter()
+            .take(j)
+            .position(|h| !h.is_empty() && h == name)
+        {
+            return Err(CollectionError::DuplicateColumn {
+                path: path.to_path_buf(),
+                column: name.escape_debug().to_string(),
+                first: i + 1,
+                second: j + 1,
+            });
+        }
+    }
     let mut col = [0usize; 9];
     for (k, name) in REQUIRED_COLUMNS.iter().enumerate() {
         col[k] = headers.iter().position(|h| h == *name).ok_or_else(|| {
@@ -380,8 +379,8 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionErro
                 path: path.to_path_buf(),
                 line,
                 column: "material".into(),
-                value: material.escape_debug().to_string(),
-                material: material.escape_debug().to_string(),
+                value: material.clone(),
+                material: material.clone(),
                 message,
             });
         }

@@ -3,6 +3,36 @@
 
 use std::path::PathBuf;
 
+/// Characters of a material name shown in messages; longer names are cut.
+pub const NAME_CHARS: usize = 60;
+
+/// A material name as messages show it: control characters escaped, and a name longer
+/// than [`NAME_CHARS`] characters cut to its first [`NAME_CHARS`] followed by
+/// `... (N bytes)`, so that a 10 MB name is not echoed by every message. Use it
+/// wherever a message formats a name: `format!("material `{}`", short_name(name))`.
+pub fn short_name(name: &str) -> ShortName<'_> {
+    ShortName(name)
+}
+
+/// See [`short_name`].
+#[derive(Clone, Copy, Debug)]
+pub struct ShortName<'a>(pub &'a str);
+
+impl std::fmt::Display for ShortName<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = self.0;
+        match name.char_indices().nth(NAME_CHARS) {
+            None => write!(f, "{}", name.escape_debug()),
+            Some((cut, _)) => write!(
+                f,
+                "{}... ({} bytes)",
+                name[..cut].escape_debug(),
+                name.len()
+            ),
+        }
+    }
+}
+
 /// Errors while reading or validating a collection of materials.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -29,6 +59,18 @@ pub enum CollectionError {
         /// Name of the missing column.
         column: String,
     },
+    /// A column name appears twice in the header (which one holds the value?).
+    #[error("{path}: line 1: column `{column}` appears twice (columns {first} and {second}); each column may appear once")]
+    DuplicateColumn {
+        /// File.
+        path: PathBuf,
+        /// The column name.
+        column: String,
+        /// 1-based position of its first occurrence.
+        first: usize,
+        /// 1-based position of the second.
+        second: usize,
+    },
     /// A row is malformed (wrong number of fields, bad quoting).
     #[error("{path}: line {line}: malformed row: {message}")]
     Malformed {
@@ -41,7 +83,7 @@ pub enum CollectionError {
     },
     /// A value is not a finite number or violates the model's constraints.
     #[error(
-        "{path}: line {line}, column `{column}` (material `{material}`): {message}: `{value}`"
+        "{path}: line {line}, column `{column}` (material `{}`): {message}: `{}`", short_name(.material), short_name(.value)
     )]
     BadValue {
         /// File.
@@ -58,7 +100,7 @@ pub enum CollectionError {
         message: String,
     },
     /// Two materials share one name.
-    #[error("{path}: line {line}: duplicate material name `{material}` (first seen in {first})")]
+    #[error("{path}: line {line}: duplicate material name `{}` (first seen in {first})", short_name(.material))]
     Duplicate {
         /// File where the duplicate was found.
         path: PathBuf,
@@ -70,7 +112,7 @@ pub enum CollectionError {
         first: String,
     },
     /// A material name was asked for that the collection does not hold.
-    #[error("no material named `{name}` in the collection{}", suggest(.suggestions))]
+    #[error("no material named `{}` in the collection{}", short_name(.name), suggest(.suggestions))]
     UnknownMaterial {
         /// The name asked for.
         name: String,
@@ -105,7 +147,7 @@ pub enum CollectionError {
         max: u64,
     },
     /// A material name that cannot be used.
-    #[error("{path}: material name `{}`: {message}", .name.escape_debug())]
+    #[error("{path}: material name `{}`: {message}", short_name(.name))]
     BadName {
         /// The measured file whose stem is the name.
         path: PathBuf,
@@ -138,7 +180,7 @@ fn suggest(s: &[String]) -> String {
         format!(
             "; did you mean {}?",
             s.iter()
-                .map(|x| format!("`{x}`"))
+                .map(|x| format!("`{}`", short_name(x)))
                 .collect::<Vec<_>>()
                 .join(", ")
         )
@@ -175,17 +217,35 @@ pub enum MerlError {
         /// Dimensions read.
         dims: [i32; 3],
     },
-    /// A value is NaN or infinite.
-    #[error("{path}: non-finite value {value} in channel {channel} at cell {cell}")]
-    NonFinite {
+    /// A value is NaN, infinite, or a reflectance beyond the f32 range the grid
+    /// computations use.
+    #[error(
+        "{path}: value {index} (channel {}, theta_h row {}, theta_d row {}, phi_d column {}) is {value:e}: {}",
+        ["R", "G", "B"][*.channel % 3], .cell[0], .cell[1], .cell[2],
+        if .value.is_finite() {
+            "too large (times the channel scale it exceeds the f32 range, 3.4e38, that the grid computations use)"
+        } else {
+            "not a finite number"
+        }
+    )]
+    BadValue {
         /// File.
         path: PathBuf,
+        /// 0-based index of the value among the file's 3 x 1,458,000 float64 (after the
+        /// 12-byte header).
+        index: usize,
         /// Channel (0 = R, 1 = G, 2 = B).
         channel: usize,
-        /// Flat cell index.
-        cell: usize,
+        /// Grid cell `(theta_h, theta_d, phi_d)` row indices.
+        cell: [usize; 3],
         /// The value.
         value: f64,
+    },
+    /// The file changed (size or modification time) while it was read.
+    #[error("{path}: changed while it was read (its size or modification time differs after reading); what was read may mix two versions, so it is refused: read it again once nothing writes to it")]
+    Changed {
+        /// File.
+        path: PathBuf,
     },
     /// The path is a FIFO, a device, a directory or another non-regular file.
     #[error("{path}: is {kind}, not a regular MERL .binary file")]
@@ -242,7 +302,7 @@ pub enum DistanceError {
         found: usize,
     },
     /// A negative, non-finite or non-zero-diagonal entry.
-    #[error("invalid distance {value} between `{row}` and `{col}`")]
+    #[error("invalid distance {value} between `{}` and `{}`", short_name(.row), short_name(.col))]
     BadEntry {
         /// Row material.
         row: String,
@@ -252,7 +312,7 @@ pub enum DistanceError {
         value: f64,
     },
     /// `D[i][j] != D[j][i]`.
-    #[error("distance matrix is not symmetric at (`{row}`, `{col}`)")]
+    #[error("distance matrix is not symmetric at (`{}`, `{}`)", short_name(.row), short_name(.col))]
     Asymmetric {
         /// Row material.
         row: String,
@@ -263,10 +323,10 @@ pub enum DistanceError {
     #[error("a distance matrix needs at least 2 materials, the collection has {0}")]
     TooFew(usize),
     /// Euclidean (F0, n) distance asked for a material without parameters.
-    #[error("the euclidean metric needs (F0, n) parameters, but `{0}` is a measured material; use --metric brdf-it")]
+    #[error("the euclidean metric needs (F0, n) parameters, but `{}` is a measured material; use --metric brdf-it", short_name(.0))]
     NoParameters(String),
     /// The specular lobe asked for a measured material.
-    #[error("the specular lobe is defined for analytic materials only, but `{0}` is measured; use --lobe full")]
+    #[error("the specular lobe is defined for analytic materials only, but `{}` is measured; use --lobe full", short_name(.0))]
     SpecularOfMeasured(String),
     /// An unknown metric, weighting, mask or lobe name.
     #[error("unknown {what} `{found}` (expected one of: {expected})")]
@@ -277,6 +337,18 @@ pub enum DistanceError {
         found: String,
         /// Accepted values.
         expected: &'static str,
+    },
+    /// More tiles asked for than the matrix has bands.
+    #[error("{count} tiles asked for, but {materials} materials in bands of {band_rows} rows (--band-rows) make {bands} band{}: use at most {bands} tiles, or a smaller --band-rows", if *.bands == 1 { "" } else { "s" })]
+    TooManyTiles {
+        /// Tiles asked for.
+        count: usize,
+        /// Bands of the matrix.
+        bands: usize,
+        /// Materials.
+        materials: usize,
+        /// Rows per band.
+        band_rows: usize,
     },
     /// Back-end failure.
     #[error(transparent)]

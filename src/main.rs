@@ -19,6 +19,9 @@ fn main() -> std::process::ExitCode {
     // Parse first: `--help`, `--version` and usage errors exit here, before anything
     // (the private runtime directory, the signal handler's thread) exists.
     let args = cli::Cli::parse();
+    if let Some(w) = brdf_basis::backend::cpu::cap_global_threads() {
+        eprintln!("warning: {w}");
+    }
     // Removed on every later exit: normal return, error, panic (the guard's drop) and a
     // signal (the handler).
     let runtime = RuntimeDir(private_runtime_dir());

@@ -1,15 +1,12 @@
 //! The command line, run as a user would.
 
 use crate::common::*;
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::collection::Collection;
+use brdf_basis::distance::{distance_matrix, DistanceParams};
+use brdf_basis::io::saved::load_saved_matrix;
 use brdf_basis::merl::binary::{read_binary, FILE_BYTES, SCALE};
-use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS};
-use std::process::Command;
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_brdf-basis"));
-    c.arg("--quiet");
-    c
-}
+use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS, N_PD, N_TD, N_TH};
 
 fn backend_flag() -> &'static str {
     if gpu("cli backend").is_some() {
@@ -21,18 +18,32 @@ fn backend_flag() -> &'static str {
 
 #[test]
 fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
+    const TEST: &str = "tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model";
+    let Some(csv) = shared_or_skip("ngan2005_ashikhmin_shirley.csv", TEST) else {
+        return;
+    };
+    let ngan = Collection::load(&csv).expect("ngan");
     let dir = tmp();
     let out = dir.path().join("g.binary");
-    let st = bin()
+    let st = bin_quiet()
         .args(["--backend", backend_flag(), "tabulate"])
-        .arg(shared("ngan2005_ashikhmin_shirley.csv"))
+        .arg(&csv)
         .args(["--material", "gold-metallic-paint", "--out"])
         .arg(&out)
         .status()
         .expect("run");
     assert!(st.success());
-    assert_eq!(std::fs::metadata(&out).expect("meta").len(), 34_992_012);
-    assert_eq!(FILE_BYTES, 34_992_012);
+    // A MERL file: three i32 dimensions, then 3 channels x f64 per (theta_h, theta_d,
+    // phi_d) cell.
+    let want = 3 * 4 + 3 * 8 * N_TH * N_TD * N_PD;
+    assert_eq!(FILE_BYTES as usize, want);
+    assert_eq!(std::fs::metadata(&out).expect("meta").len() as usize, want);
+    let head = std::fs::read(&out).expect("raw");
+    let dims: Vec<i32> = head[..12]
+        .chunks(4)
+        .map(|b| i32::from_le_bytes(b.try_into().expect("4 bytes")))
+        .collect();
+    assert_eq!(dims, [N_TH as i32, N_TD as i32, N_PD as i32]);
     let t = read_binary(&out).expect("read back");
     // Written again from what was read: byte-identical.
     let again = dir.path().join("again.binary");
@@ -42,7 +53,7 @@ fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
         std::fs::read(&again).expect("b")
     );
     // Equal to the f64 model within f32 rounding (plus the GPU's 1e-4 where it is used).
-    let m = *ngan()
+    let m = *ngan
         .get("gold-metallic-paint")
         .expect("gold")
         .analytic()
@@ -75,7 +86,7 @@ fn tabulate_gold_metallic_paint_writes_a_merl_file_equal_to_the_model() {
 
 #[test]
 fn info_names_the_adapter_backend_and_limits() {
-    let out = bin().args(["info"]).output().expect("run");
+    let out = bin_quiet().args(["info"]).output().expect("run");
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -92,16 +103,28 @@ fn info_names_the_adapter_backend_and_limits() {
 
 #[test]
 fn distance_on_the_embedded_default_writes_csv_and_npy() {
+    // Both files hold the library's matrix of the embedded collection, bit for bit, under
+    // its names.
+    let coll = Collection::embedded_default();
+    let p = DistanceParams::default()
+        .stride(4)
+        .check(&coll)
+        .expect("params");
+    let want = distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("distances");
     let dir = tmp();
     for ext in ["csv", "npy"] {
         let out = dir.path().join(format!("d.{ext}"));
-        let st = bin()
+        let st = bin_quiet()
             .args(["--backend", "cpu", "distance", "--stride", "4", "--out"])
             .arg(&out)
             .status()
             .expect("run");
         assert!(st.success());
-        assert!(std::fs::metadata(&out).expect("meta").len() > 0);
+        let got = load_saved_matrix(&out)
+            .unwrap_or_else(|e| panic!("{ext}: {e}"))
+            .matrix;
+        assert_eq!(got.names(), coll.names(), "{ext}: names");
+        assert_eq!(got.as_full(), want.as_full(), "{ext}: values");
     }
 }
 
@@ -114,7 +137,7 @@ fn errors_name_the_problem_and_exit_non_zero() {
         "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\nx,0,0,0,0,0,0,1.5,3\n",
     )
     .expect("write");
-    let out = bin()
+    let out = bin_quiet()
         .args(["distance"])
         .arg(&bad)
         .args(["--out", "x.csv"])
@@ -126,7 +149,7 @@ fn errors_name_the_problem_and_exit_non_zero() {
         err.contains("bad.csv") && err.contains("line 2") && err.contains("F0"),
         "{err}"
     );
-    let out = bin()
+    let out = bin_quiet()
         .args(["tabulate", "--material", "nope", "--out"])
         .arg(dir.path().join("n.binary"))
         .output()
@@ -137,9 +160,19 @@ fn errors_name_the_problem_and_exit_non_zero() {
         !dir.path().join("n.binary").exists(),
         "nothing half-written"
     );
-    let out = bin()
-        .args(["distance", "--metric", "cosine", "--out", "x.csv"])
+    let x = dir.path().join("x.csv");
+    let out = bin_quiet()
+        .args(["distance", "--metric", "cosine", "--out"])
+        .arg(&x)
         .output()
         .expect("run");
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(2), "a usage error");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("unknown metric `cosine`")
+            && err.contains("brdf-it")
+            && err.contains("euclidean"),
+        "{err}"
+    );
+    assert!(!x.exists(), "nothing written");
 }

@@ -17,7 +17,9 @@ fn err(body: &str) -> String {
 
 #[test]
 fn loads_the_ngan_table() {
-    let c = ngan();
+    let Some(c) = ngan_or_skip("loads_the_ngan_table") else {
+        return;
+    };
     assert_eq!(c.len(), 100);
     let g = c
         .get("gold-metallic-paint")
@@ -47,7 +49,9 @@ fn embedded_default_is_valid_and_diverse() {
         .fold((f64::MAX, 0f64), |(l, h), &n| (l.min(n), h.max(n)));
     assert!(lo <= 3.0 && hi >= 50_000.0, "exponents span {lo}..{hi}");
     // Authored by the project: no name of the Ngan table.
-    let ngan = ngan();
+    let Some(ngan) = ngan_or_skip("embedded_default_is_valid_and_diverse") else {
+        return;
+    };
     assert!(c.names().iter().all(|n| ngan.index_of(n).is_err()));
 }
 
@@ -153,7 +157,9 @@ fn wrong_number_of_fields() {
 
 #[test]
 fn unknown_material_suggests_close_names() {
-    let c = ngan();
+    let Some(c) = ngan_or_skip("unknown_material_suggests_close_names") else {
+        return;
+    };
     let e = c
         .index_of("gold-metalic-paint")
         .expect_err("typo")

@@ -10,11 +10,11 @@ use brdf_basis::backend::blocks::{all_blocks, gram_blocks, PairOp};
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::cluster::{GcukParams, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
+use brdf_basis::collection::Collection;
 use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams, LobeKind};
 use brdf_basis::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use std::path::Path;
-use std::process::Command;
 
 /// Largest relative difference and the number of entries that differ at all.
 fn compare(a: &[f64], b: &[f64]) -> (f64, usize) {
@@ -23,17 +23,23 @@ fn compare(a: &[f64], b: &[f64]) -> (f64, usize) {
 }
 
 /// BRDF_it of the Ngan table on the CPU and on the GPU with `p`.
-fn both(gpu: &dyn Backend, p: DistanceParams) -> (DistanceMatrix, DistanceMatrix) {
-    let coll = ngan();
-    let p = p.check(&coll).expect("params");
-    let cpu = distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("cpu");
-    let gpu = distance_matrix(gpu, &coll, &p, &|_, _| {}).expect("gpu");
+fn both(
+    coll: &Collection,
+    gpu: &dyn Backend,
+    p: DistanceParams,
+) -> (DistanceMatrix, DistanceMatrix) {
+    let p = p.check(coll).expect("params");
+    let cpu = distance_matrix(&CpuBackend::new(), coll, &p, &|_, _| {}).expect("cpu");
+    let gpu = distance_matrix(gpu, coll, &p, &|_, _| {}).expect("gpu");
     (cpu, gpu)
 }
 
 #[test]
 fn cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical() {
     let Some(g) = gpu("cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical") else {
+        return;
+    };
+    let Some(ngan) = ngan_or_skip("cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical") else {
         return;
     };
     for (what, p) in [
@@ -49,7 +55,7 @@ fn cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical() {
                 .weighting(Weighting::SolidAngle),
         ),
     ] {
-        let (c, gm) = both(g, p);
+        let (c, gm) = both(&ngan, g, p);
         let (rel, differ) = compare(gm.as_full(), c.as_full());
         eprintln!("BRDF_it {what}: GPU vs CPU max relative difference {rel:e}, {differ} of 9,900 entries differ");
         assert_eq!(differ, 0, "{what}: max relative difference {rel:e}");
@@ -63,7 +69,10 @@ fn every_kernel_shape_sums_in_the_canonical_order() {
     let Some(g) = gpu("every_kernel_shape_sums_in_the_canonical_order") else {
         return;
     };
-    let coll = ngan().subset(&(0..37).collect::<Vec<_>>());
+    let Some(ngan) = ngan_or_skip("every_kernel_shape_sums_in_the_canonical_order") else {
+        return;
+    };
+    let coll = ngan.subset(&(0..37).collect::<Vec<_>>());
     let lobes = brdf_basis::distance::lobes(&coll, LobeKind::Full);
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 3);
     let ctx = g.context();
@@ -98,7 +107,10 @@ fn clustering_runs_are_identical_on_both_back_ends() {
     let Some(g) = gpu("clustering_runs_are_identical_on_both_back_ends") else {
         return;
     };
-    let (c, gm) = both(g, DistanceParams::default());
+    let Some(ngan) = ngan_or_skip("clustering_runs_are_identical_on_both_back_ends") else {
+        return;
+    };
+    let (c, gm) = both(&ngan, g, DistanceParams::default());
     let mut runs = 0;
     for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
         for k in 5..=12 {
@@ -205,15 +217,19 @@ fn files(dir: &Path) -> Vec<std::path::PathBuf> {
 
 #[test]
 fn reproduce_writes_the_same_outputs_with_the_cpu_and_the_gpu() {
-    if gpu("reproduce_writes_the_same_outputs_with_the_cpu_and_the_gpu").is_none() {
+    const TEST: &str = "reproduce_writes_the_same_outputs_with_the_cpu_and_the_gpu";
+    let Some(csv) = shared_or_skip("ngan2005_ashikhmin_shirley.csv", TEST) else {
+        return;
+    };
+    if gpu(TEST).is_none() {
         return;
     }
     let dir = tmp();
     let run = |backend: &str| {
         let out = dir.path().join(backend);
-        let o = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+        let o = bin()
             .args(["--quiet", "--backend", backend, "--seed", "3", "reproduce"])
-            .arg(shared("ngan2005_ashikhmin_shirley.csv"))
+            .arg(&csv)
             .args(["--runs", "10", "--render-size", "32", "--out"])
             .arg(&out)
             .output()

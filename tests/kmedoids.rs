@@ -5,7 +5,6 @@ use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::cluster::{KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
 use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams};
-use std::process::Command;
 
 /// The synthetic matrix of the reference below: points
 /// `((1 + i % 7) frac(i G), frac(i S))`, Euclidean, f64.
@@ -75,14 +74,15 @@ fn fasterpam_matches_the_kmedoids_package() {
 }
 
 /// BRDF_it of the Ngan table (defaults: specular lobe, evaluation mask, uniform weights) on
-/// the CPU back-end, computed once.
-fn ngan_brdf_it() -> &'static DistanceMatrix {
+/// the CPU back-end, computed once; `None` (after printing SKIP for `test`) without the
+/// shared data.
+fn ngan_brdf_it(test: &str) -> Option<&'static DistanceMatrix> {
     static D: std::sync::OnceLock<DistanceMatrix> = std::sync::OnceLock::new();
-    D.get_or_init(|| {
-        let coll = ngan();
+    let coll = ngan_or_skip(test)?;
+    Some(D.get_or_init(|| {
         let p = DistanceParams::default().check(&coll).expect("params");
         distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("distances")
-    })
+    }))
 }
 
 /// As [`REFERENCE`], on `ngan_brdf_it()` written by `brdf-basis --backend cpu distance
@@ -111,7 +111,9 @@ fn fasterpam_matches_the_kmedoids_package_on_the_ngan_matrix() {
     // default tie margin none is taken: at most the package's swaps, the same loss, and at
     // k = 8, start 1 the other member of the tied cluster (item 18, chrome, for item 56,
     // red-metallic-paint; loss 1077.542529317204 vs 1077.5425293172043).
-    let d = ngan_brdf_it();
+    let Some(d) = ngan_brdf_it("fasterpam_matches_the_kmedoids_package_on_the_ngan_matrix") else {
+        return;
+    };
     for &(k, r, loss, medoids, swaps) in &NGAN_REFERENCE {
         let strict = KMedoidsParams::new(k)
             .tolerance(0.0)
@@ -145,7 +147,9 @@ fn fasterpam_and_pam_on_seeded_starts_of_the_ngan_matrix() {
     // table: from every start FasterPAM ends where PAM's SWAP finds no improving swap, and
     // the best of the 30 runs has the same loss for both algorithms at every k. FasterPAM
     // may end lower or higher than PAM from one start (another neighbourhood order).
-    let d = ngan_brdf_it();
+    let Some(d) = ngan_brdf_it("fasterpam_and_pam_on_seeded_starts_of_the_ngan_matrix") else {
+        return;
+    };
     let (mut lower, mut higher, mut same) = (0, 0, 0);
     for k in 5..=12 {
         let fp = KMedoidsParams::new(k).check().expect("params");
@@ -205,7 +209,7 @@ fn same_seed_gives_byte_identical_results() {
 fn select(args: &[&str]) -> (bool, String, Option<serde_json::Value>) {
     let dir = tmp();
     let out = dir.path().join("s.json");
-    let o = Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+    let o = bin()
         .args(["--quiet", "--backend", "cpu", "select"])
         .args(args)
         .args(["--stride", "8", "--json"])

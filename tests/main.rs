@@ -16,6 +16,8 @@ mod fit;
 mod gpu_kernels;
 mod grid;
 mod hardening;
+mod hygiene;
+mod inputs;
 mod integrity;
 mod kmedoids;
 mod measured;

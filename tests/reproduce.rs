@@ -10,19 +10,13 @@ use brdf_basis::select::runs::ClusteringSet;
 use std::path::Path;
 use std::process::Command;
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_brdf-basis"));
-    c.args(["--quiet", "--backend", "cpu"]);
-    c
-}
-
 fn read<T: serde::de::DeserializeOwned>(path: &Path) -> T {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 fn quick(out: &Path) -> Command {
-    let mut c = bin();
+    let mut c = bin_cpu();
     c.args([
         "reproduce",
         "--runs",
@@ -175,7 +169,7 @@ fn reproduce_rejects_bad_settings_before_work() {
     for (i, (args, expect)) in cases.iter().enumerate() {
         let out = d.path().join(format!("o{i}"));
         let t = std::time::Instant::now();
-        let o = bin()
+        let o = bin_cpu()
             .arg("reproduce")
             .args(*args)
             .arg("--out")
@@ -196,7 +190,7 @@ fn reproduce_rejects_bad_settings_before_work() {
         "basis,material\nmine,polished-gold\nmine,polished-gol\n",
     )
     .expect("write");
-    let o = bin()
+    let o = bin_cpu()
         .arg("reproduce")
         .arg("--paper-bases")
         .arg(&csv)
@@ -224,7 +218,7 @@ fn reproduce_rejects_bad_settings_before_work() {
     std::fs::write(&coll, text).expect("write");
     std::fs::write(&csv, pb).expect("write");
     let out = d.path().join("partial");
-    let o = bin()
+    let o = bin_cpu()
         .arg("reproduce")
         .arg(&coll)
         .args([
@@ -265,7 +259,7 @@ fn fit_json_keeps_a_material_named_lambertian() {
     )
     .expect("csv");
     let fits = d.path().join("f.json");
-    let o = bin()
+    let o = bin_cpu()
         .arg("fit")
         .arg(&csv)
         .args([
@@ -298,7 +292,7 @@ fn fit_json_keeps_a_material_named_lambertian() {
         ]
     );
     let exr = d.path().join("t.exr");
-    let o = bin()
+    let o = bin_cpu()
         .arg("render")
         .arg(&csv)
         .args(["--material", "target", "--size", "16", "--fit"])
@@ -310,7 +304,7 @@ fn fit_json_keeps_a_material_named_lambertian() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // The plot command reads the same file.
     let svg = d.path().join("l.svg");
-    let o = bin()
+    let o = bin_cpu()
         .arg("plot")
         .arg(&csv)
         .args(["--material", "target", "--angles", "0,45", "--fit"])
@@ -331,7 +325,7 @@ fn fit_json_keeps_a_material_named_lambertian() {
 fn figures_without_a_font_are_text_free_not_missing() {
     let d = tmp();
     let png = d.path().join("l.png");
-    let o = bin()
+    let o = bin_cpu()
         .env("BRDF_BASIS_FONT", "none")
         .args([
             "plot",

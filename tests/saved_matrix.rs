@@ -10,12 +10,6 @@ use brdf_basis::io::MatrixFileError;
 use std::path::Path;
 use std::process::Command;
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_brdf-basis"));
-    c.args(["--quiet", "--backend", "cpu"]);
-    c
-}
-
 fn run_ok(c: &mut Command) {
     let out = c.output().expect("run");
     assert!(
@@ -23,10 +17,6 @@ fn run_ok(c: &mut Command) {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-}
-
-fn write(path: &Path, text: &str) {
-    std::fs::write(path, text).expect("write");
 }
 
 fn load_err(path: &Path) -> (MatrixFileError, String) {
@@ -47,7 +37,11 @@ fn saved_npy_and_csv_cluster_exactly_like_a_computed_matrix() {
     let npy = dir.path().join("d.npy");
     let csv = dir.path().join("d.csv");
     for out in [&npy, &csv] {
-        run_ok(bin().args(["distance", "--stride", "4", "--out"]).arg(out));
+        run_ok(
+            bin_cpu()
+                .args(["distance", "--stride", "4", "--out"])
+                .arg(out),
+        );
     }
     // The sidecar: names, settings, N, checksum.
     let side = read_sidecar(&npy).expect("sidecar");
@@ -67,7 +61,7 @@ fn saved_npy_and_csv_cluster_exactly_like_a_computed_matrix() {
     let mut results = Vec::new();
     for src in [None, Some(&npy), Some(&csv)] {
         let json = dir.path().join(format!("s{}.json", results.len()));
-        let mut c = bin();
+        let mut c = bin_cpu();
         c.args(["select", "--method", "kmedoids", "-k", "4", "--runs", "2"]);
         match src {
             Some(p) => c.arg("--distances").arg(p),
@@ -92,7 +86,11 @@ fn saved_npy_and_csv_cluster_exactly_like_a_computed_matrix() {
 fn npy_without_sidecar_or_with_a_mismatched_one_is_refused() {
     let dir = tmp();
     let npy = dir.path().join("d.npy");
-    run_ok(bin().args(["distance", "--stride", "6", "--out"]).arg(&npy));
+    run_ok(
+        bin_cpu()
+            .args(["distance", "--stride", "6", "--out"])
+            .arg(&npy),
+    );
     let side = std::fs::read(sidecar_path(&npy)).expect("sidecar");
     // A matrix rewritten without its sidecar (another collection, same size): checksum.
     let read = brdf_basis::io::npy::read_npy_2d(&npy).expect("read");
@@ -114,7 +112,7 @@ fn npy_without_sidecar_or_with_a_mismatched_one_is_refused() {
     let (e, msg) = load_err(&npy);
     assert!(matches!(e, MatrixFileError::NoSidecar { .. }), "{msg}");
     // The command line: non-zero exit, one message naming the file.
-    let out = bin()
+    let out = bin_cpu()
         .args(["select", "--method", "kmedoids", "-k", "2", "--distances"])
         .arg(&npy)
         .arg("--json")
@@ -131,12 +129,12 @@ fn npy_without_sidecar_or_with_a_mismatched_one_is_refused() {
 fn non_square_matrices_are_refused() {
     let dir = tmp();
     let p = dir.path().join("short.csv");
-    write(&p, "material,a,b,c\na,0,1,2\nb,1,0\nc,2,3,0\n");
+    std::fs::write(&p, "material,a,b,c\na,0,1,2\nb,1,0\nc,2,3,0\n").expect("write");
     let (e, msg) = load_err(&p);
     assert!(matches!(e, MatrixFileError::NotSquare { .. }), "{msg}");
     assert!(msg.contains("row 1 (`b`) has 2 values"), "{msg}");
     let p = dir.path().join("rows.csv");
-    write(&p, "material,a,b,c\na,0,1,2\nb,1,0,3\n");
+    std::fs::write(&p, "material,a,b,c\na,0,1,2\nb,1,0,3\n").expect("write");
     let (e, msg) = load_err(&p);
     assert!(matches!(e, MatrixFileError::NotSquare { .. }), "{msg}");
     let p = dir.path().join("rect.npy");
@@ -170,7 +168,7 @@ fn non_square_matrices_are_refused() {
 fn asymmetric_matrix_is_refused_naming_the_pair() {
     let dir = tmp();
     let p = dir.path().join("asym.csv");
-    write(&p, "material,a,b,c\na,0,1,2\nb,1,0,3\nc,2,3.5,0\n");
+    std::fs::write(&p, "material,a,b,c\na,0,1,2\nb,1,0,3\nc,2,3.5,0\n").expect("write");
     let (e, msg) = load_err(&p);
     match e {
         MatrixFileError::Entry {
@@ -184,7 +182,7 @@ fn asymmetric_matrix_is_refused_naming_the_pair() {
     assert!(msg.contains("`b`") && msg.contains("`c`"), "{msg}");
     // Within the stated tolerance: accepted and made exactly symmetric.
     let p = dir.path().join("near.csv");
-    write(&p, "material,a,b\na,0,1\nb,1.0000000000001,0\n");
+    std::fs::write(&p, "material,a,b\na,0,1\nb,1.0000000000001,0\n").expect("write");
     let m = load_saved_matrix(&p).expect("within tolerance").matrix;
     assert_eq!(m.as_full()[1], m.as_full()[2]);
 }
@@ -193,7 +191,7 @@ fn asymmetric_matrix_is_refused_naming_the_pair() {
 fn negative_entry_is_refused() {
     let dir = tmp();
     let p = dir.path().join("neg.csv");
-    write(&p, "material,a,b,c\na,0,-1,2\nb,-1,0,3\nc,2,3,0\n");
+    std::fs::write(&p, "material,a,b,c\na,0,-1,2\nb,-1,0,3\nc,2,3,0\n").expect("write");
     let (e, msg) = load_err(&p);
     assert!(
         matches!(e, MatrixFileError::Entry { row: 0, col: 1, .. }),
@@ -210,7 +208,7 @@ fn nan_and_infinite_entries_are_refused() {
         ("inf.csv", "material,a,b,c\na,0,1,2\nb,1,0,inf\nc,2,inf,0\n"),
     ] {
         let p = dir.path().join(name);
-        write(&p, text);
+        std::fs::write(&p, text).expect("write");
         let (e, msg) = load_err(&p);
         assert!(
             matches!(e, MatrixFileError::Entry { row: 1, col: 2, .. }),
@@ -219,7 +217,7 @@ fn nan_and_infinite_entries_are_refused() {
         assert!(msg.contains("not a finite number"), "{msg}");
     }
     let p = dir.path().join("word.csv");
-    write(&p, "material,a,b\na,0,x\nb,1,0\n");
+    std::fs::write(&p, "material,a,b\na,0,x\nb,1,0\n").expect("write");
     let (_, msg) = load_err(&p);
     assert!(msg.contains("`x` is not a number"), "{msg}");
 }
@@ -228,7 +226,7 @@ fn nan_and_infinite_entries_are_refused() {
 fn nonzero_diagonal_is_refused() {
     let dir = tmp();
     let p = dir.path().join("diag.csv");
-    write(&p, "material,a,b,c\na,0,1,2\nb,1,0.5,3\nc,2,3,0\n");
+    std::fs::write(&p, "material,a,b,c\na,0,1,2\nb,1,0.5,3\nc,2,3,0\n").expect("write");
     let (e, msg) = load_err(&p);
     assert!(
         matches!(e, MatrixFileError::Entry { row: 1, col: 1, .. }),
@@ -241,26 +239,30 @@ fn nonzero_diagonal_is_refused() {
 fn names_that_do_not_match_are_refused() {
     let dir = tmp();
     let good = dir.path().join("good.csv");
-    write(&good, GOOD);
+    std::fs::write(&good, GOOD).expect("write");
     assert_eq!(
         load_saved_matrix(&good).expect("good").matrix.names(),
         ["a", "b", "c"]
     );
     // Row named differently from its header column.
     let p = dir.path().join("rowname.csv");
-    write(&p, "material,a,b,c\na,0,1,2\nx,1,0,3\nc,2,3,0\n");
+    std::fs::write(&p, "material,a,b,c\na,0,1,2\nx,1,0,3\nc,2,3,0\n").expect("write");
     let (e, msg) = load_err(&p);
     assert!(matches!(e, MatrixFileError::Names { .. }), "{msg}");
     assert!(msg.contains("`x`"), "{msg}");
     // A name twice.
     let p = dir.path().join("dup.csv");
-    write(&p, "material,a,b,a\na,0,1,2\nb,1,0,3\na,2,3,0\n");
+    std::fs::write(&p, "material,a,b,a\na,0,1,2\nb,1,0,3\na,2,3,0\n").expect("write");
     let (e, msg) = load_err(&p);
     assert!(matches!(e, MatrixFileError::Names { .. }), "{msg}");
     assert!(msg.contains("named twice"), "{msg}");
     // A sidecar with fewer names than the matrix has rows.
     let npy = dir.path().join("d.npy");
-    run_ok(bin().args(["distance", "--stride", "6", "--out"]).arg(&npy));
+    run_ok(
+        bin_cpu()
+            .args(["distance", "--stride", "6", "--out"])
+            .arg(&npy),
+    );
     let sp = sidecar_path(&npy);
     let mut side: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&sp).expect("read")).expect("json");

@@ -1,6 +1,5 @@
 //! Every shader parses and validates with naga; shared structs match the Rust layouts.
 
-use brdf_basis::backend::LobeParams;
 use brdf_basis::gpu::pairwise::PairParams;
 use brdf_basis::gpu::tabulate::PackParams;
 use brdf_basis::gpu::{kernel_source, pairwise, pgd, tabulate};
@@ -54,16 +53,23 @@ fn tabulate_shader_validates_and_matches_rust_structs() {
     assert!(tabulate::SOURCE.contains(&format!("const BPI: u32 = {}u;", tabulate::BPI)));
     assert!(tabulate::SOURCE.contains(&format!("const NIJ: u32 = {}u;", tabulate::NIJ)));
     assert!(pairwise::SOURCE.contains(&format!("const NIJ: u32 = {}u;", tabulate::NIJ)));
-    let (span, members) = layout(&m, "Lobe");
-    assert_eq!(span as usize, size_of::<LobeParams>());
-    let rust = [
-        ("kd", offset_of!(LobeParams, kd)),
-        ("ks", offset_of!(LobeParams, ks)),
-        ("f0", offset_of!(LobeParams, f0)),
-        ("n", offset_of!(LobeParams, n)),
-    ];
-    for ((n, o), (rn, ro)) in members.iter().zip(rust) {
-        assert_eq!((n.as_str(), *o as usize), (rn, ro));
+    // The grid-table uniform holds exactly TABLE_LEN f32.
+    let tables = m
+        .global_variables
+        .iter()
+        .find(|(_, g)| g.name.as_deref() == Some("tables"))
+        .map(|(_, g)| g.ty)
+        .expect("var tables");
+    match &m.types[tables].inner {
+        naga::TypeInner::Array {
+            size: naga::ArraySize::Constant(n),
+            stride,
+            ..
+        } => assert_eq!(
+            n.get() as usize * *stride as usize,
+            4 * brdf_basis::gpu::TABLE_LEN
+        ),
+        other => panic!("tables: {other:?}"),
     }
 }
 
@@ -106,22 +112,89 @@ fn pairwise_shader_validates_and_matches_rust_structs() {
     }
 }
 
+/// `const NAME: u32 = VALUEu;` declarations of a WGSL source.
+fn u32_consts(src: &str) -> Vec<(String, usize)> {
+    src.lines()
+        .filter_map(|l| {
+            let rest = l.trim().strip_prefix("const ")?;
+            let (name, value) = rest.split_once(": u32 = ")?;
+            let value = value.strip_suffix("u;")?.parse().ok()?;
+            Some((name.to_string(), value))
+        })
+        .collect()
+}
+
 #[test]
 fn shared_constants_agree() {
-    let common = brdf_basis::gpu::COMMON_WGSL;
-    assert!(common.contains(&format!("const TEX_W: u32 = {}u;", pairwise::TEX_W)));
-    assert!(common.contains(&format!(
-        "const T_LOG2_COS_H: u32 = {}u;",
-        brdf_basis::gpu::TABLE_LOG2_COS_H
-    )));
-    assert!(common.contains(&format!(
-        "const T_ABS_COS_P: u32 = {}u;",
-        brdf_basis::gpu::TABLE_ABS_COS_P
-    )));
-    assert!(common.contains(&format!(
-        "const T_LEN: u32 = {}u;",
-        brdf_basis::gpu::TABLE_LEN
-    )));
+    use brdf_basis::gpu::{
+        COMMON_WGSL, TABLE_ABS_COS_P, TABLE_COS_D, TABLE_COS_H, TABLE_LEN, TABLE_SIN_D, TABLE_SIN_H,
+    };
+    let rust = [
+        ("T_COS_H", TABLE_COS_H),
+        ("T_SIN_H", TABLE_SIN_H),
+        ("T_COS_D", TABLE_COS_D),
+        ("T_SIN_D", TABLE_SIN_D),
+        ("T_ABS_COS_P", TABLE_ABS_COS_P),
+        ("T_LEN", TABLE_LEN),
+        ("TEX_W", pairwise::TEX_W),
+    ];
+    let wgsl = u32_consts(COMMON_WGSL);
+    assert_eq!(
+        wgsl,
+        rust.iter()
+            .map(|(n, v)| (n.to_string(), *v))
+            .collect::<Vec<_>>(),
+        "shaders/common.wgsl against src/gpu/mod.rs"
+    );
+    // Each table row is 90 (theta) or 180 (phi_d) entries, in order, without overlap.
+    let rows = [
+        (TABLE_COS_H, 90),
+        (TABLE_SIN_H, 90),
+        (TABLE_COS_D, 90),
+        (TABLE_SIN_D, 90),
+        (TABLE_ABS_COS_P, 180),
+    ];
+    for w in rows.windows(2) {
+        assert_eq!(w[0].0 + w[0].1, w[1].0);
+    }
+    assert_eq!(TABLE_ABS_COS_P + 180, TABLE_LEN);
+    // Every shared constant and function is used by some kernel: nothing dead in common.
+    let kernels = [
+        tabulate::SOURCE.to_string(),
+        pairwise::kernel_source(pairwise::KernelShape::HARDWARE, false),
+        pgd::kernel_source(6),
+    ];
+    let mut names: Vec<String> = wgsl.into_iter().map(|(n, _)| n).collect();
+    names.extend(COMMON_WGSL.lines().filter_map(|l| {
+        let rest = l.trim().strip_prefix("fn ")?;
+        Some(rest.split('(').next()?.to_string())
+    }));
+    names.extend(COMMON_WGSL.lines().filter_map(|l| {
+        Some(
+            l.trim()
+                .strip_prefix("struct ")?
+                .trim_end_matches(" {")
+                .to_string(),
+        )
+    }));
+    for n in &names {
+        let used = kernels.iter().any(|k| k.contains(n.as_str()))
+            || COMMON_WGSL.matches(n.as_str()).count() > 1;
+        assert!(used, "`{n}` in shaders/common.wgsl is used by no kernel");
+    }
+    // And the grid tables hold what the kernels expect at each offset.
+    let g = brdf_basis::merl::GridTables::new();
+    let t = brdf_basis::gpu::grid_table_f32(&g);
+    assert_eq!(t.len(), TABLE_LEN);
+    for i in 0..90 {
+        assert_eq!(t[TABLE_COS_H + i], g.cos_h[i] as f32);
+        assert_eq!(t[TABLE_SIN_H + i], g.sin_h[i] as f32);
+        assert_eq!(t[TABLE_COS_D + i], g.cos_d[i] as f32);
+        assert_eq!(t[TABLE_SIN_D + i], g.sin_d[i] as f32);
+    }
+    for k in 0..180 {
+        assert_eq!(t[TABLE_ABS_COS_P + k], g.abs_cos_p[k] as f32);
+    }
 }
 
 #[test]

@@ -8,17 +8,10 @@ use brdf_basis::collection::Collection;
 use brdf_basis::distance::band::tile_blocks;
 use brdf_basis::distance::{distance_matrix_banded, distance_tile, lobes, DistanceParams};
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_brdf-basis"));
-    c.args(["--quiet", "--backend", "cpu"]);
-    c
-}
 
 fn tile(dir: &Path, name: &str, extra: &[&str], i: usize, n: usize) -> PathBuf {
     let out = dir.join(name);
-    let st = bin()
+    let st = bin_cpu()
         .args(["distance", "--stride", "4", "--band-rows", "8"])
         .args(extra)
         .args(["--tile", &format!("{i}/{n}"), "--out"])
@@ -34,7 +27,7 @@ fn tile(dir: &Path, name: &str, extra: &[&str], i: usize, n: usize) -> PathBuf {
 }
 
 fn merge(tiles: &[&PathBuf], out: &Path) -> std::process::Output {
-    bin()
+    bin_cpu()
         .arg("merge")
         .args(tiles)
         .arg("--out")
@@ -48,7 +41,7 @@ fn merged_tiles_equal_the_whole_matrix_byte_for_byte() {
     let dir = tmp();
     let d = dir.path();
     let whole = d.join("whole.npy");
-    let st = bin()
+    let st = bin_cpu()
         .args(["distance", "--stride", "4", "--band-rows", "8", "--out"])
         .arg(&whole)
         .status()
@@ -187,7 +180,7 @@ fn missing_doubled_and_foreign_tiles_are_refused() {
     let other = d.join("other.csv");
     std::fs::write(&other, changed).expect("write");
     let foreign = d.join("f2.npy");
-    let st = bin()
+    let st = bin_cpu()
         .args([
             "distance",
             "--stride",

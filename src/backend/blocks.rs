@@ -1,8 +1,8 @@
 //! Block-pair reductions shared by the back-ends: which `BLOCK x BLOCK` blocks of lobe
 //! pairs to reduce, and how their sums land in the output.
 
-/// Rows and columns of a block of lobe pairs (both back-ends; keep in sync with `BLOCK`
-/// in `shaders/common.wgsl`).
+/// Rows and columns of a block of lobe pairs (both back-ends; the GPU kernels hold the
+/// four rows of a block in the lanes of one `vec4<f32>`, so this cannot change alone).
 pub const BLOCK: usize = 4;
 
 /// The per-cell operation reduced over the grid.

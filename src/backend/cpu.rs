@@ -84,8 +84,46 @@ impl Factors {
     }
 }
 
+/// Most threads per available CPU of any pool: the work is CPU-bound.
+pub const MAX_THREADS_PER_CPU: usize = 4;
+
+/// CPUs available to this process (1 when unknown).
+fn cpus() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Most threads of any pool: [`MAX_THREADS_PER_CPU`] x the available CPUs.
+pub fn max_threads() -> usize {
+    MAX_THREADS_PER_CPU * cpus()
+}
+
+/// Builds rayon's global pool with at most [`max_threads`] threads when
+/// `RAYON_NUM_THREADS` asks for more (`RAYON_NUM_THREADS=100000` would otherwise spend
+/// minutes starting threads before any work), and returns the warning to print. Call it
+/// before anything runs on the global pool; without such a request, or once the global
+/// pool exists, it does nothing and returns `None`.
+pub fn cap_global_threads() -> Option<String> {
+    let asked: usize = std::env::var("RAYON_NUM_THREADS")
+        .ok()?
+        .trim()
+        .parse()
+        .ok()?;
+    let max = max_threads();
+    if asked <= max {
+        return None;
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(max)
+        .build_global()
+        .ok()?;
+    Some(format!(
+        "RAYON_NUM_THREADS={asked} is more than {MAX_THREADS_PER_CPU} threads per CPU ({} CPUs): using {max} threads",
+        cpus()
+    ))
+}
+
 impl CpuBackend {
-    /// A back-end on rayon's global pool.
+    /// A back-end on rayon's global pool (see [`cap_global_threads`]).
     pub fn new() -> Self {
         Self {
             tables: GridTables::new(),
@@ -93,8 +131,17 @@ impl CpuBackend {
         }
     }
 
-    /// A back-end on its own pool of `threads` threads.
+    /// A back-end on its own pool of `threads` threads (at most [`max_threads`]; more
+    /// is an error: the work is CPU-bound, and a pool of thousands of threads only takes
+    /// minutes to start).
     pub fn with_threads(threads: usize) -> Result<Self, BackendError> {
+        if threads > max_threads() {
+            return Err(BackendError::Invalid(format!(
+                "{threads} threads requested, more than the {} this machine's {} CPUs use at most ({MAX_THREADS_PER_CPU} per CPU)",
+                max_threads(),
+                cpus()
+            )));
+        }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads.max(1))
             .build()

@@ -4,10 +4,7 @@
 /// An analytic lobe `kd / pi + ks * rho_s(F0, n)`: the specular lobe is
 /// `(0, 1, F0, n)`, one RGB channel `(d_c, s_c, F0, n)`, the channel mean
 /// `(mean d, mean s, F0, n)`.
-///
-/// Keep in sync with `struct Lobe` in `shaders/common.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LobeParams {
     /// Coefficient of the Lambertian term `1 / pi`.
     pub kd: f32,

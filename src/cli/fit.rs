@@ -72,7 +72,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         if targets[..i].contains(&t) {
             anyhow::bail!(
                 "--targets: material `{}` is given twice",
-                coll.materials()[t].name
+                brdf_basis::error::short_name(&coll.materials()[t].name)
             );
         }
     }
@@ -128,7 +128,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         if !g.quiet {
             for (n, file) in names.iter().zip(&files) {
                 if format!("{n}.binary") != *file {
-                    eprintln!("export: `{}` -> {file}", n.escape_debug());
+                    eprintln!("export: `{}` -> {file}", brdf_basis::error::short_name(n));
                 }
             }
         }

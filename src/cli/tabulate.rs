@@ -53,7 +53,7 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
             if overflow > 0 {
                 anyhow::bail!(
                     "material `{}` ({}): its reflectance is not a finite f32 number in {overflow} valid cells (parameters too large: n = {}, s = {:?}); nothing written",
-                    m.name,
+                    brdf_basis::error::short_name(&m.name),
                     m.origin,
                     m.analytic().map_or(0.0, |p| p.n),
                     m.analytic().map_or([0.0; 3], |p| p.s),

@@ -54,10 +54,11 @@ pub fn tile_blocks(
         });
     }
     if count > nb {
-        return Err(DistanceError::UnknownOption {
-            what: "tile count",
-            found: count.to_string(),
-            expected: "at most the number of bands (materials / --band-rows, rounded up)",
+        return Err(DistanceError::TooManyTiles {
+            count,
+            bands: nb,
+            materials: n,
+            band_rows,
         });
     }
     // Cumulative pair counts: cum[a] = pairs of rows 0..a.
@@ -127,23 +128,8 @@ pub fn distance_band(
         Metric::BrdfIt => {
             let cells = cell_set(coll, p);
             if cells.is_empty() {
-                let grid = crate::merl::CellSet::new(p.mask(), p.weighting(), p.stride());
-                let why = if grid.is_empty() {
-                    format!(
-                        "the {} mask has no cell on the grid sub-sampled with --stride {}: use a smaller --stride",
-                        p.mask(),
-                        p.stride()
-                    )
-                } else {
-                    format!(
-                        "none of the {} cells of the {} mask at --stride {} is valid in every measured material of the collection",
-                        grid.len(),
-                        p.mask(),
-                        p.stride()
-                    )
-                };
                 return Err(DistanceError::Backend(crate::error::BackendError::Invalid(
-                    why,
+                    crate::merl::grid::no_cells_reason(p.mask(), p.stride(), "the collection"),
                 )));
             }
             let all = lobes(coll, p.lobe());

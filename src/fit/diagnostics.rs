@@ -2,6 +2,7 @@
 //! basis, an unphysical albedo, a fit about as far from its target as a black material,
 //! or one that explains little of it.
 
+use crate::error::short_name;
 use super::TargetFit;
 use crate::collection::Collection;
 
@@ -31,7 +32,7 @@ pub fn fit_warnings(
         if basis.contains(&t) {
             w.push(format!(
                 "target `{}` is in the basis: its fit is exact and says nothing about the basis",
-                coll.materials()[t].name
+                short_name(&coll.materials()[t].name)
             ));
         }
     }
@@ -56,7 +57,7 @@ pub fn fit_warnings(
             if worst > WARN_ALBEDO {
                 w.push(format!(
                     "the fit of `{}` has a diffuse albedo of {worst:.3} (above 1: it reflects more light than it receives); the basis cannot represent it and its numbers mean little",
-                    f.material
+                    short_name(&f.material)
                 ));
                 continue;
             }
@@ -64,12 +65,12 @@ pub fn fit_warnings(
         if f.relative_mae > WARN_RELATIVE_MAE {
             w.push(format!(
                 "the fit of `{}` is almost as far from it as a black material (relative MAE {:.2}, relative residual {:.2}): this basis cannot represent it",
-                f.material, f.relative_mae, f.relative_residual
+                short_name(&f.material), f.relative_mae, f.relative_residual
             ));
         } else if f.relative_residual > WARN_RELATIVE_RESIDUAL {
             w.push(format!(
                 "the fit of `{}` explains little of it (relative residual {:.2}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
-                f.material, f.relative_residual
+                short_name(&f.material), f.relative_residual
             ));
         }
     }

@@ -71,7 +71,7 @@ pub enum FitFileError {
         source: crate::error::CollectionError,
     },
     /// The file holds no fit of the material asked for.
-    #[error("{path}: no fit of `{material}` (fitted: {available})")]
+    #[error("{path}: no fit of `{}` (fitted: {available})", crate::error::short_name(.material))]
     NoTarget {
         /// File.
         path: PathBuf,
@@ -81,7 +81,7 @@ pub enum FitFileError {
         available: String,
     },
     /// A target lacks the coefficient of a basis material.
-    #[error("{path}: the fit of `{material}` has no coefficient for basis material `{basis}`")]
+    #[error("{path}: the fit of `{}` has no coefficient for basis material `{}`", crate::error::short_name(.material), crate::error::short_name(.basis))]
     MissingCoefficient {
         /// File.
         path: PathBuf,

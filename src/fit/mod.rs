@@ -42,10 +42,10 @@ pub enum FitError {
         found: usize,
     },
     /// A material appears twice in the basis.
-    #[error("material `{0}` appears twice in the basis")]
+    #[error("material `{}` appears twice in the basis", crate::error::short_name(.0))]
     DuplicateBasis(String),
     /// A Gram quantity is not finite (non-finite data).
-    #[error("non-finite Gram entry for `{material}` (channel {channel}): the data holds NaN or infinite values")]
+    #[error("non-finite Gram entry for `{}` (channel {channel}): the data holds NaN or infinite values", crate::error::short_name(.material))]
     NonFinite {
         /// Material.
         material: String,
@@ -54,7 +54,7 @@ pub enum FitError {
     },
     /// The fit mask holds no cell valid in every material involved (measured tables
     /// with disjoint valid cells, or a grid stride that skips every valid cell).
-    #[error("no cell of the {mask} mask (stride {stride}) is valid in every material of the fit; use a smaller --stride, --mask valid, or materials measured over common cells")]
+    #[error("{}", crate::merl::grid::no_cells_reason(*.mask, *.stride, "the fit"))]
     NoCells {
         /// The mask.
         mask: Mask,
@@ -71,7 +71,7 @@ pub enum FitError {
     #[error(transparent)]
     Nnls(#[from] NnlsError),
     /// The fit of one material failed (non-finite data, or no convergence).
-    #[error("the NNLS fit of `{material}` (channel {channel}) failed: {reason}")]
+    #[error("the NNLS fit of `{}` (channel {channel}) failed: {reason}", crate::error::short_name(.material))]
     Solve {
         /// Material fitted (the target).
         material: String,

@@ -21,17 +21,14 @@ pub const TABLE_COS_H: usize = 0;
 /// See [`TABLE_COS_H`].
 pub const TABLE_SIN_H: usize = 90;
 /// See [`TABLE_COS_H`].
-pub const TABLE_LOG2_COS_H: usize = 180;
+pub const TABLE_COS_D: usize = 180;
 /// See [`TABLE_COS_H`].
-pub const TABLE_COS_D: usize = 270;
+pub const TABLE_SIN_D: usize = 270;
 /// See [`TABLE_COS_H`].
-pub const TABLE_SIN_D: usize = 360;
-/// See [`TABLE_COS_H`].
-pub const TABLE_SCHLICK_D: usize = 450;
-/// See [`TABLE_COS_H`].
-pub const TABLE_ABS_COS_P: usize = 540;
-/// Length of the grid-table buffer in f32.
-pub const TABLE_LEN: usize = 720;
+pub const TABLE_ABS_COS_P: usize = 360;
+/// Length of the grid-table buffer in f32 (a whole number of `vec4`s: the kernels read it
+/// as `array<vec4<f32>, T_LEN / 4u>`).
+pub const TABLE_LEN: usize = 540;
 
 /// Width in texels of the packed value textures (pairwise and tabulation kernels); keep
 /// in sync with `TEX_W` in `shaders/common.wgsl`.
@@ -47,10 +44,8 @@ pub fn grid_table_f32(t: &GridTables) -> Vec<f32> {
     for i in 0..90 {
         v[TABLE_COS_H + i] = t.cos_h[i] as f32;
         v[TABLE_SIN_H + i] = t.sin_h[i] as f32;
-        v[TABLE_LOG2_COS_H + i] = (t.ln_cos_h[i] / std::f64::consts::LN_2) as f32;
         v[TABLE_COS_D + i] = t.cos_d[i] as f32;
         v[TABLE_SIN_D + i] = t.sin_d[i] as f32;
-        v[TABLE_SCHLICK_D + i] = t.schlick_d[i] as f32;
     }
     for k in 0..180 {
         v[TABLE_ABS_COS_P + k] = t.abs_cos_p[k] as f32;

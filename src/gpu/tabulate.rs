@@ -1,6 +1,6 @@
 //! Tabulation kernel (`shaders/tabulate.wgsl`): analytic lobes in separable form over a
 //! list of grid cells, multiplied by per-cell row scales, packed four rows to a texel of an
-//! rgba32float texture ([`TabulateKernel::record_pack`]; the layout of the pairwise
+//! rgba32float texture ([`TabulateKernel::encode_pack`]; the layout of the pairwise
 //! kernel's measured row blocks); [`TabulateKernel::tabulate`] reads it back into planar
 //! rows. (The pairwise kernel itself tabulates analytic lobes in registers.)
 

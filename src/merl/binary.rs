@@ -42,7 +42,9 @@ impl MerlTable {
 }
 
 /// Reads and validates a MERL `.binary` file. Cells that are negative in any channel, or
-/// below the horizon on the grid, become invalid (all channels -1).
+/// below the horizon on the grid, become invalid (all channels -1). A file whose size or
+/// modification time changes while it is read (rewritten in place by another program) is
+/// refused: what was read may mix the old and the new table.
 pub fn read_binary(path: &Path) -> Result<MerlTable, MerlError> {
     let io = |source| MerlError::Io {
         path: path.to_path_buf(),
@@ -67,8 +69,40 @@ pub fn read_binary(path: &Path) -> Result<MerlTable, MerlError> {
         .map_err(io)?;
         parse_header(&head, meta.len(), path)?;
     }
-    let bytes = std::fs::read(path).map_err(io)?;
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let before = file.metadata().map_err(io)?;
+    if !before.is_file() {
+        // Replaced by something else between the two looks.
+        return Err(MerlError::NotRegular {
+            path: path.to_path_buf(),
+            kind: file_kind(&before),
+        });
+    }
+    let mut bytes = Vec::with_capacity(FILE_BYTES as usize);
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(&mut file, FILE_BYTES + 1),
+        &mut bytes,
+    )
+    .map_err(io)?;
+    let after = file.metadata().map_err(io)?;
+    if stamp(&before) != stamp(&after) || bytes.len() as u64 != before.len() {
+        return Err(MerlError::Changed {
+            path: path.to_path_buf(),
+        });
+    }
     parse_binary(&bytes, path)
+}
+
+/// What changes when a file is written: size, modification and status-change times.
+fn stamp(m: &std::fs::Metadata) -> (u64, Option<std::time::SystemTime>, (i64, i64)) {
+    #[cfg(unix)]
+    let ctime = {
+        use std::os::unix::fs::MetadataExt;
+        (m.ctime(), m.ctime_nsec())
+    };
+    #[cfg(not(unix))]
+    let ctime = (0, 0);
+    (m.len(), m.modified().ok(), ctime)
 }
 
 /// What a non-regular file is, in words (for messages).
@@ -124,11 +158,15 @@ pub fn parse_binary(bytes: &[u8], path: &Path) -> Result<MerlTable, MerlError> {
         for cell in 0..N_CELLS {
             let o = 8 * (c * N_CELLS + cell);
             let v = f64::from_le_bytes(raw[o..o + 8].try_into().unwrap_or([0; 8]));
-            if !v.is_finite() {
-                return Err(MerlError::NonFinite {
+            // Reflectance is kept in f32: a value it cannot hold is refused here, where
+            // the file and the cell are known, not found later as an infinite distance.
+            if !v.is_finite() || (v >= 0.0 && v * SCALE[c] > f32::MAX as f64) {
+                let (i, j, k) = grid::unflat(cell);
+                return Err(MerlError::BadValue {
                     path: path.to_path_buf(),
+                    index: c * N_CELLS + cell,
                     channel: c,
-                    cell,
+                    cell: [i, j, k],
                     value: v,
                 });
             }

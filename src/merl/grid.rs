@@ -238,6 +238,29 @@ impl std::fmt::Display for Weighting {
     }
 }
 
+/// Why a cell set of `mask` at `stride` came out empty for `what` (e.g. "the
+/// collection"), in words: either the sub-sampled grid itself has no cell in the mask
+/// (the stride leaves too few cells: say so, with the largest stride that leaves some),
+/// or the materials' valid cells have none in common.
+pub fn no_cells_reason(mask: Mask, stride: usize, what: &str) -> String {
+    let s = stride.max(1);
+    let in_mask = CellSet::new(mask, Weighting::Uniform, s).cells.len();
+    if in_mask > 0 {
+        return format!(
+            "no cell of the {mask} mask ({in_mask} cells at stride {s}) is valid in every material of {what}: their measured cells have none in common; use --mask valid or materials measured over common cells"
+        );
+    }
+    let (a, b, c) = (N_TH.div_ceil(s), N_TD.div_ceil(s), N_PD.div_ceil(s));
+    let largest = (1..s)
+        .rev()
+        .find(|&t| !CellSet::new(mask, Weighting::Uniform, t).cells.is_empty())
+        .unwrap_or(1);
+    format!(
+        "--stride {s} leaves too few cells: the grid sampled every {s} cells has {a} x {b} x {c} = {} cells, none of them in the {mask} mask; use --stride {largest} or less",
+        a * b * c
+    )
+}
+
 /// An ordered list of grid cells with weights normalised to sum 1: what every reduction
 /// over the grid (distances, Gram matrices, errors) iterates over.
 #[derive(Clone, Debug)]

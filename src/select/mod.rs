@@ -95,7 +95,7 @@ pub enum SelectionError {
         n: usize,
     },
     /// A material appears twice in a list.
-    #[error("{what}: material `{material}` is listed twice")]
+    #[error("{what}: material `{}` is listed twice", crate::error::short_name(.material))]
     Duplicate {
         /// Which list.
         what: &'static str,
@@ -150,7 +150,7 @@ pub enum SelectionError {
         source: crate::stats::StatsError,
     },
     /// A starting basis holds a material that is not a candidate.
-    #[error("the starting basis holds `{0}`, which is not among the candidates")]
+    #[error("the starting basis holds `{}`, which is not among the candidates", crate::error::short_name(.0))]
     InitNotCandidate(String),
     /// The Gram matrices given do not fit the collection.
     #[error(
@@ -165,7 +165,7 @@ pub enum SelectionError {
         found: usize,
     },
     /// A Gram entry is not finite.
-    #[error("non-finite Gram entry for `{material}` (channel {channel}): the data holds NaN or infinite values")]
+    #[error("non-finite Gram entry for `{}` (channel {channel}): the data holds NaN or infinite values", crate::error::short_name(.material))]
     NonFinite {
         /// Material.
         material: String,

@@ -1,15 +1,30 @@
 //! Shared test helpers.
 
+use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::Backend;
+use brdf_basis::backend::Lobe;
 use brdf_basis::collection::Collection;
+use brdf_basis::collection::{Material, MaterialData};
+use brdf_basis::fit::channel_lobe;
 use brdf_basis::gpu::GpuBackend;
-use std::path::PathBuf;
+use brdf_basis::merl::grid::{cell_info, N_CELLS};
+use brdf_basis::merl::MerlTable;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::sync::OnceLock;
 
 /// `../shared/data/<name>` beside the repository.
-pub fn shared(name: &str) -> PathBuf {
+fn shared(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data")
         .join(name)
+}
+
+/// Writes `line` to the process's standard error directly, past the test harness's
+/// capture of `eprintln!`, so that a SKIP shows in a plain `cargo test` run.
+fn visible(line: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "{line}");
 }
 
 /// `../shared/data/<name>` when it exists. When it does not, prints `SKIP (no shared
@@ -27,7 +42,10 @@ pub fn shared_or_skip(name: &str, test: &str) -> Option<PathBuf> {
             p.display()
         );
     }
-    eprintln!("SKIP (no shared data) {test}: {} is missing", p.display());
+    visible(&format!(
+        "SKIP (no shared data) {test}: {} is missing",
+        p.display()
+    ));
     None
 }
 
@@ -38,16 +56,66 @@ pub fn ngan_or_skip(test: &str) -> Option<Collection> {
     Some(Collection::load(&p).expect("../shared/data/ngan2005_ashikhmin_shirley.csv"))
 }
 
-/// The Ngan et al. 2005 Ashikhmin-Shirley table (100 materials). Panics when absent:
-/// prefer [`ngan_or_skip`].
-pub fn ngan() -> Collection {
-    Collection::load(&shared("ngan2005_ashikhmin_shirley.csv"))
-        .expect("../shared/data/ngan2005_ashikhmin_shirley.csv")
+/// The `brdf-basis` binary built for these tests, as a command.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
 }
 
-/// The `brdf-basis` binary built for these tests, as a command.
-pub fn bin() -> std::process::Command {
-    std::process::Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
+/// [`bin`] with `--quiet`.
+pub fn bin_quiet() -> Command {
+    let mut c = bin();
+    c.arg("--quiet");
+    c
+}
+
+/// [`bin`] with `--quiet --backend cpu`.
+pub fn bin_cpu() -> Command {
+    let mut c = bin();
+    c.args(["--quiet", "--backend", "cpu"]);
+    c
+}
+
+/// Writes `bytes` to `dir/name` and returns the path.
+pub fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).expect("write");
+    p
+}
+
+/// A measured copy of `lobe`: its f32 CPU tabulation on every cell, the same table in all
+/// three channels, read through `channel`.
+pub fn measured_lobe(lobe: &Lobe, channel: Option<usize>) -> Lobe {
+    let all: Vec<u32> = (0..N_CELLS as u32).collect();
+    let table = CpuBackend::new()
+        .tabulate(std::slice::from_ref(lobe), &all)
+        .expect("tab");
+    Lobe::Measured {
+        table: std::sync::Arc::new(MerlTable {
+            rgb: [table.clone(), table.clone(), table].concat(),
+        }),
+        channel,
+    }
+}
+
+/// A measured copy of an analytic material: its f64 values rounded to f32 in every valid
+/// cell, -1 elsewhere.
+pub fn measured_material(m: &Material) -> Material {
+    let cpu = CpuBackend::new();
+    let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+    let mut rgb = vec![-1f32; 3 * N_CELLS];
+    for c in 0..3 {
+        let v = cpu.values_f64(&channel_lobe(&m.data, c), &cells);
+        for (cell, x) in v.into_iter().enumerate() {
+            if cell_info(cell).valid {
+                rgb[c * N_CELLS + cell] = x as f32;
+            }
+        }
+    }
+    Material {
+        name: m.name.clone(),
+        data: MaterialData::Measured(std::sync::Arc::new(MerlTable { rgb })),
+        origin: "measured copy".into(),
+    }
 }
 
 /// The GPU back-end, opened once; `None` (after printing SKIP) when there is no adapter,
@@ -60,7 +128,7 @@ pub fn gpu(test: &str) -> Option<&'static GpuBackend> {
             if std::env::var("BRDF_BASIS_REQUIRE_GPU").is_ok_and(|v| v == "1") {
                 panic!("BRDF_BASIS_REQUIRE_GPU=1 but no GPU adapter: {e}");
             }
-            eprintln!("SKIP (no adapter) {test}: {e}");
+            visible(&format!("SKIP (no adapter) {test}: {e}"));
             None
         }
     }
@@ -84,4 +152,48 @@ pub fn rng(seed: u64) -> rand_chacha::ChaCha8Rng {
 /// A temporary directory.
 pub fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().expect("temp dir")
+}
+
+/// Runs `cmd` (stdin closed, stdout and stderr captured while it runs, so a chatty child
+/// never blocks on a full pipe) and returns its output, or `None` after killing it when
+/// it runs longer than `limit`.
+pub fn output_within(
+    cmd: &mut Command,
+    limit: std::time::Duration,
+) -> Option<std::process::Output> {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let drain = |mut r: Box<dyn Read + Send>| {
+        std::thread::spawn(move || {
+            let mut v = Vec::new();
+            let _ = r.read_to_end(&mut v);
+            v
+        })
+    };
+    let out = drain(Box::new(child.stdout.take().expect("stdout")));
+    let err = drain(Box::new(child.stderr.take().expect("stderr")));
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(st) = child.try_wait().expect("wait") {
+            break Some(st);
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let (stdout, stderr) = (out.join().expect("stdout"), err.join().expect("stderr"));
+    status.map(|status| std::process::Output {
+        status,
+        stdout,
+        stderr,
+    })
 }

@@ -149,9 +149,11 @@ impl Objective {
         let cells = fit_cells(coll, &all, &p.fit_params())?;
         if cells.is_empty() {
             return Err(SelectionError::Fit(crate::fit::FitError::Backend(
-                crate::error::BackendError::Invalid(
-                    "no grid cell is valid in every material of the collection".into(),
-                ),
+                crate::error::BackendError::Invalid(crate::merl::grid::no_cells_reason(
+                    p.mask,
+                    p.stride,
+                    "the collection",
+                )),
             )));
         }
         let grams = if p.gram == GramMode::Auto && coll.all_analytic() {

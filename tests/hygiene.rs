@@ -1,0 +1,353 @@
+//! Source hygiene: no import cycle between modules of `src/`.
+//!
+//! Every `crate::a::b` and `super::a` path in every source file (code and unit tests,
+//! comments left out) is resolved to the module file it names. Between siblings (the
+//! children of one module, the top-level modules being the children of the crate root)
+//! a use of anything inside a sibling counts as a use of that sibling, so `distance`
+//! using `crate::io::matrix::X` is an edge `distance -> io`. A parent using its own
+//! children, and a child using its ancestors, are containment, not cycles. Any strongly
+//! connected set of two or more siblings is a cycle and fails the test, each edge named
+//! with the file and the path that makes it.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// A module path from the crate root: `["io", "matrix"]` for `src/io/matrix.rs`.
+type ModPath = Vec<String>;
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<_> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.expect("entry").path())
+        .collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|e| e == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The module a file under `src/` defines (`lib.rs` and `main.rs` are the roots).
+fn module_of(rel: &Path) -> ModPath {
+    let mut parts: Vec<String> = rel
+        .iter()
+        .map(|s| s.to_string_lossy().into_owned())
+        .collect();
+    let last = parts.pop().expect("file name");
+    let stem = last.trim_end_matches(".rs");
+    if !matches!(stem, "mod" | "lib" | "main") {
+        parts.push(stem.to_string());
+    }
+    parts
+}
+
+/// The text without `//` comments (doc comments included), string contents kept out of
+/// the way well enough for paths: a `//` inside a string literal ends nothing here
+/// because only `//` at the start of a line or after whitespace starts a comment.
+fn strip_comments(text: &str) -> String {
+    text.lines()
+        .map(|line| {
+            let t = line.trim_start();
+            if t.starts_with("//") {
+                return "";
+            }
+            match line.find(" //") {
+                Some(i) if !line[..i].contains('"') => &line[..i],
+                _ => line,
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn is_ident(c: char) -> bool {
+    c.is_ascii_alphanumeric() || c == '_'
+}
+
+/// The paths a `use` tree or path starting at `rest` (just after `crate::` or `super::`)
+/// names, each as its segments: `{a::B, c::{d, e}}` gives `[a, B]`, `[c, d]`, `[c, e]`.
+fn paths_at(rest: &str) -> Vec<Vec<String>> {
+    let rest = rest.trim_start();
+    if let Some(inner) = rest.strip_prefix('{') {
+        // Split the group at depth-0 commas up to its closing brace.
+        let (mut depth, mut start, mut items) = (0usize, 0usize, Vec::new());
+        for (i, c) in inner.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' if depth == 0 => {
+                    items.push(&inner[start..i]);
+                    break;
+                }
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    items.push(&inner[start..i]);
+                    start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        return items
+            .into_iter()
+            .filter(|s| !s.trim().is_empty())
+            .flat_map(paths_at)
+            .collect();
+    }
+    let end = rest.find(|c: char| !is_ident(c)).unwrap_or(rest.len());
+    let head = &rest[..end];
+    if head.is_empty() {
+        return vec![vec![]];
+    }
+    let after = &rest[end..];
+    match after.trim_start().strip_prefix("::") {
+        Some(tail) => paths_at(tail)
+            .into_iter()
+            .map(|mut p| {
+                p.insert(0, head.to_string());
+                p
+            })
+            .collect(),
+        None => vec![vec![head.to_string()]],
+    }
+}
+
+/// Every module path `code` in module `here` refers to through `crate::` or `super::`,
+/// resolved against the known module files (the longest known prefix), with the path as
+/// written.
+fn references(code: &str, here: &ModPath, modules: &BTreeSet<ModPath>) -> Vec<(ModPath, String)> {
+    let mut out = Vec::new();
+    for key in ["crate::", "super::"] {
+        let mut from = 0;
+        while let Some(i) = code[from..].find(key) {
+            let at = from + i;
+            from = at + key.len();
+            if at > 0 && code[..at].ends_with(|c: char| is_ident(c) || c == ':') {
+                continue; // `foo::crate::` or the second `super::` of `super::super::`
+            }
+            let (base, mut rest, lead) = if key == "crate::" {
+                (Vec::new(), &code[from..], key.to_string())
+            } else {
+                let mut b = here.clone();
+                b.pop();
+                let (mut r, mut lead) = (&code[from..], key.to_string());
+                while let Some(t) = r.strip_prefix("super::") {
+                    b.pop();
+                    r = t;
+                    lead.push_str(key);
+                }
+                (b, r, lead)
+            };
+            if rest.starts_with("self::") {
+                rest = &rest["self::".len()..];
+            }
+            for p in paths_at(rest) {
+                let mut full = base.clone();
+                full.extend(p.iter().cloned());
+                let mut m = full.clone();
+                while !m.is_empty() && !modules.contains(&m) {
+                    m.pop();
+                }
+                out.push((m, format!("{lead}{}", p.join("::"))));
+            }
+        }
+    }
+    out
+}
+
+/// Strongly connected components (Tarjan) of a small graph given as adjacency sets.
+fn sccs(graph: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
+    struct T<'a> {
+        g: &'a BTreeMap<String, BTreeSet<String>>,
+        index: BTreeMap<&'a str, usize>,
+        low: BTreeMap<&'a str, usize>,
+        stack: Vec<&'a str>,
+        on: BTreeSet<&'a str>,
+        out: Vec<Vec<String>>,
+    }
+    fn visit<'a>(t: &mut T<'a>, v: &'a str) {
+        let i = t.index.len();
+        t.index.insert(v, i);
+        t.low.insert(v, i);
+        t.stack.push(v);
+        t.on.insert(v);
+        if let Some(next) = t.g.get(v) {
+            for w in next {
+                let w = w.as_str();
+                if !t.index.contains_key(w) {
+                    visit(t, w);
+                    let lw = t.low[w];
+                    let lv = t.low.get_mut(v).expect("v");
+                    *lv = (*lv).min(lw);
+                } else if t.on.contains(w) {
+                    let iw = t.index[w];
+                    let lv = t.low.get_mut(v).expect("v");
+                    *lv = (*lv).min(iw);
+                }
+            }
+        }
+        if t.low[v] == t.index[v] {
+            let mut comp = Vec::new();
+            loop {
+                let w = t.stack.pop().expect("stack");
+                t.on.remove(w);
+                comp.push(w.to_string());
+                if w == v {
+                    break;
+                }
+            }
+            if comp.len() > 1 {
+                comp.sort();
+                t.out.push(comp);
+            }
+        }
+    }
+    let mut t = T {
+        g: graph,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        on: BTreeSet::new(),
+        out: Vec::new(),
+    };
+    let nodes: BTreeSet<&str> = graph
+        .iter()
+        .flat_map(|(a, bs)| std::iter::once(a.as_str()).chain(bs.iter().map(|b| b.as_str())))
+        .collect();
+    for v in nodes {
+        if !t.index.contains_key(v) {
+            visit(&mut t, v);
+        }
+    }
+    t.out
+}
+
+/// The cycles among the modules of the source tree at `src`, one line per cycle with the
+/// uses that make it.
+fn import_cycles(src: &Path) -> Vec<String> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    let files: Vec<(PathBuf, ModPath)> = files
+        .into_iter()
+        .map(|p| {
+            let m = module_of(p.strip_prefix(src).expect("under src"));
+            (p, m)
+        })
+        .collect();
+    let modules: BTreeSet<ModPath> = files.iter().map(|(_, m)| m.clone()).collect();
+    // Per parent module: sibling graph and the evidence for each edge.
+    type Edges = BTreeMap<(String, String), BTreeSet<String>>;
+    let mut by_parent: BTreeMap<ModPath, Edges> = BTreeMap::new();
+    for (path, here) in &files {
+        let code = strip_comments(&std::fs::read_to_string(path).expect("read"));
+        for (target, written) in references(&code, here, &modules) {
+            let common = here.iter().zip(&target).take_while(|(a, b)| a == b).count();
+            if common == here.len() || common == target.len() {
+                continue; // itself, an ancestor or a descendant
+            }
+            let parent = here[..common].to_vec();
+            let (a, b) = (here[common].clone(), target[common].clone());
+            let rel = path
+                .strip_prefix(src)
+                .expect("under src")
+                .display()
+                .to_string();
+            by_parent
+                .entry(parent)
+                .or_default()
+                .entry((a, b))
+                .or_default()
+                .insert(format!("src/{rel} uses {written}"));
+        }
+    }
+    let mut cycles = Vec::new();
+    for (parent, edges) in &by_parent {
+        let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for (a, b) in edges.keys() {
+            graph.entry(a.clone()).or_default().insert(b.clone());
+        }
+        let prefix = if parent.is_empty() {
+            String::new()
+        } else {
+            format!("{}::", parent.join("::"))
+        };
+        for comp in sccs(&graph) {
+            let set: BTreeSet<&String> = comp.iter().collect();
+            let mut why = Vec::new();
+            for ((a, b), ev) in edges {
+                if set.contains(a) && set.contains(b) {
+                    let first: Vec<&str> = ev.iter().take(3).map(String::as_str).collect();
+                    let more = ev.len().saturating_sub(3);
+                    why.push(format!(
+                        "{prefix}{a} -> {prefix}{b} ({}{})",
+                        first.join("; "),
+                        if more > 0 {
+                            format!("; and {more} more")
+                        } else {
+                            String::new()
+                        }
+                    ));
+                }
+            }
+            let names: Vec<String> = comp.iter().map(|m| format!("{prefix}{m}")).collect();
+            cycles.push(format!(
+                "cycle between {}:\n    {}",
+                names.join(", "),
+                why.join("\n    ")
+            ));
+        }
+    }
+    cycles
+}
+
+#[test]
+fn the_module_graph_of_src_has_no_import_cycle() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let cycles = import_cycles(&src);
+    assert!(
+        cycles.is_empty(),
+        "{} import cycle(s) between modules of src/:\n{}",
+        cycles.len(),
+        cycles.join("\n")
+    );
+}
+
+#[test]
+fn the_cycle_check_finds_a_planted_cycle_and_ignores_containment() {
+    let d = crate::common::tmp();
+    let src = d.path();
+    let put = |rel: &str, text: &str| {
+        let p = src.join(rel);
+        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
+        std::fs::write(&p, text).expect("write");
+    };
+    put("lib.rs", "pub mod a;\npub mod b;\npub mod c;\n");
+    put(
+        "a/mod.rs",
+        "pub mod inner;\nuse crate::c::X;\n// crate::b::Commented is not a use\n",
+    );
+    put("a/inner.rs", "use super::super::b::Y;\nuse crate::a::Z;\n");
+    put("b.rs", "pub fn f() {\n    crate::c::g();\n}\n");
+    put("c.rs", "use crate::{b::K, a::{inner::L, M}};\n");
+    let cycles = import_cycles(src);
+    assert_eq!(cycles.len(), 1, "{cycles:?}");
+    let c = &cycles[0];
+    assert!(c.starts_with("cycle between a, b, c:"), "{c}");
+    assert!(
+        c.contains("a -> b (src/a/inner.rs uses super::super::b::Y)"),
+        "{c}"
+    );
+    assert!(
+        c.contains("c -> a (src/c.rs uses crate::a::M; src/c.rs uses crate::a::inner::L)"),
+        "{c}"
+    );
+    assert!(!c.contains("Commented"), "{c}");
+    // Without the edge back to `a`: no cycle (the child's use of its parent is not one).
+    put("c.rs", "use crate::b::K;\n");
+    let cycles = import_cycles(src);
+    assert_eq!(cycles.len(), 1, "b <-> c remains: {cycles:?}");
+    assert!(cycles[0].starts_with("cycle between b, c:"), "{cycles:?}");
+    put("c.rs", "pub struct X;\n");
+    assert!(import_cycles(src).is_empty());
+}
