@@ -12,6 +12,7 @@ mod collection;
 mod determinism;
 mod distance;
 mod figures;
+mod fingerprints;
 mod fit;
 mod gpu_kernels;
 mod grid;

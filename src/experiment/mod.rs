@@ -313,6 +313,8 @@ pub struct MetricSpec {
 pub struct Settings {
     /// Number of materials.
     pub materials: usize,
+    /// [`Collection::fingerprint`] of the collection the experiment ran on.
+    pub collection_fingerprint: String,
     /// Back-end name.
     pub backend: String,
     /// First seed.
@@ -570,6 +572,7 @@ pub fn run(
     Ok(Experiment {
         settings: Settings {
             materials: coll.len(),
+            collection_fingerprint: coll.fingerprint(),
             backend: backend.name(),
             seed: p.seed,
             runs: p.runs,

@@ -112,6 +112,8 @@ pub struct CvResult {
     pub mask: String,
     /// Weighting.
     pub weighting: String,
+    /// [`Collection::fingerprint`] of the collection cross-validated.
+    pub collection_fingerprint: String,
 }
 
 /// Runs the cross-validation: builds the objective and (for clustering methods) the
@@ -183,6 +185,7 @@ pub fn cross_validate_with(
         tests,
         mask: p.objective.mask.to_string(),
         weighting: p.objective.weighting.to_string(),
+        collection_fingerprint: coll.fingerprint(),
     })
 }
 
