@@ -34,6 +34,7 @@ pub mod hash;
 pub mod io;
 pub mod merl;
 pub mod nnls;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod select;
 pub mod separable;
