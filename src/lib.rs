@@ -15,7 +15,7 @@
 //! [`select_swap`], [`select_ga`], [`empirical`], [`fit()`], [`cross_validate`];
 //! k-medoids is [`KMedoidsParams::fit`]), one [`Error`] and [`Result`]. Each function
 //! checks its parameters before any work and reports no progress; the module functions
-//! behind them ([`distance::distance_matrix`], [`select::greedy`], [`fit::fit`], ...)
+//! behind them ([`distance::distance_matrix`], [`select::greedy()`], [`fit::fit`], ...)
 //! take a `(done, total)` progress callback. [`wgpu`] and [`pollster`] are re-exported,
 //! so the host uses the wgpu this crate is built against without pinning it
 //! (`examples/embed.rs` opens its own device and hands it over).
