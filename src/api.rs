@@ -195,3 +195,58 @@ pub fn cross_validate(backend: &dyn Backend, coll: &Collection, p: &CvParams) ->
     let valid = p.check(coll.len())?;
     Ok(crate::select::cross_validate(backend, coll, &valid, &|_, _| {})?)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The facade is the module functions with checked parameters and no progress: the
+    /// same numbers, bit for bit.
+    #[test]
+    fn facade_results_are_the_module_results() {
+        let cpu = CpuBackend::new();
+        let coll = Collection::embedded_default();
+        let dp = DistanceParams::default().stride(8);
+        let d = distances(&cpu, &coll, &dp).unwrap();
+        let m = crate::distance::distance_matrix(&cpu, &coll, &dp.check(&coll).unwrap(), &|_, _| {})
+            .unwrap();
+        assert_eq!(d.names(), m.names());
+        for i in 0..coll.len() {
+            for j in 0..coll.len() {
+                assert_eq!(d.dist(i, j).to_bits(), m.dist(i, j).to_bits());
+            }
+        }
+        let op = ObjectiveParams::default().stride(8);
+        let obj = objective(&cpu, &coll, &op).unwrap();
+        let sp = SearchParams::new(3);
+        let g = select_greedy(&obj, &sp).unwrap();
+        let vp = sp.check(obj.names()).unwrap();
+        assert_eq!(g, crate::select::greedy(&obj, &vp, &|_, _| {}).unwrap());
+        let targets: Vec<usize> = (0..coll.len()).filter(|t| !g.indices.contains(t)).collect();
+        let fp = FitParams {
+            stride: 8,
+            ..Default::default()
+        };
+        let f = fit(&cpu, &coll, &g.indices, &targets, &fp).unwrap();
+        let m = crate::fit::fit(&cpu, &coll, &g.indices, &targets, &fp, &|_, _| {}).unwrap();
+        // serde_json writes f64 by the shortest round-trip form: equal text, equal bits.
+        assert_eq!(
+            serde_json::to_string(&f).unwrap(),
+            serde_json::to_string(&m).unwrap()
+        );
+    }
+
+    /// A module's error passes through [`Error`] with its message unchanged.
+    #[test]
+    fn module_errors_keep_their_message() {
+        let cpu = CpuBackend::new();
+        let coll = Collection::embedded_default();
+        let p = DistanceParams::default().stride(0);
+        let direct = p.check(&coll).unwrap_err().to_string();
+        let e = distances(&cpu, &coll, &p).unwrap_err();
+        assert!(matches!(e, Error::Distance(_)), "{e:?}");
+        assert_eq!(e.to_string(), direct);
+        let e = fit(&cpu, &coll, &[], &[1], &FitParams::default()).unwrap_err();
+        assert!(matches!(e, Error::Fit(crate::fit::FitError::EmptyBasis)), "{e:?}");
+    }
+}

@@ -115,7 +115,8 @@ impl GpuContext {
     }
 
     /// Wraps a caller's device and queue (embedding brdf-basis as a compute back-end).
-    /// `limits` should be those the device was created with (`device.limits()`).
+    /// The limits are read from the device (`device.limits()`); open it with the
+    /// adapter's (`required_limits: adapter.limits()`) so the kernels can use them.
     pub fn from_device(
         device: Arc<wgpu::Device>,
         queue: Arc<wgpu::Queue>,
