@@ -26,7 +26,7 @@ pub use crate::cluster::{KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsPara
 pub use crate::collection::Collection;
 pub use crate::distance::{DistanceMatrix, DistanceParams, Distances, Metric};
 pub use crate::fit::{FitParams, GramMode, Solver, TargetFit};
-pub use crate::gpu::GpuBackend;
+pub use crate::backend::gpu::GpuBackend;
 pub use crate::merl::{Mask, Weighting};
 pub use crate::select::{
     CvMethod, CvParams, CvResult, Empirical, EmpiricalParams, GaParams, Objective,
@@ -110,7 +110,7 @@ pub fn gpu_backend(
     queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
 ) -> Result<GpuBackend> {
-    let ctx = crate::gpu::GpuContext::from_device(Arc::new(device), Arc::new(queue), info);
+    let ctx = crate::backend::gpu::GpuContext::from_device(Arc::new(device), Arc::new(queue), info);
     Ok(GpuBackend::with_context(ctx)?)
 }
 

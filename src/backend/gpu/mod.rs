@@ -18,7 +18,7 @@ use std::sync::Arc;
 
 /// WGSL shared by every kernel.
 #[doc(hidden)]
-pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
+pub const COMMON_WGSL: &str = include_str!("../../../shaders/common.wgsl");
 
 /// Offsets of the grid-table buffer; keep in sync with `T_*` in `shaders/common.wgsl`.
 #[doc(hidden)]
