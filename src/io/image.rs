@@ -489,14 +489,13 @@ mod tests {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "plot"))]
 mod colour_bar_tests {
     use super::*;
     use crate::eval::image_error::viridis;
 
     /// The bar runs from the top colour of viridis (at the top) to the bottom colour, and
     /// the heatmap's pixels are kept.
-    #[cfg(feature = "plot")]
     #[test]
     fn colour_bar_spans_the_scale_and_keeps_the_heatmap() {
         let heat = Rgb8Image {
