@@ -9,13 +9,11 @@
 //! Without a GPU adapter it prints `SKIP (no adapter)` and exits 0, unless
 //! `BRDF_BASIS_REQUIRE_GPU=1` (as in CI), when it fails.
 
-use brdf_basis::backend::cpu::CpuBackend;
-use brdf_basis::cluster::{KMedoidsInit, KMedoidsParams};
-use brdf_basis::collection::Collection;
-use brdf_basis::distance::{distance_matrix, DistanceParams, Distances};
-use brdf_basis::fit::{fit, FitParams, GramMode};
-use brdf_basis::backend::gpu::{GpuBackend, GpuContext};
-use std::sync::Arc;
+//! Only the crate-root facade is used, and wgpu and pollster through `brdf_basis`.
+
+use brdf_basis::{pollster, wgpu};
+use brdf_basis::{Collection, CpuBackend, DistanceParams, Distances, FitParams, GramMode};
+use brdf_basis::{KMedoidsInit, KMedoidsParams, Metric};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 1. The host program's own device (any adapter; lavapipe in CI).
@@ -41,15 +39,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("adapter: {}", adapter.get_info().name);
 
     // 2. Hand it to brdf-basis.
-    let ctx = GpuContext::from_device(Arc::new(device), Arc::new(queue), adapter.get_info());
-    let gpu = GpuBackend::with_context(ctx)?;
+    let gpu = brdf_basis::gpu_backend(device, queue, adapter.get_info())?;
 
     // 3. Distances, a basis and fits on the embedded default collection (every 4th cell
     //    per grid axis, to stay quick on a software adapter).
     let coll = Collection::embedded_default();
-    let dp = DistanceParams::default().stride(4).check(&coll)?;
-    let d = distance_matrix(&gpu, &coll, &dp, &|_, _| {})?;
-    let d_cpu = distance_matrix(&CpuBackend::new(), &coll, &dp, &|_, _| {})?;
+    let dp = DistanceParams::default().metric(Metric::BrdfIt).stride(4);
+    let d = brdf_basis::distances(&gpu, &coll, &dp)?;
+    let d_cpu = brdf_basis::distances(&CpuBackend::new(), &coll, &dp)?;
     let n = coll.len();
     let mut worst = 0f64;
     for i in 0..n {
@@ -84,7 +81,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         gram: GramMode::Grid,
         ..Default::default()
     };
-    let fits = fit(&gpu, &coll, &basis, &targets, &fp, &|_, _| {})?;
+    let fits = brdf_basis::fit(&gpu, &coll, &basis, &targets, &fp)?;
     let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
     println!("fitted {} materials, mean MAE {mean:.4e}", fits.len());
     if fits.len() != targets.len() || !mean.is_finite() {

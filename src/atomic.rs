@@ -128,6 +128,7 @@ fn unregister(p: &Pending) {
 /// Removes every temporary file, staging directory and created (still empty) directory
 /// that this process has not yet put in place, newest first. For signal handlers: call
 /// it, then exit. A commit in progress is finished first.
+#[doc(hidden)]
 pub fn remove_pending() {
     ABORTING.store(true, Ordering::SeqCst);
     let _commit = lock(&COMMIT);

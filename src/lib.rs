@@ -7,17 +7,56 @@
 //! Data flows `brdf` (models) -> `merl` (grid, `.binary`) -> `backend` / `gpu` (tabulation
 //! and reductions over the grid) -> `distance`, `nnls`, `cluster`, `select` -> `eval`.
 //!
-//! ```no_run
-//! use brdf_basis::{backend::cpu::CpuBackend, collection::Collection, distance::*};
-//! let coll = Collection::embedded_default();
-//! let params = DistanceParams::default().check(&coll).unwrap();
-//! let d = distance_matrix(&CpuBackend::new(), &coll, &params, &|_, _| {}).unwrap();
-//! println!("{} x {}", d.names().len(), d.names().len());
+//! ## Embedding
+//!
+//! The crate root is the facade for a host program: [`Collection`], the back-ends
+//! ([`gpu_backend`] on the host's own wgpu device, [`CpuBackend`], [`open_backend`]),
+//! one function per stage ([`distances`], [`objective`], [`select_greedy`],
+//! [`select_swap`], [`select_ga`], [`empirical`], [`fit()`], [`cross_validate`];
+//! k-medoids is [`KMedoidsParams::fit`]), one [`Error`] and [`Result`]. Each function
+//! checks its parameters before any work and reports no progress; the module functions
+//! behind them ([`distance::distance_matrix`], [`select::greedy()`], [`fit::fit`], ...)
+//! take a `(done, total)` progress callback. [`wgpu`] and [`pollster`] are re-exported,
+//! so the host uses the wgpu this crate is built against without pinning it
+//! (`examples/embed.rs` opens its own device and hands it over).
+//!
+//! Acquisition (choosing which materials to measure next) is not part of the crate yet.
+//!
 //! ```
+//! use brdf_basis::{CpuBackend, Collection, DistanceParams, FitParams, KMedoidsParams};
+//! use brdf_basis::{ObjectiveParams, SearchParams};
+//!
+//! # fn main() -> brdf_basis::Result<()> {
+//! let cpu = CpuBackend::new(); // or brdf_basis::gpu_backend(device, queue, info)?
+//! let coll = Collection::embedded_default();
+//! // Every 8th cell per grid axis keeps the example quick; the default is the full grid.
+//! let d = brdf_basis::distances(&cpu, &coll, &DistanceParams::default().stride(8))?;
+//! let km = KMedoidsParams::new(3).fit(&d)?;
+//! let obj = brdf_basis::objective(&cpu, &coll, &ObjectiveParams::default().stride(8))?;
+//! let greedy = brdf_basis::select_greedy(&obj, &SearchParams::new(3))?;
+//! let targets: Vec<usize> = (0..coll.len()).filter(|t| !greedy.indices.contains(t)).collect();
+//! let fp = FitParams { stride: 8, ..Default::default() };
+//! let fits = brdf_basis::fit(&cpu, &coll, &greedy.indices, &targets, &fp)?;
+//! println!("k-medoids {:?}, greedy {:?}: {} fits", km.medoids, greedy.basis, fits.len());
+//! assert_eq!(fits.len(), coll.len() - 3);
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! The command line (feature `cli`, on by default) and the figures (feature `plot`, which
+//! `cli` turns on) are optional: `default-features = false` leaves out clap, indicatif,
+//! ctrlc, anyhow, libc and plotters.
 #![warn(missing_docs)]
 // Errors carry the file, line, column and material they name; they are cold paths, so
 // their size is not worth boxing.
 #![allow(clippy::result_large_err)]
+
+mod api;
+pub use api::*;
+/// The wgpu this crate is built against (hand [`gpu_backend`] a device from it).
+pub use wgpu;
+/// The executor the examples block on wgpu's futures with.
+pub use pollster;
 
 pub mod atomic;
 pub mod backend;
@@ -33,6 +72,7 @@ pub mod hash;
 pub mod io;
 pub mod merl;
 pub mod nnls;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod select;
 pub mod separable;

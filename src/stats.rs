@@ -20,6 +20,7 @@
 /// Everything but the studentized range delegates to `statrs` (`function::gamma`,
 /// `function::beta`, `distribution`); these thin wrappers keep the names the tests check
 /// against published values (scipy).
+#[doc(hidden)]
 pub mod special {
     use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 

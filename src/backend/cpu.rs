@@ -35,8 +35,10 @@ use crate::separable::SeparableLobe;
 use rayon::prelude::*;
 
 /// Lanes of the canonical summation order (module docs).
+#[doc(hidden)]
 pub const CANONICAL_LANES: usize = 8;
 /// Cells of a canonical run: [`CANONICAL_LANES`] lanes of 1,024 cells, each summed in f32.
+#[doc(hidden)]
 pub const CANONICAL_RUN: usize = 8192;
 /// Cells per streamed chunk: one canonical run. A row of a chunk is 32 KiB, so the 6 rows
 /// a 4 x 2 sub-block streams stay in L2 while the block pairs of the chunk reuse them.
@@ -371,6 +373,7 @@ fn fill_analytic(beta: &[f32], alpha: f32, cells: &[(usize, f32, f32)], out: &mu
 /// Every row of `a` and `b` must have the same length; otherwise nothing is added and an
 /// error names the lengths (the vector kernel reads every row up to the first row's
 /// length).
+#[doc(hidden)]
 pub fn block_reduce(
     op: PairOp,
     a: [&[f32]; BLOCK],

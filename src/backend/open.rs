@@ -6,9 +6,11 @@ use super::Backend;
 use crate::error::GpuError;
 use crate::backend::gpu::{GpuBackend, GpuContext};
 
-/// Which back-end to run on (spellings `auto`, `gpu`, `cpu` from the `clap::ValueEnum`
-/// derive, the one parser of option values; [`Display`](std::fmt::Display) writes them).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+/// Which back-end to run on (spellings `auto`, `gpu`, `cpu`: [`BackendChoice::as_str`],
+/// which [`Display`](std::fmt::Display) writes; the command line parses them by the
+/// `clap::ValueEnum` derive of the `cli` feature, whose names a unit test checks).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BackendChoice {
     /// A hardware GPU if there is one, else the CPU back-end (faster than a software
     /// rasteriser: ~18 G abs-diffs/s on 2 cores against ~4 for lavapipe).
@@ -49,7 +51,7 @@ pub fn open(choice: BackendChoice) -> Result<Box<dyn Backend>, GpuError> {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "cli"))]
 mod tests {
     use super::*;
 

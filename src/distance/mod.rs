@@ -225,6 +225,7 @@ pub fn distance_matrix(
 }
 
 /// f64 reference of BRDF_it (slow, single pass per pair over the cells; for tests).
+#[doc(hidden)]
 pub fn reference_pairwise_f64(lobes: &[Lobe], cells: &CellSet) -> Vec<f64> {
     use rayon::prelude::*;
     let t = crate::merl::GridTables::new();

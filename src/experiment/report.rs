@@ -75,6 +75,7 @@ pub fn count(n: usize, noun: &str) -> String {
 }
 
 /// Formats a value with 4 significant digits.
+#[doc(hidden)]
 pub fn sig(v: f64) -> String {
     if !v.is_finite() {
         return "inf".into();

@@ -128,6 +128,7 @@ impl Statistics {
 }
 
 /// Median of finite-or-infinite values (mean of the middle two for an even count).
+#[doc(hidden)]
 pub fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);

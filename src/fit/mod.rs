@@ -83,7 +83,8 @@ pub enum FitError {
 }
 
 /// Which NNLS solver.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Solver {
     /// Exact active-set Lawson-Hanson (f64).
@@ -94,7 +95,8 @@ pub enum Solver {
 }
 
 /// How Gram matrices and grid errors are computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum GramMode {
     /// The separable closed form (module `separable`) when every lobe is analytic, else
@@ -215,7 +217,7 @@ pub fn separable_lobes(lobes: &[Lobe]) -> Option<Vec<SeparableLobe>> {
 /// The full Gram matrix of `lobes` with the first `basis` as columns (layout of
 /// [`Backend::gram`]): the separable closed form in f64 when `mode` is `Auto` and every
 /// lobe is analytic, else the back-end's grid pass.
-pub fn gram_full(
+pub(crate) fn gram_full(
     backend: &dyn Backend,
     lobes: &[Lobe],
     cells: &CellSet,
@@ -238,6 +240,7 @@ pub type ChannelGram = (Vec<f64>, Vec<f64>, Vec<f64>);
 /// Gram quantities of one channel: returns `(G, hs, bbs)` with `G` the `(k+1)^2` Gram of
 /// the Lambertian and basis columns, `hs[t]` and `bbs[t]` per target.
 #[allow(clippy::too_many_arguments)]
+#[doc(hidden)]
 pub fn channel_gram(
     backend: &dyn Backend,
     coll: &Collection,
@@ -296,7 +299,7 @@ pub const PGD_FALLBACK_KKT: f64 = 1e-5;
 /// Solves one channel's batch with the chosen solver (PGD on the back-end: the GPU kernel
 /// in f32 on the GPU back-end; targets left above [`PGD_FALLBACK_KKT`] are re-solved
 /// exactly).
-pub fn solve_channel(
+pub(crate) fn solve_channel(
     backend: &dyn Backend,
     m: usize,
     g: &[f64],

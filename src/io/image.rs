@@ -8,7 +8,10 @@ use std::io::Cursor;
 use std::path::Path;
 
 use crate::error::OutputError;
-use crate::eval::image_error::{display_image, viridis, DisplayParams, Rgb8Image};
+use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
+#[cfg(feature = "plot")]
+use crate::eval::image_error::viridis;
+#[cfg(feature = "plot")]
 use plotters::prelude::*;
 use crate::eval::render::{sphere_mask, Image};
 use crate::atomic::write_atomic;
@@ -190,25 +193,33 @@ pub fn tick_label(v: f64) -> String {
     format!("{m}e{exp}")
 }
 
+#[cfg(feature = "plot")]
 const FONT: &str = "sans-serif";
 
 /// What a heatmap's colour bar measures.
 pub const HEATMAP_QUANTITY: &str = "per-pixel |error| after display mapping";
 
 /// Whether a font is registered for figure text (by `plot::font`).
+#[cfg(feature = "plot")]
 pub fn font_registered() -> bool {
     (FONT, 12).into_font().box_size("0").is_ok()
 }
 
+#[cfg(feature = "plot")]
 const BAR_W: u32 = 16;
+#[cfg(feature = "plot")]
 const GAP: u32 = 12;
+#[cfg(feature = "plot")]
 const LABELS: u32 = 70;
+#[cfg(feature = "plot")]
 const HEAD: u32 = 24;
+#[cfg(feature = "plot")]
 const MIN_BAR_H: u32 = 120;
 
 /// `heat` (a heatmap through [`viridis`]) with a colour bar for values `0..=top` beside
 /// it: both ends labelled and `quantity` above when `text` (a font is registered, see
-/// `plot::font`).
+/// `plot::font`). Needs the `plot` feature.
+#[cfg(feature = "plot")]
 pub fn with_colour_bar(
     heat: &Rgb8Image,
     top: f64,
@@ -478,7 +489,7 @@ mod tests {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "plot"))]
 mod colour_bar_tests {
     use super::*;
     use crate::eval::image_error::viridis;

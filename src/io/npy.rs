@@ -37,6 +37,7 @@ pub struct Npy2d {
 
 /// The `.npy` (format 1.0) header of a `rows x cols` little-endian float64 C-order array,
 /// padded to a multiple of 64 bytes (as NumPy writes it).
+#[doc(hidden)]
 pub fn npy_header(rows: usize, cols: usize) -> Vec<u8> {
     let mut header =
         format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({rows}, {cols}), }}");

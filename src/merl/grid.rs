@@ -167,11 +167,13 @@ pub fn cell_info(idx: usize) -> CellInfo {
 }
 
 /// Which cells a computation runs over. Spellings (`evaluation`, `valid`) come from one
-/// table, the `clap::ValueEnum` derive, used by the command line, [`FromStr`] and
-/// [`Display`](std::fmt::Display) alike.
+/// table, [`Mask::as_str`], used by [`FromStr`] and [`Display`](std::fmt::Display) alike
+/// (and by the command line's `clap::ValueEnum` derive with the `cli` feature, whose
+/// kebab-case names are the same; a unit test checks it).
 ///
 /// [`FromStr`]: std::str::FromStr
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Mask {
     /// Valid cells with theta_i, theta_o <= 80 deg and 2 theta_d >= 3 deg (paper VI-E).
@@ -181,7 +183,8 @@ pub enum Mask {
 }
 
 /// How cells are weighted (`uniform`, `solid-angle`; spellings as for [`Mask`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Weighting {
     /// Every cell of the mask weighs 1 (the paper's Eq. 5).
@@ -190,51 +193,80 @@ pub enum Weighting {
     SolidAngle,
 }
 
-/// Parses `s` by the `clap::ValueEnum` spellings of `T`; `what` names the option in the
-/// error.
-pub fn parse_value<T: clap::ValueEnum>(
+impl Mask {
+    /// Every mask, in the order of the spellings' list.
+    pub const ALL: [Mask; 2] = [Mask::Evaluation, Mask::Valid];
+
+    /// The spelling: `evaluation` or `valid`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mask::Evaluation => "evaluation",
+            Mask::Valid => "valid",
+        }
+    }
+}
+
+impl Weighting {
+    /// Every weighting, in the order of the spellings' list.
+    pub const ALL: [Weighting; 2] = [Weighting::Uniform, Weighting::SolidAngle];
+
+    /// The spelling: `uniform` or `solid-angle`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Weighting::Uniform => "uniform",
+            Weighting::SolidAngle => "solid-angle",
+        }
+    }
+}
+
+/// The value of `all` spelled exactly `s` (`as_str`); `what` names the option and
+/// `expected` lists the spellings in the error.
+fn parse_named<T: Copy>(
     s: &str,
+    all: &[T],
+    as_str: fn(T) -> &'static str,
     what: &'static str,
     expected: &'static str,
 ) -> Result<T, crate::error::DistanceError> {
-    T::from_str(s, false).map_err(|_| crate::error::DistanceError::UnknownOption {
-        what,
-        found: s.into(),
-        expected,
-    })
-}
-
-/// Writes the `clap::ValueEnum` spelling of `v`.
-pub fn fmt_value<T: clap::ValueEnum>(v: &T, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-    match v.to_possible_value() {
-        Some(p) => f.write_str(p.get_name()),
-        None => Ok(()),
-    }
+    all.iter()
+        .copied()
+        .find(|&v| as_str(v) == s)
+        .ok_or_else(|| crate::error::DistanceError::UnknownOption {
+            what,
+            found: s.into(),
+            expected,
+        })
 }
 
 impl std::str::FromStr for Mask {
     type Err = crate::error::DistanceError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        parse_value(s, "mask", "evaluation, valid")
+        parse_named(s, &Mask::ALL, Mask::as_str, "mask", "evaluation, valid")
     }
 }
 
 impl std::str::FromStr for Weighting {
     type Err = crate::error::DistanceError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        parse_value(s, "weighting", "uniform, solid-angle")
+        parse_named(
+            s,
+            &Weighting::ALL,
+            Weighting::as_str,
+            "weighting",
+            "uniform, solid-angle",
+        )
     }
 }
 
 impl std::fmt::Display for Mask {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        fmt_value(self, f)
+        f.write_str(self.as_str())
     }
 }
 
 impl std::fmt::Display for Weighting {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        fmt_value(self, f)
+        f.write_str(self.as_str())
     }
 }
 
@@ -407,5 +439,41 @@ impl GridTables {
         let f = f0 + (1.0 - f0) * self.schlick_d[j];
         (n + 1.0) * (n * self.ln_cos_h[i]).exp() * f
             / (8.0 * PI * self.cos_d[j] * self.max_cos(i, j, k))
+    }
+}
+
+#[cfg(test)]
+mod spelling_tests {
+    use super::*;
+
+    #[test]
+    fn spellings_round_trip_and_unknown_ones_are_named() {
+        for m in Mask::ALL {
+            assert_eq!(m.to_string().parse::<Mask>().unwrap(), m);
+        }
+        for w in Weighting::ALL {
+            assert_eq!(w.to_string().parse::<Weighting>().unwrap(), w);
+        }
+        assert_eq!("solid-angle".parse::<Weighting>().unwrap(), Weighting::SolidAngle);
+        let e = "Valid".parse::<Mask>().unwrap_err().to_string();
+        assert!(e.contains("`Valid`") && e.contains("evaluation, valid"), "{e}");
+        let e = "solid_angle".parse::<Weighting>().unwrap_err().to_string();
+        assert!(e.contains("uniform, solid-angle"), "{e}");
+    }
+
+    /// The command line's spellings (the `clap::ValueEnum` derive) are the library's.
+    #[cfg(feature = "cli")]
+    #[test]
+    fn clap_spellings_are_the_library_ones() {
+        use clap::ValueEnum;
+        for m in Mask::value_variants() {
+            assert_eq!(m.to_possible_value().unwrap().get_name(), m.as_str());
+            assert_eq!(Mask::from_str(m.as_str(), false).unwrap(), *m);
+        }
+        for w in Weighting::value_variants() {
+            assert_eq!(w.to_possible_value().unwrap().get_name(), w.as_str());
+        }
+        assert_eq!(Mask::value_variants().len(), Mask::ALL.len());
+        assert_eq!(Weighting::value_variants().len(), Weighting::ALL.len());
     }
 }

@@ -112,7 +112,7 @@ pub fn empirical(
 /// and all the others. A non-finite Gram entry, or a solve that stops at the outer-loop
 /// cap without meeting the KKT conditions (violation above `1e-6`), is an error naming the
 /// material.
-pub fn leave_one_out_contributors(
+pub(crate) fn leave_one_out_contributors(
     full: &[f64],
     names: &[String],
     channel: usize,
@@ -164,7 +164,7 @@ pub fn leave_one_out_contributors(
 /// as register tiles of 4 x 32 entries over a transposed copy of the betas, so the
 /// `O(n^2 x 8,100)` inner sums run in SIMD lanes (one lane per entry, no re-association)
 /// instead of one entry at a time with its per-lobe sums recomputed for every pair.
-pub fn separable_gram_all(mom: &CellMoments, lobes: &[SeparableLobe]) -> Vec<f64> {
+pub(crate) fn separable_gram_all(mom: &CellMoments, lobes: &[SeparableLobe]) -> Vec<f64> {
     const R: usize = 4;
     const Q: usize = 32;
     let n = lobes.len();

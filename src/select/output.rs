@@ -1,6 +1,6 @@
 //! The result of `brdf-basis select` (SPEC-cli, `select`): one typed value per method
 //! family, written and read back by the same type, each carrying the fingerprint of the
-//! collection it came from ([`crate::distance::collection_fingerprint`]; for a saved
+//! collection it came from ([`crate::collection::Collection::fingerprint`]; for a saved
 //! matrix, the one its sidecar records; `null` for a CSV matrix, which has none).
 
 use super::empirical::Empirical;

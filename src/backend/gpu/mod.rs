@@ -3,8 +3,11 @@
 //! with `shaders/common.wgsl`; each kernel module owns its pipeline and a CPU twin.
 
 pub mod backend;
+#[doc(hidden)]
 pub mod pairwise;
+#[doc(hidden)]
 pub mod pgd;
+#[doc(hidden)]
 pub mod tabulate;
 
 pub use backend::GpuBackend;
@@ -14,20 +17,27 @@ use crate::merl::GridTables;
 use std::sync::Arc;
 
 /// WGSL shared by every kernel.
+#[doc(hidden)]
 pub const COMMON_WGSL: &str = include_str!("../../../shaders/common.wgsl");
 
 /// Offsets of the grid-table buffer; keep in sync with `T_*` in `shaders/common.wgsl`.
+#[doc(hidden)]
 pub const TABLE_COS_H: usize = 0;
 /// See [`TABLE_COS_H`].
+#[doc(hidden)]
 pub const TABLE_SIN_H: usize = 90;
 /// See [`TABLE_COS_H`].
+#[doc(hidden)]
 pub const TABLE_COS_D: usize = 180;
 /// See [`TABLE_COS_H`].
+#[doc(hidden)]
 pub const TABLE_SIN_D: usize = 270;
 /// See [`TABLE_COS_H`].
+#[doc(hidden)]
 pub const TABLE_ABS_COS_P: usize = 360;
 /// Length of the grid-table buffer in f32 (a whole number of `vec4`s: the kernels read it
 /// as `array<vec4<f32>, T_LEN / 4u>`).
+#[doc(hidden)]
 pub const TABLE_LEN: usize = 540;
 
 /// Width in texels of the packed value textures (pairwise and tabulation kernels); keep
@@ -39,6 +49,7 @@ pub const NIJ: usize = crate::merl::grid::N_TH * crate::merl::grid::N_TD;
 
 /// The grid tables as the f32 array the kernels read (each entry computed in f64 and
 /// rounded once).
+#[doc(hidden)]
 pub fn grid_table_f32(t: &GridTables) -> Vec<f32> {
     let mut v = vec![0f32; TABLE_LEN];
     for i in 0..90 {
@@ -54,6 +65,7 @@ pub fn grid_table_f32(t: &GridTables) -> Vec<f32> {
 }
 
 /// The full source of a kernel: `common.wgsl` followed by the kernel's own file.
+#[doc(hidden)]
 pub fn kernel_source(kernel: &str) -> String {
     format!("{COMMON_WGSL}\n{kernel}")
 }
@@ -103,7 +115,8 @@ impl GpuContext {
     }
 
     /// Wraps a caller's device and queue (embedding brdf-basis as a compute back-end).
-    /// `limits` should be those the device was created with (`device.limits()`).
+    /// The limits are read from the device (`device.limits()`); open it with the
+    /// adapter's (`required_limits: adapter.limits()`) so the kernels can use them.
     pub fn from_device(
         device: Arc<wgpu::Device>,
         queue: Arc<wgpu::Queue>,
@@ -185,7 +198,7 @@ impl GpuContext {
     }
 
     /// A storage buffer initialised with `data`.
-    pub fn storage_init(
+    pub(crate) fn storage_init(
         &self,
         label: &str,
         data: &[u8],
@@ -210,6 +223,7 @@ impl GpuContext {
     }
 
     /// An uninitialised storage buffer of `size` bytes (at least 16).
+    #[doc(hidden)]
     pub fn storage(&self, label: &str, size: u64) -> wgpu::Buffer {
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -222,12 +236,12 @@ impl GpuContext {
     }
 
     /// A uniform buffer holding `data`.
-    pub fn uniform<T: bytemuck::Pod>(&self, label: &str, data: &T) -> wgpu::Buffer {
+    pub(crate) fn uniform<T: bytemuck::Pod>(&self, label: &str, data: &T) -> wgpu::Buffer {
         self.uniform_slice(label, std::slice::from_ref(data))
     }
 
     /// A uniform buffer holding the elements of `data`.
-    pub fn uniform_slice<T: bytemuck::Pod>(&self, label: &str, data: &[T]) -> wgpu::Buffer {
+    pub(crate) fn uniform_slice<T: bytemuck::Pod>(&self, label: &str, data: &[T]) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -240,7 +254,7 @@ impl GpuContext {
     /// An rgba32float texture of width [`TEX_W`] holding `texels` (rgba)
     /// linearly (texel `k` at `(k % TEX_W, k / TEX_W)`, zero-padded to whole rows): a table
     /// the kernels fetch with vector gathers.
-    pub fn linear_texture(&self, label: &str, texels: &[f32]) -> wgpu::TextureView {
+    pub(crate) fn linear_texture(&self, label: &str, texels: &[f32]) -> wgpu::TextureView {
         let row = 4 * TEX_W;
         let mut padded = texels.to_vec();
         padded.resize(texels.len().div_ceil(row).max(1) * row, 0.0);
@@ -284,7 +298,7 @@ impl GpuContext {
 
     /// An rgba32float texture of width [`TEX_W`] and `height` rows, used as
     /// `usage` says.
-    pub fn packed_texture(
+    pub(crate) fn packed_texture(
         &self,
         label: &str,
         height: u32,
@@ -307,7 +321,7 @@ impl GpuContext {
     }
 
     /// A bind group over `buffers` bound at 0, 1, 2, ... of group 0 of `pipeline`.
-    pub fn bind(
+    pub(crate) fn bind(
         &self,
         pipeline: &wgpu::ComputePipeline,
         buffers: &[&wgpu::Buffer],
@@ -321,7 +335,7 @@ impl GpuContext {
     }
 
     /// A bind group of group 0 of `pipeline` from `(binding, resource)` pairs.
-    pub fn bind_at(
+    pub(crate) fn bind_at(
         &self,
         pipeline: &wgpu::ComputePipeline,
         resources: Vec<(u32, wgpu::BindingResource<'_>)>,
@@ -339,6 +353,7 @@ impl GpuContext {
 
     /// Submits `encoder` after copying `size` bytes of `src` into a staging buffer, waits,
     /// and returns the bytes: every readback of the crate goes through here.
+    #[doc(hidden)]
     pub fn submit_and_read(
         &self,
         mut encoder: wgpu::CommandEncoder,
@@ -401,7 +416,7 @@ impl GpuContext {
     }
 
     /// A new command encoder.
-    pub fn encoder(&self) -> wgpu::CommandEncoder {
+    pub(crate) fn encoder(&self) -> wgpu::CommandEncoder {
         self.device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None })
     }
@@ -410,6 +425,7 @@ impl GpuContext {
 /// Compute pipelines compiled on first use, by key (kernel variants generated per shape,
 /// column count, ...).
 #[derive(Debug)]
+#[doc(hidden)]
 pub struct PipelineCache<K> {
     compiled: std::sync::Mutex<Vec<(K, wgpu::ComputePipeline)>>,
 }
@@ -440,7 +456,7 @@ impl<K: PartialEq + Copy> PipelineCache<K> {
 }
 
 /// Records one compute pass dispatching `pipeline` over `groups` workgroups.
-pub fn dispatch(
+pub(crate) fn dispatch(
     encoder: &mut wgpu::CommandEncoder,
     pipeline: &wgpu::ComputePipeline,
     bind: &wgpu::BindGroup,
