@@ -20,6 +20,7 @@ mod hygiene;
 mod inputs;
 mod integrity;
 mod kmedoids;
+mod leftovers;
 mod measured;
 mod outputs;
 mod reproduce;

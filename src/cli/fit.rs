@@ -139,14 +139,17 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         w.write_all(b"\n")
     })?;
     out.commit()?;
-    let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
-    let rho = fits.iter().map(|f| f.relative_residual).sum::<f64>() / fits.len() as f64;
-    let rmae = fits.iter().map(|f| f.relative_mae).sum::<f64>() / fits.len() as f64;
+    let mean_of = |v: fn(&brdf_basis::fit::TargetFit) -> f64| {
+        brdf_basis::stats::num(brdf_basis::stats::mean(&fits.iter().map(v).collect::<Vec<_>>()))
+    };
     println!(
-        "wrote {} ({} target{}, mean MAE {mean:.4e}, mean relative residual {rho:.3}, mean relative MAE {rmae:.3})",
+        "wrote {} ({} target{}, mean MAE {}, mean relative residual {}, mean relative MAE {})",
         a.json.display(),
         fits.len(),
-        if fits.len() == 1 { "" } else { "s" }
+        if fits.len() == 1 { "" } else { "s" },
+        mean_of(|f| f.mae),
+        mean_of(|f| f.relative_residual),
+        mean_of(|f| f.relative_mae)
     );
     if let Some(dir) = &a.export {
         for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {

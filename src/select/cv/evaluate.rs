@@ -14,7 +14,7 @@ use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
-use crate::stats::StatsError;
+use crate::stats::{mean, median, StatsError};
 
 /// What the held-out materials are evaluated with: the objective, the grid MAE and renders
 /// of every material (SPEC 7: light (45, 45)).
@@ -232,35 +232,9 @@ impl<'a> GridEval<'a> {
     }
 }
 
-/// Mean (NaN for no value).
-pub(crate) fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
-    }
-}
-
-/// Median (NaN for no value; the mean of the two middle values for an even count).
-pub(crate) fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    match s.len() {
-        0 => f64::NAN,
-        l if l % 2 == 1 => s[l / 2],
-        l => 0.5 * (s[l / 2 - 1] + s[l / 2]),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn median_of_even_and_odd() {
-        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
-    }
 
     fn result(method: &str, v: &[f64]) -> CvMethodResult {
         CvMethodResult {
