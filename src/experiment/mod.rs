@@ -18,7 +18,6 @@
 pub mod bases;
 pub mod claims;
 pub mod evaluation;
-pub mod files;
 pub mod layout;
 pub mod report;
 pub mod statistics;

@@ -42,13 +42,19 @@ impl EmpiricalOutput {
                 most: e.counts.iter().copied().max().unwrap_or(0),
             });
         }
-        Ok(Self {
+        Ok(Self::of(e, fingerprint))
+    }
+
+    /// The output of an empirical selection as it is, an empty basis included (`reproduce`
+    /// writes it as `empirical.json` and reports an empty basis itself).
+    pub fn of(e: &Empirical, fingerprint: Option<String>) -> Self {
+        Self {
             method: "empirical".into(),
             histogram: e.histogram.clone(),
             contributors: e.contributors.clone(),
             basis: e.basis.clone(),
             collection_fingerprint: fingerprint,
-        })
+        }
     }
 }
 
