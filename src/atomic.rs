@@ -673,6 +673,9 @@ impl OutputPlan {
         }
         let exists = self.check_dir_target(path, &k, flag)?;
         if exists {
+            // A run killed by SIGKILL left its staging root in the tree: not an entry of
+            // an earlier result, and removable (only those of dead processes).
+            remove_stale_stages(path);
             let entries: Vec<String> = std::fs::read_dir(path)
                 .map_err(|e| io_err(path, e))?
                 .map(|e| e.map(|e| e.file_name().to_string_lossy().into_owned()))

@@ -37,11 +37,11 @@ fn fit_summary_uses_the_crate_number_format() {
 }
 
 const SMALL: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n\
-a,0.1,0.2,0.3,0.5,0.5,0.5,1.5,10\n\
-b,0.3,0.2,0.1,0.2,0.3,0.4,1.8,50\n\
-c,0.5,0.5,0.5,0.0,0.0,0.0,1.5,1\n\
-d,0.05,0.05,0.05,0.9,0.8,0.7,2.5,300\n\
-e,0.2,0.1,0.4,0.1,0.6,0.2,1.3,5\n";
+a,0.1,0.2,0.3,0.5,0.5,0.5,0.04,10\n\
+b,0.3,0.2,0.1,0.2,0.3,0.4,0.1,50\n\
+c,0.5,0.5,0.5,0.0,0.0,0.0,0.04,1\n\
+d,0.05,0.05,0.05,0.9,0.8,0.7,0.9,300\n\
+e,0.2,0.1,0.4,0.1,0.6,0.2,0.02,5\n";
 
 /// `select --distances X.npy` (no collection given) carries the fingerprint its sidecar
 /// records, that of the collection the matrix came from, not the embedded default's; for
@@ -71,11 +71,11 @@ fn select_on_a_saved_matrix_carries_the_sidecars_fingerprint() {
     for method in [["--method", "kmedoids", "-k", "2"], ["--method", "gcuk", "--k-min", "2"]] {
         let json = d.path().join(format!("{}.json", method[1]));
         let mut c = bin_cpu();
-        c.arg("select").args(method).args(["--runs", "2", "--distances"]);
+        c.arg("select").args(method).args(["--runs", "2"]);
         if method[1] == "gcuk" {
             c.args(["--k-max", "3", "--population", "6", "--generations", "3"]);
         }
-        let o = c.arg(&npy).arg("--json").arg(&json).output().expect("select");
+        let o = c.arg("--distances").arg(&npy).arg("--json").arg(&json).output().expect("select");
         assert!(o.status.success(), "{}", err(&o));
         let out = brdf_basis::select::SelectOutput::read(&json).expect("read back");
         assert_eq!(out.collection_fingerprint(), Some(want.as_str()), "{}", method[1]);
@@ -112,4 +112,32 @@ fn stale_stage_directories_of_dead_processes_are_removed() {
     assert!(o.status.success(), "{}", err(&o));
     assert!(!stale.exists(), "stale stage directory kept");
     assert!(live.is_dir() && file.is_file() && other.is_dir());
+}
+
+/// Before: `reproduce --out r` after a SIGKILL refused `r` (not empty: the dead run's
+/// staging root), and `--force` too (`.brdf-basis-stage-...` is not one of its files). The
+/// plan of a tree removes a dead process's staging root first, with or without --force.
+#[cfg(unix)]
+#[test]
+fn a_tree_with_a_dead_runs_staging_root_is_planned_again() {
+    let d = tmp();
+    let mut child = std::process::Command::new("true").spawn().expect("true");
+    let dead = child.id();
+    child.wait().expect("wait");
+    let out = d.path().join("r");
+    std::fs::create_dir(&out).unwrap();
+    let stale = out.join(format!(".brdf-basis-stage-{dead}-3"));
+    std::fs::create_dir(&stale).unwrap();
+    std::fs::write(stale.join("report.md"), "half").unwrap();
+    let mut plan = brdf_basis::atomic::OutputPlan::new(&[]);
+    plan.tree(&out, "--out", false, |n| n == "report.md")
+        .expect("a dead run's staging root is no entry of the tree");
+    assert!(!stale.exists());
+    // A live process's staging root is kept, and refused as before.
+    let live = out.join(format!(".brdf-basis-stage-{}-3", std::process::id()));
+    std::fs::create_dir(&live).unwrap();
+    let mut plan = brdf_basis::atomic::OutputPlan::new(&[]);
+    let e = plan.tree(&out, "--out", true, |n| n == "report.md").unwrap_err();
+    assert!(e.to_string().contains(".brdf-basis-stage-"), "{e}");
+    assert!(live.is_dir());
 }
