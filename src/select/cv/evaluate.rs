@@ -11,7 +11,7 @@ use crate::collection::Collection;
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
-use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
+use crate::fit::{cell_errors, channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
 use crate::stats::{mean, median, StatsError};
@@ -211,20 +211,18 @@ impl<'a> GridEval<'a> {
             mae += match analytic {
                 Some(ab) => ab,
                 None => {
+                    // The fits' cell-by-cell sum, on the columns with a non-zero
+                    // coefficient (the others add exact zeros).
                     let cells = &self.cells.cells;
-                    let mut fitv = vec![0.0; cells.len()];
-                    for (&i, &a) in cols.iter().zip(&x) {
-                        if a != 0.0 {
-                            let v = self.cpu.values_f64(&self.lobe(i, c), cells);
-                            fitv.iter_mut().zip(v).for_each(|(o, v)| *o += a * v);
-                        }
-                    }
+                    let (vals, xs): (Vec<Vec<f64>>, Vec<f64>) = cols
+                        .iter()
+                        .zip(&x)
+                        .filter(|(_, &a)| a != 0.0)
+                        .map(|(&i, &a)| (self.cpu.values_f64(&self.lobe(i, c), cells), a))
+                        .unzip();
+                    let refs: Vec<&[f64]> = vals.iter().map(Vec::as_slice).collect();
                     let b = self.cpu.values_f64(&self.lobe(Some(t), c), cells);
-                    fitv.iter()
-                        .zip(&b)
-                        .zip(&self.cells.weights)
-                        .map(|((f, b), w)| w * (f - b).abs())
-                        .sum()
+                    cell_errors(&refs, &xs, &b, &self.cells.weights).mae
                 }
             } / 3.0;
         }
