@@ -8,7 +8,7 @@
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::{Backend, Lobe, LobeParams};
-use brdf_basis::gpu::GpuBackend;
+use brdf_basis::backend::gpu::GpuBackend;
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use std::time::Instant;
 
@@ -68,7 +68,7 @@ fn run(name: &str, b: &dyn Backend, n: usize, cells: &CellSet, reps: usize) -> f
 /// kernel shape on `n` lobes, and the shape `KernelShape::choose` picks.
 fn shapes(g: &GpuBackend, n: usize, cells: &CellSet) {
     use brdf_basis::backend::blocks::{all_blocks, PairOp};
-    use brdf_basis::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
+    use brdf_basis::backend::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
     let l = lobes(n);
     let ctx = g.context();
     let kernel = PairwiseKernel::new();

@@ -7,7 +7,7 @@
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::{Backend, Lobe, LobeParams};
-use brdf_basis::gpu::GpuBackend;
+use brdf_basis::backend::gpu::GpuBackend;
 use brdf_basis::merl::grid::N_CELLS;
 use std::time::Instant;
 
@@ -49,7 +49,7 @@ fn main() {
     if results.len() == 2 {
         println!("tabulate: gpu / cpu ratio {:.2}", results[1] / results[0]);
     }
-    if let Ok(ctx) = brdf_basis::gpu::GpuContext::new() {
+    if let Ok(ctx) = brdf_basis::backend::gpu::GpuContext::new() {
         let params: Vec<LobeParams> = lobes
             .iter()
             .map(|l| match l {
@@ -68,8 +68,8 @@ fn main() {
 }
 
 /// Lobe-cells per second of the `pack` pass over `cells`, in chunks of 131,072 cells.
-fn pack(ctx: &brdf_basis::gpu::GpuContext, lobes: &[LobeParams], cells: &[u32]) -> f64 {
-    use brdf_basis::gpu::tabulate::{PackTarget, TabulateKernel};
+fn pack(ctx: &brdf_basis::backend::gpu::GpuContext, lobes: &[LobeParams], cells: &[u32]) -> f64 {
+    use brdf_basis::backend::gpu::tabulate::{PackTarget, TabulateKernel};
     const CHUNK: usize = 1 << 17;
     let tab = TabulateKernel::new(ctx).expect("kernel");
     let rows: Vec<Option<LobeParams>> = lobes.iter().map(|&l| Some(l)).collect();

@@ -14,7 +14,7 @@ use brdf_basis::cluster::{KMedoidsInit, KMedoidsParams};
 use brdf_basis::collection::Collection;
 use brdf_basis::distance::{distance_matrix, DistanceParams, Distances};
 use brdf_basis::fit::{fit, FitParams, GramMode};
-use brdf_basis::gpu::{GpuBackend, GpuContext};
+use brdf_basis::backend::gpu::{GpuBackend, GpuContext};
 use std::sync::Arc;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -23,12 +23,12 @@
 // Why textures: lavapipe compiles each storage-buffer load into a per-lane scalar loop
 // with bounds checks, but a texel fetch into vector code, and one rgba texel gives four
 // rows. No workgroup memory and no barrier (on lavapipe a barrier turns the shader into
-// coroutines). The body is unrolled by the host (src/gpu/pairwise/shape.rs, `kernel_source`),
+// coroutines). The body is unrolled by the host (src/backend/gpu/pairwise/shape.rs, `kernel_source`),
 // which prepends `const R` and `const LANES` and expands the lines that start with a
 // marker; every loop is bounded by run_iters <= MAX_RUN_ITERS, far below lavapipe's
 // 65,535-iteration limit.
 
-// Keep in sync with `PairParams` in src/gpu/pairwise/mod.rs.
+// Keep in sync with `PairParams` in src/backend/gpu/pairwise/mod.rs.
 struct PairParams {
     n_cells: u32,
     row_stride: u32,

@@ -3,11 +3,11 @@
 // invocation, the CPU twin is `fista` in src/nnls/pgd.rs. Each dispatch advances every
 // unfinished target by at most STEPS steps; state lives in `state` between dispatches, so
 // no invocation runs more than STEPS x (m^2 + 4m) loop iterations (far below lavapipe's
-// 65,535). The host prepends `const M` (= m, see `kernel_source` in src/gpu/pgd.rs):
+// 65,535). The host prepends `const M` (= m, see `kernel_source` in src/backend/gpu/pgd.rs):
 // constant trip counts let the loops unroll, so the arrays stay in registers instead of
 // lavapipe's per-lane memory emulation.
 
-// Keep in sync with `PgdUniforms` in src/gpu/pgd.rs.
+// Keep in sync with `PgdUniforms` in src/backend/gpu/pgd.rs.
 struct PgdUniforms {
     m: u32,
     n_targets: u32,

@@ -14,7 +14,7 @@
 // fetch is vector code, while a storage load, or a uniform load at an index it cannot
 // prove uniform, is a per-lane loop.
 
-// Keep in sync with `PackParams` in src/gpu/tabulate.rs.
+// Keep in sync with `PackParams` in src/backend/gpu/tabulate.rs.
 struct PackParams {
     n_cells: u32,
     chunk: u32,

@@ -339,7 +339,7 @@ pub enum DistanceError {
         expected: &'static str,
     },
     /// More tiles asked for than the matrix has bands.
-    #[error("{count} tiles asked for, but {materials} materials in bands of {band_rows} rows (--band-rows) make {bands} band{}: use at most {bands} tiles, or a smaller --band-rows", if *.bands == 1 { "" } else { "s" })]
+    #[error("{count} tiles asked for, but {materials} materials in bands of {band_rows} rows (--band-rows) make {bands} band{}: use at most {bands} tile{}, or a smaller --band-rows", if *.bands == 1 { "" } else { "s" }, if *.bands == 1 { "" } else { "s" })]
     TooManyTiles {
         /// Tiles asked for.
         count: usize,

@@ -29,7 +29,6 @@ pub mod error;
 pub mod eval;
 pub mod experiment;
 pub mod fit;
-pub mod gpu;
 pub mod hash;
 pub mod io;
 pub mod merl;

@@ -5,7 +5,7 @@ use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::{Backend, Lobe, LobeParams};
 use brdf_basis::brdf::ashikhmin_shirley::rho_s_angles;
-use brdf_basis::gpu::pairwise::{
+use brdf_basis::backend::gpu::pairwise::{
     KernelShape, PairPlan, PlanLimits, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
 };
 use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS};
@@ -176,7 +176,7 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
     // The largest loop of any invocation, for the largest inputs the planner accepts.
     const LAVAPIPE_LOOP_LIMIT: u32 = 65_535;
     const { assert!(MAX_RUN_ITERS < LAVAPIPE_LOOP_LIMIT / 16) };
-    const { assert!(brdf_basis::gpu::tabulate::BPI * 4 < LAVAPIPE_LOOP_LIMIT as usize) };
+    const { assert!(brdf_basis::backend::gpu::tabulate::BPI * 4 < LAVAPIPE_LOOP_LIMIT as usize) };
     let limits = PlanLimits {
         max_binding: 128 << 20,
         max_texture_dim: 16_384,
@@ -218,7 +218,7 @@ fn every_kernel_shape_matches_cpu() {
         return;
     };
     use brdf_basis::backend::blocks::{all_blocks, PairOp};
-    use brdf_basis::gpu::pairwise::{PairwiseKernel, RowLayout};
+    use brdf_basis::backend::gpu::pairwise::{PairwiseKernel, RowLayout};
     let Some(ngan) = ngan_or_skip("every_kernel_shape_matches_cpu") else {
         return;
     };
@@ -320,7 +320,7 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
         let _ = channel_gram;
         let batch = GramBatch::new(6, &g, &hs, &bbs).expect("batch");
         let gp = gpu.context();
-        let kernel = brdf_basis::gpu::pgd::PgdKernel::new(gp).expect("kernel");
+        let kernel = brdf_basis::backend::gpu::pgd::PgdKernel::new(gp).expect("kernel");
         let sols = kernel
             .solve_batch(gp, &batch, &PgdParams::default())
             .expect("gpu pgd");
@@ -428,7 +428,7 @@ fn gpu_pgd_at_the_column_limit_reaches_the_exact_optimum() {
     }
     let batch = GramBatch::new(m, &g, &hs, &bbs).expect("batch");
     let ctx = gpu.context();
-    let kernel = brdf_basis::gpu::pgd::PgdKernel::new(ctx).expect("kernel");
+    let kernel = brdf_basis::backend::gpu::pgd::PgdKernel::new(ctx).expect("kernel");
     let sols = kernel
         .solve_batch(ctx, &batch, &PgdParams::default())
         .expect("gpu pgd");

@@ -358,7 +358,7 @@ fn too_many_tiles_names_the_number_of_bands() {
     let err = stderr(&o);
     assert!(
         err.contains(&format!(
-            "3 tiles asked for, but {n} materials in bands of 1024 rows (--band-rows) make 1 band: use at most 1 tiles"
+            "3 tiles asked for, but {n} materials in bands of 1024 rows (--band-rows) make 1 band: use at most 1 tile, or a smaller --band-rows"
         )),
         "{err}"
     );

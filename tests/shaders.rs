@@ -1,8 +1,8 @@
 //! Every shader parses and validates with naga; shared structs match the Rust layouts.
 
-use brdf_basis::gpu::pairwise::PairParams;
-use brdf_basis::gpu::tabulate::PackParams;
-use brdf_basis::gpu::{kernel_source, pairwise, pgd, tabulate};
+use brdf_basis::backend::gpu::pairwise::PairParams;
+use brdf_basis::backend::gpu::tabulate::PackParams;
+use brdf_basis::backend::gpu::{kernel_source, pairwise, pgd, tabulate};
 use std::mem::{offset_of, size_of};
 
 fn module(src: &str) -> (naga::Module, naga::valid::ModuleInfo) {
@@ -67,7 +67,7 @@ fn tabulate_shader_validates_and_matches_rust_structs() {
             ..
         } => assert_eq!(
             n.get() as usize * *stride as usize,
-            4 * brdf_basis::gpu::TABLE_LEN
+            4 * brdf_basis::backend::gpu::TABLE_LEN
         ),
         other => panic!("tables: {other:?}"),
     }
@@ -126,7 +126,7 @@ fn u32_consts(src: &str) -> Vec<(String, usize)> {
 
 #[test]
 fn shared_constants_agree() {
-    use brdf_basis::gpu::{
+    use brdf_basis::backend::gpu::{
         COMMON_WGSL, TABLE_ABS_COS_P, TABLE_COS_D, TABLE_COS_H, TABLE_LEN, TABLE_SIN_D, TABLE_SIN_H,
     };
     let rust = [
@@ -144,7 +144,7 @@ fn shared_constants_agree() {
         rust.iter()
             .map(|(n, v)| (n.to_string(), *v))
             .collect::<Vec<_>>(),
-        "shaders/common.wgsl against src/gpu/mod.rs"
+        "shaders/common.wgsl against src/backend/gpu/mod.rs"
     );
     // Each table row is 90 (theta) or 180 (phi_d) entries, in order, without overlap.
     let rows = [
@@ -184,7 +184,7 @@ fn shared_constants_agree() {
     }
     // And the grid tables hold what the kernels expect at each offset.
     let g = brdf_basis::merl::GridTables::new();
-    let t = brdf_basis::gpu::grid_table_f32(&g);
+    let t = brdf_basis::backend::gpu::grid_table_f32(&g);
     assert_eq!(t.len(), TABLE_LEN);
     for i in 0..90 {
         assert_eq!(t[TABLE_COS_H + i], g.cos_h[i] as f32);

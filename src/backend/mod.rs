@@ -1,12 +1,13 @@
 //! The compute back-end trait that the algorithms call, and its CPU implementation.
 //!
 //! Algorithms describe *what* to reduce over the grid ([`Lobe`]s over a [`CellSet`]);
-//! a back-end decides *how* (GPU kernels in [`crate::gpu`], blocked multi-threaded loops
+//! a back-end decides *how* (GPU kernels in [`crate::backend::gpu`], blocked multi-threaded loops
 //! in [`cpu`]). Both stream the grid in chunks of cells so that memory stays bounded
 //! whatever the number of cells.
 
 pub mod blocks;
 pub mod cpu;
+pub mod gpu;
 mod open;
 
 pub use blocks::{PairOp, BLOCK};

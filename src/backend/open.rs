@@ -4,7 +4,7 @@
 use super::cpu::CpuBackend;
 use super::Backend;
 use crate::error::GpuError;
-use crate::gpu::{GpuBackend, GpuContext};
+use crate::backend::gpu::{GpuBackend, GpuContext};
 
 /// Which back-end to run on (spellings `auto`, `gpu`, `cpu` from the `clap::ValueEnum`
 /// derive, the one parser of option values; [`Display`](std::fmt::Display) writes them).

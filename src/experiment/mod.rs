@@ -36,7 +36,7 @@ use crate::select::empirical::{empirical, Empirical, EmpiricalParams};
 use crate::select::objective::{Objective, ObjectiveParams};
 use crate::select::runs as clustering;
 use crate::select::runs::ClusteringSet;
-use crate::select::search::{error_driven_bases, Selection};
+use crate::select::{error_driven_bases, Selection};
 use crate::select::SelectionError;
 use bases::Basis;
 use evaluation::{EvalSettings, Evaluation};

@@ -58,7 +58,7 @@ pub use greedy::greedy;
 pub use objective::{Objective, ObjectiveFit, ObjectiveParams};
 pub use output::{ClusteringOutput, EmpiricalOutput, SelectOutput};
 pub use runs::{best_run, ClusteringRun, ClusteringSet};
-pub use search::{error_driven_bases, SearchParams, Selection, ValidSearchParams};
+pub use search::{SearchParams, Selection, ValidSearchParams};
 pub use swap::swap;
 
 /// Errors of error-driven selection and cross-validation.
@@ -187,4 +187,25 @@ pub enum SelectionError {
     /// An NNLS solve was rejected.
     #[error(transparent)]
     Nnls(#[from] crate::nnls::NnlsError),
+}
+
+/// The error-driven bases `reproduce` compares: greedy and swap (from the greedy basis) at
+/// each k of `ks` (k larger than the collection is skipped), every material a candidate and
+/// a target; in the order greedy k1, swap k1, greedy k2, ...
+pub fn error_driven_bases(obj: &Objective, ks: &[usize]) -> Result<Vec<Selection>, SelectionError> {
+    let mut out = Vec::new();
+    for &k in ks.iter().filter(|&&k| k >= 1 && k <= obj.len()) {
+        let p = SearchParams::new(k).check(obj.names())?;
+        let g = greedy(obj, &p, &|_, _| {})?;
+        let s = swap(
+            obj,
+            &SearchParams::new(k)
+                .init(g.indices.clone())
+                .check(obj.names())?,
+            &|_, _| {},
+        )?;
+        out.push(g);
+        out.push(s);
+    }
+    Ok(out)
 }

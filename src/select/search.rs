@@ -8,9 +8,7 @@
 //! order (greedy), the earliest (position, candidate) pair (swap) or the earliest
 //! individual (GA).
 
-use super::greedy::greedy;
 use super::objective::Objective;
-use super::swap::swap;
 use super::SelectionError;
 
 /// Parameters shared by every search (builder; validate with [`SearchParams::check`]).
@@ -270,27 +268,6 @@ pub(crate) fn argmin(scores: &[f64], tie_tol: f64) -> Option<usize> {
         }
     }
     best
-}
-
-/// The error-driven bases `reproduce` compares: greedy and swap (from the greedy basis) at
-/// each k of `ks` (k larger than the collection is skipped), every material a candidate and
-/// a target; in the order greedy k1, swap k1, greedy k2, ...
-pub fn error_driven_bases(obj: &Objective, ks: &[usize]) -> Result<Vec<Selection>, SelectionError> {
-    let mut out = Vec::new();
-    for &k in ks.iter().filter(|&&k| k >= 1 && k <= obj.len()) {
-        let p = SearchParams::new(k).check(obj.names())?;
-        let g = greedy(obj, &p, &|_, _| {})?;
-        let s = swap(
-            obj,
-            &SearchParams::new(k)
-                .init(g.indices.clone())
-                .check(obj.names())?,
-            &|_, _| {},
-        )?;
-        out.push(g);
-        out.push(s);
-    }
-    Ok(out)
 }
 
 #[cfg(test)]

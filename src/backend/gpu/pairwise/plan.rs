@@ -5,8 +5,8 @@ use super::{KernelShape, BLOCK, MAX_CHUNK, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_
 use crate::backend::cpu::CANONICAL_RUN;
 use crate::backend::Lobe;
 use crate::error::GpuError;
-use crate::gpu::tabulate::NIJ;
-use crate::gpu::GpuContext;
+use crate::backend::gpu::tabulate::NIJ;
+use crate::backend::gpu::GpuContext;
 
 /// The device limits a plan must respect.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

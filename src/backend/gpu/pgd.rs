@@ -11,7 +11,7 @@ use crate::nnls::pgd::{PgdParams, Prepared, PGD_KERNEL_COLUMNS};
 use crate::nnls::{GramBatch, NnlsSolution};
 
 /// WGSL template (see [`kernel_source`]).
-pub const SOURCE: &str = include_str!("../../shaders/pgd.wgsl");
+pub const SOURCE: &str = include_str!("../../../shaders/pgd.wgsl");
 
 /// The kernel for `m` columns: the template with `const M` defined, so that every loop
 /// has a constant trip count (unrolled, arrays in registers, constant Gram indices).

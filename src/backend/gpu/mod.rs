@@ -14,7 +14,7 @@ use crate::merl::GridTables;
 use std::sync::Arc;
 
 /// WGSL shared by every kernel.
-pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
+pub const COMMON_WGSL: &str = include_str!("../../../shaders/common.wgsl");
 
 /// Offsets of the grid-table buffer; keep in sync with `T_*` in `shaders/common.wgsl`.
 pub const TABLE_COS_H: usize = 0;

@@ -37,7 +37,7 @@ use crate::merl::{CellSet, GridTables};
 use plan::table_rows;
 
 /// WGSL template of the kernel (see [`kernel_source`]).
-pub const SOURCE: &str = include_str!("../../../shaders/pairwise.wgsl");
+pub const SOURCE: &str = include_str!("../../../../shaders/pairwise.wgsl");
 pub use super::TEX_W;
 pub use crate::backend::blocks::BLOCK;
 /// Most loop iterations of one invocation (lavapipe silently ends loops after 65,535).

@@ -11,7 +11,7 @@ use crate::merl::GridTables;
 use crate::separable::SeparableLobe;
 
 /// WGSL source of the kernel.
-pub const SOURCE: &str = include_str!("../../shaders/tabulate.wgsl");
+pub const SOURCE: &str = include_str!("../../../shaders/tabulate.wgsl");
 /// Workgroup size (cells per workgroup).
 pub const WORKGROUP: u32 = 64;
 
@@ -104,7 +104,7 @@ pub fn separable_texels(t: &GridTables, rows: &[Option<LobeParams>]) -> Vec<f32>
     texels
 }
 
-/// Texels of one lobe's beta table (defined in [`crate::gpu`], beside `TEX_W`).
+/// Texels of one lobe's beta table (defined in [`crate::backend::gpu`], beside `TEX_W`).
 pub use super::NIJ;
 
 /// The compiled kernel and its grid tables.
