@@ -59,7 +59,9 @@
 //! Staging directories, temporary files and created directories are listed in a
 //! process-wide registry, so a binary that catches SIGINT/SIGTERM/SIGHUP removes them
 //! with [`remove_pending`] before it exits (`brdf-basis` does); a signal during a commit
-//! waits for the commit to finish.
+//! waits for the commit to finish. SIGKILL leaves its staging directories behind: the next
+//! run that stages into the same directory removes those of dead processes (see
+//! `remove_stale_stages`).
 //!
 //! [`write_atomic`] writes one file alone (a temporary sibling renamed over it); the
 //! writers in `io` and `merl` use it, and write into a staging directory when given a
@@ -672,6 +674,9 @@ impl OutputPlan {
         }
         let exists = self.check_dir_target(path, &k, flag)?;
         if exists {
+            // A run killed by SIGKILL left its staging root in the tree: not an entry of
+            // an earlier result, and removable (only those of dead processes).
+            remove_stale_stages(path);
             let entries: Vec<String> = std::fs::read_dir(path)
                 .map_err(|e| io_err(path, e))?
                 .map(|e| e.map(|e| e.file_name().to_string_lossy().into_owned()))
@@ -768,6 +773,57 @@ fn probe(dir: &Path) -> std::io::Result<()> {
     std::fs::remove_file(&p)
 }
 
+/// Name prefix of a staging directory: `.brdf-basis-stage-PID-N`.
+const STAGE_PREFIX: &str = ".brdf-basis-stage-";
+
+/// The process id in a staging directory's name `.brdf-basis-stage-PID-N` (both decimal).
+fn stage_pid(name: &str) -> Option<u32> {
+    let (pid, seq) = name.strip_prefix(STAGE_PREFIX)?.split_once('-')?;
+    let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+    (digits(pid) && digits(seq)).then(|| pid.parse().ok()).flatten()
+}
+
+/// Removes, best effort, the staging directories in `dir` that a killed run left behind
+/// (SIGKILL leaves no chance to clean up): only entries named exactly
+/// `.brdf-basis-stage-PID-N` that are directories (not links), owned by this user, of a
+/// process that no longer exists (`kill(PID, 0)` fails with `ESRCH`; another user's live
+/// process answers `EPERM` and is kept). Errors are ignored: a directory that cannot be
+/// read or removed is left as it is.
+#[cfg(unix)]
+fn remove_stale_stages(dir: &Path) {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    let uid = unsafe { libc::geteuid() };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(pid) = name.to_str().and_then(stage_pid) else {
+            continue;
+        };
+        if pid == std::process::id() || pid == 0 || pid > i32::MAX as u32 {
+            continue;
+        }
+        let path = e.path();
+        let Ok(m) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        if !m.is_dir() || m.uid() != uid {
+            continue;
+        }
+        // SAFETY: signal 0 only checks that the process exists; nothing is sent.
+        let dead = unsafe { libc::kill(pid as libc::pid_t, 0) } != 0
+            && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH);
+        if dead {
+            let _ = std::fs::remove_dir_all(&path);
+        }
+    }
+}
+
+#[cfg(not(unix))]
+fn remove_stale_stages(_dir: &Path) {}
+
 // ---------------------------------------------------------------------------------------
 // The set.
 // ---------------------------------------------------------------------------------------
@@ -820,8 +876,9 @@ impl OutputSet {
         }
         self.ensure_dir(dest)?;
         refuse_if_interrupted(dest)?;
+        remove_stale_stages(dest);
         let s = dest.join(format!(
-            ".brdf-basis-stage-{}-{}",
+            "{STAGE_PREFIX}{}-{}",
             std::process::id(),
             SEQ.fetch_add(1, Ordering::Relaxed)
         ));
@@ -1014,6 +1071,22 @@ impl Drop for OutputSet {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn stage_names_parse_exactly() {
+        assert_eq!(super::stage_pid(".brdf-basis-stage-123-4"), Some(123));
+        for bad in [
+            ".brdf-basis-stage-123",
+            ".brdf-basis-stage--4",
+            ".brdf-basis-stage-12a-4",
+            ".brdf-basis-stage-1-4-5",
+            ".brdf-basis-stage-1-",
+            "brdf-basis-stage-1-4",
+            ".brdf-basis-probe-1-4",
+        ] {
+            assert_eq!(super::stage_pid(bad), None, "{bad}");
+        }
+    }
+
     use super::*;
 
     fn names(dir: &Path) -> Vec<String> {

@@ -133,6 +133,64 @@ pub mod special {
     }
 }
 
+/// Mean of `v`, summed in order; NaN for no value (never a silent 0).
+///
+/// The crate's one mean and [`median`]: one NaN convention, NaN for an empty slice; a NaN
+/// among the values propagates to the mean and sorts last ([`f64::total_cmp`]) for the
+/// median.
+pub fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// Median of `v` (the mean of the two middle values for an even count); NaN for no value.
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    match s.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => s[n / 2],
+        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+    }
+}
+
+/// The crate's one format for a value shown to people (reports, summaries, messages): four
+/// significant digits, fixed-point between 1e-3 and 1e5 (`24.08`, `0.01235`, `1235`),
+/// scientific outside (`2.500e-5`); `0`; `n/a` for NaN, `inf`/`-inf` for infinities.
+/// Machine-readable files (CSV, JSON) keep every digit instead.
+pub fn num(v: f64) -> String {
+    if v.is_nan() {
+        return "n/a".into();
+    }
+    if v.is_infinite() {
+        return if v > 0.0 { "inf".into() } else { "-inf".into() };
+    }
+    let a = v.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if (1e-3..1e5).contains(&a) {
+        let digits = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
+/// A p-value shown to people: three decimals, scientific (`1.23e-5`) below 1e-3; `n/a`
+/// when not finite.
+pub fn p_value(v: f64) -> String {
+    if !v.is_finite() {
+        "n/a".into()
+    } else if v >= 1e-3 {
+        format!("{v:.3}")
+    } else {
+        format!("{v:.2e}")
+    }
+}
+
 use special::{chi2_sf, f_sf, normal_sf, studentized_range_cdf, studentized_range_quantile};
 
 /// Errors of the statistical tests.
@@ -562,6 +620,29 @@ pub fn mann_whitney_u(x: &[f64], y: &[f64]) -> Result<MannWhitneyResult, StatsEr
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn num_has_four_significant_digits() {
+        assert_eq!(super::num(24.0753), "24.08");
+        assert_eq!(super::num(6.6871), "6.687");
+        assert_eq!(super::num(0.012346), "0.01235");
+        assert_eq!(super::num(1234.56), "1235");
+        assert_eq!(super::num(2.5e-5), "2.500e-5");
+        assert_eq!(super::num(-3.0e6), "-3.000e6");
+        assert_eq!(super::num(0.0), "0");
+        assert_eq!(super::num(f64::NAN), "n/a");
+        assert_eq!(super::num(f64::INFINITY), "inf");
+        assert_eq!(super::p_value(0.0123), "0.012");
+        assert_eq!(super::p_value(1.5e-9), "1.50e-9");
+    }
+
+    #[test]
+    fn mean_and_median_share_one_nan_convention() {
+        assert!(super::mean(&[]).is_nan() && super::median(&[]).is_nan());
+        assert_eq!(super::mean(&[1.0, 2.0, 6.0]), 3.0);
+        assert_eq!(super::median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(super::median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
+    }
+
     use super::special::*;
     use super::*;
 

@@ -238,7 +238,7 @@ fn select_rejects_zero_runs_and_empty_k_ranges() {
             "{method} --k-min 10 --k-max 5 succeeded"
         );
         assert!(
-            err.contains("k_min = 10") && err.contains("k_max = 5"),
+            err.contains("--k-min 10") && err.contains("--k-max 5"),
             "{err}"
         );
     }

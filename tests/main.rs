@@ -21,6 +21,7 @@ mod hygiene;
 mod inputs;
 mod integrity;
 mod kmedoids;
+mod leftovers;
 mod measured;
 mod outputs;
 mod reproduce;

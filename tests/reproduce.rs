@@ -59,12 +59,12 @@ fn reproduce_report_matches_its_files_and_figures() {
             assert!((-1.0..=1.0).contains(&r.silhouette));
             assert!(r.dunn.is_none_or(|v| v >= 0.0));
         }
-        let med = brdf_basis::experiment::statistics::median(&s.db_values());
+        let med = brdf_basis::stats::median(&s.db_values());
         let row = format!(
             "| {} | {} | {} |",
             s.metric,
             s.method,
-            brdf_basis::experiment::report::sig(med)
+            brdf_basis::stats::num(med)
         );
         assert!(report.contains(&row), "missing {row}");
     }
@@ -74,7 +74,7 @@ fn reproduce_report_matches_its_files_and_figures() {
     assert_eq!(c.runs, 4);
     assert!(report.contains(&format!(
         "p = {}",
-        brdf_basis::experiment::report::sig(c.wilcoxon_p)
+        brdf_basis::stats::p_value(c.wilcoxon_p)
     )));
     assert!(st.friedman.keys().any(|k| k.metric() == "brdf-it"));
     // Bases are named once; every fit file has the same targets, all in no basis, and the
@@ -114,7 +114,7 @@ fn reproduce_report_matches_its_files_and_figures() {
             "| {} | {} | {} |",
             b.name,
             b.materials.len(),
-            brdf_basis::experiment::report::sig(mean)
+            brdf_basis::stats::num(mean)
         );
         assert!(report.contains(&row), "missing {row}");
     }

@@ -58,29 +58,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         .iter()
         .map(|n| coll.index_of(n.trim()))
         .collect::<Result<_, _>>()?;
-    let targets: Vec<usize> = if a.all_others {
-        (0..coll.len()).filter(|i| !basis.contains(i)).collect()
-    } else if a.targets.is_empty() {
-        anyhow::bail!("give --targets X,Y or --all-others");
-    } else {
-        a.targets
-            .iter()
-            .map(|n| coll.index_of(n.trim()))
-            .collect::<Result<_, _>>()?
-    };
-    for (i, &t) in targets.iter().enumerate() {
-        if targets[..i].contains(&t) {
-            anyhow::bail!(
-                "--targets: material `{}` is given twice",
-                brdf_basis::error::short_name(&coll.materials()[t].name)
-            );
-        }
-    }
-    if targets.is_empty() {
-        anyhow::bail!(
-            "--all-others: every material of the collection is in the basis; nothing to fit"
-        );
-    }
+    let targets = targets_of(&a, &coll, &basis)?;
     let (solver, gram) = (a.solver, a.gram);
     if let Some(dir) = &a.export {
         let names: Vec<&str> = targets
@@ -139,21 +117,62 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         w.write_all(b"\n")
     })?;
     out.commit()?;
-    let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
-    let rho = fits.iter().map(|f| f.relative_residual).sum::<f64>() / fits.len() as f64;
-    let rmae = fits.iter().map(|f| f.relative_mae).sum::<f64>() / fits.len() as f64;
-    println!(
-        "wrote {} ({} target{}, mean MAE {mean:.4e}, mean relative residual {rho:.3}, mean relative MAE {rmae:.3})",
-        a.json.display(),
-        fits.len(),
-        if fits.len() == 1 { "" } else { "s" }
-    );
+    println!("{}", summary(&a.json, &fits));
     if let Some(dir) = &a.export {
         for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
             println!("wrote {}", dir.join(file).display());
         }
     }
     Ok(())
+}
+
+/// The targets of `fit`: `--targets` (each once) or `--all-others`, never empty.
+fn targets_of(
+    a: &FitArgs,
+    coll: &brdf_basis::collection::Collection,
+    basis: &[usize],
+) -> anyhow::Result<Vec<usize>> {
+    let targets: Vec<usize> = if a.all_others {
+        (0..coll.len()).filter(|i| !basis.contains(i)).collect()
+    } else if a.targets.is_empty() {
+        anyhow::bail!("give --targets X,Y or --all-others");
+    } else {
+        a.targets
+            .iter()
+            .map(|n| coll.index_of(n.trim()))
+            .collect::<Result<_, _>>()?
+    };
+    for (i, &t) in targets.iter().enumerate() {
+        if targets[..i].contains(&t) {
+            anyhow::bail!(
+                "--targets: material `{}` is given twice",
+                brdf_basis::error::short_name(&coll.materials()[t].name)
+            );
+        }
+    }
+    if targets.is_empty() {
+        anyhow::bail!(
+            "--all-others: every material of the collection is in the basis; nothing to fit"
+        );
+    }
+    Ok(targets)
+}
+
+/// `wrote FILE (N targets, mean MAE .., mean relative residual .., mean relative MAE ..)`,
+/// in the crate's number format ([`brdf_basis::stats::num`]).
+fn summary(json: &Path, fits: &[brdf_basis::fit::TargetFit]) -> String {
+    let mean_of = |v: fn(&brdf_basis::fit::TargetFit) -> f64| {
+        brdf_basis::stats::num(brdf_basis::stats::mean(&fits.iter().map(v).collect::<Vec<_>>()))
+    };
+    format!(
+        "wrote {} ({} target{}, mean MAE {}, mean relative residual {}, mean relative MAE {})",
+        json.display(),
+        fits.len(),
+        if fits.len() == 1 { "" } else { "s" },
+        mean_of(|f| f.mae),
+        mean_of(|f| f.relative_residual),
+        mean_of(|f| f.relative_mae)
+    )
 }
 
 /// Plans `--export DIR` with the export file names `files`: DIR (created if missing),

@@ -159,8 +159,8 @@ impl GcukParams {
             });
         }
         for (name, value) in [
-            ("crossover_prob", self.crossover_prob),
-            ("mutation_prob", self.mutation_prob),
+            ("the crossover probability", self.crossover_prob),
+            ("the mutation probability", self.mutation_prob),
         ] {
             if !(0.0..=1.0).contains(&value) {
                 return Err(ClusterError::ProbabilityOutOfRange { name, value });
@@ -480,7 +480,7 @@ mod tests {
         assert!(matches!(
             err,
             ClusterError::ProbabilityOutOfRange {
-                name: "crossover_prob",
+                name: "the crossover probability",
                 ..
             }
         ));
@@ -491,7 +491,7 @@ mod tests {
         assert!(matches!(
             err,
             ClusterError::ProbabilityOutOfRange {
-                name: "mutation_prob",
+                name: "the mutation probability",
                 ..
             }
         ));

@@ -63,7 +63,7 @@ pub enum ClusterError {
         k: usize,
     },
     /// The range of cluster counts is empty.
-    #[error("k_min = {k_min} is larger than k_max = {k_max}")]
+    #[error("--k-min {k_min} is larger than --k-max {k_max}")]
     EmptyKRange {
         /// Requested minimum number of clusters.
         k_min: usize,
@@ -71,13 +71,13 @@ pub enum ClusterError {
         k_max: usize,
     },
     /// The minimum number of clusters must be at least 2.
-    #[error("k_min = {k_min} is too small: the Davies-Bouldin index needs k_min >= 2")]
+    #[error("--k-min {k_min} is too small: the Davies-Bouldin index needs --k-min >= 2")]
     KMinTooSmall {
         /// Requested minimum number of clusters.
         k_min: usize,
     },
     /// The maximum number of clusters (GCUK slots) exceeds the number of items.
-    #[error("k_max = {k_max} exceeds the number of items n = {n}")]
+    #[error("--k-max {k_max} exceeds the number of items ({n})")]
     KMaxTooLarge {
         /// Requested maximum number of clusters.
         k_max: usize,
@@ -138,7 +138,7 @@ pub enum ClusterError {
     #[error("the number of runs (restarts) must be at least 1")]
     ZeroRuns,
     /// A probability parameter is outside `[0, 1]` or not finite.
-    #[error("{name} = {value} is not a probability in [0, 1]")]
+    #[error("{name} {value} is not in [0, 1]")]
     ProbabilityOutOfRange {
         /// Parameter name.
         name: &'static str,
@@ -196,7 +196,7 @@ pub enum ClusterError {
     },
     /// GCUK could not draw a valid initial individual (every draw had fewer than `k_min`
     /// non-empty clusters, which needs many items at distance 0 from each other).
-    #[error("no valid initial individual after {attempts} draws (k_min = {k_min}): too many items at distance 0?")]
+    #[error("no valid initial individual after {attempts} draws (--k-min {k_min}): too many items at distance 0?")]
     NoValidIndividual {
         /// Number of draws made.
         attempts: usize,

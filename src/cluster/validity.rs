@@ -20,20 +20,25 @@
 //! are called by the algorithms, which keep the invariants themselves.
 
 use super::ClusterError;
-use crate::distance::Distances;
+use crate::distance::{entry_fault, Distances, EntryFault};
 
 /// Checks that every off-diagonal distance `D[i][j]`, `i < j`, is finite and
-/// non-negative. The algorithms call this once before they start.
+/// non-negative, by the crate's one entry validator, [`entry_fault`] (a [`Distances`] is
+/// symmetric by construction and its diagonal is 0, so only these two faults can occur;
+/// whole matrices read from files go through `distance::check_entries`). The algorithms
+/// call this once before they start.
 pub fn check_distances<D: Distances + ?Sized>(d: &D) -> Result<(), ClusterError> {
     let n = d.len();
     for i in 0..n {
         for j in i + 1..n {
             let value = d.dist(i, j);
-            if !value.is_finite() {
-                return Err(ClusterError::NonFiniteDistance { i, j, value });
-            }
-            if value < 0.0 {
-                return Err(ClusterError::NegativeDistance { i, j, value });
+            match entry_fault(i, j, value) {
+                None => {}
+                Some(EntryFault::Negative) => {
+                    return Err(ClusterError::NegativeDistance { i, j, value })
+                }
+                // `NotFinite`; `Diagonal` and `Asymmetric` cannot arise for `i < j`.
+                Some(_) => return Err(ClusterError::NonFiniteDistance { i, j, value }),
             }
         }
     }

@@ -143,7 +143,7 @@ fn gcuk_best_db(e: &Experiment, out: &mut Vec<Claim>) {
                 &format!(
                     "GCUK obtains the best (lowest) DB of all algorithms with {m} (Friedman, 95%)."
                 ),
-                format!("lowest mean rank: {best}; Friedman p = {:.2e}", f.p_value),
+                format!("lowest mean rank: {best}; Friedman p = {}", crate::stats::p_value(f.p_value)),
                 Some(best == "gcuk" && f.p_value < 0.05),
                 "",
             ));
@@ -156,7 +156,7 @@ fn gcuk_wilcoxon(e: &Experiment, out: &mut Vec<Claim>) {
         out.push(claim(
             "VI-C",
             "Wilcoxon test of GCUK Euclidean vs GCUK BRDF_it: p < 2.2e-16.",
-            format!("p = {:.3e} ({}, {} paired runs)", c.wilcoxon_p, c.wilcoxon_method, c.runs),
+            format!("p = {} ({}, {} paired runs)", crate::stats::p_value(c.wilcoxon_p), c.wilcoxon_method, c.runs),
             Some(c.wilcoxon_p < 0.05),
             "Significant, as the paper; but with 30 paired runs the smallest attainable two-sided signed-rank p is 2/2^30 = 1.9e-9, so p < 2.2e-16 (R's print floor) cannot come from this test on 30 runs.",
         ));
@@ -168,7 +168,7 @@ fn brdf_it_lower_db(e: &Experiment, out: &mut Vec<Claim>) {
         e.clustering
             .iter()
             .filter(|s| s.metric == m)
-            .map(|s| (s.method.clone(), super::statistics::median(&s.db_values())))
+            .map(|s| (s.method.clone(), crate::stats::median(&s.db_values())))
             .collect()
     };
     let (eu, bi) = (medians("euclidean"), medians("brdf-it"));
@@ -306,7 +306,7 @@ fn showcase_best_rendering(e: &Experiment, out: &mut Vec<Claim>) {
                 "{}: best image error by {} ({})",
                 s.material,
                 best.basis,
-                super::report::sig(best.image_error)
+                crate::stats::num(best.image_error)
             ),
             (s.material == "alum-bronze")
                 .then_some(best.basis == "empirical" || best.basis == "paper-empirical"),

@@ -2,7 +2,7 @@
 //! fit mask and normalised image errors of sphere renders (paper Fig. 4 and 5).
 
 use super::bases::Basis;
-use super::statistics::median;
+use crate::stats::{mean, median};
 use super::ExperimentError;
 use crate::backend::Backend;
 use crate::collection::Collection;
@@ -249,7 +249,6 @@ pub fn evaluate(
             image_error: err,
         });
         let mae: Vec<f64> = f.iter().map(|t| t.mae).collect();
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
         errors.push(BasisErrors {
             basis: b.name.clone(),
             size: basis.len(),

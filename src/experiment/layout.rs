@@ -21,7 +21,8 @@
 //! or not at all.
 
 use super::report::{markdown, ReportContext};
-use super::{claims, clustering, evaluation, files::EmpiricalFile, Experiment, StageTiming};
+use super::{claims, clustering, evaluation, Experiment, StageTiming};
+use crate::select::EmpiricalOutput;
 use crate::distance::{DistanceParams, Metric, DEFAULT_BAND_ROWS};
 use crate::error::{DistanceError, OutputError};
 use crate::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
@@ -147,7 +148,10 @@ pub fn write_files(
         rel(&p);
         Ok(())
     };
-    json("empirical.json", &EmpiricalFile::from(&e.empirical))?;
+    json(
+        "empirical.json",
+        &EmpiricalOutput::of(&e.empirical, Some(fingerprint.clone())),
+    )?;
     json("clustering.json", &e.clustering)?;
     json("statistics.json", &e.statistics)?;
     json("bases.json", &e.bases)?;

@@ -18,7 +18,6 @@
 pub mod bases;
 pub mod claims;
 pub mod evaluation;
-pub mod files;
 // The report's file tree draws the heatmaps' colour bars with plotters.
 #[cfg(feature = "plot")]
 pub mod layout;

@@ -4,8 +4,8 @@
 //! `fn(&Experiment, &ReportContext, &mut String)` and list it there.
 
 use super::claims::check;
-use super::statistics::median;
 use super::{Experiment, StageTiming};
+use crate::stats::{median, num, p_value};
 use std::fmt::Write as _;
 
 /// What the caller adds to the report: the figures written (by stem), notes and the
@@ -74,19 +74,6 @@ pub fn count(n: usize, noun: &str) -> String {
     }
 }
 
-/// Formats a value with 4 significant digits.
-#[doc(hidden)]
-pub fn sig(v: f64) -> String {
-    if !v.is_finite() {
-        return "inf".into();
-    }
-    if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) {
-        format!("{v:.3e}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
 fn header(e: &Experiment, ctx: &ReportContext, s: &mut String) {
     let st = &e.settings;
     let _ = writeln!(s, "# brdf-basis reproduce\n");
@@ -147,14 +134,14 @@ fn clustering(e: &Experiment, ctx: &ReportContext, s: &mut String) {
             "| {} | {} | {} | {} | {} | {} | {} |",
             c.metric,
             c.method,
-            sig(median(&c.db_values())),
-            sig(c.best.db_index),
+            num(median(&c.db_values())),
+            num(c.best.db_index),
             c.best.k,
-            sig(median(&sil)),
+            num(median(&sil)),
             if dunn.is_empty() {
                 "-".into()
             } else {
-                sig(median(&dunn))
+                num(median(&dunn))
             }
         );
     }
@@ -222,7 +209,7 @@ fn statistics(e: &Experiment, ctx: &ReportContext, s: &mut String) {
     let st = &e.statistics;
     let _ = writeln!(s, "## Statistics\n");
     for (key, f) in &st.friedman {
-        let _ = writeln!(s, "**{key}** ({} methods x {} runs): chi2 = {}, p = {}; Iman-Davenport F = {}, p = {}; Nemenyi critical difference (alpha 0.05) = {}. Mean ranks: {}.\n", f.methods.len(), f.blocks, sig(f.statistic), sig(f.p_value), f.iman_davenport_f.map_or("inf".into(), sig), sig(f.iman_davenport_p), sig(f.nemenyi_cd), f.methods.iter().zip(&f.mean_ranks).map(|(m, r)| format!("{m} {r:.2}")).collect::<Vec<_>>().join(", "));
+        let _ = writeln!(s, "**{key}** ({} methods x {} runs): chi2 = {}, p = {}; Iman-Davenport F = {}, p = {}; Nemenyi critical difference (alpha 0.05) = {}. Mean ranks: {}.\n", f.methods.len(), f.blocks, num(f.statistic), p_value(f.p_value), f.iman_davenport_f.map_or("inf".into(), num), p_value(f.iman_davenport_p), num(f.nemenyi_cd), f.methods.iter().zip(&f.mean_ranks).map(|(m, r)| format!("{m} {r:.2}")).collect::<Vec<_>>().join(", "));
         ctx.figure(
             s,
             &format!("cd-{}", key.metric()),
@@ -230,7 +217,7 @@ fn statistics(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         );
     }
     if let Some(c) = &st.gcuk_euclidean_vs_brdf_it {
-        let _ = writeln!(s, "**GCUK Euclidean vs GCUK BRDF_it** ({} runs, paired by run): median DB {} vs {}; Wilcoxon signed-rank W = {}, p = {} ({}); Mann-Whitney U = {}, p = {} (normal approximation with continuity correction). With {} paired runs the smallest attainable two-sided signed-rank p is {}.\n", c.runs, sig(c.median_a), sig(c.median_b), c.wilcoxon_w, sig(c.wilcoxon_p), c.wilcoxon_method, c.mann_whitney_u, sig(c.mann_whitney_p), c.runs, sig(2.0 * 0.5f64.powi(c.runs as i32)));
+        let _ = writeln!(s, "**GCUK Euclidean vs GCUK BRDF_it** ({} runs, paired by run): median DB {} vs {}; Wilcoxon signed-rank W = {}, p = {} ({}); Mann-Whitney U = {}, p = {} (normal approximation with continuity correction). With {} paired runs the smallest attainable two-sided signed-rank p is {}.\n", c.runs, num(c.median_a), num(c.median_b), c.wilcoxon_w, p_value(c.wilcoxon_p), c.wilcoxon_method, c.mann_whitney_u, p_value(c.mann_whitney_p), c.runs, p_value(2.0 * 0.5f64.powi(c.runs as i32)));
     }
     for n in &st.not_computed {
         let _ = writeln!(s, "Not computed: {n}.\n");
@@ -269,11 +256,11 @@ fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
             "| {} | {} | {} | {} | {} | {} | {} |",
             b.basis,
             b.size,
-            sig(b.mean_mae),
-            sig(b.median_mae),
-            sig(b.mean_image_error),
-            sig(b.median_image_error),
-            sig(a.image_error)
+            num(b.mean_mae),
+            num(b.median_mae),
+            num(b.mean_image_error),
+            num(b.median_image_error),
+            num(a.image_error)
         );
     }
     ctx.figure(
@@ -355,13 +342,5 @@ mod tests {
         assert_eq!(count(1, "target"), "1 target");
         assert_eq!(count(0, "target"), "0 targets");
         assert_eq!(count(62, "material"), "62 materials");
-    }
-
-    #[test]
-    fn sig_keeps_four_digits_without_e0() {
-        assert_eq!(sig(6.6871), "6.6871");
-        assert_eq!(sig(24.075), "24.0750");
-        assert_eq!(sig(6.302e-4), "6.302e-4");
-        assert_eq!(sig(f64::INFINITY), "inf");
     }
 }

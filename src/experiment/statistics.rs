@@ -2,7 +2,7 @@
 //! `statistics.json` (SPEC-cli keys: `gcuk-euclidean-vs-brdf-it`, `friedman-<metric>`).
 
 use crate::select::runs::ClusteringSet;
-use crate::stats::{friedman, mann_whitney_u, nemenyi, wilcoxon_signed_rank, PMethod};
+use crate::stats::{friedman, mann_whitney_u, median, nemenyi, wilcoxon_signed_rank, PMethod};
 use std::collections::BTreeMap;
 
 /// Friedman test over the methods of one metric (blocks: run indices), with Nemenyi.
@@ -124,18 +124,6 @@ impl Statistics {
     /// The Friedman summary of `metric`, if computed.
     pub fn friedman_of(&self, metric: &str) -> Option<&FriedmanSummary> {
         self.friedman.get(&FriedmanKey::new(metric))
-    }
-}
-
-/// Median of finite-or-infinite values (mean of the middle two for an even count).
-#[doc(hidden)]
-pub fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    match s.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => s[n / 2],
-        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
     }
 }
 

@@ -424,13 +424,13 @@ pub fn fit(
 }
 
 /// Grid errors of one channel's fit of one target.
-struct ChannelErrors {
+pub(crate) struct ChannelErrors {
     /// `sqrt(sum_s w_s r_s^2)`.
-    residual: f64,
+    pub(crate) residual: f64,
     /// `sum_s w_s |r_s|`.
-    mae: f64,
+    pub(crate) mae: f64,
     /// `sum_s w_s |b_s|` (the target's own weighted L1 norm).
-    l1: f64,
+    pub(crate) l1: f64,
 }
 
 /// The errors of channel `c` of every target's fit `sols` on the grid, in f64: from the
@@ -490,22 +490,33 @@ fn grid_errors(
                 .map(|(&t, s)| {
                     let b =
                         cpu.values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
-                    let (mut sq, mut ab, mut l1) = (0.0, 0.0, 0.0);
-                    for (i, (&bv, &w)) in b.iter().zip(&cells.weights).enumerate() {
-                        let fitv: f64 = cols.iter().zip(&s.x).map(|(col, &a)| a * col[i]).sum();
-                        let r = fitv - bv;
-                        sq += w * r * r;
-                        ab += w * r.abs();
-                        l1 += w * bv.abs();
-                    }
-                    ChannelErrors {
-                        residual: sq.sqrt(),
-                        mae: ab,
-                        l1,
-                    }
+                    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+                    cell_errors(&refs, &s.x, &b, &cells.weights)
                 })
                 .collect()
         }
+    }
+}
+
+/// The grid errors of the combination `sum_k x_k cols_k` against the target values `b`,
+/// cell by cell in f64, with cell weights `w`: `sum w r^2`'s root, `sum w |r|` and
+/// `sum w |b|`. The one cell-by-cell error sum: the fits' ([`fit`]) and the
+/// cross-validation's held-out MAE (`select::cv`), which passes only the columns with a
+/// non-zero coefficient; dropping a `0 * col` term changes no bit of a sum of finite
+/// values (it adds a zero), so both give the same MAE.
+pub(crate) fn cell_errors(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64]) -> ChannelErrors {
+    let (mut sq, mut ab, mut l1) = (0.0, 0.0, 0.0);
+    for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
+        let fitv: f64 = cols.iter().zip(x).map(|(col, &a)| a * col[i]).sum();
+        let r = fitv - bv;
+        sq += w * r * r;
+        ab += w * r.abs();
+        l1 += w * bv.abs();
+    }
+    ChannelErrors {
+        residual: sq.sqrt(),
+        mae: ab,
+        l1,
     }
 }
 

@@ -318,7 +318,7 @@ impl Draw for DbVsK<'_> {
                 .map(|s| {
                     (
                         s.best.k as f64 - 0.15,
-                        crate::experiment::statistics::median(&s.db_values()),
+                        crate::stats::median(&s.db_values()),
                     )
                 })
                 .filter(|p| p.1.is_finite())

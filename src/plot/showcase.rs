@@ -226,7 +226,7 @@ pub fn showcase_figure(
         tiles.push((
             super::legend::short_name(&a.basis, 22),
             shrink(&display_image(&a.image, display).map_err(|e| err(e.to_string()))?),
-            format!("image error {}", crate::experiment::report::sig(a.image_error)),
+            format!("image error {}", crate::stats::num(a.image_error)),
         ));
         heat.push(shrink(
             &heatmap(&s.original, &a.image, display, HeatmapScale::Fixed(scale))

@@ -42,13 +42,19 @@ impl EmpiricalOutput {
                 most: e.counts.iter().copied().max().unwrap_or(0),
             });
         }
-        Ok(Self {
+        Ok(Self::of(e, fingerprint))
+    }
+
+    /// The output of an empirical selection as it is, an empty basis included (`reproduce`
+    /// writes it as `empirical.json` and reports an empty basis itself).
+    pub fn of(e: &Empirical, fingerprint: Option<String>) -> Self {
+        Self {
             method: "empirical".into(),
             histogram: e.histogram.clone(),
             contributors: e.contributors.clone(),
             basis: e.basis.clone(),
             collection_fingerprint: fingerprint,
-        })
+        }
     }
 }
 
@@ -198,23 +204,23 @@ impl std::fmt::Display for SelectOutput {
             ),
             SelectOutput::Clustering(c) => write!(
                 f,
-                "{} (best of {} runs, seed {}): k = {}, loss = {:.6}, DB = {:.6}, medoids {}",
+                "{} (best of {} runs, seed {}): k = {}, loss = {}, DB = {}, medoids {}",
                 c.method,
                 c.runs.len(),
                 c.best.seed,
                 c.best.k,
-                c.best.loss,
-                c.best.db_index,
+                crate::stats::num(c.best.loss),
+                crate::stats::num(c.best.db_index),
                 c.best.medoids.join(",")
             ),
             SelectOutput::ErrorDriven(s) => {
                 let s = &s.selection;
                 write!(
                     f,
-                    "{}: k = {}, S = {:.6e}, basis {}",
+                    "{}: k = {}, S = {}, basis {}",
                     s.method,
                     s.k,
-                    s.score,
+                    crate::stats::num(s.score),
                     s.basis.join(",")
                 )
             }

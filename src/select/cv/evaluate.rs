@@ -11,10 +11,10 @@ use crate::collection::Collection;
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
-use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
+use crate::fit::{cell_errors, channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
-use crate::stats::StatsError;
+use crate::stats::{mean, median, StatsError};
 
 /// What the held-out materials are evaluated with: the objective, the grid MAE and renders
 /// of every material (SPEC 7: light (45, 45)).
@@ -211,20 +211,18 @@ impl<'a> GridEval<'a> {
             mae += match analytic {
                 Some(ab) => ab,
                 None => {
+                    // The fits' cell-by-cell sum, on the columns with a non-zero
+                    // coefficient (the others add exact zeros).
                     let cells = &self.cells.cells;
-                    let mut fitv = vec![0.0; cells.len()];
-                    for (&i, &a) in cols.iter().zip(&x) {
-                        if a != 0.0 {
-                            let v = self.cpu.values_f64(&self.lobe(i, c), cells);
-                            fitv.iter_mut().zip(v).for_each(|(o, v)| *o += a * v);
-                        }
-                    }
+                    let (vals, xs): (Vec<Vec<f64>>, Vec<f64>) = cols
+                        .iter()
+                        .zip(&x)
+                        .filter(|(_, &a)| a != 0.0)
+                        .map(|(&i, &a)| (self.cpu.values_f64(&self.lobe(i, c), cells), a))
+                        .unzip();
+                    let refs: Vec<&[f64]> = vals.iter().map(Vec::as_slice).collect();
                     let b = self.cpu.values_f64(&self.lobe(Some(t), c), cells);
-                    fitv.iter()
-                        .zip(&b)
-                        .zip(&self.cells.weights)
-                        .map(|((f, b), w)| w * (f - b).abs())
-                        .sum()
+                    cell_errors(&refs, &xs, &b, &self.cells.weights).mae
                 }
             } / 3.0;
         }
@@ -232,35 +230,9 @@ impl<'a> GridEval<'a> {
     }
 }
 
-/// Mean (NaN for no value).
-pub(crate) fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
-    }
-}
-
-/// Median (NaN for no value; the mean of the two middle values for an even count).
-pub(crate) fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    match s.len() {
-        0 => f64::NAN,
-        l if l % 2 == 1 => s[l / 2],
-        l => 0.5 * (s[l / 2 - 1] + s[l / 2]),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn median_of_even_and_odd() {
-        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
-    }
 
     fn result(method: &str, v: &[f64]) -> CvMethodResult {
         CvMethodResult {

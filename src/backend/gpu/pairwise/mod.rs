@@ -240,99 +240,27 @@ impl PairwiseKernel {
         let tables = GridTables::new();
         let total = cells.len() as u64;
         let mut done = 0u64;
+        let pass = Pass {
+            plan,
+            pipelines: &pipelines,
+            view: &view,
+            info_view: &info_view,
+            block_buf: &block_buf,
+            partial: &partial,
+            per_block,
+            per_pass,
+            n_diagonal,
+            n_blocks,
+            side,
+        };
         for (cc, cw) in cells
             .cells
             .chunks(plan.chunk)
             .zip(cells.weights.chunks(plan.chunk))
         {
-            let len = cc.len();
-            // Per cell (e, g, w, 0): table index, separable factor times the row scale,
-            // row scale; f64 rounded once.
-            let mut texels = vec![0f32; plan.row_stride * 4];
-            for ((t, &c), &w) in texels.chunks_exact_mut(4).zip(cc).zip(cw) {
-                let (e, g) = tables.cell_factor(c as usize);
-                let w = op.row_scale(w);
-                t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
-            }
-            ctx.write_texel_rows(&info, 0, &texels);
-            // Measured rows: scaled and packed on the host, four rows to a texel.
-            for (m, group) in layout.measured.chunks(4).enumerate() {
-                texels.fill(0.0);
-                for (q, &i) in group.iter().enumerate() {
-                    for (c, (&cell, &w)) in cc.iter().zip(cw).enumerate() {
-                        texels[4 * c + q] =
-                            (op.row_scale(w) * lobes[i].eval_f64(&tables, cell as usize)) as f32;
-                    }
-                }
-                ctx.write_texel_rows(
-                    &texture,
-                    plan.measured_base() / TEX_W + m * info_rows,
-                    &texels,
-                );
-            }
-            let mut enc = ctx.encoder();
-            // Register-block groups whose per-lane partials fit one binding; one readback
-            // each.
-            let groups = [(0, n_diagonal), (n_diagonal, n_blocks)]
-                .into_iter()
-                .zip(&pipelines)
-                .flat_map(|((lo, hi), p)| {
-                    (lo..hi)
-                        .step_by(per_pass)
-                        .map(move |off| (off, (hi - off).min(per_pass), p))
-                });
-            for (off, count, pipeline) in groups {
-                let params = PairParams {
-                    n_cells: len as u32,
-                    row_stride: plan.row_stride as u32,
-                    run_iters: plan.run_iters,
-                    n_runs: plan.n_runs as u32,
-                    block_offset: off as u32,
-                    n_blocks: (off + count) as u32,
-                    analytic_blocks: plan.analytic_blocks as u32,
-                    measured_blocks: plan.measured_blocks as u32,
-                    measured_base: plan.measured_base() as u32,
-                    zero_base: plan.zero_base() as u32,
-                    _pad0: 0,
-                    _pad1: 0,
-                };
-                let pbuf = ctx.uniform("pairwise params", &params);
-                let bind = ctx.bind_at(
-                    pipeline,
-                    vec![
-                        (0, pbuf.as_entire_binding()),
-                        (1, wgpu::BindingResource::TextureView(&view)),
-                        (2, block_buf.as_entire_binding()),
-                        (3, partial.as_entire_binding()),
-                        (4, wgpu::BindingResource::TextureView(&info_view)),
-                    ],
-                );
-                dispatch(
-                    &mut enc,
-                    pipeline,
-                    &bind,
-                    (plan.n_runs as u32, count as u32),
-                );
-                let used = (count * per_block) as u64;
-                let bytes = ctx.submit_and_read(
-                    std::mem::replace(&mut enc, ctx.encoder()),
-                    &partial,
-                    used,
-                )?;
-                let part: &[f32] = bytemuck::cast_slice(&bytes[..used as usize]);
-                let ss = side * side;
-                for (s, blk) in sums[off * ss..(off + count) * ss]
-                    .chunks_mut(ss)
-                    .zip(part.chunks(per_block / 4))
-                {
-                    for lane_run in blk.chunks(ss) {
-                        for (v, &x) in s.iter_mut().zip(lane_run) {
-                            *v += x as f64;
-                        }
-                    }
-                }
-            }
-            done += len as u64;
+            pack_chunk(ctx, &info, &texture, lobes, &layout, plan, op, &tables, cc, cw);
+            dispatch_groups(ctx, &pass, cc.len(), &mut sums)?;
+            done += cc.len() as u64;
             progress(done, total);
         }
         self.put_back((height, texture));
@@ -353,5 +281,142 @@ impl PairwiseKernel {
             });
         }
         Ok(out)
+    }
+}
+
+/// What every cell chunk of one [`PairwiseKernel::run`] shares: the plan, the two
+/// pipelines (diagonal register blocks, others), the bound resources and the register-block
+/// grouping (`per_pass` blocks of `per_block` bytes of partials each per readback).
+struct Pass<'a> {
+    plan: &'a PairPlan,
+    pipelines: &'a [wgpu::ComputePipeline; 2],
+    view: &'a wgpu::TextureView,
+    info_view: &'a wgpu::TextureView,
+    block_buf: &'a wgpu::Buffer,
+    partial: &'a wgpu::Buffer,
+    per_block: usize,
+    per_pass: usize,
+    n_diagonal: usize,
+    n_blocks: usize,
+    side: usize,
+}
+
+/// Uploads one chunk of cells (`cc`, weights `cw`): per cell (e, g, w, 0) into `info`
+/// (table index, separable factor times the row scale, row scale; f64 rounded once), and
+/// the measured rows, scaled and packed on the host four rows to a texel, into `texture`.
+#[allow(clippy::too_many_arguments)]
+fn pack_chunk(
+    ctx: &GpuContext,
+    info: &wgpu::Texture,
+    texture: &wgpu::Texture,
+    lobes: &[Lobe],
+    layout: &RowLayout,
+    plan: &PairPlan,
+    op: PairOp,
+    tables: &GridTables,
+    cc: &[u32],
+    cw: &[f64],
+) {
+    let info_rows = plan.row_stride / TEX_W;
+    let mut texels = vec![0f32; plan.row_stride * 4];
+    for ((t, &c), &w) in texels.chunks_exact_mut(4).zip(cc).zip(cw) {
+        let (e, g) = tables.cell_factor(c as usize);
+        let w = op.row_scale(w);
+        t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
+    }
+    ctx.write_texel_rows(info, 0, &texels);
+    for (m, group) in layout.measured.chunks(4).enumerate() {
+        texels.fill(0.0);
+        for (q, &i) in group.iter().enumerate() {
+            for (c, (&cell, &w)) in cc.iter().zip(cw).enumerate() {
+                texels[4 * c + q] =
+                    (op.row_scale(w) * lobes[i].eval_f64(tables, cell as usize)) as f32;
+            }
+        }
+        ctx.write_texel_rows(
+            texture,
+            plan.measured_base() / TEX_W + m * info_rows,
+            &texels,
+        );
+    }
+}
+
+/// Runs the kernel on the uploaded chunk of `len` cells: register-block groups whose
+/// per-lane partials fit one binding (diagonal blocks first, their own pipeline), one
+/// dispatch and one blocking readback each, [`accumulate`]d into `sums`.
+fn dispatch_groups(
+    ctx: &GpuContext,
+    pass: &Pass<'_>,
+    len: usize,
+    sums: &mut [f64],
+) -> Result<(), GpuError> {
+    let plan = pass.plan;
+    let mut enc = ctx.encoder();
+    let groups = [(0, pass.n_diagonal), (pass.n_diagonal, pass.n_blocks)]
+        .into_iter()
+        .zip(pass.pipelines)
+        .flat_map(|((lo, hi), p)| {
+            (lo..hi)
+                .step_by(pass.per_pass)
+                .map(move |off| (off, (hi - off).min(pass.per_pass), p))
+        });
+    for (off, count, pipeline) in groups {
+        let params = PairParams {
+            n_cells: len as u32,
+            row_stride: plan.row_stride as u32,
+            run_iters: plan.run_iters,
+            n_runs: plan.n_runs as u32,
+            block_offset: off as u32,
+            n_blocks: (off + count) as u32,
+            analytic_blocks: plan.analytic_blocks as u32,
+            measured_blocks: plan.measured_blocks as u32,
+            measured_base: plan.measured_base() as u32,
+            zero_base: plan.zero_base() as u32,
+            _pad0: 0,
+            _pad1: 0,
+        };
+        let pbuf = ctx.uniform("pairwise params", &params);
+        let bind = ctx.bind_at(
+            pipeline,
+            vec![
+                (0, pbuf.as_entire_binding()),
+                (1, wgpu::BindingResource::TextureView(pass.view)),
+                (2, pass.block_buf.as_entire_binding()),
+                (3, pass.partial.as_entire_binding()),
+                (4, wgpu::BindingResource::TextureView(pass.info_view)),
+            ],
+        );
+        dispatch(
+            &mut enc,
+            pipeline,
+            &bind,
+            (plan.n_runs as u32, count as u32),
+        );
+        let used = (count * pass.per_block) as u64;
+        let bytes = ctx.submit_and_read(
+            std::mem::replace(&mut enc, ctx.encoder()),
+            pass.partial,
+            used,
+        )?;
+        let ss = pass.side * pass.side;
+        accumulate(
+            &mut sums[off * ss..(off + count) * ss],
+            bytemuck::cast_slice(&bytes[..used as usize]),
+            ss,
+            pass.per_block / 4,
+        );
+    }
+    Ok(())
+}
+
+/// Adds the f32 per-lane, per-run partials `part` (`per_block` values per register block)
+/// to the f64 sums of the same blocks (`ss` values each), in lane-run order.
+fn accumulate(sums: &mut [f64], part: &[f32], ss: usize, per_block: usize) {
+    for (s, blk) in sums.chunks_mut(ss).zip(part.chunks(per_block)) {
+        for lane_run in blk.chunks(ss) {
+            for (v, &x) in s.iter_mut().zip(lane_run) {
+                *v += x as f64;
+            }
+        }
     }
 }
