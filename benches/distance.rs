@@ -7,8 +7,8 @@
 //! N = 240, the figures behind `KernelShape::choose`).
 
 use brdf_basis::backend::cpu::CpuBackend;
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
 use brdf_basis::backend::gpu::GpuBackend;
+use brdf_basis::backend::{Backend, Lobe, LobeParams};
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use std::time::Instant;
 

@@ -5,10 +5,10 @@
 //! `cargo bench --bench fit`
 
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::gpu::GpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::{channel_gram, fit, fit_cells, FitParams, GramMode};
-use brdf_basis::backend::gpu::GpuBackend;
 use brdf_basis::nnls::pgd::PgdParams;
 use brdf_basis::nnls::GramBatch;
 use std::time::Instant;

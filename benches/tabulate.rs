@@ -6,8 +6,8 @@
 //! `cargo bench --bench tabulate`
 
 use brdf_basis::backend::cpu::CpuBackend;
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
 use brdf_basis::backend::gpu::GpuBackend;
+use brdf_basis::backend::{Backend, Lobe, LobeParams};
 use brdf_basis::merl::grid::N_CELLS;
 use std::time::Instant;
 

@@ -21,16 +21,16 @@
 use std::sync::Arc;
 
 pub use crate::backend::cpu::CpuBackend;
+pub use crate::backend::gpu::GpuBackend;
 pub use crate::backend::{open as open_backend, Backend, BackendChoice};
 pub use crate::cluster::{KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
 pub use crate::collection::Collection;
 pub use crate::distance::{DistanceMatrix, DistanceParams, Distances, Metric};
 pub use crate::fit::{FitParams, GramMode, Solver, TargetFit};
-pub use crate::backend::gpu::GpuBackend;
 pub use crate::merl::{Mask, Weighting};
 pub use crate::select::{
-    CvMethod, CvParams, CvResult, Empirical, EmpiricalParams, GaParams, Objective,
-    ObjectiveParams, SearchParams, Selection,
+    CvMethod, CvParams, CvResult, Empirical, EmpiricalParams, GaParams, Objective, ObjectiveParams,
+    SearchParams, Selection,
 };
 
 /// Any error of the library: the error of the module that failed, unchanged (its message
@@ -125,7 +125,12 @@ pub fn distances(
     p: &DistanceParams,
 ) -> Result<DistanceMatrix> {
     let valid = p.check(coll)?;
-    Ok(crate::distance::distance_matrix(backend, coll, &valid, &|_, _| {})?)
+    Ok(crate::distance::distance_matrix(
+        backend,
+        coll,
+        &valid,
+        &|_, _| {},
+    )?)
 }
 
 /// The selection objective `S(B; T)` of `coll` (SPEC 8): one Gram matrix per channel,
@@ -133,7 +138,11 @@ pub fn distances(
 ///
 /// # Errors
 /// [`Error::Selection`] for invalid parameters, an empty collection or a failed Gram pass.
-pub fn objective(backend: &dyn Backend, coll: &Collection, p: &ObjectiveParams) -> Result<Objective> {
+pub fn objective(
+    backend: &dyn Backend,
+    coll: &Collection,
+    p: &ObjectiveParams,
+) -> Result<Objective> {
     Ok(Objective::new(backend, coll, &p.check()?, &|_, _| {})?)
 }
 
@@ -143,7 +152,11 @@ pub fn objective(backend: &dyn Backend, coll: &Collection, p: &ObjectiveParams) 
 /// [`Error::Selection`] for parameters that do not fit the objective's materials or a
 /// failed solve.
 pub fn select_greedy(obj: &Objective, p: &SearchParams) -> Result<Selection> {
-    Ok(crate::select::greedy(obj, &p.check(obj.names())?, &|_, _| {})?)
+    Ok(crate::select::greedy(
+        obj,
+        &p.check(obj.names())?,
+        &|_, _| {},
+    )?)
 }
 
 /// Swap refinement (from `p.init`, or the greedy basis) on `obj`.
@@ -151,7 +164,11 @@ pub fn select_greedy(obj: &Objective, p: &SearchParams) -> Result<Selection> {
 /// # Errors
 /// As [`select_greedy`].
 pub fn select_swap(obj: &Objective, p: &SearchParams) -> Result<Selection> {
-    Ok(crate::select::swap(obj, &p.check(obj.names())?, &|_, _| {})?)
+    Ok(crate::select::swap(
+        obj,
+        &p.check(obj.names())?,
+        &|_, _| {},
+    )?)
 }
 
 /// The genetic algorithm on `obj` (seeded by `g.seed`).
@@ -159,7 +176,12 @@ pub fn select_swap(obj: &Objective, p: &SearchParams) -> Result<Selection> {
 /// # Errors
 /// As [`select_greedy`], and for invalid GA settings.
 pub fn select_ga(obj: &Objective, p: &SearchParams, g: &GaParams) -> Result<Selection> {
-    Ok(crate::select::ga(obj, &p.check(obj.names())?, &g.check()?, &|_, _| {})?)
+    Ok(crate::select::ga(
+        obj,
+        &p.check(obj.names())?,
+        &g.check()?,
+        &|_, _| {},
+    )?)
 }
 
 /// The paper's empirical basis (Algorithm 1): materials that contribute to more than
@@ -167,7 +189,11 @@ pub fn select_ga(obj: &Objective, p: &SearchParams, g: &GaParams) -> Result<Sele
 ///
 /// # Errors
 /// [`Error::Fit`] for fewer than two materials, no common cells, or a failed solve.
-pub fn empirical(backend: &dyn Backend, coll: &Collection, p: &EmpiricalParams) -> Result<Empirical> {
+pub fn empirical(
+    backend: &dyn Backend,
+    coll: &Collection,
+    p: &EmpiricalParams,
+) -> Result<Empirical> {
     Ok(crate::select::empirical(backend, coll, p, &|_, _| {})?)
 }
 
@@ -184,7 +210,14 @@ pub fn fit(
     targets: &[usize],
     p: &FitParams,
 ) -> Result<Vec<TargetFit>> {
-    Ok(crate::fit::fit(backend, coll, basis, targets, p, &|_, _| {})?)
+    Ok(crate::fit::fit(
+        backend,
+        coll,
+        basis,
+        targets,
+        p,
+        &|_, _| {},
+    )?)
 }
 
 /// K-fold cross-validation of the selection methods `p.methods` at the sizes `p.ks`.
@@ -193,7 +226,12 @@ pub fn fit(
 /// [`Error::Selection`] for parameters that do not fit the collection or a failed stage.
 pub fn cross_validate(backend: &dyn Backend, coll: &Collection, p: &CvParams) -> Result<CvResult> {
     let valid = p.check(coll.len())?;
-    Ok(crate::select::cross_validate(backend, coll, &valid, &|_, _| {})?)
+    Ok(crate::select::cross_validate(
+        backend,
+        coll,
+        &valid,
+        &|_, _| {},
+    )?)
 }
 
 #[cfg(test)]
@@ -208,8 +246,9 @@ mod tests {
         let coll = Collection::embedded_default();
         let dp = DistanceParams::default().stride(8);
         let d = distances(&cpu, &coll, &dp).unwrap();
-        let m = crate::distance::distance_matrix(&cpu, &coll, &dp.check(&coll).unwrap(), &|_, _| {})
-            .unwrap();
+        let m =
+            crate::distance::distance_matrix(&cpu, &coll, &dp.check(&coll).unwrap(), &|_, _| {})
+                .unwrap();
         assert_eq!(d.names(), m.names());
         for i in 0..coll.len() {
             for j in 0..coll.len() {
@@ -247,6 +286,9 @@ mod tests {
         assert!(matches!(e, Error::Distance(_)), "{e:?}");
         assert_eq!(e.to_string(), direct);
         let e = fit(&cpu, &coll, &[], &[1], &FitParams::default()).unwrap_err();
-        assert!(matches!(e, Error::Fit(crate::fit::FitError::EmptyBasis)), "{e:?}");
+        assert!(
+            matches!(e, Error::Fit(crate::fit::FitError::EmptyBasis)),
+            "{e:?}"
+        );
     }
 }

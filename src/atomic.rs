@@ -466,7 +466,10 @@ impl OutputPlan {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
         {
-            add(&path.with_extension("names.json"), format!("{noun}'s sidecar"));
+            add(
+                &path.with_extension("names.json"),
+                format!("{noun}'s sidecar"),
+            );
         }
         self
     }
@@ -524,7 +527,9 @@ impl OutputPlan {
     }
 
     fn is_dir_kind(&self, k: &Path) -> bool {
-        self.planned.iter().any(|p| p.key == k && p.kind == Kind::Dir)
+        self.planned
+            .iter()
+            .any(|p| p.key == k && p.kind == Kind::Dir)
     }
 
     /// The common checks of a path: not empty, named, not an input, not planned twice;
@@ -533,7 +538,10 @@ impl OutputPlan {
         if path.as_os_str().is_empty() {
             return Err(refused(path, format!("{flag}: empty path")));
         }
-        if matches!(path.components().next_back(), Some(Component::ParentDir) | None) {
+        if matches!(
+            path.components().next_back(),
+            Some(Component::ParentDir) | None
+        ) {
             return Err(refused(path, format!("{flag}: give a name, not `..`")));
         }
         let k = key(path);
@@ -662,11 +670,9 @@ impl OutputPlan {
         owns: Owns,
     ) -> Result<(), OutputError> {
         let k = self.common(path, flag)?;
-        if let Some(i) = self
-            .inputs
-            .iter()
-            .find(|i| i.key.starts_with(&k) || i.canonical.as_ref().is_some_and(|c| c.starts_with(&k)))
-        {
+        if let Some(i) = self.inputs.iter().find(|i| {
+            i.key.starts_with(&k) || i.canonical.as_ref().is_some_and(|c| c.starts_with(&k))
+        }) {
             return Err(refused(
                 path,
                 format!("{flag} holds the input {}", i.shown.display()),
@@ -780,7 +786,9 @@ const STAGE_PREFIX: &str = ".brdf-basis-stage-";
 fn stage_pid(name: &str) -> Option<u32> {
     let (pid, seq) = name.strip_prefix(STAGE_PREFIX)?.split_once('-')?;
     let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
-    (digits(pid) && digits(seq)).then(|| pid.parse().ok()).flatten()
+    (digits(pid) && digits(seq))
+        .then(|| pid.parse().ok())
+        .flatten()
 }
 
 /// Removes, best effort, the staging directories in `dir` that a killed run left behind
@@ -1044,7 +1052,10 @@ impl OutputSet {
                 }
                 let to = target.join(&name);
                 if std::fs::symlink_metadata(&to).is_ok() {
-                    return Err(refused(&to, "appeared while the command ran; not replaced".into()));
+                    return Err(refused(
+                        &to,
+                        "appeared while the command ran; not replaced".into(),
+                    ));
                 }
                 mv(&e.path(), &to, moves)?;
             }
@@ -1158,7 +1169,9 @@ mod tests {
         // An owned file that is not ours is refused.
         std::fs::write(d.path().join("x.names.json"), "mine").unwrap();
         let e = plan
-            .owned_file(&d.path().join("x.names.json"), "--out", "sidecar", |_| false)
+            .owned_file(&d.path().join("x.names.json"), "--out", "sidecar", |_| {
+                false
+            })
             .unwrap_err();
         assert!(e.to_string().contains("not a sidecar"), "{e}");
     }
@@ -1181,7 +1194,10 @@ mod tests {
         std::fs::write(root.join("report.md"), "new").unwrap();
         drop(set);
         assert_eq!(names(&out), ["report.md"]);
-        assert_eq!(std::fs::read_to_string(out.join("report.md")).unwrap(), "old");
+        assert_eq!(
+            std::fs::read_to_string(out.join("report.md")).unwrap(),
+            "old"
+        );
         let mut plan = OutputPlan::new(&[]);
         plan.tree(&out, "--out", true, ours).unwrap();
         let mut set = plan.into_set().unwrap();
@@ -1190,7 +1206,10 @@ mod tests {
         std::fs::write(root.join("report.md"), "new").unwrap();
         set.commit().unwrap();
         assert_eq!(names(&out), ["figures", "report.md"]);
-        assert_eq!(std::fs::read_to_string(out.join("report.md")).unwrap(), "new");
+        assert_eq!(
+            std::fs::read_to_string(out.join("report.md")).unwrap(),
+            "new"
+        );
         // A missing tree is created, and removed again when dropped.
         let fresh = d.path().join("fresh");
         let mut plan = OutputPlan::new(&[]);

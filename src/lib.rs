@@ -53,10 +53,10 @@
 
 mod api;
 pub use api::*;
-/// The wgpu this crate is built against (hand [`gpu_backend`] a device from it).
-pub use wgpu;
 /// The executor the examples block on wgpu's futures with.
 pub use pollster;
+/// The wgpu this crate is built against (hand [`gpu_backend`] a device from it).
+pub use wgpu;
 
 pub mod atomic;
 pub mod backend;

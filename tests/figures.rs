@@ -58,7 +58,10 @@ fn unusable_fonts_are_refused_naming_the_variable_and_path() {
         ("/dev/zero".to_string(), "not a regular file"),
         (d.path().display().to_string(), "not a regular file"),
         (missing.display().to_string(), "No such file"),
-        (not_font.display().to_string(), "not a TrueType or OpenType font"),
+        (
+            not_font.display().to_string(),
+            "not a TrueType or OpenType font",
+        ),
         (huge.display().to_string(), "64 MiB"),
     ];
     for (i, (font, why)) in cases.iter().enumerate() {
@@ -66,7 +69,10 @@ fn unusable_fonts_are_refused_naming_the_variable_and_path() {
         let o = plot_with_font(font, &out);
         let e = err(&o);
         assert!(!o.status.success(), "{font}: accepted");
-        assert!(e.contains(&format!("BRDF_BASIS_FONT={font}")), "{font}: {e}");
+        assert!(
+            e.contains(&format!("BRDF_BASIS_FONT={font}")),
+            "{font}: {e}"
+        );
         assert!(e.contains(why), "{font}: {e}");
         assert!(!e.contains("panicked"), "{e}");
         assert!(!out.exists(), "{font}: output written");
@@ -80,26 +86,49 @@ fn unusable_font_is_refused_before_reproduce_and_render_work() {
     let out = d.path().join("r");
     let mut c = bin();
     c.env("BRDF_BASIS_FONT", "/dev/zero")
-        .args(["--quiet", "--backend", "cpu", "reproduce", "--runs", "2", "--out"])
+        .args([
+            "--quiet",
+            "--backend",
+            "cpu",
+            "reproduce",
+            "--runs",
+            "2",
+            "--out",
+        ])
         .arg(&out);
     let t = Instant::now();
     let o = run_within(c, Duration::from_secs(30));
     assert!(!o.status.success());
     assert!(err(&o).contains("BRDF_BASIS_FONT=/dev/zero"), "{}", err(&o));
-    assert!(!out.exists(), "output directory created before the font check");
+    assert!(
+        !out.exists(),
+        "output directory created before the font check"
+    );
     assert!(t.elapsed() < Duration::from_secs(20));
 
     let fits = d.path().join("f.json");
     let o = bin()
         .args(["--quiet", "--backend", "cpu", "fit", "--basis"])
-        .args(["mirror-silver,matte-white-paint", "--targets", "polished-gold", "--json"])
+        .args([
+            "mirror-silver,matte-white-paint",
+            "--targets",
+            "polished-gold",
+            "--json",
+        ])
         .arg(&fits)
         .output()
         .expect("fit");
     assert!(o.status.success(), "{}", err(&o));
     let mut c = bin();
     c.env("BRDF_BASIS_FONT", d.path().join("nosuch.ttf"))
-        .args(["--quiet", "--backend", "cpu", "render", "--material", "polished-gold"])
+        .args([
+            "--quiet",
+            "--backend",
+            "cpu",
+            "render",
+            "--material",
+            "polished-gold",
+        ])
         .args(["--size", "16", "--fit"])
         .arg(&fits)
         .arg("--out")
@@ -120,14 +149,26 @@ fn heatmap_png_has_a_colour_bar() {
     let fits = d.path().join("f.json");
     let o = bin()
         .args(["--quiet", "--backend", "cpu", "fit", "--basis"])
-        .args(["mirror-silver,matte-white-paint", "--targets", "polished-gold", "--json"])
+        .args([
+            "mirror-silver,matte-white-paint",
+            "--targets",
+            "polished-gold",
+            "--json",
+        ])
         .arg(&fits)
         .output()
         .expect("fit");
     assert!(o.status.success(), "{}", err(&o));
     let heat = d.path().join("h.png");
     let o = bin()
-        .args(["--quiet", "--backend", "cpu", "render", "--material", "polished-gold"])
+        .args([
+            "--quiet",
+            "--backend",
+            "cpu",
+            "render",
+            "--material",
+            "polished-gold",
+        ])
         .args(["--size", "64", "--fit"])
         .arg(&fits)
         .arg("--out")
@@ -138,7 +179,11 @@ fn heatmap_png_has_a_colour_bar() {
         .expect("render");
     assert!(o.status.success(), "{}", err(&o));
     let img = image::open(&heat).expect("png").to_rgb8();
-    assert!(img.width() > 64 + 20 && img.height() >= 64, "{:?}", img.dimensions());
+    assert!(
+        img.width() > 64 + 20 && img.height() >= 64,
+        "{:?}",
+        img.dimensions()
+    );
     // Somewhere right of the render: a column going from yellow (top) to purple (bottom).
     let yellow = (65..img.width()).any(|x| {
         (0..img.height()).any(|y| {
@@ -179,7 +224,10 @@ fn zero_material_lobe_plot_is_said_not_blank() {
     assert!(e.contains("warning") && e.contains("`zero` is 0"), "{e}");
     if brdf_basis::plot::with_text() {
         let svg = std::fs::read_to_string(&out).expect("svg");
-        assert!(svg.contains("BRDF = 0 in this plane"), "no note in the figure");
+        assert!(
+            svg.contains("BRDF = 0 in this plane"),
+            "no note in the figure"
+        );
     }
 }
 
@@ -193,7 +241,10 @@ fn box_whiskers_are_data_values() {
     assert_eq!((q.low, q.high), (1.0, 3.4));
     assert!(q.outliers.is_empty());
     let fences = plotters::data::Quartiles::new(&runs).values();
-    assert!(f64::from(fences[0]) < 1.0 && f64::from(fences[4]) > 3.4, "{fences:?}");
+    assert!(
+        f64::from(fences[0]) < 1.0 && f64::from(fences[4]) > 3.4,
+        "{fences:?}"
+    );
     // Outliers beyond 1.5 IQR are points; the whisker stops at the last run inside.
     let q = box_stats(&[1.0, 2.0, 3.0, 4.0, 100.0, f64::NAN]).expect("stats");
     assert_eq!((q.low, q.high, q.outliers.clone()), (1.0, 4.0, vec![100.0]));
@@ -248,7 +299,13 @@ fn fig4_names_materials_in_one_order_with_clean_ticks() {
         let mut at: Vec<(usize, usize)> = targets
             .iter()
             .enumerate()
-            .map(|(i, t)| (svg.find(&format!("\n{t}\n")).unwrap_or_else(|| panic!("{t} not named")), i))
+            .map(|(i, t)| {
+                (
+                    svg.find(&format!("\n{t}\n"))
+                        .unwrap_or_else(|| panic!("{t} not named")),
+                    i,
+                )
+            })
             .collect();
         at.sort();
         at.into_iter().map(|p| p.1).collect()
@@ -259,9 +316,15 @@ fn fig4_names_materials_in_one_order_with_clean_ticks() {
     assert_eq!(order_in(&b.svg), vec![1, 3, 0, 2]);
     for svg in [&a.svg, &b.svg] {
         for t in texts(svg) {
-            assert!(!t.contains("9999") && !t.contains("0000"), "float noise in `{t}`");
+            assert!(
+                !t.contains("9999") && !t.contains("0000"),
+                "float noise in `{t}`"
+            );
         }
     }
     // plotters writes a text element's content on a line of its own.
-    assert!(a.svg.contains("\n1e-4\n") || a.svg.contains("\n0.001\n"), "no decade tick");
+    assert!(
+        a.svg.contains("\n1e-4\n") || a.svg.contains("\n0.001\n"),
+        "no decade tick"
+    );
 }

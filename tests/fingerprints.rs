@@ -16,7 +16,16 @@ fn cv_and_reproduce_results_carry_the_collection_fingerprint() {
     let d = tmp();
     let cv = d.path().join("cv.json");
     let o = bin_cpu()
-        .args(["cv", "--methods", "greedy,random", "-k", "2", "--stride", "8", "--json"])
+        .args([
+            "cv",
+            "--methods",
+            "greedy,random",
+            "-k",
+            "2",
+            "--stride",
+            "8",
+            "--json",
+        ])
         .arg(&cv)
         .output()
         .expect("run cv");
@@ -26,8 +35,20 @@ fn cv_and_reproduce_results_carry_the_collection_fingerprint() {
     let out = d.path().join("r");
     let o = bin_cpu()
         .args([
-            "reproduce", "--runs", "2", "--stride", "8", "--render-size", "16", "--k-max", "6",
-            "--gcuk-k-max", "7", "--cv-folds", "0", "--out",
+            "reproduce",
+            "--runs",
+            "2",
+            "--stride",
+            "8",
+            "--render-size",
+            "16",
+            "--k-max",
+            "6",
+            "--gcuk-k-max",
+            "7",
+            "--cv-folds",
+            "0",
+            "--out",
         ])
         .arg(&out)
         .output()

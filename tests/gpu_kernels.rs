@@ -3,11 +3,11 @@
 
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
-use brdf_basis::brdf::ashikhmin_shirley::rho_s_angles;
 use brdf_basis::backend::gpu::pairwise::{
     KernelShape, PairPlan, PlanLimits, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
 };
+use brdf_basis::backend::{Backend, Lobe, LobeParams};
+use brdf_basis::brdf::ashikhmin_shirley::rho_s_angles;
 use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS};
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use rayon::prelude::*;

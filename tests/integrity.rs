@@ -532,10 +532,7 @@ fn a_stride_that_leaves_no_cell_is_explained_as_such() {
             .args(["distance", "--stride", "90", "--out"])
             .arg(dir.path().join("d.npy")),
     );
-    assert!(
-        err.contains("--stride 90 leaves too few cells"),
-        "{err}"
-    );
+    assert!(err.contains("--stride 90 leaves too few cells"), "{err}");
     assert!(!err.contains("valid in every material"), "{err}");
 }
 

@@ -68,17 +68,31 @@ fn select_on_a_saved_matrix_carries_the_sidecars_fingerprint() {
         want,
         brdf_basis::collection::Collection::embedded_default().fingerprint()
     );
-    for method in [["--method", "kmedoids", "-k", "2"], ["--method", "gcuk", "--k-min", "2"]] {
+    for method in [
+        ["--method", "kmedoids", "-k", "2"],
+        ["--method", "gcuk", "--k-min", "2"],
+    ] {
         let json = d.path().join(format!("{}.json", method[1]));
         let mut c = bin_cpu();
         c.arg("select").args(method).args(["--runs", "2"]);
         if method[1] == "gcuk" {
             c.args(["--k-max", "3", "--population", "6", "--generations", "3"]);
         }
-        let o = c.arg("--distances").arg(&npy).arg("--json").arg(&json).output().expect("select");
+        let o = c
+            .arg("--distances")
+            .arg(&npy)
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .expect("select");
         assert!(o.status.success(), "{}", err(&o));
         let out = brdf_basis::select::SelectOutput::read(&json).expect("read back");
-        assert_eq!(out.collection_fingerprint(), Some(want.as_str()), "{}", method[1]);
+        assert_eq!(
+            out.collection_fingerprint(),
+            Some(want.as_str()),
+            "{}",
+            method[1]
+        );
     }
 }
 
@@ -95,7 +109,9 @@ fn stale_stage_directories_of_dead_processes_are_removed() {
     let stale = d.path().join(format!(".brdf-basis-stage-{dead}-0"));
     std::fs::create_dir(&stale).unwrap();
     std::fs::write(stale.join("half.json"), "{").unwrap();
-    let live = d.path().join(format!(".brdf-basis-stage-{}-7", std::process::id()));
+    let live = d
+        .path()
+        .join(format!(".brdf-basis-stage-{}-7", std::process::id()));
     std::fs::create_dir(&live).unwrap();
     let file = d.path().join(format!(".brdf-basis-stage-{dead}-1"));
     std::fs::write(&file, "").unwrap();
@@ -137,7 +153,9 @@ fn a_tree_with_a_dead_runs_staging_root_is_planned_again() {
     let live = out.join(format!(".brdf-basis-stage-{}-3", std::process::id()));
     std::fs::create_dir(&live).unwrap();
     let mut plan = brdf_basis::atomic::OutputPlan::new(&[]);
-    let e = plan.tree(&out, "--out", true, |n| n == "report.md").unwrap_err();
+    let e = plan
+        .tree(&out, "--out", true, |n| n == "report.md")
+        .unwrap_err();
     assert!(e.to_string().contains(".brdf-basis-stage-"), "{e}");
     assert!(live.is_dir());
 }

@@ -59,10 +59,16 @@ fn snapshot(dir: &Path) -> Vec<(PathBuf, String)> {
             let m = std::fs::symlink_metadata(&p).expect("lstat");
             let t = m.file_type();
             let what = if t.is_symlink() {
-                format!("link -> {}", std::fs::read_link(&p).expect("link").display())
+                format!(
+                    "link -> {}",
+                    std::fs::read_link(&p).expect("link").display()
+                )
             } else if t.is_dir() {
                 stack.push(p.clone());
-                format!("dir {:o}", std::os::unix::fs::PermissionsExt::mode(&m.permissions()))
+                format!(
+                    "dir {:o}",
+                    std::os::unix::fs::PermissionsExt::mode(&m.permissions())
+                )
             } else if t.is_file() {
                 let bytes = std::fs::read(&p).expect("read");
                 format!("file {} {:x}", bytes.len(), fnv(&bytes))
@@ -121,8 +127,8 @@ const CMDS: &[Cmd] = &[
     Cmd {
         name: "select",
         args: &[
-            "select", "{IN}", "--method", "kmedoids", "-k", "2", "--runs", "2", "--stride",
-            "16", "--json", "{OUT}",
+            "select", "{IN}", "--method", "kmedoids", "-k", "2", "--runs", "2", "--stride", "16",
+            "--json", "{OUT}",
         ],
         ext: "json",
         flag: "--json",
@@ -131,28 +137,67 @@ const CMDS: &[Cmd] = &[
     Cmd {
         name: "fit",
         args: &[
-            "fit", "{IN}", "--basis", "m1,m2", "--targets", "m3", "--stride", "16", "--json",
+            "fit",
+            "{IN}",
+            "--basis",
+            "m1,m2",
+            "--targets",
+            "m3",
+            "--stride",
+            "16",
+            "--json",
             "{OUT}",
         ],
         ext: "json",
         flag: "--json",
         dup: Some((
             &[
-                "fit", "{IN}", "--basis", "m1,m2", "--targets", "m3", "--stride", "16",
-                "--json", "{OUT}", "--export", "{OUT}",
+                "fit",
+                "{IN}",
+                "--basis",
+                "m1,m2",
+                "--targets",
+                "m3",
+                "--stride",
+                "16",
+                "--json",
+                "{OUT}",
+                "--export",
+                "{OUT}",
             ],
             ["--json", "--export"],
         )),
     },
     Cmd {
         name: "render",
-        args: &["render", "{IN}", "--material", "m1", "--size", "8", "--out", "{OUT}"],
+        args: &[
+            "render",
+            "{IN}",
+            "--material",
+            "m1",
+            "--size",
+            "8",
+            "--out",
+            "{OUT}",
+        ],
         ext: "exr",
         flag: "--out",
         dup: Some((
             &[
-                "render", "{IN}", "--material", "m3", "--size", "8", "--fit", "f.json",
-                "--out", "r.exr", "--png", "{OUT}", "--heatmap", "{OUT}",
+                "render",
+                "{IN}",
+                "--material",
+                "m3",
+                "--size",
+                "8",
+                "--fit",
+                "f.json",
+                "--out",
+                "r.exr",
+                "--png",
+                "{OUT}",
+                "--heatmap",
+                "{OUT}",
             ],
             ["--png", "--heatmap"],
         )),
@@ -160,9 +205,25 @@ const CMDS: &[Cmd] = &[
     Cmd {
         name: "reproduce",
         args: &[
-            "reproduce", "{IN}", "--runs", "1", "--stride", "16", "--k-min", "2", "--k-max",
-            "2", "--gcuk-k-max", "3", "--render-size", "8", "--cv-folds", "0",
-            "--no-selection", "--out", "{OUT}",
+            "reproduce",
+            "{IN}",
+            "--runs",
+            "1",
+            "--stride",
+            "16",
+            "--k-min",
+            "2",
+            "--k-max",
+            "2",
+            "--gcuk-k-max",
+            "3",
+            "--render-size",
+            "8",
+            "--cv-folds",
+            "0",
+            "--no-selection",
+            "--out",
+            "{OUT}",
         ],
         ext: "",
         flag: "--out",
@@ -171,15 +232,44 @@ const CMDS: &[Cmd] = &[
     Cmd {
         name: "cv",
         args: &[
-            "cv", "{IN}", "--methods", "kmedoids", "-k", "2", "--folds", "2", "--runs", "1",
-            "--stride", "16", "--render-size", "8", "--json", "{OUT}",
+            "cv",
+            "{IN}",
+            "--methods",
+            "kmedoids",
+            "-k",
+            "2",
+            "--folds",
+            "2",
+            "--runs",
+            "1",
+            "--stride",
+            "16",
+            "--render-size",
+            "8",
+            "--json",
+            "{OUT}",
         ],
         ext: "json",
         flag: "--json",
         dup: Some((
             &[
-                "cv", "{IN}", "--methods", "kmedoids", "-k", "2", "--folds", "2", "--runs",
-                "1", "--stride", "16", "--render-size", "8", "--json", "{OUT}", "--markdown",
+                "cv",
+                "{IN}",
+                "--methods",
+                "kmedoids",
+                "-k",
+                "2",
+                "--folds",
+                "2",
+                "--runs",
+                "1",
+                "--stride",
+                "16",
+                "--render-size",
+                "8",
+                "--json",
+                "{OUT}",
+                "--markdown",
                 "{OUT}",
             ],
             ["--json", "--markdown"],
@@ -217,11 +307,22 @@ fn make_workdir() -> tempfile::TempDir {
     let d = tmp();
     std::fs::write(d.path().join("c.csv"), CSV).expect("write");
     let ok = |args: &[&str]| {
-        let o = run_in(d.path(), &args.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+        let o = run_in(
+            d.path(),
+            &args.iter().map(|s| s.to_string()).collect::<Vec<_>>(),
+        );
         assert!(o.status.success(), "{args:?}: {}", text(&o.stderr));
     };
     ok(&[
-        "fit", "c.csv", "--basis", "m1,m2", "--targets", "m3", "--stride", "16", "--json",
+        "fit",
+        "c.csv",
+        "--basis",
+        "m1,m2",
+        "--targets",
+        "m3",
+        "--stride",
+        "16",
+        "--json",
         "f.json",
     ]);
     for t in ["1", "2"] {
@@ -261,7 +362,10 @@ fn unwritable_dir(work: &Path) -> Option<PathBuf> {
     let probe = d.join("brdf-basis-outputs-probe");
     if std::fs::write(&probe, "x").is_ok() {
         let _ = std::fs::remove_file(&probe);
-        eprintln!("SKIP unwritable-parent row: {} is writable here", d.display());
+        eprintln!(
+            "SKIP unwritable-parent row: {} is writable here",
+            d.display()
+        );
         return None;
     }
     Some(d)
@@ -300,7 +404,11 @@ fn set_up(cmd: &Cmd, row: &Hostile, work: &Path) -> Option<(String, String)> {
             format!("{stem}.{}", cmd.ext)
         }
     };
-    let input = if cmd.name == "merge" { "t1.npy" } else { "c.csv" };
+    let input = if cmd.name == "merge" {
+        "t1.npy"
+    } else {
+        "c.csv"
+    };
     match row {
         Hostile::Device => {
             let p = name("dev");
@@ -317,7 +425,10 @@ fn set_up(cmd: &Cmd, row: &Hostile, work: &Path) -> Option<(String, String)> {
         }
         Hostile::Fifo => {
             let p = name("fifo");
-            let st = Command::new("mkfifo").arg(work.join(&p)).status().expect("mkfifo");
+            let st = Command::new("mkfifo")
+                .arg(work.join(&p))
+                .status()
+                .expect("mkfifo");
             assert!(st.success());
             Some((p, "c.csv".into()))
         }
@@ -486,7 +597,10 @@ fn distance_never_overwrites_its_input() {
     );
     assert!(!o.status.success());
     assert!(text(&o.stderr).contains("would overwrite the input collection m.csv"));
-    assert_eq!(std::fs::read_to_string(work.path().join("m.csv")).expect("read"), CSV);
+    assert_eq!(
+        std::fs::read_to_string(work.path().join("m.csv")).expect("read"),
+        CSV
+    );
 }
 
 /// `distance --out x.npy` replaces an earlier sidecar of ours but never a user's
@@ -500,7 +614,10 @@ fn a_sidecar_replaces_only_a_sidecar() {
     let o = run_in(work.path(), &args);
     let e = text(&o.stderr);
     assert!(!o.status.success(), "{e}");
-    assert!(e.contains("x.names.json") && e.contains("not a matrix sidecar"), "{e}");
+    assert!(
+        e.contains("x.names.json") && e.contains("not a matrix sidecar"),
+        "{e}"
+    );
     assert!(!work.path().join("x.npy").exists());
     assert_eq!(
         std::fs::read_to_string(work.path().join("x.names.json")).expect("read"),
@@ -512,7 +629,10 @@ fn a_sidecar_replaces_only_a_sidecar() {
         let o = run_in(work.path(), &args);
         assert!(o.status.success(), "{}", text(&o.stderr));
         let out = text(&o.stdout);
-        assert!(out.contains("wrote x.npy") && out.contains("wrote x.names.json"), "{out}");
+        assert!(
+            out.contains("wrote x.npy") && out.contains("wrote x.names.json"),
+            "{out}"
+        );
     }
     let mut names: Vec<String> = std::fs::read_dir(work.path())
         .expect("ls")
@@ -533,8 +653,18 @@ fn an_export_replaces_an_earlier_export_and_nothing_else() {
         run_in(
             work.path(),
             &[
-                "fit", "c.csv", "--basis", "m1,m2", "--targets", targets, "--stride", "16",
-                "--json", "f.json", "--export", "out",
+                "fit",
+                "c.csv",
+                "--basis",
+                "m1,m2",
+                "--targets",
+                targets,
+                "--stride",
+                "16",
+                "--json",
+                "f.json",
+                "--export",
+                "out",
             ]
             .map(String::from),
         )
@@ -571,9 +701,8 @@ fn an_export_replaces_an_earlier_export_and_nothing_else() {
 fn reproduce_refuses_a_file_and_a_missing_parent() {
     let work = tmp();
     std::fs::write(work.path().join("file"), "mine").expect("write");
-    let args = |out: &str| {
-        ["reproduce", "--runs", "1", "--stride", "16", "--out", out].map(String::from)
-    };
+    let args =
+        |out: &str| ["reproduce", "--runs", "1", "--stride", "16", "--out", out].map(String::from);
     let o = run_in(work.path(), &args("file"));
     let e = text(&o.stderr);
     assert!(!o.status.success());
@@ -590,7 +719,12 @@ fn reproduce_refuses_a_file_and_a_missing_parent() {
 #[test]
 fn help_and_usage_errors_leave_no_runtime_directory() {
     let tmpdir = tmp();
-    for args in [&["--help"][..], &["--version"], &["no-such-command"], &["info"]] {
+    for args in [
+        &["--help"][..],
+        &["--version"],
+        &["no-such-command"],
+        &["info"],
+    ] {
         let o = bin()
             .args(args)
             .env_remove("XDG_RUNTIME_DIR")
@@ -601,7 +735,11 @@ fn help_and_usage_errors_leave_no_runtime_directory() {
             .expect("ls")
             .map(|e| e.expect("entry").file_name())
             .collect();
-        assert!(left.is_empty(), "{args:?} left {left:?}: {}", text(&o.stderr));
+        assert!(
+            left.is_empty(),
+            "{args:?} left {left:?}: {}",
+            text(&o.stderr)
+        );
     }
 }
 
@@ -613,8 +751,21 @@ fn help_and_usage_errors_leave_no_runtime_directory() {
 fn an_interrupted_reproduce_leaves_nothing_and_a_rerun_works() {
     let work = tmp();
     let args = [
-        "--quiet", "--backend", "cpu", "reproduce", "--runs", "2", "--stride", "8",
-        "--render-size", "24", "--cv-folds", "0", "--no-selection", "--out", "r",
+        "--quiet",
+        "--backend",
+        "cpu",
+        "reproduce",
+        "--runs",
+        "2",
+        "--stride",
+        "8",
+        "--render-size",
+        "24",
+        "--cv-folds",
+        "0",
+        "--no-selection",
+        "--out",
+        "r",
     ];
     let mut caught = false;
     for attempt in 0..3 {
@@ -638,7 +789,10 @@ fn an_interrupted_reproduce_leaves_nothing_and_a_rerun_works() {
                 signalled = true;
                 break;
             }
-            assert!(start.elapsed() < Duration::from_secs(120), "no file written");
+            assert!(
+                start.elapsed() < Duration::from_secs(120),
+                "no file written"
+            );
             std::thread::sleep(Duration::from_millis(1));
         }
         let o = child.wait_with_output().expect("wait");
@@ -673,7 +827,9 @@ fn an_interrupted_reproduce_leaves_nothing_and_a_rerun_works() {
     assert!(top.is_empty(), "hidden leftovers: {top:?}");
     let o = bin()
         .args(["--quiet", "select", "--distances", "r/distance-brdf-it.npy"])
-        .args(["--method", "kmedoids", "-k", "2", "--runs", "2", "--json", "s.json"])
+        .args([
+            "--method", "kmedoids", "-k", "2", "--runs", "2", "--json", "s.json",
+        ])
         .current_dir(work.path())
         .output()
         .expect("select");

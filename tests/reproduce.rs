@@ -72,10 +72,7 @@ fn reproduce_report_matches_its_files_and_figures() {
     let st: Statistics = read(&out.join("statistics.json"));
     let c = st.gcuk_euclidean_vs_brdf_it.expect("gcuk comparison");
     assert_eq!(c.runs, 4);
-    assert!(report.contains(&format!(
-        "p = {}",
-        brdf_basis::stats::p_value(c.wilcoxon_p)
-    )));
+    assert!(report.contains(&format!("p = {}", brdf_basis::stats::p_value(c.wilcoxon_p))));
     assert!(st.friedman.keys().any(|k| k.metric() == "brdf-it"));
     // Bases are named once; every fit file has the same targets, all in no basis, and the
     // fit_errors.csv numbers are the fit files' MAEs.

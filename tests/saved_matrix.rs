@@ -74,7 +74,11 @@ fn saved_npy_and_csv_cluster_exactly_like_a_computed_matrix() {
         let fp = v
             .as_object_mut()
             .and_then(|o| o.remove("collection_fingerprint"));
-        assert_eq!(fp.is_some_and(|f| f.is_null()), src == Some(&csv), "{src:?}");
+        assert_eq!(
+            fp.is_some_and(|f| f.is_null()),
+            src == Some(&csv),
+            "{src:?}"
+        );
         results.push(v);
     }
     assert_eq!(results[0], results[1]);

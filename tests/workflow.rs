@@ -166,9 +166,6 @@ fn reproduce_runs_end_to_end_on_a_small_setting() {
     assert!(st["friedman-brdf-it"]["p_value"]
         .as_f64()
         .is_some_and(|p| (0.0..=1.0).contains(&p)));
-    assert!(report.contains(&format!(
-        "chi2 = {}",
-        brdf_basis::stats::num(chi2)
-    )));
+    assert!(report.contains(&format!("chi2 = {}", brdf_basis::stats::num(chi2))));
     assert!(report.contains("## Bases"));
 }

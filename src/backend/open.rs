@@ -3,8 +3,8 @@
 
 use super::cpu::CpuBackend;
 use super::Backend;
-use crate::error::GpuError;
 use crate::backend::gpu::{GpuBackend, GpuContext};
+use crate::error::GpuError;
 
 /// Which back-end to run on (spellings `auto`, `gpu`, `cpu`: [`BackendChoice::as_str`],
 /// which [`Display`](std::fmt::Display) writes; the command line parses them by the

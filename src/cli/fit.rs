@@ -162,7 +162,9 @@ fn targets_of(
 /// in the crate's number format ([`brdf_basis::stats::num`]).
 fn summary(json: &Path, fits: &[brdf_basis::fit::TargetFit]) -> String {
     let mean_of = |v: fn(&brdf_basis::fit::TargetFit) -> f64| {
-        brdf_basis::stats::num(brdf_basis::stats::mean(&fits.iter().map(v).collect::<Vec<_>>()))
+        brdf_basis::stats::num(brdf_basis::stats::mean(
+            &fits.iter().map(v).collect::<Vec<_>>(),
+        ))
     };
     format!(
         "wrote {} ({} target{}, mean MAE {}, mean relative residual {}, mean relative MAE {})",

@@ -2,9 +2,9 @@
 
 use super::Global;
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::gpu::GpuContext;
 use brdf_basis::backend::Backend;
 use brdf_basis::backend::BackendChoice;
-use brdf_basis::backend::gpu::GpuContext;
 
 /// Arguments of `info`.
 #[derive(clap::Args, Debug)]

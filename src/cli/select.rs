@@ -5,9 +5,7 @@ use super::select_error::ErrorArgs;
 use super::Global;
 use brdf_basis::atomic::{OutputPlan, OutputSet};
 use brdf_basis::cluster::{ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsParams};
-use brdf_basis::distance::{
-    distance_matrix, DistanceMatrix, DistanceParams, Metric,
-};
+use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
 use brdf_basis::experiment::ExperimentParams;
 use brdf_basis::fit::FitParams;
 use brdf_basis::merl::{Mask, Weighting};

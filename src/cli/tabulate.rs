@@ -2,10 +2,10 @@
 
 use super::Global;
 use anyhow::Context;
+use brdf_basis::atomic::OutputPlan;
 use brdf_basis::backend::Lobe;
 use brdf_basis::collection::MaterialData;
 use brdf_basis::fit::channel_lobe;
-use brdf_basis::atomic::OutputPlan;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary_to;
 use std::path::PathBuf;

@@ -143,7 +143,10 @@ fn gcuk_best_db(e: &Experiment, out: &mut Vec<Claim>) {
                 &format!(
                     "GCUK obtains the best (lowest) DB of all algorithms with {m} (Friedman, 95%)."
                 ),
-                format!("lowest mean rank: {best}; Friedman p = {}", crate::stats::p_value(f.p_value)),
+                format!(
+                    "lowest mean rank: {best}; Friedman p = {}",
+                    crate::stats::p_value(f.p_value)
+                ),
                 Some(best == "gcuk" && f.p_value < 0.05),
                 "",
             ));
@@ -341,6 +344,9 @@ mod tests {
         assert!(!r(3, 5, 9));
         assert!(r(13, 1, 13));
         assert!(r(8, 4, 9));
-        assert!(!r(2, 4, 9), "good on image error but better still on MAE: not unstable");
+        assert!(
+            !r(2, 4, 9),
+            "good on image error but better still on MAE: not unstable"
+        );
     }
 }

@@ -2,7 +2,6 @@
 //! fit mask and normalised image errors of sphere renders (paper Fig. 4 and 5).
 
 use super::bases::Basis;
-use crate::stats::{mean, median};
 use super::ExperimentError;
 use crate::backend::Backend;
 use crate::collection::Collection;
@@ -11,6 +10,7 @@ use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::fit::file::{FitFile, FitTarget};
 use crate::fit::{fit, FitParams};
+use crate::stats::{mean, median};
 use rayon::prelude::*;
 use std::collections::{BTreeSet, HashMap};
 
@@ -147,10 +147,7 @@ pub const SHOWCASE_MIN_CONTRAST: f64 = 3.0;
 /// such a target, the analytic target with a lobe nearest that exponent; else the first
 /// target (measured collections).
 pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
-    if let Some(&t) = targets
-        .iter()
-        .find(|&&t| coll.names()[t] == PAPER_SHOWCASE)
-    {
+    if let Some(&t) = targets.iter().find(|&&t| coll.names()[t] == PAPER_SHOWCASE) {
         return t;
     }
     let mean = |v: &[f64; 3]| (v[0] + v[1] + v[2]) / 3.0;
@@ -172,7 +169,9 @@ pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
             })
             .map(|b| b.0)
     };
-    nearest(true).or_else(|| nearest(false)).unwrap_or(targets[0])
+    nearest(true)
+        .or_else(|| nearest(false))
+        .unwrap_or(targets[0])
 }
 
 /// Fits `targets` by every basis, renders fits and originals, and the showcase.

@@ -22,7 +22,6 @@
 
 use super::report::{markdown, ReportContext};
 use super::{claims, clustering, evaluation, Experiment, StageTiming};
-use crate::select::EmpiricalOutput;
 use crate::distance::{DistanceParams, Metric, DEFAULT_BAND_ROWS};
 use crate::error::{DistanceError, OutputError};
 use crate::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
@@ -34,6 +33,7 @@ use crate::io::json::write_json;
 use crate::io::saved::{write_csv, write_npy_with_sidecar};
 use crate::io::sidecar::{sidecar_path, MatrixSettings};
 use crate::merl::Weighting;
+use crate::select::EmpiricalOutput;
 use std::path::{Path, PathBuf};
 
 /// The report.

@@ -2,9 +2,9 @@
 //! basis, an unphysical albedo, a fit about as far from its target as a black material,
 //! or one that explains little of it.
 
-use crate::error::short_name;
 use super::TargetFit;
 use crate::collection::Collection;
+use crate::error::short_name;
 
 /// Relative residual above which a fit is reported as meaningless: the basis explains
 /// less than half of the target's weighted energy.

@@ -7,14 +7,14 @@
 use std::io::Cursor;
 use std::path::Path;
 
+use crate::atomic::write_atomic;
 use crate::error::OutputError;
-use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
 #[cfg(feature = "plot")]
 use crate::eval::image_error::viridis;
+use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
+use crate::eval::render::{sphere_mask, Image};
 #[cfg(feature = "plot")]
 use plotters::prelude::*;
-use crate::eval::render::{sphere_mask, Image};
-use crate::atomic::write_atomic;
 
 fn encode_error(path: &Path, message: String) -> OutputError {
     OutputError::Encode {
@@ -227,7 +227,8 @@ pub fn with_colour_bar(
     text: bool,
 ) -> Result<Rgb8Image, String> {
     let bar_h = heat.height.max(MIN_BAR_H);
-    let width = (heat.width + GAP + BAR_W + LABELS).max((quantity.chars().count() as u32 * 12 * 3).div_ceil(5) + 16);
+    let width = (heat.width + GAP + BAR_W + LABELS)
+        .max((quantity.chars().count() as u32 * 12 * 3).div_ceil(5) + 16);
     let height = HEAD + bar_h + 8;
     let mut buf = vec![255u8; 3 * width as usize * height as usize];
     {
@@ -235,7 +236,10 @@ pub fn with_colour_bar(
         let e = |e: DrawingAreaErrorKind<_>| e.to_string();
         let y0 = HEAD as i32;
         for (i, p) in heat.data.chunks_exact(3).enumerate() {
-            let (x, y) = ((i as u32 % heat.width) as i32, (i as u32 / heat.width) as i32);
+            let (x, y) = (
+                (i as u32 % heat.width) as i32,
+                (i as u32 / heat.width) as i32,
+            );
             root.draw_pixel((x, y0 + y), &RGBColor(p[0], p[1], p[2]))
                 .map_err(e)?;
         }
@@ -257,7 +261,8 @@ pub fn with_colour_bar(
         .map_err(e)?;
         if text {
             let f = (FONT, 12).into_font();
-            root.draw(&Text::new(quantity, (4, 4), f.clone())).map_err(e)?;
+            root.draw(&Text::new(quantity, (4, 4), f.clone()))
+                .map_err(e)?;
             let tx = bx + BAR_W as i32 + 4;
             let top_label = if top > 0.0 {
                 tick_label(top)
@@ -266,7 +271,8 @@ pub fn with_colour_bar(
             };
             root.draw(&Text::new(top_label, (tx, y0), f.clone()))
                 .map_err(e)?;
-            root.draw(&Text::new("0", (tx, y0 + bh - 12), f)).map_err(e)?;
+            root.draw(&Text::new("0", (tx, y0 + bh - 12), f))
+                .map_err(e)?;
         }
         root.present().map_err(e)?;
     }
@@ -512,14 +518,21 @@ mod colour_bar_tests {
         for y in 0..2 {
             for x in 0..3 {
                 let i = 3 * (y * 3 + x) as usize;
-                assert_eq!(px(x, HEAD + y), [heat.data[i], heat.data[i + 1], heat.data[i + 2]]);
+                assert_eq!(
+                    px(x, HEAD + y),
+                    [heat.data[i], heat.data[i + 1], heat.data[i + 2]]
+                );
             }
         }
         let bx = heat.width + GAP + BAR_W / 2;
         let top = viridis(1.0).map(|v| (v * 255.0).round() as u8);
         let bottom = viridis(0.0).map(|v| (v * 255.0).round() as u8);
         let near = |a: [u8; 3], b: [u8; 3]| a.iter().zip(&b).all(|(x, y)| x.abs_diff(*y) <= 16);
-        assert!(near(px(bx, HEAD + 2), top), "{:?} vs {top:?}", px(bx, HEAD + 2));
+        assert!(
+            near(px(bx, HEAD + 2), top),
+            "{:?} vs {top:?}",
+            px(bx, HEAD + 2)
+        );
         assert!(near(px(bx, HEAD + MIN_BAR_H - 3), bottom));
     }
 }

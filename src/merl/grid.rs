@@ -454,9 +454,15 @@ mod spelling_tests {
         for w in Weighting::ALL {
             assert_eq!(w.to_string().parse::<Weighting>().unwrap(), w);
         }
-        assert_eq!("solid-angle".parse::<Weighting>().unwrap(), Weighting::SolidAngle);
+        assert_eq!(
+            "solid-angle".parse::<Weighting>().unwrap(),
+            Weighting::SolidAngle
+        );
         let e = "Valid".parse::<Mask>().unwrap_err().to_string();
-        assert!(e.contains("`Valid`") && e.contains("evaluation, valid"), "{e}");
+        assert!(
+            e.contains("`Valid`") && e.contains("evaluation, valid"),
+            "{e}"
+        );
         let e = "solid_angle".parse::<Weighting>().unwrap_err().to_string();
         assert!(e.contains("uniform, solid-angle"), "{e}");
     }

@@ -101,15 +101,15 @@ pub fn box_stats(v: &[f64]) -> Option<BoxStats> {
     let (q1, median, q3) = (q(0.25), q(0.5), q(0.75));
     let iqr = q3 - q1;
     let (lo_fence, hi_fence) = (q1 - 1.5 * iqr, q3 + 1.5 * iqr);
-    let inside = || s.iter().copied().filter(|&x| lo_fence <= x && x <= hi_fence);
+    let inside = || {
+        s.iter()
+            .copied()
+            .filter(|&x| lo_fence <= x && x <= hi_fence)
+    };
     // The quartiles lie inside the fences, so some data value does too.
     let low = inside().next().unwrap_or(q1);
     let high = inside().next_back().unwrap_or(q3);
-    let outliers = s
-        .iter()
-        .copied()
-        .filter(|&x| x < low || x > high)
-        .collect();
+    let outliers = s.iter().copied().filter(|&x| x < low || x > high).collect();
     Some(BoxStats {
         q1,
         median,
@@ -167,7 +167,11 @@ impl Draw for DbBoxplots<'_> {
             let (lo, hi) = finite_range(sets.iter().flat_map(|s| s.db_values()));
             let names: Vec<String> = sets.iter().map(|s| method_label(&s.method)).collect();
             let slot = (area.dim_in_pixel().0.saturating_sub(80)) / (sets.len().max(1) as u32);
-            let widest = names.iter().map(|n| legend::text_width(n, 12)).max().unwrap_or(0);
+            let widest = names
+                .iter()
+                .map(|n| legend::text_width(n, 12))
+                .max()
+                .unwrap_or(0);
             let rotate = widest + 4 > slot;
             let mut b = ChartBuilder::on(&area);
             b.margin(10);
@@ -220,15 +224,28 @@ impl Draw for DbBoxplots<'_> {
                     .map_err(e2s)?;
                 chart
                     .draw_series([
-                        PathElement::new(vec![(x - 0.3, q.median), (x + 0.3, q.median)], BLACK.stroke_width(2)),
+                        PathElement::new(
+                            vec![(x - 0.3, q.median), (x + 0.3, q.median)],
+                            BLACK.stroke_width(2),
+                        ),
                         PathElement::new(vec![(x, q.low), (x, q.q1)], c.stroke_width(1)),
                         PathElement::new(vec![(x, q.q3), (x, q.high)], c.stroke_width(1)),
-                        PathElement::new(vec![(x - 0.15, q.low), (x + 0.15, q.low)], c.stroke_width(1)),
-                        PathElement::new(vec![(x - 0.15, q.high), (x + 0.15, q.high)], c.stroke_width(1)),
+                        PathElement::new(
+                            vec![(x - 0.15, q.low), (x + 0.15, q.low)],
+                            c.stroke_width(1),
+                        ),
+                        PathElement::new(
+                            vec![(x - 0.15, q.high), (x + 0.15, q.high)],
+                            c.stroke_width(1),
+                        ),
                     ])
                     .map_err(e2s)?;
                 chart
-                    .draw_series(q.outliers.iter().map(|&y| Circle::new((x, y), 2, c.filled())))
+                    .draw_series(
+                        q.outliers
+                            .iter()
+                            .map(|&y| Circle::new((x, y), 2, c.filled())),
+                    )
                     .map_err(e2s)?;
             }
         }
@@ -315,12 +332,7 @@ impl Draw for DbVsK<'_> {
             let med: Vec<(f64, f64)> = sets
                 .iter()
                 .filter(|s| s.method != "gcuk")
-                .map(|s| {
-                    (
-                        s.best.k as f64 - 0.15,
-                        crate::stats::median(&s.db_values()),
-                    )
-                })
+                .map(|s| (s.best.k as f64 - 0.15, crate::stats::median(&s.db_values())))
                 .filter(|p| p.1.is_finite())
                 .collect();
             chart
@@ -552,10 +564,7 @@ impl Draw for ErrorsPerMaterial<'_> {
         let names: Vec<String> = order
             .iter()
             .map(|&t| {
-                legend::short_name(
-                    self.targets.get(t).map_or("?", String::as_str),
-                    NAME_CHARS,
-                )
+                legend::short_name(self.targets.get(t).map_or("?", String::as_str), NAME_CHARS)
             })
             .collect();
         let xdesc = format!(

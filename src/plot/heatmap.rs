@@ -46,4 +46,3 @@ pub fn heatmap_with_colour_bar(
     let top = scale_top(a, b, display, scale)?;
     with_colour_bar(&heat, top, QUANTITY, with_text()).map_err(draw_error)
 }
-

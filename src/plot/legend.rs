@@ -233,7 +233,10 @@ mod tests {
     fn fitted_text_fits() {
         let long = "m".repeat(100_000);
         let t = fit_text(&long, 18, 400);
-        assert!(text_width(&t, 18) <= 400 && t.ends_with("...") && t.len() > 10, "{t}");
+        assert!(
+            text_width(&t, 18) <= 400 && t.ends_with("...") && t.len() > 10,
+            "{t}"
+        );
         assert_eq!(fit_text("short", 18, 400), "short");
     }
 

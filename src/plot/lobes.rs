@@ -75,8 +75,7 @@ impl LobePlot<'_> {
     }
 
     fn legend_height(&self, width: u32) -> u32 {
-        legend::flow_rows(&self.legend(), width, LEGEND_SIZE) * legend::row_height(LEGEND_SIZE)
-            + 8
+        legend::flow_rows(&self.legend(), width, LEGEND_SIZE) * legend::row_height(LEGEND_SIZE) + 8
     }
 }
 

@@ -1,12 +1,12 @@
 //! Shared test helpers.
 
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::gpu::GpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::backend::Lobe;
 use brdf_basis::collection::Collection;
 use brdf_basis::collection::{Material, MaterialData};
 use brdf_basis::fit::channel_lobe;
-use brdf_basis::backend::gpu::GpuBackend;
 use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::MerlTable;
 use std::path::{Path, PathBuf};

@@ -258,7 +258,9 @@ impl PairwiseKernel {
             .chunks(plan.chunk)
             .zip(cells.weights.chunks(plan.chunk))
         {
-            pack_chunk(ctx, &info, &texture, lobes, &layout, plan, op, &tables, cc, cw);
+            pack_chunk(
+                ctx, &info, &texture, lobes, &layout, plan, op, &tables, cc, cw,
+            );
             dispatch_groups(ctx, &pass, cc.len(), &mut sums)?;
             done += cc.len() as u64;
             progress(done, total);

@@ -3,10 +3,10 @@
 
 use super::{KernelShape, BLOCK, MAX_CHUNK, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W};
 use crate::backend::cpu::CANONICAL_RUN;
-use crate::backend::Lobe;
-use crate::error::GpuError;
 use crate::backend::gpu::tabulate::NIJ;
 use crate::backend::gpu::GpuContext;
+use crate::backend::Lobe;
+use crate::error::GpuError;
 
 /// The device limits a plan must respect.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
