@@ -45,7 +45,7 @@
 //!
 //! The command line (feature `cli`, on by default) and the figures (feature `plot`, which
 //! `cli` turns on) are optional: `default-features = false` leaves out clap, indicatif,
-//! ctrlc, anyhow, libc and plotters.
+//! ctrlc, anyhow and plotters.
 #![warn(missing_docs)]
 // Errors carry the file, line, column and material they name; they are cold paths, so
 // their size is not worth boxing.
