@@ -321,6 +321,9 @@ pub fn check_name(name: &str) -> Result<(), String> {
 pub const MAX_PARAMETER: f64 = f32::MAX as f64;
 
 /// Parses an analytic CSV (SPEC 1) from bytes; `path` names the source in errors.
+///
+/// Over 100 lines on purpose: one check per column and per value, each with its own error
+/// naming the file, line and column, read top to bottom in SPEC 1's column order.
 pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionError> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)

@@ -66,6 +66,8 @@ impl MergePlan {
 /// Checks that `tiles` are the tiles `1..N` of one tiling of one matrix: same collection
 /// (fingerprint and names), same settings, same count, each index once, rows covering
 /// the matrix in order, names unique. Errors name the files and say what differs.
+///
+/// About 100 lines: one check per way tiles can disagree, each with its own message.
 pub fn plan_merge(tiles: &[TileFile]) -> Result<MergePlan, MatrixFileError> {
     let merr = MatrixFileError::Merge;
     let first = tiles.first().ok_or_else(|| merr("no tile given".into()))?;
