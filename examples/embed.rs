@@ -83,7 +83,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let fits = brdf_basis::fit(&gpu, &coll, &basis, &targets, &fp)?;
     let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
-    println!("fitted {} materials, mean MAE {mean:.4e}", fits.len());
+    println!("fitted {} materials, mean MAE {mean:.4}", fits.len());
     if fits.len() != targets.len() || !mean.is_finite() {
         return Err("fits incomplete".into());
     }
