@@ -135,8 +135,8 @@ pub fn error_driven_basis(s: &crate::select::search::Selection) -> Basis {
         source,
         materials: s.basis.clone(),
         note: Some(format!(
-            "chosen by fitting error on the whole collection (in-sample S = {:.4}; the cross-validation below is the fair comparison)",
-            s.score
+            "chosen by fitting error on the whole collection (in-sample S = {}; the cross-validation below is the fair comparison)",
+            crate::stats::num(s.score)
         )),
     }
 }
