@@ -303,16 +303,21 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<(), OutputError> {
     if let Some(e) = not_replaceable(path, what) {
         return Err(e);
     }
+    parent_is_dir(path, what)
+}
+
+/// Checks that the directory `path` is in exists (`flag` names the flag in the message).
+fn parent_is_dir(path: &Path, flag: &str) -> Result<(), OutputError> {
     let parent = parent_of(path);
     match std::fs::metadata(&parent) {
         Ok(m) if m.is_dir() => Ok(()),
         Ok(_) => Err(refused(
             path,
-            format!("{what}: {} is not a directory", parent.display()),
+            format!("{flag}: {} is not a directory", parent.display()),
         )),
         Err(_) => Err(refused(
             path,
-            format!("{what}: the directory {} does not exist", parent.display()),
+            format!("{flag}: the directory {} does not exist", parent.display()),
         )),
     }
 }
@@ -552,21 +557,10 @@ impl OutputPlan {
 
     /// Checks that the parent of `path` exists as a directory or is a planned directory.
     fn check_parent(&self, path: &Path, k: &Path, flag: &str) -> Result<(), OutputError> {
-        let parent = parent_of(path);
         if k.parent().is_some_and(|kp| self.is_dir_kind(kp)) {
             return Ok(());
         }
-        match std::fs::metadata(&parent) {
-            Ok(m) if m.is_dir() => Ok(()),
-            Ok(_) => Err(refused(
-                path,
-                format!("{flag}: {} is not a directory", parent.display()),
-            )),
-            Err(_) => Err(refused(
-                path,
-                format!("{flag}: the directory {} does not exist", parent.display()),
-            )),
-        }
+        parent_is_dir(path, flag)
     }
 
     /// A file the user named (see the [module docs](self)).

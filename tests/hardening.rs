@@ -9,27 +9,12 @@ use std::time::{Duration, Instant};
 
 const HEADER: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n";
 
-/// Runs the binary in `cwd` with `args`; kills it and panics after 60 s (a hang).
+/// Runs the binary in `cwd` with `args`; panics after 60 s (a hang).
 fn run_in(cwd: &Path, args: &[&str]) -> Output {
-    let mut child = bin()
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let start = Instant::now();
-    loop {
-        if child.try_wait().expect("wait").is_some() {
-            return child.wait_with_output().expect("output");
-        }
-        if start.elapsed() > Duration::from_secs(60) {
-            let _ = child.kill();
-            panic!("brdf-basis {args:?} hangs");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let mut cmd = bin();
+    cmd.args(args).current_dir(cwd);
+    output_within(&mut cmd, Duration::from_secs(60))
+        .unwrap_or_else(|| panic!("brdf-basis {args:?} hangs"))
 }
 
 fn stderr(o: &Output) -> String {

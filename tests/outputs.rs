@@ -7,11 +7,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-/// Commands whose rows pass only once their output handling uses the output layer
-/// (`select` and `cv`, converted on branch issue15-select): their failures are printed,
-/// not fatal, unless `BRDF_BASIS_OUTPUTS_STRICT=1`. Empty this list after that merge.
-const NEEDS_H2: &[&str] = &["select", "cv"];
-
 const CSV: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n\
 m1,0.2,0.1,0.1,0.5,0.5,0.5,0.5,50\n\
 m2,0.1,0.3,0.1,0.4,0.5,0.6,0.9,100\n\
@@ -20,28 +15,12 @@ m4,0.05,0.05,0.3,0.3,0.3,0.3,0.7,300\n\
 m5,0.4,0.4,0.4,0.2,0.2,0.2,0.1,10\n\
 m6,0.1,0.1,0.1,0.8,0.7,0.6,0.95,1000\n";
 
-/// Runs the binary in `cwd`; kills it and panics after 60 s (a hang: e.g. a FIFO opened).
+/// Runs the binary in `cwd`; panics after 60 s (a hang: e.g. a FIFO opened).
 fn run_in(cwd: &Path, args: &[String]) -> Output {
-    let mut child = bin()
-        .args(["--quiet", "--backend", "cpu"])
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let start = Instant::now();
-    loop {
-        if child.try_wait().expect("wait").is_some() {
-            return child.wait_with_output().expect("output");
-        }
-        if start.elapsed() > Duration::from_secs(60) {
-            let _ = child.kill();
-            panic!("brdf-basis {args:?} hangs");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    let mut cmd = bin();
+    cmd.args(["--quiet", "--backend", "cpu"]).args(args).current_dir(cwd);
+    output_within(&mut cmd, Duration::from_secs(60))
+        .unwrap_or_else(|| panic!("brdf-basis {args:?} hangs"))
 }
 
 fn text(b: &[u8]) -> String {
@@ -553,22 +532,11 @@ fn check_row(cmd: &Cmd, label: &str, row: &Hostile) -> Option<String> {
 #[cfg(unix)]
 #[test]
 fn every_subcommand_refuses_every_hostile_output_path() {
-    let strict = std::env::var("BRDF_BASIS_OUTPUTS_STRICT").is_ok_and(|v| v == "1");
     let mut failures = Vec::new();
-    let mut pending = Vec::new();
     for cmd in CMDS {
         for (label, row) in ROWS {
-            if let Some(f) = check_row(cmd, label, row) {
-                if NEEDS_H2.contains(&cmd.name) && !strict {
-                    pending.push(f);
-                } else {
-                    failures.push(f);
-                }
-            }
+            failures.extend(check_row(cmd, label, row));
         }
-    }
-    for p in &pending {
-        eprintln!("NEEDS_H2 (select/cv not yet on the output layer): {p}");
     }
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
 }

@@ -192,7 +192,7 @@ fn gcuk_params(a: &SelectArgs) -> Result<GcukParams, ClusterError> {
         .k_range(a.k_min.unwrap_or(d.k_min), a.k_max.unwrap_or(d.k_max))
         .population(a.population)
         .generations(a.generations);
-    p.clone().check()?;
+    p.check()?;
     Ok(p)
 }
 

@@ -143,7 +143,7 @@ impl GcukParams {
 
     /// Validates the parameters that do not depend on the data; `k_max <= n` is checked by
     /// [`ValidGcukParams::fit`].
-    pub fn check(self) -> Result<ValidGcukParams, ClusterError> {
+    pub fn check(&self) -> Result<ValidGcukParams, ClusterError> {
         if self.k_min < 2 {
             return Err(ClusterError::KMinTooSmall { k_min: self.k_min });
         }
@@ -169,12 +169,12 @@ impl GcukParams {
         if !(0.0..1.0).contains(&self.tolerance) {
             return Err(ClusterError::BadTolerance(self.tolerance));
         }
-        Ok(ValidGcukParams(self))
+        Ok(ValidGcukParams(self.clone()))
     }
 
-    /// Shorthand for `self.clone().check()?.fit(d)`.
+    /// Shorthand for `self.check()?.fit(d)`.
     pub fn fit<D: Distances + ?Sized>(&self, d: &D) -> Result<Gcuk, ClusterError> {
-        self.clone().check()?.fit(d)
+        self.check()?.fit(d)
     }
 }
 

@@ -159,7 +159,7 @@ impl KMedoidsParams {
 
     /// Validates the parameters that do not depend on the data (`k >= 2`, `restarts >= 1`,
     /// `0 <= tolerance < 1`); `k <= n` is checked by [`ValidKMedoidsParams::fit`].
-    pub fn check(self) -> Result<ValidKMedoidsParams, ClusterError> {
+    pub fn check(&self) -> Result<ValidKMedoidsParams, ClusterError> {
         if self.k < 2 {
             return Err(ClusterError::KTooSmall { k: self.k });
         }
@@ -169,12 +169,12 @@ impl KMedoidsParams {
         if !(0.0..1.0).contains(&self.tolerance) {
             return Err(ClusterError::BadTolerance(self.tolerance));
         }
-        Ok(ValidKMedoidsParams(self))
+        Ok(ValidKMedoidsParams(self.clone()))
     }
 
-    /// Shorthand for `self.clone().check()?.fit(d)`.
+    /// Shorthand for `self.check()?.fit(d)`.
     pub fn fit<D: Distances + ?Sized>(&self, d: &D) -> Result<KMedoids, ClusterError> {
-        self.clone().check()?.fit(d)
+        self.check()?.fit(d)
     }
 }
 

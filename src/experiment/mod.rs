@@ -183,7 +183,7 @@ fn invalid(name: &'static str, value: impl ToString, expected: String) -> Experi
 
 impl ExperimentParams {
     /// Checks every parameter against `coll` before any work.
-    pub fn check(self, coll: &Collection) -> Result<ValidExperimentParams, ExperimentError> {
+    pub fn check(&self, coll: &Collection) -> Result<ValidExperimentParams, ExperimentError> {
         let n = coll.len();
         if self.runs == 0 {
             return Err(invalid(
@@ -249,7 +249,7 @@ impl ExperimentParams {
             Some(s) => Some(coll.index_of(s).map_err(ExperimentError::Showcase)?),
             None => None,
         };
-        Ok(ValidExperimentParams { p: self, showcase })
+        Ok(ValidExperimentParams { p: self.clone(), showcase })
     }
 }
 

@@ -254,7 +254,7 @@ pub fn gcuk_set(
     runs: usize,
     seed: u64,
 ) -> Result<ClusteringSet, ClusterError> {
-    let valid = p.clone().check()?;
+    let valid = p.check()?;
     let all = gcuk_runs(d, &valid, runs, seed, &|_, _| {})?;
     set(metric, "gcuk".into(), named_runs(d, &all)?)
 }
