@@ -71,6 +71,7 @@ pub mod fit;
 pub mod hash;
 pub mod io;
 pub mod merl;
+pub mod rgl;
 pub mod nnls;
 #[cfg(feature = "plot")]
 pub mod plot;

@@ -61,6 +61,7 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
             }
         }
         MaterialData::Measured(t) => rgb.copy_from_slice(&t.rgb),
+        MaterialData::Rgl(t) => rgb.copy_from_slice(&t.table().rgb),
     }
     out.stage(&a.out, |w| write_binary_to(w, &rgb))?;
     out.commit()?;

@@ -178,6 +178,10 @@ pub fn channel_lobe(m: &MaterialData, c: usize) -> Lobe {
             table: t.clone(),
             channel: Some(c),
         },
+        MaterialData::Rgl(t) => Lobe::Measured {
+            table: t.table().clone(),
+            channel: Some(c),
+        },
     }
 }
 
