@@ -167,9 +167,8 @@ def sphere_scene(bsdf_entry: dict, *, size: int = 64, light: Tuple[float, float]
             "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
             "sensor": {
                 "type": "orthographic",
-                # Mitsuba's film x runs along the camera's local -x: look from +z with
-                # the camera's x mirrored, so that image columns run along world +x.
-                "to_world": T.look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]) @ T.scale([-1, 1, 1]),
+                # look_at from +z with +y up: image columns run along world +x.
+                "to_world": T.look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
                 "film": {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"}, "pixel_format": "rgb"},
                 "sampler": {"type": "independent", "sample_count": 1},
             },
