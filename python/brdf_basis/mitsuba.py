@@ -59,7 +59,7 @@ def _collection(spec: str) -> Collection:
 
 
 def _prop(props, name: str) -> Optional[str]:
-    return props[name] if props.has_property(name) else None
+    return props[name] if name in props else None
 
 
 def _brdf_of(props) -> Brdf:
@@ -189,9 +189,9 @@ def render_sphere(bsdf_entry: Union[dict, Brdf], *, size: int = 64, light: Tuple
     sensor = scene.sensors()[0]
     integrator = scene.integrator()
     sampler = sensor.sampler().clone()
-    sampler.seed(0)
     out = np.zeros((size, size, 3), dtype=np.float32)
     if mi.variant().startswith("scalar"):
+        sampler.seed(0)
         for row in range(size):
             for col in range(size):
                 pos = mi.Point2f((col + 0.5) / size, (row + 0.5) / size)
