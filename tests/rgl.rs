@@ -96,8 +96,19 @@ fn rgl_eval_matches_mitsuba() {
     }
     for stem in FILES {
         let (rel, k, n) = worst[stem];
-        println!("{stem}: max relative error vs Mitsuba {rel:.2e} (row {}, {n} values above {FLOOR:e})", k + 2);
-        assert!(n >= 600, "{stem}: only {n} reference values above the floor");
+        println!(
+            "{stem}: max relative error vs Mitsuba {rel:.2e} (row {}, {n} values above {FLOOR:e})",
+            k + 2
+        );
+        assert!(
+            n >= 600,
+            "{stem}: only {n} reference values above the floor"
+        );
     }
-    assert!(failures.is_empty(), "{} mismatches:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} mismatches:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }

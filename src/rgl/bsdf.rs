@@ -335,7 +335,11 @@ impl RglBsdf {
                     field: "vndf",
                     index: (k * vw * vh) as u64,
                     value: 0.0,
-                    message: format!("slice {} (theta_i = {:.4} rad) is zero everywhere: it has no inverse", k + 1, theta_i[k]),
+                    message: format!(
+                        "slice {} (theta_i = {:.4} rad) is zero everywhere: it has no inverse",
+                        k + 1,
+                        theta_i[k]
+                    ),
                 });
             }
         }
