@@ -122,8 +122,8 @@ pub enum CollectionError {
     /// A measured file could not be read.
     #[error(transparent)]
     Merl(#[from] MerlError),
-    /// A directory given as a collection holds no `.binary` file.
-    #[error("{path}: a directory with no MERL .binary file in it (a collection is an analytic .csv file, a .binary file or a directory of .binary files)")]
+    /// A directory given as a collection holds no `.binary` file or NBRDF set.
+    #[error("{path}: a directory with no MERL .binary file or neural BRDF set in it (a collection is an analytic .csv file, a .binary file or a directory of .binary files and neural BRDF sets NAME_fc1.npy ... NAME_b3.npy)")]
     EmptyDir {
         /// The directory.
         path: PathBuf,
@@ -153,6 +153,15 @@ pub enum CollectionError {
         path: PathBuf,
         /// The name.
         name: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file of a neural BRDF set is missing, unreadable, misshapen or holds a
+    /// non-finite value, or a `.npy` file belongs to no set.
+    #[error("{path}: {message}")]
+    Neural {
+        /// The file.
+        path: PathBuf,
         /// What is wrong.
         message: String,
     },

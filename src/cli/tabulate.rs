@@ -61,6 +61,21 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
             }
         }
         MaterialData::Measured(t) => rgb.copy_from_slice(&t.rgb),
+        MaterialData::Neural(_) => {
+            // The network's f32 twin at every valid cell (the grid's tabulation, SPEC 9),
+            // clamped at 0 by the network's definition; invalid cells -1.
+            let backend = super::backend(g)?;
+            let lobes: Vec<Lobe> = (0..3).map(|c| channel_lobe(&m.data, c)).collect();
+            let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+            rgb = backend.tabulate(&lobes, &cells).context("tabulating")?;
+            for cell in 0..N_CELLS {
+                if !cell_info(cell).valid {
+                    for c in 0..3 {
+                        rgb[c * N_CELLS + cell] = -1.0;
+                    }
+                }
+            }
+        }
     }
     out.stage(&a.out, |w| write_binary_to(w, &rgb))?;
     out.commit()?;

@@ -203,6 +203,10 @@ pub fn lobes(coll: &Collection, kind: LobeKind) -> Vec<Lobe> {
                 table: t.clone(),
                 channel: None,
             },
+            (MaterialData::Neural(net), _) => Lobe::Neural {
+                net: net.clone(),
+                channel: None,
+            },
         })
         .collect()
 }
