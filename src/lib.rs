@@ -72,6 +72,7 @@ pub mod hash;
 pub mod io;
 pub mod merl;
 pub mod nnls;
+pub mod npy_format;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod rgl;

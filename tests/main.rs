@@ -23,6 +23,7 @@ mod integrity;
 mod kmedoids;
 mod leftovers;
 mod measured;
+mod nbrdf;
 mod outputs;
 mod reproduce;
 mod rgl;

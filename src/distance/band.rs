@@ -111,7 +111,7 @@ pub fn distance_band(
                 .iter()
                 .map(|m| match &m.data {
                     MaterialData::Analytic(a) => Ok((a.f0, a.n)),
-                    MaterialData::Measured(_) | MaterialData::Rgl(_) => {
+                    MaterialData::Measured(_) | MaterialData::Rgl(_) | MaterialData::Neural(_) => {
                         Err(DistanceError::NoParameters(m.name.clone()))
                     }
                 })

@@ -194,7 +194,7 @@ impl<'a> GridEval<'a> {
             let x: Vec<f64> = coef.iter().map(|a| a[c]).collect();
             let sep = |l: Lobe| match l {
                 Lobe::Analytic(p) => Some(SeparableLobe::new(&self.tables, &p)),
-                Lobe::Measured { .. } => None,
+                Lobe::Measured { .. } | Lobe::Neural { .. } => None,
             };
             let analytic = self.moments.as_ref().and_then(|mom| {
                 let lobes: Vec<SeparableLobe> = cols
