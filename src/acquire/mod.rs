@@ -13,12 +13,14 @@
 //! * [`cv`]: acquisition cross-validation (folds of SPEC 8; basis and plan chosen on the
 //!   training materials, held-out materials measured at the plan and scored).
 
+pub mod cv;
 pub mod eval;
 pub mod fit;
 pub mod linalg;
 pub mod plan;
 pub mod samples;
 
+pub use cv::{acquisition_cv, AcqCv, AcqCvParams};
 pub use eval::material_at;
 pub use fit::{fit_samples, SampleFit, SampleFitParams};
 pub use plan::{plan, Candidate, Criterion, Plan, PlanParams, PlannedSample};

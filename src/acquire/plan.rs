@@ -164,6 +164,9 @@ pub struct Plan {
     pub history: Vec<f64>,
     /// Seed.
     pub seed: u64,
+    /// The chosen candidates, in order (not written).
+    #[serde(skip)]
+    pub chosen: Vec<Candidate>,
 }
 
 /// The cell centres of the fit mask valid in every material `idx` of `coll`.
@@ -182,7 +185,7 @@ pub fn cell_candidates(coll: &Collection, idx: &[usize], fit: &FitParams) -> Res
 /// Values of materials at candidates, per channel: `v[c][mat][cand]` (`mat` indexes
 /// `mats`); cell centres from the grid's f64 values (the same as the Gram matrices), other
 /// pairs by [`material_at`].
-fn values_at(
+pub(crate) fn values_at(
     coll: &Collection,
     mats: &[usize],
     cands: &[Candidate],
@@ -490,6 +493,7 @@ pub fn plan(
         samples: chosen.iter().map(|&i| PlannedSample::from(&cands[i])).collect(),
         history,
         seed: p.seed,
+        chosen: chosen.iter().map(|&i| cands[i]).collect(),
     })
 }
 
