@@ -7,6 +7,7 @@
 
 mod common;
 
+mod acquisition;
 mod cli;
 mod collection;
 mod determinism;
