@@ -41,6 +41,17 @@ pub struct Material {
     pub origin: String,
 }
 
+impl MaterialData {
+    /// The kind of material, in words (as `info` counts them).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            MaterialData::Analytic(_) => "analytic",
+            MaterialData::Measured(_) => "MERL table",
+            MaterialData::Rgl(_) => "RGL-EPFL",
+        }
+    }
+}
+
 impl Material {
     /// The analytic parameters, if any.
     pub fn analytic(&self) -> Option<&AshikhminShirley> {
@@ -201,6 +212,20 @@ impl Collection {
     /// True when empty.
     pub fn is_empty(&self) -> bool {
         self.materials.is_empty()
+    }
+
+    /// How many materials of each kind ([`MaterialData::kind`]), kinds in order of first
+    /// appearance.
+    pub fn kind_counts(&self) -> Vec<(&'static str, usize)> {
+        let mut out: Vec<(&'static str, usize)> = Vec::new();
+        for m in &self.materials {
+            let k = m.data.kind();
+            match out.iter_mut().find(|(n, _)| *n == k) {
+                Some((_, c)) => *c += 1,
+                None => out.push((k, 1)),
+            }
+        }
+        out
     }
 
     /// Names in order.

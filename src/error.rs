@@ -126,7 +126,7 @@ pub enum CollectionError {
     #[error(transparent)]
     Rgl(#[from] RglError),
     /// A directory given as a collection holds no `.binary` file.
-    #[error("{path}: a directory with no MERL .binary file in it (a collection is an analytic .csv file, a .binary file or a directory of .binary files)")]
+    #[error("{path}: a directory with no MERL .binary file (and no RGL-EPFL .bsdf file) in it (a collection is an analytic .csv file, a .binary or .bsdf file, or a directory of them)")]
     EmptyDir {
         /// The directory.
         path: PathBuf,
@@ -169,7 +169,7 @@ pub enum CollectionError {
     #[error("empty material name (a name list such as --basis takes names separated by single commas, e.g. `--basis a,b`)")]
     EmptyName,
     /// The path is neither a CSV, a `.binary` file nor a directory.
-    #[error("{path}: not a collection (expected an analytic .csv, a MERL .binary file or a directory of .binary files)")]
+    #[error("{path}: not a collection (expected an analytic .csv, a MERL .binary file, an RGL-EPFL .bsdf file or a directory of .binary and .bsdf files)")]
     UnknownKind {
         /// The path.
         path: PathBuf,

@@ -8,11 +8,16 @@ use brdf_basis::backend::BackendChoice;
 
 /// Arguments of `info`.
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu")]
-pub struct InfoArgs {}
+#[command(
+    after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu\n  brdf-basis info paper_white_rgb.bsdf merl/"
+)]
+pub struct InfoArgs {
+    /// Collection(s) to describe (kinds and counts of materials); none: only the back-end.
+    pub collection: Vec<std::path::PathBuf>,
+}
 
 /// Prints the back-end, adapter, driver and limits.
-pub fn run(g: &Global, _a: InfoArgs) -> anyhow::Result<()> {
+pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
     let gpu = if g.backend == BackendChoice::Cpu {
         None
     } else {
@@ -59,5 +64,14 @@ pub fn run(g: &Global, _a: InfoArgs) -> anyhow::Result<()> {
         None => {}
     }
     println!("cpu back-end: {}", CpuBackend::new().name());
+    if !a.collection.is_empty() {
+        let coll = super::load_collection(&a.collection)?;
+        let kinds: Vec<String> = coll
+            .kind_counts()
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        println!("collection: {} materials ({})", coll.len(), kinds.join(", "));
+    }
     Ok(())
 }
