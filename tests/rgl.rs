@@ -500,3 +500,241 @@ fn rgl_reader_fuzz() {
     println!("fuzz: {refused} refused, {accepted} accepted");
     assert!(refused > 1000 && accepted > 100, "{refused} refused, {accepted} accepted");
 }
+
+// ---------------------------------------------------------------------------------------
+// Collections, tabulation and the commands.
+
+use brdf_basis::collection::{Collection, MaterialData};
+use brdf_basis::merl::grid::{cell_directions, geometric_validity, N_CELLS};
+
+fn rgl_of(m: &brdf_basis::collection::Material) -> &brdf_basis::rgl::RglMaterial {
+    match &m.data {
+        MaterialData::Rgl(r) => r,
+        _ => panic!("{} is not an RGL material", m.name),
+    }
+}
+
+/// The table of an RGL material is its evaluation at the cell centres (f32), -1 below the
+/// horizon; `tabulate` writes it as a MERL `.binary` that reads back as the same table;
+/// `info` counts it; a directory of `.bsdf` and `.binary` files is one collection.
+#[test]
+fn rgl_tabulation_round_trips_through_binary() {
+    let d = common::tmp();
+    let src = common::write(d.path(), "synth.bsdf", synthetic());
+    let coll = Collection::load(&src).expect("load");
+    assert_eq!(coll.names(), ["synth"]);
+    let m = rgl_of(&coll.materials()[0]);
+    let t = m.table();
+    let valid = geometric_validity();
+    use rand::Rng;
+    let mut rng = common::rng(9);
+    for _ in 0..5000 {
+        let cell = rng.random_range(0..N_CELLS);
+        let (wi, wo) = cell_directions(cell);
+        let f = m.eval_dirs(wi, wo);
+        for c in 0..3 {
+            let want = if valid[cell] { f[c].max(0.0) as f32 } else { -1.0 };
+            assert_eq!(t.value(c, cell), want, "cell {cell} channel {c}");
+        }
+    }
+    assert_eq!(t.valid_count(), 1_096_216);
+    let out = d.path().join("synth.binary");
+    let o = common::bin_cpu()
+        .arg("tabulate")
+        .arg(&src)
+        .args(["--material", "synth", "--out"])
+        .arg(&out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let back = brdf_basis::merl::read_binary(&out).expect("read back");
+    assert!(back.rgb == t.rgb, "the .binary reads back as the same table");
+    // The written file and the .bsdf side by side in a directory: two materials, one of
+    // each kind, sorted by name; info counts them.
+    std::fs::rename(&out, d.path().join("tabulated.binary")).expect("rename");
+    let dir_coll = Collection::load(d.path()).expect("directory");
+    assert_eq!(dir_coll.names(), ["synth", "tabulated"]);
+    assert_eq!(dir_coll.kind_counts(), [("RGL-EPFL", 1), ("MERL table", 1)]);
+    let o = common::bin_cpu().arg("info").arg(d.path()).output().expect("info");
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("collection: 2 materials (1 RGL-EPFL, 1 MERL table)"), "{text}");
+    // A malformed .bsdf in a directory: the error names it.
+    common::write(d.path(), "bad.bsdf", &synthetic()[..100]);
+    let o = common::bin_cpu().arg("info").arg(d.path()).output().expect("info");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("bad.bsdf") && err.contains("truncated"), "{err}");
+}
+
+/// Analytic rows of the mixed collection (from the embedded default).
+const ANALYTIC: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n\
+gloss-white-enamel,0.896269,0.896269,0.887923,1,1,1,0.04,2220.22\n\
+satin-green-paint,0.0612461,0.296138,0.0666259,1,1,1,0.04,198\n\
+polished-gold,0,0,0,1.19723,0.990746,0.510915,0.798947,8886.89\n";
+
+/// Runs the binary with `args` on `backend`, asserting success.
+fn run(backend: &str, args: &[std::ffi::OsString]) -> std::process::Output {
+    let o = common::bin()
+        .args(["--quiet", "--backend", backend])
+        .args(args)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{backend} {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    o
+}
+
+fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).expect("read")).expect("json")
+}
+
+/// The four RGL files with three analytic rows: distance (against an f64 recomputation
+/// from the tables and the analytic model), select, fit and render, on the CPU and on
+/// the GPU back-end (lavapipe) when there is an adapter, which must agree.
+#[test]
+fn rgl_mixed_collection_end_to_end() {
+    const TEST: &str = "rgl_mixed_collection_end_to_end";
+    let mut paths = Vec::new();
+    for stem in FILES {
+        let Some(p) = rgl_path(stem, TEST) else { return };
+        paths.push(p);
+    }
+    let d = common::tmp();
+    let csv = common::write(d.path(), "analytic.csv", ANALYTIC);
+    paths.push(csv);
+    let coll = Collection::load_many(&paths).expect("collection");
+    assert_eq!(coll.kind_counts(), [("RGL-EPFL", 4), ("analytic", 3)]);
+    let backends: Vec<&str> = if common::gpu(TEST).is_some() { vec!["cpu", "gpu"] } else { vec!["cpu"] };
+    let args = |extra: &[&str], out: &[(&str, &Path)]| -> Vec<std::ffi::OsString> {
+        let mut v: Vec<std::ffi::OsString> = Vec::new();
+        v.push(extra[0].into());
+        v.extend(paths.iter().map(|p| p.clone().into_os_string()));
+        v.extend(extra[1..].iter().map(|s| s.into()));
+        for (flag, p) in out {
+            v.push(flag.into());
+            v.push(p.as_os_str().to_owned());
+        }
+        v
+    };
+
+    // The f64 reference of BRDF_it on the full lobe (SPEC 4, 9): evaluation mask, uniform
+    // weights, restricted to cells valid in every table.
+    let cs = brdf_basis::merl::CellSet::for_collection(
+        &coll,
+        brdf_basis::merl::Mask::Evaluation,
+        brdf_basis::merl::Weighting::Uniform,
+        std::num::NonZeroUsize::MIN,
+    );
+    let lobes: Vec<Vec<f64>> = coll
+        .materials()
+        .iter()
+        .map(|m| {
+            cs.cells
+                .iter()
+                .map(|&c| match &m.data {
+                    MaterialData::Rgl(r) => (0..3).map(|k| r.table().value(k, c as usize) as f64).sum::<f64>() / 3.0,
+                    MaterialData::Analytic(a) => {
+                        let (wi, wo) = cell_directions(c as usize);
+                        a.eval(wi, wo).iter().sum::<f64>() / 3.0
+                    }
+                    _ => unreachable!(),
+                })
+                .collect()
+        })
+        .collect();
+    let n = coll.len();
+    let wsum: f64 = cs.weights.iter().sum();
+    let mut reference = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            reference[i * n + j] = cs
+                .weights
+                .iter()
+                .zip(lobes[i].iter().zip(&lobes[j]))
+                .map(|(w, (a, b))| w * (a - b).abs())
+                .sum::<f64>()
+                / wsum;
+        }
+    }
+
+    let mut fits = Vec::new();
+    let mut bases = Vec::new();
+    for backend in &backends {
+        let npy = d.path().join(format!("d-{backend}.npy"));
+        run(backend, &(args(&["distance"], &[("--out", &npy)])));
+        let m = brdf_basis::io::saved::load_saved_matrix(&npy).expect("matrix").matrix;
+        assert_eq!(m.names(), coll.names().as_slice());
+        let rel = common::max_rel(m.as_full(), &reference, 1e-12);
+        assert!(rel <= 1e-4, "{backend}: distance vs f64 reference: {rel:e}");
+
+        let sel = d.path().join(format!("s-{backend}.json"));
+        run(backend, &(args(&["select", "--method", "kmedoids", "-k", "2"], &[("--json", &sel)])));
+        let v = json(&sel);
+        assert_eq!(v["best"]["medoids"].as_array().map(Vec::len), Some(2), "{v}");
+        let greedy = d.path().join(format!("g-{backend}.json"));
+        run(backend, &(args(&["select", "--method", "greedy", "-k", "2"], &[("--json", &greedy)])));
+        bases.push(json(&greedy)["basis"].clone());
+
+        let fit = d.path().join(format!("f-{backend}.json"));
+        run(
+            backend,
+            &(args(&["fit", "--basis", "paper_white_rgb,polished-gold", "--all-others"], &[("--json", &fit)])),
+        );
+        fits.push(json(&fit));
+    }
+    if fits.len() == 2 {
+        assert_eq!(bases[0], bases[1], "greedy bases: CPU and GPU agree");
+        let (a, b) = (&fits[0]["targets"], &fits[1]["targets"]);
+        for (ta, tb) in a.as_array().expect("targets").iter().zip(b.as_array().expect("targets")) {
+            let (ma, mb) = (ta["mae"].as_f64().expect("mae"), tb["mae"].as_f64().expect("mae"));
+            assert!((ma - mb).abs() <= 1e-4 * ma.max(1e-6), "{}: mae {ma} vs {mb}", ta["material"]);
+        }
+    }
+    let targets = fits[0]["targets"].as_array().expect("targets");
+    assert_eq!(targets.len(), n - 2);
+    assert!(targets.iter().all(|t| t["mae"].as_f64().is_some_and(f64::is_finite)));
+
+    // Render: each pixel is the exact evaluation in a frame of our own (the BSDF depends
+    // only on the two elevations and the relative azimuth), times cos theta_i.
+    let exr = d.path().join("sunflower.exr");
+    run("cpu", &(args(&["render", "--material", "cg_sunflower_rgb", "--size", "33"], &[("--out", &exr)])));
+    let img = brdf_basis::io::image::read_exr(&exr).expect("exr");
+    let m = rgl_of(coll.get("cg_sunflower_rgb").expect("material"));
+    let light = brdf_basis::eval::render::light_direction(45.0, 45.0);
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut lit = 0;
+    for row in 0..33u32 {
+        for col in 0..33u32 {
+            let (x, y) = brdf_basis::eval::render::pixel_centre(col, row, 33, 33);
+            let r2 = x * x + y * y;
+            let px = &img.data[3 * (row * 33 + col) as usize..][..3];
+            let nrm = [x, y, (1.0 - r2).max(0.0).sqrt()];
+            let cos_i = dot(nrm, light);
+            if r2 >= 1.0 || cos_i <= 0.0 {
+                assert_eq!(px, [0.0; 3]);
+                continue;
+            }
+            // Local frame: z = n, x along the light's tangential part.
+            let cos_o = nrm[2];
+            let t = [light[0] - cos_i * nrm[0], light[1] - cos_i * nrm[1], light[2] - cos_i * nrm[2]];
+            let tl = dot(t, t).sqrt();
+            let (wi, wo) = if tl < 1e-9 {
+                ([0.0, 0.0, 1.0], [(1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o])
+            } else {
+                let tx = [t[0] / tl, t[1] / tl, t[2] / tl];
+                let ty = [nrm[1] * tx[2] - nrm[2] * tx[1], nrm[2] * tx[0] - nrm[0] * tx[2], nrm[0] * tx[1] - nrm[1] * tx[0]];
+                let v = [0.0, 0.0, 1.0];
+                ([tl, 0.0, cos_i], [dot(v, tx), dot(v, ty), cos_o])
+            };
+            let f = m.eval_dirs(wi, wo);
+            for c in 0..3 {
+                let want = (f[c].max(0.0) * cos_i) as f32;
+                assert!(
+                    (px[c] - want).abs() <= 1e-4 * want.abs().max(1e-3),
+                    "pixel ({col}, {row}) channel {c}: {} vs {want}",
+                    px[c]
+                );
+            }
+            lit += 1;
+        }
+    }
+    assert!(lit > 300, "{lit} lit pixels");
+}
