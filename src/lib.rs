@@ -71,10 +71,10 @@ pub mod fit;
 pub mod hash;
 pub mod io;
 pub mod merl;
-pub mod rgl;
 pub mod nnls;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod rgl;
 pub mod select;
 pub mod separable;
 pub mod stats;

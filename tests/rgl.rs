@@ -70,8 +70,7 @@ fn rgl_eval_matches_mitsuba() {
         let b = &bsdfs[&row.file];
         let f = b.eval(row.wi, row.wo);
         let e = worst.entry(row.file.clone()).or_insert((0.0, 0, 0));
-        for c in 0..3 {
-            let (a, r) = (f[c], row.f[c]);
+        for (c, (&a, &r)) in f.iter().zip(&row.f).enumerate() {
             let bad = if r.abs() > FLOOR {
                 let rel = (a - r).abs() / r.abs();
                 if rel > e.0 {
@@ -96,10 +95,21 @@ fn rgl_eval_matches_mitsuba() {
     }
     for stem in FILES {
         let (rel, k, n) = worst[stem];
-        println!("{stem}: max relative error vs Mitsuba {rel:.2e} (row {}, {n} values above {FLOOR:e})", k + 2);
-        assert!(n >= 600, "{stem}: only {n} reference values above the floor");
+        println!(
+            "{stem}: max relative error vs Mitsuba {rel:.2e} (row {}, {n} values above {FLOOR:e})",
+            k + 2
+        );
+        assert!(
+            n >= 600,
+            "{stem}: only {n} reference values above the floor"
+        );
     }
-    assert!(failures.is_empty(), "{} mismatches:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} mismatches:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -188,10 +198,20 @@ fn synthetic_fields() -> Vec<Fld> {
         fld("sigma", F32, &[2, 8], f32_bytes([0.5; 16])),
         fld("ndf", F32, &[2, 8], f32_bytes([2.0; 16])),
         fld("vndf", F32, &[1, nt, VH as u64, VW as u64], f32_bytes(vndf)),
-        fld("luminance", F32, &[1, nt, N as u64, N as u64], f32_bytes(lum)),
+        fld(
+            "luminance",
+            F32,
+            &[1, nt, N as u64, N as u64],
+            f32_bytes(lum),
+        ),
         fld("rgb", F32, &[1, nt, 3, N as u64, N as u64], f32_bytes(rgb)),
         fld("jacobian", U8, &[1], vec![1]),
-        fld("valid", U8, &[(nt as usize * N * N / 8) as u64], vec![0xff; 6]),
+        fld(
+            "valid",
+            U8,
+            &[(nt as usize * N * N / 8) as u64],
+            vec![0xff; 6],
+        ),
     ]
 }
 
@@ -223,13 +243,12 @@ fn rgl_synthetic_file_evaluates_to_its_closed_form() {
         let m = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
         let base = 2.0 * elevation(m) / std::f64::consts::PI / wo[2];
         let f = b.eval(wi, wo);
-        for c in 0..3 {
+        for (c, &fc) in f.iter().enumerate() {
             let want = (c + 1) as f64 * base;
             // The tables are float32: 2 k / 8 and 1 / 3 round at ~6e-8 relative.
             assert!(
-                (f[c] - want).abs() <= 1e-6 * want.max(1e-3),
-                "wi {wi:?} wo {wo:?} channel {c}: {} vs {want}",
-                f[c]
+                (fc - want).abs() <= 1e-6 * want.max(1e-3),
+                "wi {wi:?} wo {wo:?} channel {c}: {fc} vs {want}"
             );
         }
         checked += 1;
@@ -267,7 +286,10 @@ fn rgl_refuses_empty_and_wrong_magic() {
     b[0] = b'T';
     assert!(matches!(parse_err(b, "magic.bsdf").0, E::Magic { .. }));
     // A MERL .binary header is not a tensor file.
-    let merl: Vec<u8> = [90i32, 90, 180].iter().flat_map(|d| d.to_le_bytes()).collect();
+    let merl: Vec<u8> = [90i32, 90, 180]
+        .iter()
+        .flat_map(|d| d.to_le_bytes())
+        .collect();
     assert!(matches!(parse_err(merl, "merl.bsdf").0, E::Magic { .. }));
 }
 
@@ -292,10 +314,16 @@ fn rgl_refuses_wrong_version_and_unknown_dtype() {
     let mut b = synthetic();
     b[12] = 2;
     let (e, text) = parse_err(b, "v2.bsdf");
-    assert!(matches!(e, E::Version { major: 2, .. }) && text.contains("2.0"), "{text}");
+    assert!(
+        matches!(e, E::Version { major: 2, .. }) && text.contains("2.0"),
+        "{text}"
+    );
     let b = with(|v| field_mut(v, "ndf").dtype = 99);
     let (e, text) = parse_err(b, "dtype99.bsdf");
-    assert!(matches!(e, E::UnknownDtype { code: 99, .. }) && text.contains("`ndf`"), "{text}");
+    assert!(
+        matches!(e, E::UnknownDtype { code: 99, .. }) && text.contains("`ndf`"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -312,7 +340,15 @@ fn rgl_refuses_wrong_dtype() {
     });
     let (e, text) = parse_err(b, "f64.bsdf");
     assert!(
-        matches!(e, E::WrongDtype { field: "rgb", expected: "float32", found: "float64", .. }),
+        matches!(
+            e,
+            E::WrongDtype {
+                field: "rgb",
+                expected: "float32",
+                found: "float64",
+                ..
+            }
+        ),
         "{text}"
     );
     let b = with(|v| field_mut(v, "jacobian").dtype = F32);
@@ -327,7 +363,10 @@ fn rgl_refuses_lying_shapes() {
     // More data claimed than stored: past the end (rgb is near the end of the file).
     let b = with(|v| field_mut(v, "valid").shape = vec![600]);
     let (e, text) = parse_err(b, "long.bsdf");
-    assert!(matches!(e, E::PastEnd { .. }) && text.contains("`valid`"), "{text}");
+    assert!(
+        matches!(e, E::PastEnd { .. }) && text.contains("`valid`"),
+        "{text}"
+    );
     // A shape that disagrees with theta_i.
     let b = with(|v| {
         let f = field_mut(v, "rgb");
@@ -335,20 +374,32 @@ fn rgl_refuses_lying_shapes() {
         f.data.truncate(2 * 3 * N * N * 4);
     });
     let (e, text) = parse_err(b, "rgbshape.bsdf");
-    assert!(matches!(e, E::Shape { field: "rgb", .. }) && text.contains("[1, 2, 3, 4, 4]"), "{text}");
+    assert!(
+        matches!(e, E::Shape { field: "rgb", .. }) && text.contains("[1, 2, 3, 4, 4]"),
+        "{text}"
+    );
     // rgb of another resolution than the luminance table.
     let b = with(|v| {
         let f = field_mut(v, "rgb");
         f.shape = vec![1, 3, 3, 2, 8];
     });
-    assert!(matches!(parse_err(b, "res.bsdf").0, E::Shape { field: "rgb", .. }));
+    assert!(matches!(
+        parse_err(b, "res.bsdf").0,
+        E::Shape { field: "rgb", .. }
+    ));
     let b = with(|v| field_mut(v, "vndf").shape = vec![1, 3, VW as u64 * VH as u64]);
-    assert!(matches!(parse_err(b, "ndim.bsdf").0, E::Shape { field: "vndf", .. }));
+    assert!(matches!(
+        parse_err(b, "ndim.bsdf").0,
+        E::Shape { field: "vndf", .. }
+    ));
     let b = with(|v| {
         let f = field_mut(v, "ndf");
         f.shape = vec![1, 16];
     });
-    assert!(matches!(parse_err(b, "ndf1.bsdf").0, E::Shape { field: "ndf", .. }));
+    assert!(matches!(
+        parse_err(b, "ndf1.bsdf").0,
+        E::Shape { field: "ndf", .. }
+    ));
 }
 
 #[test]
@@ -365,7 +416,10 @@ fn rgl_refuses_offsets_past_the_end_and_overflowing_sizes() {
             + fields[k].name.len()
             + 3
     };
-    let k = fields.iter().position(|f| f.name == "sigma").expect("sigma");
+    let k = fields
+        .iter()
+        .position(|f| f.name == "sigma")
+        .expect("sigma");
     for bad in [good.len() as u64, u64::MAX - 3, 1 << 40] {
         let mut b = good.clone();
         b[offset_at(k)..offset_at(k) + 8].copy_from_slice(&bad.to_le_bytes());
@@ -378,7 +432,10 @@ fn rgl_refuses_offsets_past_the_end_and_overflowing_sizes() {
     // A shape whose element count overflows 64 bits.
     let b = with(|v| field_mut(v, "ndf").shape = vec![u64::MAX, 3]);
     let (e, text) = parse_err(b, "overflow.bsdf");
-    assert!(matches!(e, E::Overflow { .. }) && text.contains("`ndf`"), "{text}");
+    assert!(
+        matches!(e, E::Overflow { .. }) && text.contains("`ndf`"),
+        "{text}"
+    );
     // One whose byte size overflows.
     let b = with(|v| field_mut(v, "ndf").shape = vec![1 << 62, 2]);
     assert!(matches!(parse_err(b, "bytes.bsdf").0, E::Overflow { .. }));
@@ -390,7 +447,17 @@ fn rgl_refuses_offsets_past_the_end_and_overflowing_sizes() {
 
 #[test]
 fn rgl_refuses_missing_and_duplicate_fields() {
-    for name in ["phi_i", "theta_i", "sigma", "ndf", "vndf", "luminance", "rgb", "jacobian", "description"] {
+    for name in [
+        "phi_i",
+        "theta_i",
+        "sigma",
+        "ndf",
+        "vndf",
+        "luminance",
+        "rgb",
+        "jacobian",
+        "description",
+    ] {
         let b = with(|v| v.retain(|f| f.name != name));
         let (e, text) = parse_err(b, "missing.bsdf");
         assert!(
@@ -403,7 +470,10 @@ fn rgl_refuses_missing_and_duplicate_fields() {
         v.push(d);
     });
     let (e, text) = parse_err(b, "dup.bsdf");
-    assert!(matches!(e, E::DuplicateField { .. }) && text.contains("`phi_i`"), "{text}");
+    assert!(
+        matches!(e, E::DuplicateField { .. }) && text.contains("`phi_i`"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -414,13 +484,24 @@ fn rgl_refuses_anisotropic_and_spectral_files() {
         f.data = f32_bytes([0.0, 0.5, 1.0, 1.5]);
     });
     let (e, text) = parse_err(b, "aniso.bsdf");
-    assert!(matches!(e, E::Anisotropic { count: 4, .. }) && text.contains("anisotropic"), "{text}");
+    assert!(
+        matches!(e, E::Anisotropic { count: 4, .. }) && text.contains("anisotropic"),
+        "{text}"
+    );
     let b = with(|v| {
         field_mut(v, "rgb").name = "spectra".into();
-        v.push(fld("wavelengths", F32, &[3], f32_bytes([400.0, 550.0, 700.0])));
+        v.push(fld(
+            "wavelengths",
+            F32,
+            &[3],
+            f32_bytes([400.0, 550.0, 700.0]),
+        ));
     });
     let (e, text) = parse_err(b, "spectral.bsdf");
-    assert!(matches!(e, E::SpectralOnly { .. }) && text.contains("spectral-only"), "{text}");
+    assert!(
+        matches!(e, E::SpectralOnly { .. }) && text.contains("spectral-only"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -432,17 +513,53 @@ fn rgl_refuses_bad_values() {
         })
     };
     let (e, text) = parse_err(set("rgb", 7, f32::NAN), "nan.bsdf");
-    assert!(matches!(e, E::BadValue { field: "rgb", index: 7, .. }) && text.contains("not a finite"), "{text}");
+    assert!(
+        matches!(
+            e,
+            E::BadValue {
+                field: "rgb",
+                index: 7,
+                ..
+            }
+        ) && text.contains("not a finite"),
+        "{text}"
+    );
     let (e, _) = parse_err(set("vndf", 3, -1.0), "negvndf.bsdf");
-    assert!(matches!(e, E::BadValue { field: "vndf", index: 3, .. }));
+    assert!(matches!(
+        e,
+        E::BadValue {
+            field: "vndf",
+            index: 3,
+            ..
+        }
+    ));
     let (e, _) = parse_err(set("sigma", 0, 0.0), "sigma0.bsdf");
     assert!(matches!(e, E::BadValue { field: "sigma", .. }));
     let (e, _) = parse_err(set("theta_i", 2, 0.3), "order.bsdf");
-    assert!(matches!(e, E::BadValue { field: "theta_i", index: 2, .. }));
+    assert!(matches!(
+        e,
+        E::BadValue {
+            field: "theta_i",
+            index: 2,
+            ..
+        }
+    ));
     let (e, _) = parse_err(set("theta_i", 2, 2.0), "range.bsdf");
-    assert!(matches!(e, E::BadValue { field: "theta_i", .. }));
+    assert!(matches!(
+        e,
+        E::BadValue {
+            field: "theta_i",
+            ..
+        }
+    ));
     let b = with(|v| field_mut(v, "jacobian").data = vec![2]);
-    assert!(matches!(parse_err(b, "jac2.bsdf").0, E::BadValue { field: "jacobian", .. }));
+    assert!(matches!(
+        parse_err(b, "jac2.bsdf").0,
+        E::BadValue {
+            field: "jacobian",
+            ..
+        }
+    ));
     // A VNDF slice that is zero everywhere has no inverse.
     let b = with(|v| {
         let f = field_mut(v, "vndf");
@@ -450,7 +567,10 @@ fn rgl_refuses_bad_values() {
         f.data[slice..2 * slice].iter_mut().for_each(|x| *x = 0);
     });
     let (e, text) = parse_err(b, "zero.bsdf");
-    assert!(matches!(e, E::BadValue { field: "vndf", .. }) && text.contains("slice 2"), "{text}");
+    assert!(
+        matches!(e, E::BadValue { field: "vndf", .. }) && text.contains("slice 2"),
+        "{text}"
+    );
 }
 
 /// Seeded random corruption of the synthetic file: byte changes in the header, 64-bit
@@ -472,7 +592,11 @@ fn rgl_reader_fuzz() {
             }
             1 => {
                 let k = rng.random_range(12..header - 8);
-                let v: u64 = if rng.random_bool(0.5) { rng.random() } else { rng.random_range(0..2 * good.len() as u64) };
+                let v: u64 = if rng.random_bool(0.5) {
+                    rng.random()
+                } else {
+                    rng.random_range(0..2 * good.len() as u64)
+                };
                 b[k..k + 8].copy_from_slice(&v.to_le_bytes());
             }
             2 => {
@@ -498,7 +622,10 @@ fn rgl_reader_fuzz() {
         }
     }
     println!("fuzz: {refused} refused, {accepted} accepted");
-    assert!(refused > 1000 && accepted > 100, "{refused} refused, {accepted} accepted");
+    assert!(
+        refused > 1000 && accepted > 100,
+        "{refused} refused, {accepted} accepted"
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -532,8 +659,12 @@ fn rgl_tabulation_round_trips_through_binary() {
         let cell = rng.random_range(0..N_CELLS);
         let (wi, wo) = cell_directions(cell);
         let f = m.eval_dirs(wi, wo);
-        for c in 0..3 {
-            let want = if valid[cell] { f[c].max(0.0) as f32 } else { -1.0 };
+        for (c, &fc) in f.iter().enumerate() {
+            let want = if valid[cell] {
+                fc.max(0.0) as f32
+            } else {
+                -1.0
+            };
             assert_eq!(t.value(c, cell), want, "cell {cell} channel {c}");
         }
     }
@@ -548,21 +679,38 @@ fn rgl_tabulation_round_trips_through_binary() {
         .expect("run");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let back = brdf_basis::merl::read_binary(&out).expect("read back");
-    assert!(back.rgb == t.rgb, "the .binary reads back as the same table");
+    assert!(
+        back.rgb == t.rgb,
+        "the .binary reads back as the same table"
+    );
     // The written file and the .bsdf side by side in a directory: two materials, one of
     // each kind, sorted by name; info counts them.
     std::fs::rename(&out, d.path().join("tabulated.binary")).expect("rename");
     let dir_coll = Collection::load(d.path()).expect("directory");
     assert_eq!(dir_coll.names(), ["synth", "tabulated"]);
     assert_eq!(dir_coll.kind_counts(), [("RGL-EPFL", 1), ("MERL table", 1)]);
-    let o = common::bin_cpu().arg("info").arg(d.path()).output().expect("info");
+    let o = common::bin_cpu()
+        .arg("info")
+        .arg(d.path())
+        .output()
+        .expect("info");
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("collection: 2 materials (1 RGL-EPFL, 1 MERL table)"), "{text}");
+    assert!(
+        text.contains("collection: 2 materials (1 RGL-EPFL, 1 MERL table)"),
+        "{text}"
+    );
     // A malformed .bsdf in a directory: the error names it.
     common::write(d.path(), "bad.bsdf", &synthetic()[..100]);
-    let o = common::bin_cpu().arg("info").arg(d.path()).output().expect("info");
+    let o = common::bin_cpu()
+        .arg("info")
+        .arg(d.path())
+        .output()
+        .expect("info");
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("bad.bsdf") && err.contains("truncated"), "{err}");
+    assert!(
+        !o.status.success() && err.contains("bad.bsdf") && err.contains("truncated"),
+        "{err}"
+    );
 }
 
 /// Analytic rows of the mixed collection (from the embedded default).
@@ -578,7 +726,11 @@ fn run(backend: &str, args: &[std::ffi::OsString]) -> std::process::Output {
         .args(args)
         .output()
         .expect("run");
-    assert!(o.status.success(), "{backend} {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{backend} {args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     o
 }
 
@@ -594,7 +746,9 @@ fn rgl_mixed_collection_end_to_end() {
     const TEST: &str = "rgl_mixed_collection_end_to_end";
     let mut paths = Vec::new();
     for stem in FILES {
-        let Some(p) = rgl_path(stem, TEST) else { return };
+        let Some(p) = rgl_path(stem, TEST) else {
+            return;
+        };
         paths.push(p);
     }
     let d = common::tmp();
@@ -602,7 +756,11 @@ fn rgl_mixed_collection_end_to_end() {
     paths.push(csv);
     let coll = Collection::load_many(&paths).expect("collection");
     assert_eq!(coll.kind_counts(), [("RGL-EPFL", 4), ("analytic", 3)]);
-    let backends: Vec<&str> = if common::gpu(TEST).is_some() { vec!["cpu", "gpu"] } else { vec!["cpu"] };
+    let backends: Vec<&str> = if common::gpu(TEST).is_some() {
+        vec!["cpu", "gpu"]
+    } else {
+        vec!["cpu"]
+    };
     let args = |extra: &[&str], out: &[(&str, &Path)]| -> Vec<std::ffi::OsString> {
         let mut v: Vec<std::ffi::OsString> = Vec::new();
         v.push(extra[0].into());
@@ -630,7 +788,12 @@ fn rgl_mixed_collection_end_to_end() {
             cs.cells
                 .iter()
                 .map(|&c| match &m.data {
-                    MaterialData::Rgl(r) => (0..3).map(|k| r.table().value(k, c as usize) as f64).sum::<f64>() / 3.0,
+                    MaterialData::Rgl(r) => {
+                        (0..3)
+                            .map(|k| r.table().value(k, c as usize) as f64)
+                            .sum::<f64>()
+                            / 3.0
+                    }
                     MaterialData::Analytic(a) => {
                         let (wi, wo) = cell_directions(c as usize);
                         a.eval(wi, wo).iter().sum::<f64>() / 3.0
@@ -660,42 +823,88 @@ fn rgl_mixed_collection_end_to_end() {
     for backend in &backends {
         let npy = d.path().join(format!("d-{backend}.npy"));
         run(backend, &(args(&["distance"], &[("--out", &npy)])));
-        let m = brdf_basis::io::saved::load_saved_matrix(&npy).expect("matrix").matrix;
+        let m = brdf_basis::io::saved::load_saved_matrix(&npy)
+            .expect("matrix")
+            .matrix;
         assert_eq!(m.names(), coll.names().as_slice());
         let rel = common::max_rel(m.as_full(), &reference, 1e-12);
         assert!(rel <= 1e-4, "{backend}: distance vs f64 reference: {rel:e}");
 
         let sel = d.path().join(format!("s-{backend}.json"));
-        run(backend, &(args(&["select", "--method", "kmedoids", "-k", "2"], &[("--json", &sel)])));
+        run(
+            backend,
+            &(args(
+                &["select", "--method", "kmedoids", "-k", "2"],
+                &[("--json", &sel)],
+            )),
+        );
         let v = json(&sel);
-        assert_eq!(v["best"]["medoids"].as_array().map(Vec::len), Some(2), "{v}");
+        assert_eq!(
+            v["best"]["medoids"].as_array().map(Vec::len),
+            Some(2),
+            "{v}"
+        );
         let greedy = d.path().join(format!("g-{backend}.json"));
-        run(backend, &(args(&["select", "--method", "greedy", "-k", "2"], &[("--json", &greedy)])));
+        run(
+            backend,
+            &(args(
+                &["select", "--method", "greedy", "-k", "2"],
+                &[("--json", &greedy)],
+            )),
+        );
         bases.push(json(&greedy)["basis"].clone());
 
         let fit = d.path().join(format!("f-{backend}.json"));
         run(
             backend,
-            &(args(&["fit", "--basis", "paper_white_rgb,polished-gold", "--all-others"], &[("--json", &fit)])),
+            &(args(
+                &[
+                    "fit",
+                    "--basis",
+                    "paper_white_rgb,polished-gold",
+                    "--all-others",
+                ],
+                &[("--json", &fit)],
+            )),
         );
         fits.push(json(&fit));
     }
     if fits.len() == 2 {
         assert_eq!(bases[0], bases[1], "greedy bases: CPU and GPU agree");
         let (a, b) = (&fits[0]["targets"], &fits[1]["targets"]);
-        for (ta, tb) in a.as_array().expect("targets").iter().zip(b.as_array().expect("targets")) {
-            let (ma, mb) = (ta["mae"].as_f64().expect("mae"), tb["mae"].as_f64().expect("mae"));
-            assert!((ma - mb).abs() <= 1e-4 * ma.max(1e-6), "{}: mae {ma} vs {mb}", ta["material"]);
+        for (ta, tb) in a
+            .as_array()
+            .expect("targets")
+            .iter()
+            .zip(b.as_array().expect("targets"))
+        {
+            let (ma, mb) = (
+                ta["mae"].as_f64().expect("mae"),
+                tb["mae"].as_f64().expect("mae"),
+            );
+            assert!(
+                (ma - mb).abs() <= 1e-4 * ma.max(1e-6),
+                "{}: mae {ma} vs {mb}",
+                ta["material"]
+            );
         }
     }
     let targets = fits[0]["targets"].as_array().expect("targets");
     assert_eq!(targets.len(), n - 2);
-    assert!(targets.iter().all(|t| t["mae"].as_f64().is_some_and(f64::is_finite)));
+    assert!(targets
+        .iter()
+        .all(|t| t["mae"].as_f64().is_some_and(f64::is_finite)));
 
     // Render: each pixel is the exact evaluation in a frame of our own (the BSDF depends
     // only on the two elevations and the relative azimuth), times cos theta_i.
     let exr = d.path().join("sunflower.exr");
-    run("cpu", &(args(&["render", "--material", "cg_sunflower_rgb", "--size", "33"], &[("--out", &exr)])));
+    run(
+        "cpu",
+        &(args(
+            &["render", "--material", "cg_sunflower_rgb", "--size", "33"],
+            &[("--out", &exr)],
+        )),
+    );
     let img = brdf_basis::io::image::read_exr(&exr).expect("exr");
     let m = rgl_of(coll.get("cg_sunflower_rgb").expect("material"));
     let light = brdf_basis::eval::render::light_direction(45.0, 45.0);
@@ -714,13 +923,21 @@ fn rgl_mixed_collection_end_to_end() {
             }
             // Local frame: z = n, x along the light's tangential part.
             let cos_o = nrm[2];
-            let t = [light[0] - cos_i * nrm[0], light[1] - cos_i * nrm[1], light[2] - cos_i * nrm[2]];
+            let t = [
+                light[0] - cos_i * nrm[0],
+                light[1] - cos_i * nrm[1],
+                light[2] - cos_i * nrm[2],
+            ];
             let tl = dot(t, t).sqrt();
             let (wi, wo) = if tl < 1e-9 {
                 ([0.0, 0.0, 1.0], [(1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o])
             } else {
                 let tx = [t[0] / tl, t[1] / tl, t[2] / tl];
-                let ty = [nrm[1] * tx[2] - nrm[2] * tx[1], nrm[2] * tx[0] - nrm[0] * tx[2], nrm[0] * tx[1] - nrm[1] * tx[0]];
+                let ty = [
+                    nrm[1] * tx[2] - nrm[2] * tx[1],
+                    nrm[2] * tx[0] - nrm[0] * tx[2],
+                    nrm[0] * tx[1] - nrm[1] * tx[0],
+                ];
                 let v = [0.0, 0.0, 1.0];
                 ([tl, 0.0, cos_i], [dot(v, tx), dot(v, ty), cos_o])
             };

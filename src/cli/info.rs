@@ -71,7 +71,11 @@ pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
             .iter()
             .map(|(k, n)| format!("{n} {k}"))
             .collect();
-        println!("collection: {} materials ({})", coll.len(), kinds.join(", "));
+        println!(
+            "collection: {} materials ({})",
+            coll.len(),
+            kinds.join(", ")
+        );
     }
     Ok(())
 }
