@@ -76,6 +76,20 @@ pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
             coll.len(),
             kinds.join(", ")
         );
+        for m in coll.materials() {
+            if let brdf_basis::collection::MaterialData::Rgl(r) = &m.data {
+                let b = r.bsdf();
+                println!(
+                    "  {} (RGL-EPFL: {}): {} x {} tables, {} incident elevations; {} valid cells with a negative RGB value stored as 0",
+                    brdf_basis::error::short_name(&m.name),
+                    b.description.escape_debug(),
+                    b.resolution,
+                    b.resolution,
+                    b.theta_i.len(),
+                    r.clamped_cells()
+                );
+            }
+        }
     }
     Ok(())
 }
