@@ -178,7 +178,7 @@ pub enum CollectionError {
     #[error("empty material name (a name list such as --basis takes names separated by single commas, e.g. `--basis a,b`)")]
     EmptyName,
     /// The path is neither a CSV, a `.binary` file nor a directory.
-    #[error("{path}: not a collection (expected an analytic .csv, a MERL .binary file or a directory of .binary files)")]
+    #[error("{path}: not a collection (expected an analytic .csv, a MERL .binary file, an RGL-EPFL .bsdf file or a directory of .binary and .bsdf files)")]
     UnknownKind {
         /// The path.
         path: PathBuf,

@@ -9,28 +9,15 @@ use brdf_basis::backend::BackendChoice;
 /// Arguments of `info`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu\n  brdf-basis info ../shared/data/real/nbrdf/merl100"
+    after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu\n  brdf-basis info paper_white_rgb.bsdf merl/\n  brdf-basis info ../shared/data/real/nbrdf/merl100"
 )]
 pub struct InfoArgs {
-    /// Collection(s) to describe (materials per kind); none: only the back-end.
+    /// Collection(s) to describe (kinds and counts of materials); none: only the back-end.
     pub collection: Vec<std::path::PathBuf>,
 }
 
 /// Prints the back-end, adapter, driver and limits.
 pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
-    if !a.collection.is_empty() {
-        let coll = super::load_collection(&a.collection)?;
-        let kinds: Vec<String> = coll
-            .kind_counts()
-            .iter()
-            .map(|(k, n)| format!("{n} {k}"))
-            .collect();
-        println!(
-            "collection: {} materials ({})",
-            coll.len(),
-            kinds.join(", ")
-        );
-    }
     let gpu = if g.backend == BackendChoice::Cpu {
         None
     } else {
@@ -77,5 +64,32 @@ pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
         None => {}
     }
     println!("cpu back-end: {}", CpuBackend::new().name());
+    if !a.collection.is_empty() {
+        let coll = super::load_collection(&a.collection)?;
+        let kinds: Vec<String> = coll
+            .kind_counts()
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        println!(
+            "collection: {} materials ({})",
+            coll.len(),
+            kinds.join(", ")
+        );
+        for m in coll.materials() {
+            if let brdf_basis::collection::MaterialData::Rgl(r) = &m.data {
+                let b = r.bsdf();
+                println!(
+                    "  {} (RGL-EPFL: {}): {} x {} tables, {} incident elevations; {} valid cells with a negative RGB value stored as 0",
+                    brdf_basis::error::short_name(&m.name),
+                    b.description.escape_debug(),
+                    b.resolution,
+                    b.resolution,
+                    b.theta_i.len(),
+                    r.clamped_cells()
+                );
+            }
+        }
+    }
     Ok(())
 }

@@ -399,8 +399,8 @@ impl RglBsdf {
 
     /// RGB reflectance `f(wi, wo)` (per steradian, not times `cos theta_o`) of unit
     /// directions in the local frame (z = normal); 0 when either is at or below the
-    /// horizon. Measured values may be slightly negative (noise in the file's tables);
-    /// they are returned as they are.
+    /// horizon. A channel may be negative (the file's linear sRGB of a colour outside the
+    /// sRGB gamut); it is returned as it is, as Mitsuba does.
     pub fn eval(&self, wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
         let fcos = self.eval_cos(wi, wo);
         let cos_o = normalize(wo)[2];

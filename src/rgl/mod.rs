@@ -41,10 +41,13 @@ impl RglMaterial {
     }
 
     /// Tabulates an evaluation on the MERL grid (cell centres of SPEC 2, in parallel).
-    /// Cells below the horizon are invalid (-1); a negative measured value in a valid
-    /// cell is stored as 0, so that the cell stays valid (SPEC 2 makes a cell with a
-    /// negative channel invalid, which would remove it from every distance and fit of
-    /// a collection holding this material).
+    /// Cells below the horizon are invalid (-1). A negative value in a valid cell is
+    /// stored as 0, so that the cell stays valid: SPEC 2 makes a cell with a negative
+    /// channel invalid, which would remove it from every distance and fit of a collection
+    /// holding this material. Negative values are real in these files: the RGB tables are
+    /// linear sRGB converted from spectra, and a saturated colour outside the sRGB gamut
+    /// has a negative channel (`cg_sunflower_rgb`: blue below 0 in 79% of its table, down
+    /// to -0.1; `cc_ibiza_sunset_rgb`: 9%, down to -0.01).
     pub fn new(bsdf: RglBsdf) -> Self {
         let valid = geometric_validity();
         let cells: Vec<[f32; 3]> = (0..N_CELLS)

@@ -189,10 +189,11 @@ impl TensorFile {
             });
         }
         let n = c.u32(&|| "the field count".into())?;
-        let mut order = Vec::new();
-        let mut fields = HashMap::new();
-        // Each field takes at least 13 header bytes, so a count the file cannot hold
-        // fails on the first missing byte, never on a huge allocation.
+        // The whole header first (a file cut inside it is "truncated", whatever its
+        // fields say), then each field's type and extent. Each field takes at least 13
+        // header bytes, so a count the file cannot hold fails on the first missing byte,
+        // never on a huge allocation.
+        let mut raw_fields = Vec::new();
         for k in 0..n {
             let len = c.u16(&|| format!("the name length of field {}", k + 1))?;
             let raw = c.take(len as usize, &|| format!("the name of field {}", k + 1))?;
@@ -209,6 +210,11 @@ impl TensorFile {
             for d in 0..ndim {
                 shape.push(c.u64(&what(&format!("dimension {}", d + 1)))?);
             }
+            raw_fields.push((name, code, offset, shape));
+        }
+        let mut order = Vec::new();
+        let mut fields = HashMap::new();
+        for (name, code, offset, shape) in raw_fields {
             let dtype = Dtype::from_code(code).ok_or_else(|| RglError::UnknownDtype {
                 path: path.to_path_buf(),
                 field: name.clone(),
