@@ -212,7 +212,9 @@ fn run_long<'py, T: Send>(
                     .cloned()
                     .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
                     .unwrap_or_else(|| "internal error".into());
-                Err(PyRuntimeError::new_err(format!("brdf-basis panicked: {msg}")))
+                Err(PyRuntimeError::new_err(format!(
+                    "brdf-basis panicked: {msg}"
+                )))
             }
         }
     }
@@ -552,12 +554,20 @@ fn fit_params(
         solver: match solver {
             "exact" => bb::Solver::Exact,
             "pgd" => bb::Solver::Pgd,
-            s => return Err(value_err(format!("invalid solver `{s}` (expected exact, pgd)"))),
+            s => {
+                return Err(value_err(format!(
+                    "invalid solver `{s}` (expected exact, pgd)"
+                )))
+            }
         },
         gram: match gram {
             "auto" => bb::GramMode::Auto,
             "grid" => bb::GramMode::Grid,
-            s => return Err(value_err(format!("invalid gram `{s}` (expected auto, grid)"))),
+            s => {
+                return Err(value_err(format!(
+                    "invalid gram `{s}` (expected auto, grid)"
+                )))
+            }
         },
     })
 }
@@ -702,6 +712,9 @@ fn silhouette(d: PyReadonlyArray2<'_, f64>, labels: Vec<usize>) -> PyResult<f64>
     bb::cluster::indices::silhouette(&m, &labels).map_err(lib_err)
 }
 
+/// What [`kmedoids`] returns: (medoids, labels, loss, iterations, db_index).
+type KMedoidsTuple = (Vec<usize>, Vec<usize>, f64, usize, f64);
+
 /// k-medoids on a precomputed matrix: (medoids, labels, loss, iterations, db_index).
 #[pyfunction]
 #[pyo3(signature = (d, k, *, seed = 1, init = "build", algorithm = "fasterpam"))]
@@ -712,12 +725,16 @@ fn kmedoids(
     seed: u64,
     init: &str,
     algorithm: &str,
-) -> PyResult<(Vec<usize>, Vec<usize>, f64, usize, f64)> {
+) -> PyResult<KMedoidsTuple> {
     let m = matrix_of(&d)?;
     let init = match init {
         "build" => bb::KMedoidsInit::Build,
         "random" => bb::KMedoidsInit::Random,
-        s => return Err(value_err(format!("invalid init `{s}` (expected build, random)"))),
+        s => {
+            return Err(value_err(format!(
+                "invalid init `{s}` (expected build, random)"
+            )))
+        }
     };
     let p = bb::KMedoidsParams::new(k)
         .seed(seed)
