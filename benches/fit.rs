@@ -58,7 +58,11 @@ fn main() {
         ..Default::default()
     };
     let cells = fit_cells(&coll, &(0..coll.len()).collect::<Vec<_>>(), &p).expect("cells");
-    let (g, h30, bb30) = channel_gram(
+    let brdf_basis::fit::ChannelGram {
+        gram: g,
+        h: h30,
+        bb: bb30,
+    } = channel_gram(
         &CpuBackend::new(),
         &coll,
         &basis10,

@@ -278,6 +278,7 @@ pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<
     let m = coll.get(name)?;
     match &m.data {
         MaterialData::Measured(t) => Ok(t.rgb.clone()),
+        MaterialData::Rgl(r) => Ok(r.table().rgb.clone()),
         MaterialData::Analytic(a) => {
             let lobes: Vec<crate::backend::Lobe> = (0..3)
                 .map(|c| crate::fit::channel_lobe(&m.data, c))

@@ -4,6 +4,7 @@
 use crate::brdf::AshikhminShirley;
 use crate::error::CollectionError;
 use crate::merl::{read_binary, MerlTable};
+use crate::rgl::RglMaterial;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -25,6 +26,8 @@ pub enum MaterialData {
     Analytic(AshikhminShirley),
     /// A measured table on the MERL grid.
     Measured(Arc<MerlTable>),
+    /// An RGL-EPFL measured file: its exact evaluation and its table on the MERL grid.
+    Rgl(Arc<RglMaterial>),
 }
 
 /// One named material.
@@ -43,7 +46,7 @@ impl Material {
     pub fn analytic(&self) -> Option<&AshikhminShirley> {
         match &self.data {
             MaterialData::Analytic(a) => Some(a),
-            MaterialData::Measured(_) => None,
+            MaterialData::Measured(_) | MaterialData::Rgl(_) => None,
         }
     }
 }
@@ -125,7 +128,7 @@ impl Collection {
             let mut files: Vec<PathBuf> = std::fs::read_dir(path)
                 .map_err(io)?
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "binary"))
+                .filter(|p| p.extension().is_some_and(|e| e == "binary" || e == "bsdf"))
                 .collect();
             files.sort();
             if files.is_empty() {
@@ -134,12 +137,17 @@ impl Collection {
                 });
             }
             for f in files {
-                self.push_measured(&f)?;
+                if f.extension().is_some_and(|e| e == "bsdf") {
+                    self.push_rgl(&f)?;
+                } else {
+                    self.push_measured(&f)?;
+                }
             }
             return Ok(());
         }
         match path.extension().and_then(|e| e.to_str()) {
             Some("binary") => self.push_measured(path),
+            Some("bsdf") => self.push_rgl(path),
             Some("csv") => {
                 let bytes = read_regular(path, MAX_CSV_BYTES)?;
                 let parsed = parse_csv(&bytes, path)?;
@@ -156,19 +164,23 @@ impl Collection {
 
     fn push_measured(&mut self, f: &Path) -> Result<(), CollectionError> {
         let table = read_binary(f)?;
-        let name = f
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        check_name(&name).map_err(|message| CollectionError::BadName {
-            path: f.to_path_buf(),
-            name: name.clone(),
-            message,
-        })?;
+        self.push_file(f, MaterialData::Measured(Arc::new(table)))
+    }
+
+    /// An RGL-EPFL `.bsdf` file, named by its stem (tabulated on the grid as it loads).
+    fn push_rgl(&mut self, f: &Path) -> Result<(), CollectionError> {
+        // The name first: a bad name is found before the tabulation's work.
+        file_name(f)?;
+        let m = RglMaterial::load(f)?;
+        self.push_file(f, MaterialData::Rgl(Arc::new(m)))
+    }
+
+    fn push_file(&mut self, f: &Path, data: MaterialData) -> Result<(), CollectionError> {
+        let name = file_name(f)?;
         self.push(
             Material {
                 name,
-                data: MaterialData::Measured(Arc::new(table)),
+                data,
                 origin: f.display().to_string(),
             },
             f,
@@ -238,6 +250,10 @@ impl Collection {
                     h.write(b"M");
                     h.write_f32s(&t.rgb);
                 }
+                MaterialData::Rgl(t) => {
+                    h.write(b"R");
+                    h.write_f32s(&t.table().rgb);
+                }
             }
         }
         h.hex()
@@ -268,6 +284,20 @@ impl Collection {
             .map(|(_, n)| n.to_string())
             .collect()
     }
+}
+
+/// The material name of a measured file: its stem, checked.
+fn file_name(f: &Path) -> Result<String, CollectionError> {
+    let name = f
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    check_name(&name).map_err(|message| CollectionError::BadName {
+        path: f.to_path_buf(),
+        name: name.clone(),
+        message,
+    })?;
+    Ok(name)
 }
 
 /// Largest analytic CSV read (a table of 10,000 materials is about 1 MB).
@@ -462,6 +492,7 @@ impl crate::merl::CellSet {
             .iter()
             .filter_map(|m| match &m.data {
                 MaterialData::Measured(t) => Some(t.as_ref()),
+                MaterialData::Rgl(t) => Some(t.table().as_ref()),
                 MaterialData::Analytic(_) => None,
             })
             .collect();

@@ -74,6 +74,7 @@ pub mod merl;
 pub mod nnls;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod rgl;
 pub mod select;
 pub mod separable;
 pub mod stats;

@@ -140,8 +140,8 @@ impl CellMoments {
         out
     }
 
-    /// `(sum_c w r^2, sum_c w |r|)` of `r = fit - target` over the cells.
-    pub fn errors(&self, fit: &SeparableLobe, target: &SeparableLobe) -> (f64, f64) {
+    /// The weighted errors of `r = fit - target` over the cells.
+    pub fn errors(&self, fit: &SeparableLobe, target: &SeparableLobe) -> CellErrors {
         let da = fit.alpha - target.alpha;
         let db: Vec<f64> = fit
             .beta
@@ -155,6 +155,18 @@ impl CellMoments {
             sq += w * r * r;
             ab += w * r.abs();
         }
-        (sq, ab)
+        CellErrors {
+            squared: sq,
+            absolute: ab,
+        }
     }
+}
+
+/// Weighted errors over a cell set ([`CellMoments::errors`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellErrors {
+    /// `sum_s w_s r(s)^2`.
+    pub squared: f64,
+    /// `sum_s w_s |r(s)|`.
+    pub absolute: f64,
 }

@@ -210,7 +210,11 @@ fn gpu_gram_matches_cpu_gram() {
     let basis = idx(&c, &BASIS5);
     let targets: Vec<usize> = (0..40).collect();
     for ch in 0..3 {
-        let (gg, hg, bg) = channel_gram(
+        let brdf_basis::fit::ChannelGram {
+            gram: gg,
+            h: hg,
+            bb: bg,
+        } = channel_gram(
             g,
             &c,
             &basis,
@@ -221,7 +225,11 @@ fn gpu_gram_matches_cpu_gram() {
             &|_, _| {},
         )
         .expect("gpu");
-        let (gc, hc, bc) = channel_gram(
+        let brdf_basis::fit::ChannelGram {
+            gram: gc,
+            h: hc,
+            bb: bc,
+        } = channel_gram(
             &CpuBackend::new(),
             &c,
             &basis,
@@ -378,9 +386,9 @@ fn separable_gram_matches_the_grid_pass() {
             )
             .expect("grid");
             // f32 rounding of the tabulated values bounds the agreement: 1e-5 relative.
-            assert!(max_rel(&a.0, &b.0, 1e-300) <= 1e-5, "G {weighting:?}");
-            assert!(max_rel(&a.1, &b.1, 1e-300) <= 1e-5, "h {weighting:?}");
-            assert!(max_rel(&a.2, &b.2, 1e-300) <= 1e-5, "bb {weighting:?}");
+            assert!(max_rel(&a.gram, &b.gram, 1e-300) <= 1e-5, "G {weighting:?}");
+            assert!(max_rel(&a.h, &b.h, 1e-300) <= 1e-5, "h {weighting:?}");
+            assert!(max_rel(&a.bb, &b.bb, 1e-300) <= 1e-5, "bb {weighting:?}");
         }
     }
 }

@@ -279,7 +279,7 @@ fn pairwise_handles_padding_measured_rows_and_tiny_sets() {
 
 #[test]
 fn gpu_pgd_solver_reaches_the_exact_optimum() {
-    use brdf_basis::fit::{channel_gram, fit_cells, FitParams};
+    use brdf_basis::fit::{fit_cells, FitParams};
     use brdf_basis::nnls::{lawson_hanson, pgd::PgdParams, GramBatch};
     let Some(gpu) = gpu("gpu_pgd_solver_reaches_the_exact_optimum") else {
         return;
@@ -306,7 +306,11 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
     let cpu = CpuBackend::new();
     let (mut worst, mut worst_kkt, mut over) = (0f64, 0f64, 0usize);
     for ch in 0..3 {
-        let (g, hs, bbs) = brdf_basis::fit::channel_gram(
+        let brdf_basis::fit::ChannelGram {
+            gram: g,
+            h: hs,
+            bb: bbs,
+        } = brdf_basis::fit::channel_gram(
             &cpu,
             &c,
             &basis,
@@ -317,7 +321,6 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
             &|_, _| {},
         )
         .expect("gram");
-        let _ = channel_gram;
         let batch = GramBatch::new(6, &g, &hs, &bbs).expect("batch");
         let gp = gpu.context();
         let kernel = brdf_basis::backend::gpu::pgd::PgdKernel::new(gp).expect("kernel");

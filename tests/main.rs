@@ -25,6 +25,7 @@ mod leftovers;
 mod measured;
 mod outputs;
 mod reproduce;
+mod rgl;
 mod saved_matrix;
 mod select_defects;
 mod selection;

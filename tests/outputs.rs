@@ -18,7 +18,9 @@ m6,0.1,0.1,0.1,0.8,0.7,0.6,0.95,1000\n";
 /// Runs the binary in `cwd`; panics after 60 s (a hang: e.g. a FIFO opened).
 fn run_in(cwd: &Path, args: &[String]) -> Output {
     let mut cmd = bin();
-    cmd.args(["--quiet", "--backend", "cpu"]).args(args).current_dir(cwd);
+    cmd.args(["--quiet", "--backend", "cpu"])
+        .args(args)
+        .current_dir(cwd);
     output_within(&mut cmd, Duration::from_secs(60))
         .unwrap_or_else(|| panic!("brdf-basis {args:?} hangs"))
 }

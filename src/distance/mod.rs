@@ -203,6 +203,10 @@ pub fn lobes(coll: &Collection, kind: LobeKind) -> Vec<Lobe> {
                 table: t.clone(),
                 channel: None,
             },
+            (MaterialData::Rgl(t), _) => Lobe::Measured {
+                table: t.table().clone(),
+                channel: None,
+            },
         })
         .collect()
 }

@@ -28,6 +28,12 @@ pub fn material_brdf(m: &MaterialData) -> BrdfFn {
                 [0, 1, 2].map(|c| t.value(c, cell) as f64)
             })
         }
+        // An RGL file is evaluated exactly at the pixel's directions (SPEC 9), with its
+        // table's convention: a negative measured value counts as 0.
+        MaterialData::Rgl(t) => {
+            let t = t.clone();
+            Box::new(move |wi, wo| t.eval_dirs(wi, wo).map(|v| v.max(0.0)))
+        }
     }
 }
 

@@ -249,7 +249,10 @@ impl ExperimentParams {
             Some(s) => Some(coll.index_of(s).map_err(ExperimentError::Showcase)?),
             None => None,
         };
-        Ok(ValidExperimentParams { p: self.clone(), showcase })
+        Ok(ValidExperimentParams {
+            p: self.clone(),
+            showcase,
+        })
     }
 }
 

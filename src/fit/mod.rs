@@ -178,6 +178,10 @@ pub fn channel_lobe(m: &MaterialData, c: usize) -> Lobe {
             table: t.clone(),
             channel: Some(c),
         },
+        MaterialData::Rgl(t) => Lobe::Measured {
+            table: t.table().clone(),
+            channel: Some(c),
+        },
     }
 }
 
@@ -234,11 +238,19 @@ pub(crate) fn gram_full(
     Ok(backend.gram(lobes, cells, basis, progress)?)
 }
 
-/// `(G, hs, bbs)`: see [`channel_gram`].
-pub type ChannelGram = (Vec<f64>, Vec<f64>, Vec<f64>);
+/// The Gram quantities of one channel (section 5): what one batch of NNLS fits shares.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelGram {
+    /// `(k+1)^2` Gram matrix of the Lambertian and basis columns, row-major.
+    pub gram: Vec<f64>,
+    /// Per target `t`, `h[t * (k+1) .. (t+1) * (k+1)]`: its products with the columns.
+    pub h: Vec<f64>,
+    /// Per target, its weighted squared norm `sum_s w_s b(s)^2`.
+    pub bb: Vec<f64>,
+}
 
-/// Gram quantities of one channel: returns `(G, hs, bbs)` with `G` the `(k+1)^2` Gram of
-/// the Lambertian and basis columns, `hs[t]` and `bbs[t]` per target.
+/// Gram quantities of one channel: the `(k+1)^2` Gram of the Lambertian and basis
+/// columns and, per target, its products with them and its squared norm.
 #[allow(clippy::too_many_arguments)]
 #[doc(hidden)]
 pub fn channel_gram(
@@ -290,7 +302,11 @@ pub fn channel_gram(
             channel: c,
         });
     }
-    Ok((g, hs, bbs))
+    Ok(ChannelGram {
+        gram: g,
+        h: hs,
+        bb: bbs,
+    })
 }
 
 /// Scaled-KKT level above which a projected-gradient solution is re-solved exactly.
@@ -385,8 +401,11 @@ pub fn fit(
     let mut target_norms = vec![0.0; targets.len()];
     let mut target_l1 = vec![0.0; targets.len()];
     for c in 0..3 {
-        let (g, hs, bbs) =
-            channel_gram(backend, coll, basis, targets, &cells, c, p.gram, progress)?;
+        let ChannelGram {
+            gram: g,
+            h: hs,
+            bb: bbs,
+        } = channel_gram(backend, coll, basis, targets, &cells, c, p.gram, progress)?;
         target_norms
             .iter_mut()
             .zip(&bbs)
@@ -468,12 +487,12 @@ fn grid_errors(
                             unreachable!("moments exist only when every material is analytic")
                         }
                     };
-                    let (sq, ab) = mom.errors(&SeparableLobe::combination(&refs, &s.x), &target);
-                    let (_, l1) = mom.errors(&SeparableLobe::combination(&[], &[]), &target);
+                    let e = mom.errors(&SeparableLobe::combination(&refs, &s.x), &target);
+                    let zero = mom.errors(&SeparableLobe::combination(&[], &[]), &target);
                     ChannelErrors {
-                        residual: sq.sqrt(),
-                        mae: ab,
-                        l1,
+                        residual: e.squared.sqrt(),
+                        mae: e.absolute,
+                        l1: zero.absolute,
                     }
                 })
                 .collect()

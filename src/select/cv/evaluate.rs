@@ -205,7 +205,7 @@ impl<'a> GridEval<'a> {
                 let target = sep(self.lobe(Some(t), c))?;
                 Some(
                     mom.errors(&SeparableLobe::combination(&refs, &x), &target)
-                        .1,
+                        .absolute,
                 )
             });
             mae += match analytic {
