@@ -262,6 +262,7 @@ impl Collection {
             .map(|m| match m.data {
                 bb::collection::MaterialData::Analytic(_) => "analytic",
                 bb::collection::MaterialData::Measured(_) => "measured",
+                bb::collection::MaterialData::Rgl(_) => "rgl",
             })
             .collect()
     }
