@@ -309,6 +309,17 @@ pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<
     }
 }
 
+/// What a material is made of, in one word: `analytic`, `measured` (a MERL table) or
+/// `rgl` (an RGL-EPFL `.bsdf` file).
+pub fn material_kind(m: &crate::collection::Material) -> &'static str {
+    use crate::collection::MaterialData;
+    match m.data {
+        MaterialData::Analytic(_) => "analytic",
+        MaterialData::Measured(_) => "measured",
+        MaterialData::Rgl(_) => "rgl",
+    }
+}
+
 /// Non-negative least squares `min |A x - b|` subject to `x >= 0` for a dense row-major
 /// `A` (`rows` x `cols`), by the crate's exact Lawson-Hanson solver on the Gram form
 /// (`G = A^T A`, `h = A^T b`, summed in f64).

@@ -121,6 +121,18 @@ impl<'py> Report<'py> {
         })
     }
 
+    /// Ends the stderr line after the last report.
+    fn end(&self, py: Python<'py>) -> PyResult<()> {
+        match self {
+            Report::Stderr(_) => py
+                .import("sys")?
+                .getattr("stderr")?
+                .call_method1("write", ("\n",))
+                .map(|_| ()),
+            _ => Ok(()),
+        }
+    }
+
     fn show(&self, py: Python<'py>, done: u64, total: u64, last: bool) -> PyResult<()> {
         match self {
             Report::None => Ok(()),
@@ -197,9 +209,11 @@ fn run_long<'py, T: Send>(
     if let Some(e) = interrupt {
         return Err(e);
     }
-    if shown.1 > 0 && shown.1 != u64::MAX {
-        let t = total.load(Ordering::Relaxed);
-        report.show(py, done.load(Ordering::Relaxed).max(shown.0), t, true)?;
+    let last = (done.load(Ordering::Relaxed), total.load(Ordering::Relaxed));
+    if last.1 > 0 && last != shown {
+        report.show(py, last.0, last.1, true)?;
+    } else if last.1 > 0 {
+        report.end(py)?;
     }
     match outcome {
         Ok(Ok(r)) => r.map_err(py_err),
@@ -259,11 +273,7 @@ impl Collection {
         self.inner
             .materials()
             .iter()
-            .map(|m| match m.data {
-                bb::collection::MaterialData::Analytic(_) => "analytic",
-                bb::collection::MaterialData::Measured(_) => "measured",
-                bb::collection::MaterialData::Rgl(_) => "rgl",
-            })
+            .map(bb::material_kind)
             .collect()
     }
 
