@@ -326,7 +326,7 @@ pub fn material_kind(m: &crate::collection::Material) -> &'static str {
 ///
 /// # Errors
 /// [`Error::Nnls`] for mismatched lengths, non-finite entries or no column.
-pub fn nnls(a: &[f64], rows: usize, cols: usize, b: &[f64]) -> Result<NnlsSolution> {
+pub fn nnls_dense(a: &[f64], rows: usize, cols: usize, b: &[f64]) -> Result<NnlsSolution> {
     use crate::nnls::NnlsError;
     if a.len() != rows * cols {
         return Err(NnlsError::DimensionMismatch {
@@ -656,26 +656,26 @@ mod tests {
     #[test]
     fn nnls_hand_cases() {
         // min |x - (1, -1)| s.t. x >= 0: (1, 0).
-        let s = nnls(&[1.0, 0.0, 0.0, 1.0], 2, 2, &[1.0, -1.0]).unwrap();
+        let s = nnls_dense(&[1.0, 0.0, 0.0, 1.0], 2, 2, &[1.0, -1.0]).unwrap();
         assert_eq!(s.x, vec![1.0, 0.0]);
         // A = [[1, 1], [1, 2], [1, 3]], b = A (2, 1): exact and positive.
         let a = [1.0, 1.0, 1.0, 2.0, 1.0, 3.0];
-        let s = nnls(&a, 3, 2, &[3.0, 4.0, 5.0]).unwrap();
+        let s = nnls_dense(&a, 3, 2, &[3.0, 4.0, 5.0]).unwrap();
         assert!(
             (s.x[0] - 2.0).abs() < 1e-12 && (s.x[1] - 1.0).abs() < 1e-12,
             "{:?}",
             s.x
         );
         // b = (3, 2, 1): the unconstrained slope is -1; with x >= 0, x = (2, 0).
-        let s = nnls(&a, 3, 2, &[3.0, 2.0, 1.0]).unwrap();
+        let s = nnls_dense(&a, 3, 2, &[3.0, 2.0, 1.0]).unwrap();
         assert!((s.x[0] - 2.0).abs() < 1e-12 && s.x[1] == 0.0, "{:?}", s.x);
-        assert!(matches!(nnls(&a, 3, 2, &[1.0]), Err(Error::Nnls(_))));
+        assert!(matches!(nnls_dense(&a, 3, 2, &[1.0]), Err(Error::Nnls(_))));
         assert!(matches!(
-            nnls(&a[..5], 3, 2, &[1.0; 3]),
+            nnls_dense(&a[..5], 3, 2, &[1.0; 3]),
             Err(Error::Nnls(_))
         ));
         assert!(matches!(
-            nnls(&[f64::NAN], 1, 1, &[1.0]),
+            nnls_dense(&[f64::NAN], 1, 1, &[1.0]),
             Err(Error::Nnls(_))
         ));
     }

@@ -700,7 +700,7 @@ fn nnls<'py>(
     let av: Vec<f64> = a.as_array().iter().copied().collect();
     let bv: Vec<f64> = b.as_array().iter().copied().collect();
     let s = py
-        .detach(|| bb::nnls(&av, rows, cols, &bv))
+        .detach(|| bb::nnls_dense(&av, rows, cols, &bv))
         .map_err(py_err)?;
     Ok(PyArray1::from_vec(py, s.x))
 }
