@@ -250,7 +250,7 @@ pub use crate::select::SelectOutput;
 
 /// A material's reflectance is not a finite f32 number in some valid cells.
 #[derive(Debug, thiserror::Error)]
-#[error("material `{material}` ({origin}): its reflectance is not a finite f32 number in {cells} valid cells (parameters too large: n = {n}, s = {s:?})")]
+#[error("material `{material}` ({origin}): its reflectance is not a finite f32 number in {cells} valid cells ({cause})")]
 pub struct NotFiniteError {
     /// The material.
     pub material: String,
@@ -258,10 +258,9 @@ pub struct NotFiniteError {
     pub origin: String,
     /// Number of valid cells with a non-finite value.
     pub cells: usize,
-    /// Its exponent (analytic materials).
-    pub n: f64,
-    /// Its specular albedo (analytic materials).
-    pub s: [f64; 3],
+    /// Why, in words: the parameters of an analytic material, or a network's output
+    /// overflowing.
+    pub cause: String,
 }
 
 /// Material `name` of `coll` on the full MERL grid, as `brdf-basis tabulate` writes it:
@@ -279,7 +278,7 @@ pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<
     match &m.data {
         MaterialData::Measured(t) => Ok(t.rgb.clone()),
         MaterialData::Rgl(r) => Ok(r.table().rgb.clone()),
-        MaterialData::Analytic(a) => {
+        MaterialData::Analytic(_) | MaterialData::Neural(_) => {
             let lobes: Vec<crate::backend::Lobe> = (0..3)
                 .map(|c| crate::fit::channel_lobe(&m.data, c))
                 .collect();
@@ -300,8 +299,10 @@ pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<
                     material: crate::error::short_name(&m.name).to_string(),
                     origin: m.origin.clone(),
                     cells: overflow,
-                    n: a.n,
-                    s: a.s,
+                    cause: match m.analytic() {
+                        Some(a) => format!("parameters too large: n = {}, s = {:?}", a.n, a.s),
+                        None => "the network's output overflows f32".into(),
+                    },
                 })));
             }
             Ok(rgb)

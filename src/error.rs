@@ -125,8 +125,8 @@ pub enum CollectionError {
     /// An RGL-EPFL `.bsdf` file could not be read.
     #[error(transparent)]
     Rgl(#[from] RglError),
-    /// A directory given as a collection holds no `.binary` file.
-    #[error("{path}: a directory with no MERL .binary file in it (a collection is an analytic .csv file, a .binary file or a directory of .binary files)")]
+    /// A directory given as a collection holds no material file.
+    #[error("{path}: a directory with no material in it (a collection is an analytic .csv file, a MERL .binary file, an RGL-EPFL .bsdf file, or a directory of .binary and .bsdf files and neural BRDF sets NAME_fc1.npy ... NAME_b3.npy)")]
     EmptyDir {
         /// The directory.
         path: PathBuf,
@@ -156,6 +156,15 @@ pub enum CollectionError {
         path: PathBuf,
         /// The name.
         name: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file of a neural BRDF set is missing, unreadable, misshapen or holds a
+    /// non-finite value, or a `.npy` file belongs to no set.
+    #[error("{path}: {message}")]
+    Neural {
+        /// The file.
+        path: PathBuf,
         /// What is wrong.
         message: String,
     },
@@ -503,17 +512,13 @@ pub enum DistanceError {
         /// Accepted values.
         expected: &'static str,
     },
-    /// More tiles asked for than the matrix has bands.
-    #[error("{count} tiles asked for, but {materials} materials in bands of {band_rows} rows (--band-rows) make {bands} band{}: use at most {bands} tile{}, or a smaller --band-rows", if *.bands == 1 { "" } else { "s" }, if *.bands == 1 { "" } else { "s" })]
+    /// More tiles asked for than the matrix has rows.
+    #[error("{count} tiles asked for, but the collection has {materials} material{}: use at most {materials} tile{}", if *.materials == 1 { "" } else { "s" }, if *.materials == 1 { "" } else { "s" })]
     TooManyTiles {
         /// Tiles asked for.
         count: usize,
-        /// Bands of the matrix.
-        bands: usize,
-        /// Materials.
+        /// Materials (rows of the matrix).
         materials: usize,
-        /// Rows per band.
-        band_rows: usize,
     },
     /// Back-end failure.
     #[error(transparent)]

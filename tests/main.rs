@@ -7,6 +7,7 @@
 
 mod common;
 
+mod acquisition;
 mod cli;
 mod collection;
 mod determinism;
@@ -23,12 +24,15 @@ mod integrity;
 mod kmedoids;
 mod leftovers;
 mod measured;
+mod nbrdf;
 mod outputs;
 mod reproduce;
 mod rgl;
 mod saved_matrix;
+mod scale;
 mod select_defects;
 mod selection;
 mod shaders;
+mod slurm;
 mod tiles;
 mod workflow;

@@ -36,7 +36,7 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
         MaterialData::Measured(_) | MaterialData::Rgl(_) => {
             brdf_basis::tabulate(&CpuBackend::new(), &coll, &a.material)
         }
-        MaterialData::Analytic(_) => {
+        MaterialData::Analytic(_) | MaterialData::Neural(_) => {
             brdf_basis::tabulate(super::backend(g)?.as_ref(), &coll, &a.material)
         }
     }

@@ -207,6 +207,10 @@ pub fn lobes(coll: &Collection, kind: LobeKind) -> Vec<Lobe> {
                 table: t.table().clone(),
                 channel: None,
             },
+            (MaterialData::Neural(net), _) => Lobe::Neural {
+                net: net.clone(),
+                channel: None,
+            },
         })
         .collect()
 }

@@ -1,5 +1,5 @@
 //! BRDF closures for rendering: an analytic material, a measured one (MERL lookup, SPEC
-//! 7), or a fitted combination `a0 / pi + sum_k a_k f_k`.
+//! 7), a neural one (its network at the direction pair, SPEC 9), or a fitted combination `a0 / pi + sum_k a_k f_k`.
 
 use crate::collection::{Collection, MaterialData};
 use crate::merl::grid::lookup;
@@ -33,6 +33,10 @@ pub fn material_brdf(m: &MaterialData) -> BrdfFn {
         MaterialData::Rgl(t) => {
             let t = t.clone();
             Box::new(move |wi, wo| t.eval_dirs(wi, wo).map(|v| v.max(0.0)))
+        }
+        MaterialData::Neural(n) => {
+            let n = n.clone();
+            Box::new(move |wi, wo| n.eval_dirs(wi, wo))
         }
     }
 }

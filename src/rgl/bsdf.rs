@@ -404,7 +404,7 @@ impl RglBsdf {
     pub fn eval(&self, wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
         let fcos = self.eval_cos(wi, wo);
         let cos_o = normalize(wo)[2];
-        if !(cos_o > 0.0) {
+        if cos_o.is_nan() || cos_o <= 0.0 {
             return [0.0; 3];
         }
         fcos.map(|v| v / cos_o)
