@@ -310,13 +310,14 @@ pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<
     }
 }
 
-/// What a material is made of, in one word: `analytic`, `measured` (a MERL table) or
-/// `rgl` (an RGL-EPFL `.bsdf` file).
+/// What a material is made of, in one word: `analytic`, `measured` (a MERL table),
+/// `neural` (an NBRDF) or `rgl` (an RGL-EPFL `.bsdf` file).
 pub fn material_kind(m: &crate::collection::Material) -> &'static str {
     use crate::collection::MaterialData;
     match m.data {
         MaterialData::Analytic(_) => "analytic",
         MaterialData::Measured(_) => "measured",
+        MaterialData::Neural(_) => "neural",
         MaterialData::Rgl(_) => "rgl",
     }
 }

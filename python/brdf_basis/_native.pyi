@@ -33,7 +33,7 @@ class Collection:
     def names(self) -> list[str]: ...
     @property
     def kinds(self) -> list[str]:
-        """``"analytic"``, ``"measured"`` (MERL table) or ``"rgl"`` (RGL-EPFL ``.bsdf``) per material."""
+        """``"analytic"``, ``"measured"`` (MERL table), ``"neural"`` (NBRDF) or ``"rgl"`` (RGL-EPFL ``.bsdf``) per material."""
     @property
     def fingerprint(self) -> str:
         """The fingerprint result files record for their collection."""

@@ -292,12 +292,18 @@ impl Collection {
 
     fn __repr__(&self) -> String {
         let kinds = self.kinds();
-        let analytic = kinds.iter().filter(|k| **k == "analytic").count();
+        let mut counts: Vec<(&str, usize)> = Vec::new();
+        for k in &kinds {
+            match counts.iter_mut().find(|(n, _)| n == k) {
+                Some((_, c)) => *c += 1,
+                None => counts.push((k, 1)),
+            }
+        }
+        let parts: Vec<String> = counts.iter().map(|(k, c)| format!("{c} {k}")).collect();
         format!(
-            "Collection({} materials: {} analytic, {} measured)",
-            self.inner.len(),
-            analytic,
-            kinds.len() - analytic
+            "Collection({} materials: {})",
+            kinds.len(),
+            parts.join(", ")
         )
     }
 

@@ -213,3 +213,18 @@ def test_rgl_bsdf_by_mitsuba_measured_matches_brdf_basis(mi, cli, shared, tmp_pa
     print(f"rgl {stem}: Mitsuba measured vs brdf-basis (camera as incident) {err_swapped:.3e}; vs brdf-basis render {err_render:.3e}; non-reciprocity {non_reciprocity:.3e}")
     assert err_swapped < TOL
     assert abs(err_render - non_reciprocity) < 10 * err_swapped + 1e-6
+
+
+def test_neural_sphere_matches_brdf_basis_render(mi, shared):
+    """An NBRDF (SPEC 9) through the plugin equals the library's SPEC 7 render of it
+    (`brdf_basis.render`, the code of `brdf-basis render`)."""
+    d = shared("real/nbrdf/merl100")
+    coll = bb.Collection.load(d)
+    name = coll.names[0]
+    assert coll.kinds[0] == "neural"
+    brdf = bb.Brdf.material(coll, name)
+    ref = bb.render(brdf, size=SIZE)
+    img = mitsuba_sphere({"type": "brdf_basis", "collection": str(d), "material": name})
+    err = bb.image_error(img, ref)
+    print(f"neural {name}: normalised image error Mitsuba vs brdf-basis render = {err:.3e}")
+    assert err < TOL and ref.max() > 0.05
