@@ -310,13 +310,25 @@ pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<
     }
 }
 
+/// What a material is made of, in one word: `analytic`, `measured` (a MERL table),
+/// `neural` (an NBRDF) or `rgl` (an RGL-EPFL `.bsdf` file).
+pub fn material_kind(m: &crate::collection::Material) -> &'static str {
+    use crate::collection::MaterialData;
+    match m.data {
+        MaterialData::Analytic(_) => "analytic",
+        MaterialData::Measured(_) => "measured",
+        MaterialData::Neural(_) => "neural",
+        MaterialData::Rgl(_) => "rgl",
+    }
+}
+
 /// Non-negative least squares `min |A x - b|` subject to `x >= 0` for a dense row-major
 /// `A` (`rows` x `cols`), by the crate's exact Lawson-Hanson solver on the Gram form
 /// (`G = A^T A`, `h = A^T b`, summed in f64).
 ///
 /// # Errors
 /// [`Error::Nnls`] for mismatched lengths, non-finite entries or no column.
-pub fn nnls(a: &[f64], rows: usize, cols: usize, b: &[f64]) -> Result<NnlsSolution> {
+pub fn nnls_dense(a: &[f64], rows: usize, cols: usize, b: &[f64]) -> Result<NnlsSolution> {
     use crate::nnls::NnlsError;
     if a.len() != rows * cols {
         return Err(NnlsError::DimensionMismatch {
@@ -597,5 +609,110 @@ mod tests {
             matches!(e, Error::Fit(crate::fit::FitError::EmptyBasis)),
             "{e:?}"
         );
+    }
+
+    /// `tabulate` is the back-end's table of the three channel lobes, -1 outside the
+    /// valid cells, within f32 rounding of the f64 model; NaN-free; parameters that
+    /// overflow f32 are refused with the material's name.
+    #[test]
+    fn tabulate_is_the_model_on_valid_cells_and_minus_one_elsewhere() {
+        use crate::merl::grid::{cell_directions, cell_info, N_CELLS};
+        let cpu = CpuBackend::new();
+        let coll = Collection::embedded_default();
+        let name = "polished-gold";
+        let rgb = tabulate(&cpu, &coll, name).unwrap();
+        assert_eq!(rgb.len(), 3 * N_CELLS);
+        let a = *coll.get(name).unwrap().analytic().unwrap();
+        let mut checked = 0;
+        for cell in (0..N_CELLS).step_by(997) {
+            if !cell_info(cell).valid {
+                assert!((0..3).all(|c| rgb[c * N_CELLS + cell] == -1.0));
+                continue;
+            }
+            let (wi, wo) = cell_directions(cell);
+            let f = a.eval(wi, wo);
+            for c in 0..3 {
+                let v = f64::from(rgb[c * N_CELLS + cell]);
+                assert!(
+                    (v - f[c]).abs() <= 1e-4 * f[c].abs().max(1e-3),
+                    "{cell} {c}: {v} vs {}",
+                    f[c]
+                );
+            }
+            checked += 1;
+        }
+        assert!(checked > 500, "{checked}");
+        let e = tabulate(&cpu, &coll, "polished-golf").unwrap_err();
+        assert!(matches!(e, Error::Collection(_)), "{e:?}");
+        let big = crate::collection::parse_csv(
+            b"material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\nhot,0,0,0,3e38,3e38,3e38,1,1\n",
+            std::path::Path::new("big.csv"),
+        )
+        .unwrap();
+        let e = tabulate(&cpu, &big, "hot").unwrap_err();
+        assert!(matches!(e, Error::NotFinite(_)), "{e:?}");
+        assert!(e.to_string().contains("material `hot`"), "{e}");
+    }
+
+    /// Dense NNLS: hand-solved cases, the dimension checks.
+    #[test]
+    fn nnls_hand_cases() {
+        // min |x - (1, -1)| s.t. x >= 0: (1, 0).
+        let s = nnls_dense(&[1.0, 0.0, 0.0, 1.0], 2, 2, &[1.0, -1.0]).unwrap();
+        assert_eq!(s.x, vec![1.0, 0.0]);
+        // A = [[1, 1], [1, 2], [1, 3]], b = A (2, 1): exact and positive.
+        let a = [1.0, 1.0, 1.0, 2.0, 1.0, 3.0];
+        let s = nnls_dense(&a, 3, 2, &[3.0, 4.0, 5.0]).unwrap();
+        assert!(
+            (s.x[0] - 2.0).abs() < 1e-12 && (s.x[1] - 1.0).abs() < 1e-12,
+            "{:?}",
+            s.x
+        );
+        // b = (3, 2, 1): the unconstrained slope is -1; with x >= 0, x = (2, 0).
+        let s = nnls_dense(&a, 3, 2, &[3.0, 2.0, 1.0]).unwrap();
+        assert!((s.x[0] - 2.0).abs() < 1e-12 && s.x[1] == 0.0, "{:?}", s.x);
+        assert!(matches!(nnls_dense(&a, 3, 2, &[1.0]), Err(Error::Nnls(_))));
+        assert!(matches!(
+            nnls_dense(&a[..5], 3, 2, &[1.0; 3]),
+            Err(Error::Nnls(_))
+        ));
+        assert!(matches!(
+            nnls_dense(&[f64::NAN], 1, 1, &[1.0]),
+            Err(Error::Nnls(_))
+        ));
+    }
+
+    /// `select` runs the facade's stages: greedy through it is `select_greedy`.
+    #[test]
+    fn select_is_the_stage_functions() {
+        let cpu = CpuBackend::new();
+        let coll = Collection::embedded_default();
+        let req = SelectRequest {
+            method: SelectMethod::Greedy(SearchParams::new(3)),
+            metric: Metric::BrdfIt,
+            mask: Mask::Evaluation,
+            weighting: Weighting::Uniform,
+            stride: 8,
+            seed: 1,
+        };
+        let out = select(&cpu, &coll, &req, &|_, _| {}).unwrap();
+        let obj = objective(&cpu, &coll, &ObjectiveParams::default().stride(8)).unwrap();
+        let g = select_greedy(&obj, &SearchParams::new(3)).unwrap();
+        match out {
+            SelectOutput::ErrorDriven(e) => assert_eq!(e.selection, g),
+            other => panic!("{other:?}"),
+        }
+        let req = SelectRequest {
+            method: SelectMethod::KMedoids {
+                ks: vec![coll.len() + 1],
+                runs: 1,
+                algorithm: KMedoidsAlgorithm::default(),
+            },
+            ..req
+        };
+        assert!(matches!(
+            select(&cpu, &coll, &req, &|_, _| {}),
+            Err(Error::Cluster(_))
+        ));
     }
 }

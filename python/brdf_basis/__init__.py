@@ -35,7 +35,11 @@ import numpy as np
 # Mesa's Vulkan loader (probed by backend="auto" and "gpu") complains on every probe
 # without a runtime directory; the command line makes a private one too.
 if not _os.environ.get("XDG_RUNTIME_DIR"):
-    _os.environ["XDG_RUNTIME_DIR"] = _tempfile.mkdtemp(prefix="brdf-basis-runtime-")
+    import atexit as _atexit
+    import shutil as _shutil
+
+    _os.environ["XDG_RUNTIME_DIR"] = _runtime = _tempfile.mkdtemp(prefix="brdf-basis-runtime-")
+    _atexit.register(_shutil.rmtree, _runtime, True)
 
 from . import _native  # noqa: E402
 from ._native import (  # noqa: E402

@@ -23,8 +23,8 @@ class Collection:
 
     @staticmethod
     def load(*paths: _Path) -> Collection:
-        """Loads COLLECTION arguments in order (``.csv``, ``.binary``, directories of
-        ``.binary``); none: the embedded default. ``FileNotFoundError`` for a missing
+        """Loads COLLECTION arguments in order (an analytic ``.csv``, a MERL ``.binary``,
+        an RGL-EPFL ``.bsdf``, directories of them); none: the embedded default. ``FileNotFoundError`` for a missing
         path, ``ValueError`` naming the file and line for bad content."""
     @staticmethod
     def default() -> Collection:
@@ -33,7 +33,7 @@ class Collection:
     def names(self) -> list[str]: ...
     @property
     def kinds(self) -> list[str]:
-        """``"analytic"`` or ``"measured"`` per material."""
+        """``"analytic"``, ``"measured"`` (MERL table), ``"neural"`` (NBRDF) or ``"rgl"`` (RGL-EPFL ``.bsdf``) per material."""
     @property
     def fingerprint(self) -> str:
         """The fingerprint result files record for their collection."""

@@ -121,6 +121,18 @@ impl<'py> Report<'py> {
         })
     }
 
+    /// Ends the stderr line after the last report.
+    fn end(&self, py: Python<'py>) -> PyResult<()> {
+        match self {
+            Report::Stderr(_) => py
+                .import("sys")?
+                .getattr("stderr")?
+                .call_method1("write", ("\n",))
+                .map(|_| ()),
+            _ => Ok(()),
+        }
+    }
+
     fn show(&self, py: Python<'py>, done: u64, total: u64, last: bool) -> PyResult<()> {
         match self {
             Report::None => Ok(()),
@@ -197,9 +209,11 @@ fn run_long<'py, T: Send>(
     if let Some(e) = interrupt {
         return Err(e);
     }
-    if shown.1 > 0 && shown.1 != u64::MAX {
-        let t = total.load(Ordering::Relaxed);
-        report.show(py, done.load(Ordering::Relaxed).max(shown.0), t, true)?;
+    let last = (done.load(Ordering::Relaxed), total.load(Ordering::Relaxed));
+    if last.1 > 0 && last != shown {
+        report.show(py, last.0, last.1, true)?;
+    } else if last.1 > 0 {
+        report.end(py)?;
     }
     match outcome {
         Ok(Ok(r)) => r.map_err(py_err),
@@ -212,7 +226,9 @@ fn run_long<'py, T: Send>(
                     .cloned()
                     .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
                     .unwrap_or_else(|| "internal error".into());
-                Err(PyRuntimeError::new_err(format!("brdf-basis panicked: {msg}")))
+                Err(PyRuntimeError::new_err(format!(
+                    "brdf-basis panicked: {msg}"
+                )))
             }
         }
     }
@@ -257,10 +273,7 @@ impl Collection {
         self.inner
             .materials()
             .iter()
-            .map(|m| match m.data {
-                bb::collection::MaterialData::Analytic(_) => "analytic",
-                bb::collection::MaterialData::Measured(_) => "measured",
-            })
+            .map(bb::material_kind)
             .collect()
     }
 
@@ -279,12 +292,18 @@ impl Collection {
 
     fn __repr__(&self) -> String {
         let kinds = self.kinds();
-        let analytic = kinds.iter().filter(|k| **k == "analytic").count();
+        let mut counts: Vec<(&str, usize)> = Vec::new();
+        for k in &kinds {
+            match counts.iter_mut().find(|(n, _)| n == k) {
+                Some((_, c)) => *c += 1,
+                None => counts.push((k, 1)),
+            }
+        }
+        let parts: Vec<String> = counts.iter().map(|(k, c)| format!("{c} {k}")).collect();
         format!(
-            "Collection({} materials: {} analytic, {} measured)",
-            self.inner.len(),
-            analytic,
-            kinds.len() - analytic
+            "Collection({} materials: {})",
+            kinds.len(),
+            parts.join(", ")
         )
     }
 
@@ -552,12 +571,20 @@ fn fit_params(
         solver: match solver {
             "exact" => bb::Solver::Exact,
             "pgd" => bb::Solver::Pgd,
-            s => return Err(value_err(format!("invalid solver `{s}` (expected exact, pgd)"))),
+            s => {
+                return Err(value_err(format!(
+                    "invalid solver `{s}` (expected exact, pgd)"
+                )))
+            }
         },
         gram: match gram {
             "auto" => bb::GramMode::Auto,
             "grid" => bb::GramMode::Grid,
-            s => return Err(value_err(format!("invalid gram `{s}` (expected auto, grid)"))),
+            s => {
+                return Err(value_err(format!(
+                    "invalid gram `{s}` (expected auto, grid)"
+                )))
+            }
         },
     })
 }
@@ -679,7 +706,7 @@ fn nnls<'py>(
     let av: Vec<f64> = a.as_array().iter().copied().collect();
     let bv: Vec<f64> = b.as_array().iter().copied().collect();
     let s = py
-        .detach(|| bb::nnls(&av, rows, cols, &bv))
+        .detach(|| bb::nnls_dense(&av, rows, cols, &bv))
         .map_err(py_err)?;
     Ok(PyArray1::from_vec(py, s.x))
 }
@@ -702,6 +729,9 @@ fn silhouette(d: PyReadonlyArray2<'_, f64>, labels: Vec<usize>) -> PyResult<f64>
     bb::cluster::indices::silhouette(&m, &labels).map_err(lib_err)
 }
 
+/// What [`kmedoids`] returns: (medoids, labels, loss, iterations, db_index).
+type KMedoidsTuple = (Vec<usize>, Vec<usize>, f64, usize, f64);
+
 /// k-medoids on a precomputed matrix: (medoids, labels, loss, iterations, db_index).
 #[pyfunction]
 #[pyo3(signature = (d, k, *, seed = 1, init = "build", algorithm = "fasterpam"))]
@@ -712,12 +742,16 @@ fn kmedoids(
     seed: u64,
     init: &str,
     algorithm: &str,
-) -> PyResult<(Vec<usize>, Vec<usize>, f64, usize, f64)> {
+) -> PyResult<KMedoidsTuple> {
     let m = matrix_of(&d)?;
     let init = match init {
         "build" => bb::KMedoidsInit::Build,
         "random" => bb::KMedoidsInit::Random,
-        s => return Err(value_err(format!("invalid init `{s}` (expected build, random)"))),
+        s => {
+            return Err(value_err(format!(
+                "invalid init `{s}` (expected build, random)"
+            )))
+        }
     };
     let p = bb::KMedoidsParams::new(k)
         .seed(seed)

@@ -125,3 +125,19 @@ def test_fit_result_fields(tmp_path):
     assert (tmp_path / "f.json").read_text() == r.to_json()
     fitted = bb.Brdf.fitted(c, tmp_path / "f.json", "polished-copper")
     assert bb.render(fitted, size=16).shape == (16, 16, 3)
+
+
+def test_gpu_backend_gives_the_cpu_numbers(request):
+    """On any Vulkan adapter (lavapipe in CI): the same BRDF_it matrix, bit for bit (one
+    accumulation order on every back-end)."""
+    try:
+        name = bb.backend_name("gpu")
+    except RuntimeError as e:
+        if os.environ.get("BRDF_BASIS_REQUIRE_GPU") == "1":
+            pytest.fail(f"BRDF_BASIS_REQUIRE_GPU=1 but no GPU adapter: {e}")
+        pytest.skip(f"SKIP (no adapter) {request.node.name}: {e}")
+    c = bb.Collection.default()
+    gpu = bb.distance_matrix(c, stride=6, backend="gpu")
+    cpu = bb.distance_matrix(c, stride=6, backend="cpu")
+    assert name.startswith("gpu")
+    assert gpu.tobytes() == cpu.tobytes()
