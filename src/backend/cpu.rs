@@ -198,14 +198,17 @@ impl CpuBackend {
                 .collect(),
             // The tabulated lobe (the f32 twin, within SPEC 9's accuracy of the f64
             // network, `Lobe::eval_f64`): the values every reduction runs over.
-            Lobe::Neural { .. } => {
-                let mut out = vec![0f32; cells.len()];
-                self.install(|| {
-                    out.par_chunks_mut(1 << 14)
-                        .zip(cells.par_chunks(1 << 14))
-                        .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o))
+            Lobe::Neural { net, channel } => {
+                let values = neural_cache::get(net, *channel, cells, || {
+                    let mut out = vec![0f32; cells.len()];
+                    self.install(|| {
+                        out.par_chunks_mut(1 << 14)
+                            .zip(cells.par_chunks(1 << 14))
+                            .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o))
+                    });
+                    out
                 });
-                out.into_iter().map(f64::from).collect()
+                values.iter().map(|&v| f64::from(v)).collect()
             }
         }
     }
@@ -278,6 +281,72 @@ fn neural_rows(
         }
     }
 }
+
+/// The values of recent neural lobes on recent cell sets, for [`CpuBackend::values_f64`]:
+/// the cell-by-cell error passes (fits' errors, cross-validation's held-out MAE) ask for
+/// the same basis lobes once per target, and a network costs ~600 multiply-adds per cell,
+/// so the last [`NEURAL_CACHE_BYTES`] of them are kept (least recently used first out),
+/// keyed by the network (held, so its address cannot be reused), the channel and the
+/// cells (length and XXH3). The reductions (`reduce_pairs`) never use it: they evaluate
+/// per chunk and keep nothing.
+mod neural_cache {
+    use super::Nbrdf;
+    use std::sync::{Arc, Mutex};
+
+    /// Bytes of f32 values kept at most (about 150 lobes of the evaluation mask).
+    pub const NEURAL_CACHE_BYTES: usize = 512 << 20;
+
+    struct Entry {
+        net: Arc<Nbrdf>,
+        channel: Option<usize>,
+        cells: (usize, u64),
+        values: Arc<Vec<f32>>,
+    }
+
+    static CACHE: Mutex<Vec<Entry>> = Mutex::new(Vec::new());
+
+    /// The values of `(net, channel)` at `cells`, from the cache or from `compute`.
+    pub fn get(
+        net: &Arc<Nbrdf>,
+        channel: Option<usize>,
+        cells: &[u32],
+        compute: impl FnOnce() -> Vec<f32>,
+    ) -> Arc<Vec<f32>> {
+        let mut h = crate::hash::Hasher::new();
+        h.write(bytemuck::cast_slice(cells));
+        let key = (cells.len(), h.finish());
+        let found = |e: &Entry| Arc::ptr_eq(&e.net, net) && e.channel == channel && e.cells == key;
+        {
+            let mut c = CACHE.lock().unwrap_or_else(|p| p.into_inner());
+            if let Some(i) = c.iter().position(found) {
+                let e = c.remove(i);
+                let v = e.values.clone();
+                c.push(e);
+                return v;
+            }
+        }
+        let values = Arc::new(compute());
+        let bytes = 4 * values.len();
+        if bytes <= NEURAL_CACHE_BYTES {
+            let mut c = CACHE.lock().unwrap_or_else(|p| p.into_inner());
+            if !c.iter().any(found) {
+                let mut total: usize = c.iter().map(|e| 4 * e.values.len()).sum::<usize>() + bytes;
+                while total > NEURAL_CACHE_BYTES && !c.is_empty() {
+                    total -= 4 * c.remove(0).values.len();
+                }
+                c.push(Entry {
+                    net: net.clone(),
+                    channel,
+                    cells: key,
+                    values: values.clone(),
+                });
+            }
+        }
+        values
+    }
+}
+
+pub use neural_cache::NEURAL_CACHE_BYTES;
 
 /// Cells a network is run over at once in [`neural_rows`] (its RGB stays in L1).
 const NEURAL_RUN: usize = 1024;

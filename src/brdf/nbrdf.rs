@@ -267,9 +267,13 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
     }
 }
 
+/// `max(v, 0)` in place (a loop, not a closure: closures are not inlined into the AVX2
+/// copy, and their `mul_add`s would become library calls).
 #[inline(always)]
-fn relu(v: V) -> V {
-    v.map(|x| if x > 0.0 { x } else { 0.0 })
+fn relu(v: &mut V) {
+    for x in v.iter_mut() {
+        *x = if *x > 0.0 { *x } else { 0.0 };
+    }
 }
 
 /// Output units of layer 2 accumulated together (7 x 8 lanes: seven independent chains of
@@ -277,7 +281,8 @@ fn relu(v: V) -> V {
 const J_BLOCK: usize = 7;
 
 /// The network on [`LANES`] cells at once: inputs `x` (struct of arrays, the five
-/// non-zero inputs), raw outputs `exp(z) - 1` per channel.
+/// non-zero inputs), raw outputs `exp(z) - 1` per channel. Plain loops only (no closures),
+/// so that everything inlines into the AVX2 copy.
 #[inline(always)]
 fn forward<const FMA: bool>(w: &[f32], x: &[V; 5]) -> [V; 3] {
     let w = &w[..NBRDF_WEIGHTS];
@@ -292,11 +297,15 @@ fn forward<const FMA: bool>(w: &[f32], x: &[V; 5]) -> [V; 3] {
                 acc[l] = madd::<FMA>(xi[l], wv, acc[l]);
             }
         }
-        *a = relu(acc);
+        relu(&mut acc);
+        *a = acc;
     }
     let mut a2 = [[0f32; LANES]; HIDDEN];
     for jb in (0..HIDDEN).step_by(J_BLOCK) {
-        let mut acc: [V; J_BLOCK] = std::array::from_fn(|jj| [w[B2 + jb + jj]; LANES]);
+        let mut acc = [[0f32; LANES]; J_BLOCK];
+        for (jj, acc) in acc.iter_mut().enumerate() {
+            *acc = [w[B2 + jb + jj]; LANES];
+        }
         for (i, a) in a1.iter().enumerate() {
             for (jj, acc) in acc.iter_mut().enumerate() {
                 let wv = w[FC2 + i * HIDDEN + jb + jj];
@@ -305,11 +314,15 @@ fn forward<const FMA: bool>(w: &[f32], x: &[V; 5]) -> [V; 3] {
                 }
             }
         }
-        for (jj, acc) in acc.into_iter().enumerate() {
-            a2[jb + jj] = relu(acc);
+        for (jj, acc) in acc.iter_mut().enumerate() {
+            relu(acc);
+            a2[jb + jj] = *acc;
         }
     }
-    let mut z: [V; 3] = std::array::from_fn(|c| [w[B3 + c]; LANES]);
+    let mut z = [[0f32; LANES]; 3];
+    for (c, z) in z.iter_mut().enumerate() {
+        *z = [w[B3 + c]; LANES];
+    }
     for (i, a) in a2.iter().enumerate() {
         for (c, z) in z.iter_mut().enumerate() {
             let wv = w[FC3 + i * 3 + c];
@@ -318,7 +331,12 @@ fn forward<const FMA: bool>(w: &[f32], x: &[V; 5]) -> [V; 3] {
             }
         }
     }
-    z.map(|zc| zc.map(expm1f::<FMA>))
+    for zc in z.iter_mut() {
+        for v in zc.iter_mut() {
+            *v = expm1f::<FMA>(*v);
+        }
+    }
+    z
 }
 
 /// `exp(z) - 1` in f32 to a few ulps, branch-free (vectorises): `z = n ln 2 + r`,
@@ -338,9 +356,11 @@ pub fn expm1f<const FMA: bool>(z: f32) -> f32 {
     let r = madd::<FMA>(-n, LN2_HI, z);
     let r = madd::<FMA>(-n, LN2_LO, r);
     let mut p = 1.0 / 5040.0;
-    for c in [1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5] {
-        p = madd::<FMA>(p, r, c);
-    }
+    p = madd::<FMA>(p, r, 1.0 / 720.0);
+    p = madd::<FMA>(p, r, 1.0 / 120.0);
+    p = madd::<FMA>(p, r, 1.0 / 24.0);
+    p = madd::<FMA>(p, r, 1.0 / 6.0);
+    p = madd::<FMA>(p, r, 0.5);
     let p = madd::<FMA>(r * r, p, r);
     let s = f32::from_bits(((n as i32 + 127) as u32) << 23);
     madd::<FMA>(s, p, s - 1.0)
