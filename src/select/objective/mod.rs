@@ -401,9 +401,10 @@ impl Objective {
         offset: usize,
     ) -> Result<usize, SelectionError> {
         let a = self.adding(basis, targets)?;
-        let lbs = screen::lower_bounds(self, &a.live, &a.states, &a.cols, candidates);
-        // Blocks of candidates: a block's survivors are scored in parallel against the
-        // threshold at the block's start (the threshold only falls along the chain).
+        let bounds = screen::lower_bounds(self, &a.live, &a.states, &a.cols, candidates);
+        // Blocks of candidates: a block's candidates are screened (in parallel) against
+        // the threshold at the block's start (it only falls along the chain), the
+        // survivors scored exactly and offered in order.
         const CHAIN_BLOCK: usize = 32;
         let mut evaluated = 0;
         let mut start = 0;
@@ -416,7 +417,25 @@ impl Objective {
             };
             let thr = chain.threshold();
             let keep: Vec<usize> = (start..end)
-                .filter(|&k| thr.is_none_or(|t| !(lbs[k] >= t)))
+                .into_par_iter()
+                .map(|k| match &bounds[k] {
+                    None => Ok(Some(k)),
+                    Some(b) => {
+                        let out = screen::refine(
+                            self,
+                            &a.live,
+                            &a.states,
+                            &a.cols,
+                            candidates[k],
+                            b,
+                            thr,
+                        )?;
+                        Ok((!out).then_some(k))
+                    }
+                })
+                .collect::<Result<Vec<Option<usize>>, SelectionError>>()?
+                .into_iter()
+                .flatten()
                 .collect();
             let cands: Vec<usize> = keep.iter().map(|&k| candidates[k]).collect();
             let scores = self.exact_scores(&a, &cands)?;
