@@ -416,32 +416,25 @@ impl Objective {
                 (start + CHAIN_BLOCK).min(candidates.len())
             };
             let thr = chain.threshold();
-            let keep: Vec<usize> = (start..end)
+            // Per candidate: None (ruled out) or its exact score.
+            let scored: Vec<(usize, Option<f64>)> = (start..end)
                 .into_par_iter()
                 .map(|k| match &bounds[k] {
-                    None => Ok(Some(k)),
-                    Some(b) => {
-                        let out = screen::refine(
-                            self,
-                            &a.live,
-                            &a.states,
-                            &a.cols,
-                            candidates[k],
-                            b,
-                            thr,
-                        )?;
-                        Ok((!out).then_some(k))
+                    None => {
+                        let s = self.exact_scores(&a, &candidates[k..k + 1])?;
+                        Ok((k, Some(s[0])))
                     }
+                    Some(b) => Ok((
+                        k,
+                        screen::refine(self, &a.live, &a.states, &a.cols, candidates[k], b, thr)?,
+                    )),
                 })
-                .collect::<Result<Vec<Option<usize>>, SelectionError>>()?
-                .into_iter()
-                .flatten()
-                .collect();
-            let cands: Vec<usize> = keep.iter().map(|&k| candidates[k]).collect();
-            let scores = self.exact_scores(&a, &cands)?;
-            evaluated += cands.len();
-            for (&k, &s) in keep.iter().zip(&scores) {
-                chain.offer(offset + k, s);
+                .collect::<Result<_, SelectionError>>()?;
+            for (k, s) in scored {
+                if let Some(s) = s {
+                    evaluated += 1;
+                    chain.offer(offset + k, s);
+                }
             }
             start = end;
         }

@@ -103,7 +103,7 @@ fn projections(obj: &Objective, cols: &[usize]) -> Option<[(usize, Vec<f64>, Vec
 }
 
 /// Live targets per refinement chunk ([`Bound`]).
-pub const CHUNK: usize = 512;
+pub const CHUNK: usize = 128;
 
 /// A lower bound of one candidate's `S(B + c; T)`: the sum over the live targets (but the
 /// candidate) of each target's bound, per chunk of [`CHUNK`] live targets, and the count
@@ -183,10 +183,12 @@ pub(super) fn lower_bounds(
         .collect()
 }
 
-/// Whether candidate `cand` cannot replace a best of threshold `thr`: its bound, then,
+/// Whether candidate `cand` can replace a best of threshold `thr`: its bound, then,
 /// chunk by chunk of live targets, the bound with that chunk's exact values in place of
-/// its bounds, until the bound rules it out (`Ok(true)`) or every chunk is exact
-/// (`Ok(false)`: the candidate must be scored).
+/// its bounds, until the bound rules it out (`Ok(None)`) or every chunk is exact: then
+/// `Ok(Some(score))`, the exact score summed in the order of
+/// [`Objective::scores_adding`] (target by target, channel by channel, from 0), so equal
+/// to it bit for bit.
 pub(super) fn refine(
     obj: &Objective,
     live: &[usize],
@@ -195,15 +197,16 @@ pub(super) fn refine(
     cand: usize,
     bound: &Bound,
     thr: Option<f64>,
-) -> Result<bool, crate::select::SelectionError> {
+) -> Result<Option<f64>, crate::select::SelectionError> {
     let terms = 3 * live.len();
     if bound.count == 0 {
-        return Ok(ruled_out(f64::INFINITY, terms, thr));
+        return Ok((!ruled_out(f64::INFINITY, terms, thr)).then_some(f64::INFINITY));
     }
     if ruled_out(bound.mean(), terms, thr) {
-        return Ok(true);
+        return Ok(None);
     }
     let mut sum: f64 = bound.chunks.iter().sum();
+    let mut values = Vec::with_capacity(terms);
     let mut scratch = Vec::new();
     for (k, part) in bound.chunks.iter().enumerate() {
         let end = ((k + 1) * CHUNK).min(live.len());
@@ -217,18 +220,24 @@ pub(super) fn refine(
                     let q = ch
                         .q_adding(obj.view(c), cols, cand + 1, t + 1, &mut scratch)
                         .map_err(|e| obj.solve_error(t, c, e))?;
-                    exact += obj.share[t][c] * q;
+                    let v = obj.share[t][c] * q;
+                    exact += v;
+                    values.push(v);
                 }
             }
         }
         sum += exact - part;
         // The slack also covers the cancellation of `exact - part` (both below the
         // running sum).
-        if ruled_out(sum / bound.count as f64, 3 * terms, thr) {
-            return Ok(true);
+        if k + 1 < bound.chunks.len() && ruled_out(sum / bound.count as f64, 3 * terms, thr) {
+            return Ok(None);
         }
     }
-    Ok(false)
+    let mut total = 0.0;
+    for v in values {
+        total += v;
+    }
+    Ok(Some(total / bound.count as f64))
 }
 
 #[cfg(test)]
