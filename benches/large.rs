@@ -117,7 +117,7 @@ fn stage_greedy(coll: &Collection) -> Option<String> {
         "exhaustive greedy not run at this N (BENCH_GREEDY_CHECK)".into()
     };
     Some(format!(
-        "k 20, stride {stride}, S {:.4e}, Gram {gram:.2} s, greedy {fast:.2} s (exact scores {scored} of {swept}); {check}; basis {}",
+        "k 20, stride {stride}, S {:.4e}, Gram {gram:.2} s, greedy {fast:.2} s (full exact scores {scored} of {swept}); {check}; basis {}",
         sel.score,
         sel.indices
             .iter()

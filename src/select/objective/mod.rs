@@ -401,9 +401,10 @@ impl Objective {
         offset: usize,
     ) -> Result<usize, SelectionError> {
         let a = self.adding(basis, targets)?;
-        let lbs = screen::lower_bounds(self, &a.live, &a.states, &a.cols, candidates);
-        // Blocks of candidates: a block's survivors are scored in parallel against the
-        // threshold at the block's start (the threshold only falls along the chain).
+        let bounds = screen::lower_bounds(self, &a.live, &a.states, &a.cols, candidates);
+        // Blocks of candidates: a block's candidates are screened (in parallel) against
+        // the threshold at the block's start (it only falls along the chain), the
+        // survivors scored exactly and offered in order.
         const CHAIN_BLOCK: usize = 32;
         let mut evaluated = 0;
         let mut start = 0;
@@ -415,14 +416,25 @@ impl Objective {
                 (start + CHAIN_BLOCK).min(candidates.len())
             };
             let thr = chain.threshold();
-            let keep: Vec<usize> = (start..end)
-                .filter(|&k| thr.is_none_or(|t| !(lbs[k] >= t)))
-                .collect();
-            let cands: Vec<usize> = keep.iter().map(|&k| candidates[k]).collect();
-            let scores = self.exact_scores(&a, &cands)?;
-            evaluated += cands.len();
-            for (&k, &s) in keep.iter().zip(&scores) {
-                chain.offer(offset + k, s);
+            // Per candidate: None (ruled out) or its exact score.
+            let scored: Vec<(usize, Option<f64>)> = (start..end)
+                .into_par_iter()
+                .map(|k| match &bounds[k] {
+                    None => {
+                        let s = self.exact_scores(&a, &candidates[k..k + 1])?;
+                        Ok((k, Some(s[0])))
+                    }
+                    Some(b) => Ok((
+                        k,
+                        screen::refine(self, &a.live, &a.states, &a.cols, candidates[k], b, thr)?,
+                    )),
+                })
+                .collect::<Result<_, SelectionError>>()?;
+            for (k, s) in scored {
+                if let Some(s) = s {
+                    evaluated += 1;
+                    chain.offer(offset + k, s);
+                }
             }
             start = end;
         }

@@ -102,7 +102,40 @@ fn projections(obj: &Objective, cols: &[usize]) -> Option<[(usize, Vec<f64>, Vec
     Some(out)
 }
 
-/// Lower bounds of `S(B + c; T)` for every candidate (`-inf`: not screened), from the
+/// Live targets per refinement chunk ([`Bound`]).
+pub const CHUNK: usize = 128;
+
+/// A lower bound of one candidate's `S(B + c; T)`: the sum over the live targets (but the
+/// candidate) of each target's bound, per chunk of [`CHUNK`] live targets, and the count
+/// the mean divides by; `None` when the candidate is not screened.
+#[derive(Clone, Debug)]
+pub(super) struct Bound {
+    /// Per chunk of live targets: the sum of their bounds (share-weighted).
+    pub chunks: Vec<f64>,
+    /// Targets the mean divides by.
+    pub count: usize,
+}
+
+impl Bound {
+    /// The bound of the mean.
+    pub fn mean(&self) -> f64 {
+        if self.count == 0 {
+            f64::INFINITY
+        } else {
+            self.chunks.iter().sum::<f64>() / self.count as f64
+        }
+    }
+}
+
+/// Whether a candidate whose score is at least `lb` (up to the rounding of a sum of
+/// `terms` non-negative terms, taken in another order than the exact score's) cannot
+/// replace a best of threshold `thr`.
+pub(super) fn ruled_out(lb: f64, terms: usize, thr: Option<f64>) -> bool {
+    let slack = (terms as f64 + 16.0) * f64::EPSILON;
+    thr.is_some_and(|t| lb - slack * lb.abs() >= t)
+}
+
+/// Lower bounds of `S(B + c; T)` for every candidate (`None`: not screened), from the
 /// live targets and their states (module docs).
 pub(super) fn lower_bounds(
     obj: &Objective,
@@ -110,18 +143,18 @@ pub(super) fn lower_bounds(
     states: &[[ChanState; 3]],
     cols: &[usize],
     candidates: &[usize],
-) -> Vec<f64> {
+) -> Vec<Option<Bound>> {
     let Some(proj) = projections(obj, cols) else {
-        return vec![f64::NEG_INFINITY; candidates.len()];
+        return vec![None; candidates.len()];
     };
     candidates
         .par_iter()
         .map(|&cand| {
             let j = cand + 1;
             let nc: [f64; 3] = [0, 1, 2].map(|c| 1.0 - proj[c].2[j]);
-            let mut sum = 0.0;
+            let mut chunks = vec![0.0; live.len().div_ceil(CHUNK)];
             let mut count = 0usize;
-            for (&t, st) in live.iter().zip(states) {
+            for (k, (&t, st)) in live.iter().zip(states).enumerate() {
                 if t == cand {
                     continue;
                 }
@@ -134,7 +167,7 @@ pub(super) fn lower_bounds(
                     let lb = if ch.unchanged_adding(g, j, t + 1) {
                         ch.q()
                     } else if nc[c].is_nan() || nc[c] < NC_MIN {
-                        return f64::NEG_INFINITY;
+                        return None;
                     } else {
                         let (p, vt, nrm) = &proj[c];
                         let (vc, vtt) = (&vt[j * p..(j + 1) * p], &vt[(t + 1) * p..(t + 2) * p]);
@@ -142,16 +175,69 @@ pub(super) fn lower_bounds(
                         let mm = (g.at(j, t + 1) - dot).max(0.0);
                         (1.0 - nrm[t + 1] - mm * mm / nc[c] - MARGIN).max(0.0)
                     };
-                    sum += obj.share[t][c] * lb;
+                    chunks[k / CHUNK] += obj.share[t][c] * lb;
                 }
             }
-            if count == 0 {
-                f64::INFINITY
-            } else {
-                sum / count as f64
-            }
+            Some(Bound { chunks, count })
         })
         .collect()
+}
+
+/// Whether candidate `cand` can replace a best of threshold `thr`: its bound, then,
+/// chunk by chunk of live targets, the bound with that chunk's exact values in place of
+/// its bounds, until the bound rules it out (`Ok(None)`) or every chunk is exact: then
+/// `Ok(Some(score))`, the exact score summed in the order of
+/// [`Objective::scores_adding`] (target by target, channel by channel, from 0), so equal
+/// to it bit for bit.
+pub(super) fn refine(
+    obj: &Objective,
+    live: &[usize],
+    states: &[[ChanState; 3]],
+    cols: &[usize],
+    cand: usize,
+    bound: &Bound,
+    thr: Option<f64>,
+) -> Result<Option<f64>, crate::select::SelectionError> {
+    let terms = 3 * live.len();
+    if bound.count == 0 {
+        return Ok((!ruled_out(f64::INFINITY, terms, thr)).then_some(f64::INFINITY));
+    }
+    if ruled_out(bound.mean(), terms, thr) {
+        return Ok(None);
+    }
+    let mut sum: f64 = bound.chunks.iter().sum();
+    let mut values = Vec::with_capacity(terms);
+    let mut scratch = Vec::new();
+    for (k, part) in bound.chunks.iter().enumerate() {
+        let end = ((k + 1) * CHUNK).min(live.len());
+        let mut exact = 0.0;
+        for (&t, st) in live[k * CHUNK..end].iter().zip(&states[k * CHUNK..end]) {
+            if t == cand {
+                continue;
+            }
+            for (c, ch) in st.iter().enumerate() {
+                if ch.is_active() {
+                    let q = ch
+                        .q_adding(obj.view(c), cols, cand + 1, t + 1, &mut scratch)
+                        .map_err(|e| obj.solve_error(t, c, e))?;
+                    let v = obj.share[t][c] * q;
+                    exact += v;
+                    values.push(v);
+                }
+            }
+        }
+        sum += exact - part;
+        // The slack also covers the cancellation of `exact - part` (both below the
+        // running sum).
+        if k + 1 < bound.chunks.len() && ruled_out(sum / bound.count as f64, 3 * terms, thr) {
+            return Ok(None);
+        }
+    }
+    let mut total = 0.0;
+    for v in values {
+        total += v;
+    }
+    Ok(Some(total / bound.count as f64))
 }
 
 #[cfg(test)]
@@ -196,7 +282,10 @@ mod tests {
         ] {
             let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
             let a = obj.adding(&basis, &all).expect("states");
-            let lbs = lower_bounds(&obj, &a.live, &a.states, &a.cols, &cands);
+            let lbs: Vec<f64> = lower_bounds(&obj, &a.live, &a.states, &a.cols, &cands)
+                .iter()
+                .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
+                .collect();
             let exact = obj.exact_scores(&a, &cands).expect("exact");
             let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
             for ((&c, &lb), &s) in cands.iter().zip(&lbs).zip(&exact) {
