@@ -64,6 +64,10 @@ pub struct CvArgs {
     /// --acquisition: candidates examined per plan step (0: all).
     #[arg(long, default_value_t = 10_000)]
     pub candidates_per_step: usize,
+    /// --acquisition: also write the figure (held-out mean rho against n, one line per
+    /// plan, log scale) as this PNG.
+    #[arg(long)]
+    pub figure: Option<PathBuf>,
 }
 
 /// Runs the cross-validation.
@@ -143,6 +147,9 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     if let Some(m) = &a.markdown {
         plan.file(m, "--markdown")?;
     }
+    if let Some(f) = &a.figure {
+        plan.file(f, "--figure")?;
+    }
     let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let methods: Vec<CvMethod> = if a.methods.is_empty() {
@@ -181,6 +188,11 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     let md = res.markdown();
     if let Some(m) = &a.markdown {
         out.stage(m, |w| w.write_all(md.as_bytes()))?;
+    }
+    if let Some(f) = &a.figure {
+        let fig = brdf_basis::acquire::figure::rho_vs_n(&res)?;
+        let bytes = brdf_basis::io::image::rgb8_png_bytes(f, fig.png.width, fig.png.height, &fig.png.data)?;
+        out.stage(f, |w| w.write_all(&bytes))?;
     }
     out.commit()?;
     print!("{md}");
