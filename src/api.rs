@@ -242,6 +242,47 @@ pub fn cross_validate(backend: &dyn Backend, coll: &Collection, p: &CvParams) ->
     )?)
 }
 
+/// Fits a new material from samples given as arrays (SPEC 10): per sample the angles
+/// `[theta_i, phi_i, theta_o, phi_o]` in degrees and the RGB reflectance, optional
+/// per-channel standard deviations; `basis` names materials of `coll`. Samples are
+/// validated like a samples file (row `i` is reported as line `i + 1`).
+pub fn fit_from_arrays(
+    coll: &Collection,
+    basis: &[&str],
+    angles: &[[f64; 4]],
+    rgb: &[[f64; 3]],
+    sigma: Option<&[[f64; 3]]>,
+) -> Result<SampleFit> {
+    let b: Vec<usize> = basis
+        .iter()
+        .map(|n| coll.index_of(n))
+        .collect::<std::result::Result<_, _>>()?;
+    if angles.len() != rgb.len() || sigma.is_some_and(|s| s.len() != rgb.len()) {
+        return Err(crate::acquire::AcquireError::InvalidParam {
+            name: "sample arrays",
+            value: format!("{} angles, {} values", angles.len(), rgb.len()),
+            expected: "one row of angles, values (and sigmas) per sample",
+        }
+        .into());
+    }
+    let samples: Vec<Sample> = angles
+        .iter()
+        .zip(rgb)
+        .enumerate()
+        .map(|(i, (a, v))| {
+            crate::acquire::samples::sample_from_degrees(
+                std::path::Path::new("<arrays>"),
+                i + 1,
+                *a,
+                *v,
+                sigma.map(|s| s[i]),
+                ["theta_i", "phi_i", "theta_o", "phi_o"],
+            )
+        })
+        .collect::<std::result::Result<_, _>>()?;
+    Ok(crate::acquire::fit_samples(coll, &b, &samples)?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -299,45 +340,4 @@ mod tests {
             "{e:?}"
         );
     }
-}
-
-/// Fits a new material from samples given as arrays (SPEC 10): per sample the angles
-/// `[theta_i, phi_i, theta_o, phi_o]` in degrees and the RGB reflectance, optional
-/// per-channel standard deviations; `basis` names materials of `coll`. Samples are
-/// validated like a samples file (row `i` is reported as line `i + 1`).
-pub fn fit_from_arrays(
-    coll: &Collection,
-    basis: &[&str],
-    angles: &[[f64; 4]],
-    rgb: &[[f64; 3]],
-    sigma: Option<&[[f64; 3]]>,
-) -> Result<SampleFit> {
-    let b: Vec<usize> = basis
-        .iter()
-        .map(|n| coll.index_of(n))
-        .collect::<std::result::Result<_, _>>()?;
-    if angles.len() != rgb.len() || sigma.is_some_and(|s| s.len() != rgb.len()) {
-        return Err(crate::acquire::AcquireError::InvalidParam {
-            name: "sample arrays",
-            value: format!("{} angles, {} values", angles.len(), rgb.len()),
-            expected: "one row of angles, values (and sigmas) per sample",
-        }
-        .into());
-    }
-    let samples: Vec<Sample> = angles
-        .iter()
-        .zip(rgb)
-        .enumerate()
-        .map(|(i, (a, v))| {
-            crate::acquire::samples::sample_from_degrees(
-                std::path::Path::new("<arrays>"),
-                i + 1,
-                *a,
-                *v,
-                sigma.map(|s| s[i]),
-                ["theta_i", "phi_i", "theta_o", "phi_o"],
-            )
-        })
-        .collect::<std::result::Result<_, _>>()?;
-    Ok(crate::acquire::fit_samples(coll, &b, &samples)?)
 }

@@ -139,7 +139,15 @@ pub struct AcqCv {
     pub collection_fingerprint: String,
 }
 
+/// Held-out rows and fold plans of one (plan, n, noise), accumulated over folds.
+type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
+
 /// Runs the acquisition cross-validation (module docs).
+///
+/// Over 100 lines: one loop nest (method, fold, plan, noise, n) whose levels share the
+/// fold's basis, dense Gram quantities, plan and measured values; splitting it would pass
+/// all of them around.
+#[allow(clippy::needless_range_loop)]
 pub fn acquisition_cv(
     backend: &dyn Backend,
     coll: &Collection,
@@ -200,7 +208,7 @@ pub fn acquisition_cv(
     let mut results = Vec::new();
     for (mi, m) in p.methods.iter().enumerate() {
         // rows[plan][n][noise] accumulated over folds.
-        let mut acc: Vec<Vec<Vec<(Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>)>>> =
+        let mut acc: Vec<Vec<Vec<Cell>>> =
             vec![vec![vec![(Vec::new(), Vec::new()); p.noises.len()]; p.ns.len()]; p.plans.len()];
         let mut fold_bases_named = Vec::new();
         for (f, held) in folds.iter().enumerate() {

@@ -64,6 +64,10 @@ pub struct CvArgs {
     /// --acquisition: candidates examined per plan step (0: all).
     #[arg(long, default_value_t = 10_000)]
     pub candidates_per_step: usize,
+    /// --acquisition: error plans fit this many screened candidates exactly per step (0:
+    /// every examined candidate).
+    #[arg(long, default_value_t = 32)]
+    pub shortlist: usize,
     /// --acquisition: also write the figure (held-out mean rho against n, one line per
     /// plan, log scale) as this PNG.
     #[arg(long)]
@@ -169,12 +173,12 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
         folds: a.folds,
         seed: g.seed,
         candidates_per_step: a.candidates_per_step,
+        shortlist: a.shortlist,
         render_size: a.render_size,
         objective: ObjectiveParams::default()
             .mask(a.grid.mask)
             .weighting(a.grid.weighting)
             .stride(a.grid.stride),
-        ..AcqCvParams::default()
     };
     let backend = super::backend(g)?;
     let t0 = std::time::Instant::now();
