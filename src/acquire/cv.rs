@@ -122,6 +122,15 @@ pub struct AcqResult {
     pub mean_image_error: f64,
 }
 
+/// The selection of the fold bases.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AcqSelect {
+    /// Selection methods, comma-separated (each result names its own).
+    pub method: String,
+    /// Basis size.
+    pub k: usize,
+}
+
 /// The `cv --acquisition` JSON.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AcqCv {
@@ -129,6 +138,8 @@ pub struct AcqCv {
     pub folds: Vec<Vec<String>>,
     /// Seed.
     pub seed: u64,
+    /// The selection of the fold bases (SPEC-cli `select: {method, k}`).
+    pub select: AcqSelect,
     /// Basis size.
     pub k: usize,
     /// Candidates examined per plan step.
@@ -327,6 +338,10 @@ pub fn acquisition_cv(
     Ok(AcqCv {
         folds: folds.iter().map(|f| f.iter().map(|&i| names[i].clone()).collect()).collect(),
         seed: p.seed,
+        select: AcqSelect {
+            method: p.methods.iter().map(|m| m.name()).collect::<Vec<_>>().join(","),
+            k: p.k,
+        },
         k: p.k,
         candidates_per_step: p.candidates_per_step,
         results,
