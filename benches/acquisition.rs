@@ -7,7 +7,9 @@
 //! `cargo bench --bench acquisition` (`BENCH_QUICK=1`: skip the cross-validation)
 
 use brdf_basis::acquire::plan::cell_candidates;
-use brdf_basis::acquire::{acquisition_cv, fit_samples, plan, AcqCvParams, Criterion, PlanParams, Sample};
+use brdf_basis::acquire::{
+    acquisition_cv, fit_samples, plan, AcqCvParams, Criterion, PlanParams, Sample,
+};
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::FitParams;
@@ -31,7 +33,14 @@ fn cpu_secs() -> f64 {
 fn timed<T>(f: impl FnOnce() -> T) -> (T, String) {
     let (t, c) = (Instant::now(), cpu_secs());
     let r = f();
-    (r, format!("{:.3} s wall, {:.3} s CPU", t.elapsed().as_secs_f64(), cpu_secs() - c))
+    (
+        r,
+        format!(
+            "{:.3} s wall, {:.3} s CPU",
+            t.elapsed().as_secs_f64(),
+            cpu_secs() - c
+        ),
+    )
 }
 
 fn main() {
@@ -46,7 +55,11 @@ fn main() {
     let all: Vec<usize> = (0..coll.len()).collect();
     let cands = cell_candidates(&coll, &all, &FitParams::default()).expect("candidates");
     for crit in [Criterion::Error, Criterion::Condition, Criterion::Random] {
-        let p = PlanParams { n: 20, criterion: crit, ..PlanParams::default() };
+        let p = PlanParams {
+            n: 20,
+            criterion: crit,
+            ..PlanParams::default()
+        };
         let (pl, t) = timed(|| plan(&be, &coll, &basis, &targets, &cands, &p).expect("plan"));
         println!(
             "plan {:<9} n = 20, k = 12, {} training, {} of {} candidates per step: {t}; mean training rho {:.4}",
@@ -63,7 +76,8 @@ fn main() {
                 .map(|c| Sample {
                     wi: c.wi,
                     wo: c.wo,
-                    rgb: brdf_basis::acquire::material_at(&coll.materials()[50], c.wi, c.wo).expect("value"),
+                    rgb: brdf_basis::acquire::material_at(&coll.materials()[50], c.wi, c.wo)
+                        .expect("value"),
                     sigma: None,
                     line: 0,
                 })
@@ -85,7 +99,10 @@ fn main() {
     if std::env::var_os("BENCH_QUICK").is_some() {
         return;
     }
-    let p = AcqCvParams { noises: vec![0.0], ..AcqCvParams::default() };
+    let p = AcqCvParams {
+        noises: vec![0.0],
+        ..AcqCvParams::default()
+    };
     let (r, t) = timed(|| acquisition_cv(&be, &coll, &p).expect("cv"));
     println!("cv --acquisition (greedy k = 12, 3 plans x n = 5, 10, 20, 5 folds): {t}");
     print!("{}", r.markdown());

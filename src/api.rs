@@ -22,8 +22,8 @@
 use std::sync::Arc;
 
 pub use crate::acquire::{
-    acquisition_cv, plan as plan_samples, AcqCv, AcqCvParams, AcquireError, Candidate,
-    Criterion, Plan, PlanParams, Sample, SampleFit,
+    acquisition_cv, plan as plan_samples, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion,
+    Plan, PlanParams, Sample, SampleFit,
 };
 pub use crate::backend::cpu::CpuBackend;
 pub use crate::backend::gpu::GpuBackend;

@@ -84,7 +84,11 @@ mod tests {
         let pi = std::f64::consts::PI;
         for (c, (d, s)) in [(0.5, 1.0), (0.25, 2.0), (0.1, 0.5)].iter().enumerate() {
             let want = d / pi + s * 11.0 * 0.04 / (8.0 * pi);
-            assert!((v[c] - want).abs() < 1e-15 * want.max(1.0), "{c}: {} vs {want}", v[c]);
+            assert!(
+                (v[c] - want).abs() < 1e-15 * want.max(1.0),
+                "{c}: {} vs {want}",
+                v[c]
+            );
         }
     }
 

@@ -15,7 +15,11 @@ pub struct RhoVsN<'a> {
 }
 
 impl Draw for RhoVsN<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, text: bool) -> Result<(), String> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        text: bool,
+    ) -> Result<(), String> {
         let e2s = |e: &dyn std::fmt::Display| e.to_string();
         let Some(method) = self.cv.results.first().map(|r| r.method.clone()) else {
             return Ok(());
@@ -32,7 +36,10 @@ impl Draw for RhoVsN<'_> {
                 plans.push(r.plan.as_str());
             }
         }
-        let ys = rows.iter().flat_map(|r| [r.mean_rho, r.mean_dense_rho]).filter(|v| *v > 0.0);
+        let ys = rows
+            .iter()
+            .flat_map(|r| [r.mean_rho, r.mean_dense_rho])
+            .filter(|v| *v > 0.0);
         let (lo, hi) = ys.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
         if !lo.is_finite() {
             return Ok(());
@@ -41,9 +48,15 @@ impl Draw for RhoVsN<'_> {
         let mut b = ChartBuilder::on(root);
         b.margin(12);
         if text {
-            b.caption(format!("Held-out mean rho from n samples ({method}, k = {})", self.cv.k), (FONT, 18))
-                .x_label_area_size(40)
-                .y_label_area_size(70);
+            b.caption(
+                format!(
+                    "Held-out mean rho from n samples ({method}, k = {})",
+                    self.cv.k
+                ),
+                (FONT, 18),
+            )
+            .x_label_area_size(40)
+            .y_label_area_size(70);
         }
         let mut chart = b
             .build_cartesian_2d(0.0..nmax * 1.05, (lo / 1.5..hi * 1.5).log_scale())
@@ -69,8 +82,9 @@ impl Draw for RhoVsN<'_> {
                 .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
                 .map_err(|e| e2s(&e))?;
             if text {
-                s.label(plan.to_string())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+                s.label(plan.to_string()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                });
             }
             chart
                 .draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled())))
@@ -79,11 +93,17 @@ impl Draw for RhoVsN<'_> {
         let dense = rows.iter().map(|r| r.mean_dense_rho).next().unwrap_or(lo);
         let grey = RGBColor(90, 90, 90);
         let s = chart
-            .draw_series(DashedLineSeries::new(vec![(0.0, dense), (nmax * 1.05, dense)], 6, 4, grey.stroke_width(1)))
+            .draw_series(DashedLineSeries::new(
+                vec![(0.0, dense), (nmax * 1.05, dense)],
+                6,
+                4,
+                grey.stroke_width(1),
+            ))
             .map_err(|e| e2s(&e))?;
         if text {
-            s.label("dense fit (the limit)")
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], grey.stroke_width(1)));
+            s.label("dense fit (the limit)").legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], grey.stroke_width(1))
+            });
             chart
                 .configure_series_labels()
                 .border_style(BLACK)
