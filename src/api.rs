@@ -16,10 +16,15 @@
 //! ([`crate::distance::distance_matrix`], [`crate::select::greedy`], [`crate::fit::fit`],
 //! ...) take a progress callback `(done, total)` for hosts that want one.
 //!
-//! Acquisition (choosing which materials to measure) is not part of the crate yet.
+//! * Acquisition (SPEC 10): [`plan_samples`] (where to measure), [`fit_from_arrays`] (a
+//!   material from samples given as arrays) and [`acquisition_cv`].
 
 use std::sync::Arc;
 
+pub use crate::acquire::{
+    acquisition_cv, plan as plan_samples, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion,
+    Plan, PlanParams, Sample, SampleFit,
+};
 pub use crate::backend::cpu::CpuBackend;
 pub use crate::backend::gpu::GpuBackend;
 pub use crate::backend::{open as open_backend, Backend, BackendChoice};
@@ -80,6 +85,9 @@ pub enum Error {
     /// Rendering.
     #[error(transparent)]
     Render(#[from] crate::eval::render::RenderError),
+    /// Acquisition: samples, plans, acquisition cross-validation.
+    #[error(transparent)]
+    Acquire(#[from] crate::acquire::AcquireError),
     /// A statistical test.
     #[error(transparent)]
     Stats(#[from] crate::stats::StatsError),
@@ -551,6 +559,47 @@ pub fn select(
             error_driven(sp, &|o, v| Ok(crate::select::ga(o, v, &vgp, progress)?))
         }
     }
+}
+
+/// Fits a new material from samples given as arrays (SPEC 10): per sample the angles
+/// `[theta_i, phi_i, theta_o, phi_o]` in degrees and the RGB reflectance, optional
+/// per-channel standard deviations; `basis` names materials of `coll`. Samples are
+/// validated like a samples file (row `i` is reported as line `i + 1`).
+pub fn fit_from_arrays(
+    coll: &Collection,
+    basis: &[&str],
+    angles: &[[f64; 4]],
+    rgb: &[[f64; 3]],
+    sigma: Option<&[[f64; 3]]>,
+) -> Result<SampleFit> {
+    let b: Vec<usize> = basis
+        .iter()
+        .map(|n| coll.index_of(n))
+        .collect::<std::result::Result<_, _>>()?;
+    if angles.len() != rgb.len() || sigma.is_some_and(|s| s.len() != rgb.len()) {
+        return Err(crate::acquire::AcquireError::InvalidParam {
+            name: "sample arrays",
+            value: format!("{} angles, {} values", angles.len(), rgb.len()),
+            expected: "one row of angles, values (and sigmas) per sample",
+        }
+        .into());
+    }
+    let samples: Vec<Sample> = angles
+        .iter()
+        .zip(rgb)
+        .enumerate()
+        .map(|(i, (a, v))| {
+            crate::acquire::samples::sample_from_degrees(
+                std::path::Path::new("<arrays>"),
+                i + 1,
+                *a,
+                *v,
+                sigma.map(|s| s[i]),
+                ["theta_i", "phi_i", "theta_o", "phi_o"],
+            )
+        })
+        .collect::<std::result::Result<_, _>>()?;
+    Ok(crate::acquire::fit_samples(coll, &b, &samples)?)
 }
 
 #[cfg(test)]

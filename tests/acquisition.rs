@@ -29,6 +29,7 @@ fn dir(theta_deg: f64, phi_deg: f64) -> [f64; 3] {
 /// 8 directions: the samples determine the 4 coefficients per channel, so the fit returns
 /// them and the reconstruction equals the material at other directions.
 #[test]
+#[allow(clippy::needless_range_loop)]
 fn samples_of_an_exact_combination_give_its_coefficients() {
     let c = coll();
     let basis = [0, 1, 2];

@@ -124,6 +124,15 @@ pub struct AcqResult {
     pub mean_image_error: f64,
 }
 
+/// The selection of the fold bases.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AcqSelect {
+    /// Selection methods, comma-separated (each result names its own).
+    pub method: String,
+    /// Basis size.
+    pub k: usize,
+}
+
 /// The `cv --acquisition` JSON.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AcqCv {
@@ -131,6 +140,8 @@ pub struct AcqCv {
     pub folds: Vec<Vec<String>>,
     /// Seed.
     pub seed: u64,
+    /// The selection of the fold bases (SPEC-cli `select: {method, k}`).
+    pub select: AcqSelect,
     /// Basis size.
     pub k: usize,
     /// Candidates examined per plan step.
@@ -141,7 +152,15 @@ pub struct AcqCv {
     pub collection_fingerprint: String,
 }
 
+/// Held-out rows and fold plans of one (plan, n, noise), accumulated over folds.
+type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
+
 /// Runs the acquisition cross-validation (module docs).
+///
+/// Over 100 lines: one loop nest (method, fold, plan, noise, n) whose levels share the
+/// fold's basis, dense Gram quantities, plan and measured values; splitting it would pass
+/// all of them around.
+#[allow(clippy::needless_range_loop)]
 pub fn acquisition_cv(
     backend: &dyn Backend,
     coll: &Collection,
@@ -207,7 +226,7 @@ pub fn acquisition_cv(
     let mut results = Vec::new();
     for (mi, m) in p.methods.iter().enumerate() {
         // rows[plan][n][noise] accumulated over folds.
-        let mut acc: Vec<Vec<Vec<(Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>)>>> =
+        let mut acc: Vec<Vec<Vec<Cell>>> =
             vec![vec![vec![(Vec::new(), Vec::new()); p.noises.len()]; p.ns.len()]; p.plans.len()];
         let mut fold_bases_named = Vec::new();
         for (f, held) in folds.iter().enumerate() {
@@ -342,6 +361,15 @@ pub fn acquisition_cv(
             .map(|f| f.iter().map(|&i| names[i].clone()).collect())
             .collect(),
         seed: p.seed,
+        select: AcqSelect {
+            method: p
+                .methods
+                .iter()
+                .map(|m| m.name())
+                .collect::<Vec<_>>()
+                .join(","),
+            k: p.k,
+        },
         k: p.k,
         candidates_per_step: p.candidates_per_step,
         results,

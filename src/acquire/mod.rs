@@ -15,6 +15,8 @@
 
 pub mod cv;
 pub mod eval;
+#[cfg(feature = "plot")]
+pub mod figure;
 pub mod fit;
 pub mod linalg;
 pub mod plan;

@@ -289,6 +289,10 @@ impl Dense {
     }
 }
 
+/// A candidate's rows (per channel, padded to [`MAX_PLAN_COLUMNS`]) and the training
+/// values there (per target, RGB).
+type Added<'a> = (&'a [[f64; 16]; 3], &'a [[f64; 3]]);
+
 /// Sampled state of the error criterion: per channel the rows so far; per target and
 /// channel the exact sample fit.
 struct State {
@@ -301,7 +305,7 @@ struct State {
 impl State {
     /// Exact fits of every target after adding the candidate row `a[c]` and values
     /// `y[t][c]` (or with no addition).
-    fn exact_with(&self, add: Option<(&[[f64; 16]; 3], &[[f64; 3]])>) -> Vec<[Vec<f64>; 3]> {
+    fn exact_with(&self, add: Option<Added<'_>>) -> Vec<[Vec<f64>; 3]> {
         let m = self.m;
         (0..self.x.len())
             .into_par_iter()
@@ -331,6 +335,10 @@ pub const MAX_PLAN_COLUMNS: usize = 16;
 
 /// Plans `p.n` samples for `basis` and the training materials `targets` (collection
 /// indices) from `cands`.
+///
+/// Over 100 lines: one greedy loop whose three criteria share the step's candidate pool,
+/// its values and the sampled state; each criterion's scoring is a closure over them.
+#[allow(clippy::needless_range_loop)]
 pub fn plan(
     backend: &dyn Backend,
     coll: &Collection,

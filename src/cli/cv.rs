@@ -64,6 +64,14 @@ pub struct CvArgs {
     /// --acquisition: candidates examined per plan step (0: all).
     #[arg(long, default_value_t = 10_000)]
     pub candidates_per_step: usize,
+    /// --acquisition: error plans fit this many screened candidates exactly per step (0:
+    /// every examined candidate).
+    #[arg(long, default_value_t = 32)]
+    pub shortlist: usize,
+    /// --acquisition: also write the figure (held-out mean rho against n, one line per
+    /// plan, log scale) as this PNG.
+    #[arg(long)]
+    pub figure: Option<PathBuf>,
 }
 
 /// Runs the cross-validation.
@@ -143,6 +151,9 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     if let Some(m) = &a.markdown {
         plan.file(m, "--markdown")?;
     }
+    if let Some(f) = &a.figure {
+        plan.file(f, "--figure")?;
+    }
     let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let methods: Vec<CvMethod> = if a.methods.is_empty() {
@@ -162,12 +173,12 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
         folds: a.folds,
         seed: g.seed,
         candidates_per_step: a.candidates_per_step,
+        shortlist: a.shortlist,
         render_size: a.render_size,
         objective: ObjectiveParams::default()
             .mask(a.grid.mask)
             .weighting(a.grid.weighting)
             .stride(a.grid.stride),
-        ..AcqCvParams::default()
     };
     let backend = super::backend(g)?;
     let t0 = std::time::Instant::now();
@@ -181,6 +192,12 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     let md = res.markdown();
     if let Some(m) = &a.markdown {
         out.stage(m, |w| w.write_all(md.as_bytes()))?;
+    }
+    if let Some(f) = &a.figure {
+        let fig = brdf_basis::acquire::figure::rho_vs_n(&res)?;
+        let bytes =
+            brdf_basis::io::image::rgb8_png_bytes(f, fig.png.width, fig.png.height, &fig.png.data)?;
+        out.stage(f, |w| w.write_all(&bytes))?;
     }
     out.commit()?;
     print!("{md}");
