@@ -106,7 +106,7 @@ fn projections(obj: &Objective, cols: &[usize]) -> Option<[Projection; 3]> {
     Some(out)
 }
 
-/// Live targets per refinement chunk ([`Bound`]).
+/// Live targets per refinement chunk (a bound is kept per chunk).
 pub const CHUNK: usize = 128;
 
 /// A lower bound of one candidate's `S(B + c; T)`: the sum over the live targets (but the
