@@ -66,11 +66,15 @@ impl Chain {
     }
 }
 
+/// One channel's projections: the number `p` of non-zero basis columns, `V^T` (`m x p`)
+/// and `|V_x|^2` per column.
+type Projection = (usize, Vec<f64>, Vec<f64>);
+
 /// Per channel: `V^T` (`m x p`, row `x` = `V_x`) and `|V_x|^2`, or `None` when the
 /// non-zero basis columns have no Cholesky factor.
-fn projections(obj: &Objective, cols: &[usize]) -> Option<[(usize, Vec<f64>, Vec<f64>); 3]> {
+fn projections(obj: &Objective, cols: &[usize]) -> Option<[Projection; 3]> {
     let m = obj.len() + 1;
-    let mut out: [(usize, Vec<f64>, Vec<f64>); 3] = Default::default();
+    let mut out: [Projection; 3] = Default::default();
     for (c, o) in out.iter_mut().enumerate() {
         let g = obj.view(c);
         let nz: Vec<usize> = cols.iter().copied().filter(|&k| g.at(k, k) > 0.0).collect();
@@ -102,7 +106,7 @@ fn projections(obj: &Objective, cols: &[usize]) -> Option<[(usize, Vec<f64>, Vec
     Some(out)
 }
 
-/// Live targets per refinement chunk ([`Bound`]).
+/// Live targets per refinement chunk (a bound is kept per chunk).
 pub const CHUNK: usize = 128;
 
 /// A lower bound of one candidate's `S(B + c; T)`: the sum over the live targets (but the
