@@ -23,6 +23,7 @@ mod integrity;
 mod kmedoids;
 mod leftovers;
 mod measured;
+mod nbrdf_gpu;
 mod outputs;
 mod reproduce;
 mod saved_matrix;
