@@ -33,24 +33,29 @@ struct NeuralParams {
     n_cells: u32,
     row_stride: u32,
     out_base: u32,
-    first_block: u32,
-    n_blocks: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
-// One row block: the distinct networks its rows use (`count` of them), and per row the
-// slot of its network (4: a padding row, value 0) and its channel (0, 1, 2; 3: the mean).
-// Keep in sync with `BlockDesc` in src/backend/gpu/neural.rs.
+// One row block: the distinct networks its rows use (`count` of them, their weights in
+// `w`), per row the slot of its network (4: a padding row, value 0) and its channel (0,
+// 1, 2; 3: the mean), and the block's index in the output texture. Keep in sync with
+// `BlockDesc` in src/backend/gpu/neural.rs.
 struct BlockDesc {
-    nets: vec4<u32>,
     slot: vec4<u32>,
     chan: vec4<u32>,
     count: u32,
+    block: u32,
     _pad0: u32,
     _pad1: u32,
-    _pad2: u32,
+}
+
+// A block's uniform region: its descriptor and the weights of its (at most 4) networks,
+// NET_VEC4 vec4 each. In a uniform buffer every weight index is uniform across the
+// dispatch (lavapipe loads it once and broadcasts it; a storage-buffer load is a per-lane
+// loop there).
+struct BlockUniform {
+    desc: BlockDesc,
+    w: array<vec4<f32>, 736>,
 }
 
 const NET_VEC4: u32 = 184u;
@@ -63,12 +68,11 @@ const HIDDEN: u32 = 21u;
 const D_CELLS: u32 = 16200u;
 
 @group(0) @binding(0) var<uniform> p: NeuralParams;
-@group(0) @binding(1) var<storage, read> weights: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> blocks: array<BlockDesc>;
-@group(0) @binding(3) var<storage, read> cells: array<u32>;
-@group(0) @binding(4) var<storage, read> scales: array<f32>;
-@group(0) @binding(5) var features: texture_2d<f32>;
-@group(0) @binding(6) var out: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(1) var<uniform> blk: BlockUniform;
+@group(0) @binding(2) var<storage, read> cells: array<u32>;
+@group(0) @binding(3) var<storage, read> scales: array<f32>;
+@group(0) @binding(4) var features: texture_2d<f32>;
+@group(0) @binding(5) var out: texture_storage_2d<rgba32float, write>;
 
 // exp(z) - 1 to a few f32 ulps, relative, for z in [-30, 88] (clamped: below, the value
 // is -1 to f32 precision; above, it overflows f32).
@@ -87,41 +91,40 @@ fn expm1_acc(z_in: f32) -> f32 {
     return t * e + (t - 1.0);
 }
 
-// The clamped RGB output of network `net` at a cell of features h = (sin th, cos th),
+// The clamped RGB output of the block's network in `slot` at a cell of features h = (sin th, cos th),
 // d = (sin td cos pd, sin td sin pd, cos td).
-fn network(net: u32, h: vec2<f32>, d: vec3<f32>) -> vec3<f32> {
-    let o = net * NET_VEC4;
+fn network(slot: u32, h: vec2<f32>, d: vec3<f32>) -> vec3<f32> {
+    let o = slot * NET_VEC4;
     let z = vec4<f32>(0.0);
     var a: array<vec4<f32>, 6>;
     for (var g = 0u; g < 6u; g = g + 1u) {
-        var s = weights[o + B1 + g];
-        s = s + h.x * weights[o + W1 + g];
-        s = s + h.y * weights[o + W1 + 6u + g];
-        s = s + d.x * weights[o + W1 + 12u + g];
-        s = s + d.y * weights[o + W1 + 18u + g];
-        s = s + d.z * weights[o + W1 + 24u + g];
+        var s = blk.w[o + B1 + g];
+        s = s + h.x * blk.w[o + W1 + g];
+        s = s + h.y * blk.w[o + W1 + 6u + g];
+        s = s + d.x * blk.w[o + W1 + 12u + g];
+        s = s + d.y * blk.w[o + W1 + 18u + g];
+        s = s + d.z * blk.w[o + W1 + 24u + g];
         a[g] = max(s, z);
     }
-    var acc = weights[o + B3];
+    var acc = blk.w[o + B3];
     for (var j = 0u; j < HIDDEN; j = j + 1u) {
         let w = o + W2T + 6u * j;
-        let wb = weights[o + W3B2 + j];
-        let s = wb.w + ((dot(a[0], weights[w]) + dot(a[1], weights[w + 1u]))
-            + (dot(a[2], weights[w + 2u]) + dot(a[3], weights[w + 3u]))
-            + (dot(a[4], weights[w + 4u]) + dot(a[5], weights[w + 5u])));
+        let wb = blk.w[o + W3B2 + j];
+        let s = wb.w + ((dot(a[0], blk.w[w]) + dot(a[1], blk.w[w + 1u]))
+            + (dot(a[2], blk.w[w + 2u]) + dot(a[3], blk.w[w + 3u]))
+            + (dot(a[4], blk.w[w + 4u]) + dot(a[5], blk.w[w + 5u])));
         acc = acc + max(s, 0.0) * wb;
     }
     return max(vec3<f32>(expm1_acc(acc.x), expm1_acc(acc.y), expm1_acc(acc.z)), vec3<f32>(0.0));
 }
 
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c = gid.x;
-    let b = p.first_block + wid.y;
-    if (c >= p.n_cells || b >= p.n_blocks) {
+    if (c >= p.n_cells) {
         return;
     }
-    let desc = blocks[b];
+    let desc = blk.desc;
     let cell = cells[c];
     let d = textureLoad(features, texel_coord(cell % D_CELLS), 0).xyz;
     let h = textureLoad(features, texel_coord(D_CELLS + cell / D_CELLS), 0).xy;
@@ -130,11 +133,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wi
         if (s >= desc.count) {
             break;
         }
-        let f = network(desc.nets[s], h, d);
+        let f = network(s, h, d);
         let m = vec4<f32>(f, (f.x + f.y + f.z) * (1.0 / 3.0));
         let pick = vec4<f32>(m[min(desc.chan.x, 3u)], m[min(desc.chan.y, 3u)],
             m[min(desc.chan.z, 3u)], m[min(desc.chan.w, 3u)]);
         v = select(v, pick, desc.slot == vec4<u32>(s));
     }
-    textureStore(out, texel_coord(p.out_base + b * p.row_stride + c), v * scales[c]);
+    textureStore(out, texel_coord(p.out_base + desc.block * p.row_stride + c), v * scales[c]);
 }

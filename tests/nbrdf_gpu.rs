@@ -7,7 +7,7 @@
 use crate::common;
 use brdf_basis::backend::gpu::neural::{
     block_descs, kernel_weights, BlockDesc, NeuralKernel, NeuralParams, NeuralRow, MEAN, NET_VEC4,
-    PAD_SLOT, SOURCE,
+    PAD_SLOT, REGION_BYTES, SOURCE,
 };
 use brdf_basis::backend::gpu::{kernel_source, GpuContext};
 use brdf_basis::merl::grid::{cell_angles, N_CELLS};
@@ -188,9 +188,10 @@ fn nbrdf_shader_validates_and_matches_rust_structs() {
     };
     assert_eq!(
         span("NeuralParams"),
-        (std::mem::size_of::<NeuralParams>(), 8)
+        (std::mem::size_of::<NeuralParams>(), 4)
     );
-    assert_eq!(span("BlockDesc"), (std::mem::size_of::<BlockDesc>(), 7));
+    assert_eq!(span("BlockDesc"), (std::mem::size_of::<BlockDesc>(), 6));
+    assert_eq!(span("BlockUniform"), (REGION_BYTES, 2));
     assert!(SOURCE.contains(&format!("const NET_VEC4: u32 = {NET_VEC4}u;")));
 }
 
@@ -233,16 +234,25 @@ fn nbrdf_kernel_layout_and_block_descriptors() {
     ];
     let d = block_descs(&rows);
     assert_eq!(d.len(), 2);
-    assert_eq!((d[0].count, &d[0].nets[..2]), (2, &[3, 1][..]));
-    assert_eq!(d[0].slot, [0, 0, 1, PAD_SLOT]);
-    assert_eq!(&d[0].chan[..3], &[0, 2, MEAN]);
-    assert_eq!((d[1].count, d[1].nets), (4, [0, 1, 2, 5]));
-    assert_eq!(d[1].slot, [0, 1, 2, 3]);
-    assert_eq!(d[1].chan, [MEAN, 1, MEAN, 0]);
+    assert_eq!(
+        (d[0].0.count, d[0].0.block, &d[0].1[..]),
+        (2, 0, &[3, 1][..])
+    );
+    assert_eq!(d[0].0.slot, [0, 0, 1, PAD_SLOT]);
+    assert_eq!(&d[0].0.chan[..3], &[0, 2, MEAN]);
+    assert_eq!(
+        (d[1].0.count, d[1].0.block, &d[1].1[..]),
+        (4, 1, &[0, 1, 2, 5][..])
+    );
+    assert_eq!(d[1].0.slot, [0, 1, 2, 3]);
+    assert_eq!(d[1].0.chan, [MEAN, 1, MEAN, 0]);
 }
 
-/// The CSV's raw f64 values: (material, (th, td, pd) in radians, rgb).
-fn check_values(test: &str) -> Option<Vec<(String, [f64; 3], [f64; 3])>> {
+/// One line of the check values: material, (th, td, pd) in radians, raw RGB.
+type CheckValue = (String, [f64; 3], [f64; 3]);
+
+/// The CSV's raw f64 values.
+fn check_values(test: &str) -> Option<Vec<CheckValue>> {
     let p = common::shared_or_skip("real/nbrdf/nbrdf_check_values.csv", test)?;
     let text = std::fs::read_to_string(p).expect("csv");
     let rows = text

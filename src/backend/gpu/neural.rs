@@ -16,7 +16,7 @@
 //! cell: rows of one network in one block share its evaluation, and the work of an
 //! invocation is bounded whatever the number of cells or networks.
 
-use super::{dispatch, GpuContext, TEX_W};
+use super::{GpuContext, TEX_W};
 use crate::error::GpuError;
 use crate::merl::grid::{phi_d, theta_d, theta_h, N_PD, N_TD, N_TH};
 
@@ -65,33 +65,31 @@ pub struct NeuralParams {
     pub row_stride: u32,
     /// Texel of row block 0's cell 0.
     pub out_base: u32,
-    /// First row block of this dispatch.
-    pub first_block: u32,
-    /// Row blocks in total (the dispatch covers `first_block ..` up to this).
-    pub n_blocks: u32,
     /// Padding.
     pub _pad0: u32,
-    /// Padding.
-    pub _pad1: u32,
-    /// Padding.
-    pub _pad2: u32,
 }
 
 /// One row block as the kernel reads it; keep in sync with `BlockDesc` in the shader.
+/// Its networks' weights follow it in the block's uniform region ([`REGION_BYTES`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct BlockDesc {
-    /// The distinct networks of the block's rows (the first `count`).
-    pub nets: [u32; 4],
-    /// Per row, the slot in `nets` of its network; [`PAD_SLOT`]: a padding row (0).
+    /// Per row, the slot of its network among the block's networks; [`PAD_SLOT`]: a
+    /// padding row (0).
     pub slot: [u32; 4],
     /// Per row, its channel (0, 1, 2) or [`MEAN`].
     pub chan: [u32; 4],
-    /// Distinct networks in `nets`.
+    /// Distinct networks of the block (slots `0..count`).
     pub count: u32,
+    /// The block's index in the output texture.
+    pub block: u32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
+
+/// Bytes of one block's uniform region: its [`BlockDesc`] and the weights of four
+/// networks (`BlockUniform` in the shader).
+pub const REGION_BYTES: usize = std::mem::size_of::<BlockDesc>() + 4 * NET_VEC4 * 16;
 
 /// The slot of a padding row in [`BlockDesc::slot`].
 pub const PAD_SLOT: u32 = 4;
@@ -102,30 +100,30 @@ pub const MEAN: u32 = 3;
 /// its channel (`None`: the mean of R, G, B).
 pub type NeuralRow = (usize, Option<usize>);
 
-/// The block descriptors of `rows` (`None`: a padding row), four rows per block.
-pub fn block_descs(rows: &[Option<NeuralRow>]) -> Vec<BlockDesc> {
+/// The block descriptors of `rows` (`None`: a padding row), four rows per block, each with
+/// the networks of its slots (distinct, in order of first use).
+pub fn block_descs(rows: &[Option<NeuralRow>]) -> Vec<(BlockDesc, Vec<usize>)> {
     rows.chunks(4)
-        .map(|block| {
+        .enumerate()
+        .map(|(b, block)| {
             let mut d = BlockDesc {
                 slot: [PAD_SLOT; 4],
+                block: b as u32,
                 ..Default::default()
             };
+            let mut nets: Vec<usize> = Vec::new();
             for (q, row) in block.iter().enumerate() {
                 if let Some((net, channel)) = *row {
-                    let net = net as u32;
-                    let slot = match d.nets[..d.count as usize].iter().position(|&n| n == net) {
-                        Some(s) => s,
-                        None => {
-                            d.nets[d.count as usize] = net;
-                            d.count += 1;
-                            d.count as usize - 1
-                        }
-                    };
+                    let slot = nets.iter().position(|&n| n == net).unwrap_or_else(|| {
+                        nets.push(net);
+                        nets.len() - 1
+                    });
                     d.slot[q] = slot as u32;
                     d.chan[q] = channel.map_or(MEAN, |c| c.min(2) as u32);
                 }
             }
-            d
+            d.count = nets.len() as u32;
+            (d, nets)
         })
         .collect()
 }
@@ -192,11 +190,12 @@ fn d_features(td: f64, pd: f64) -> [f32; 3] {
 /// texel of each kind).
 pub const MAX_POINTS: usize = D_CELLS;
 
-/// The networks and row blocks of one call, uploaded.
+/// The row blocks of one call, uploaded: one uniform region per block (its descriptor
+/// and its networks' weights), `stride` bytes apart.
 #[derive(Debug)]
 pub struct NeuralRows {
-    weights: wgpu::Buffer,
-    blocks: wgpu::Buffer,
+    regions: wgpu::Buffer,
+    stride: u64,
     /// Row blocks.
     pub n_blocks: usize,
 }
@@ -279,9 +278,8 @@ impl NeuralKernel {
         Ok(Self { pipeline, grid })
     }
 
-    /// Uploads the networks `nets` (flat weights, 675 each) and the row blocks of `rows`
-    /// (`rows.len()` a multiple of 4; `None`: a padding row; a row names a network by
-    /// its index in `nets`). The weights must fit one storage binding of the adapter.
+    /// Uploads the row blocks of `rows` (`rows.len()` a multiple of 4; `None`: a padding
+    /// row; a row names a network by its index in `nets`, flat weights of 675 each).
     pub fn prepare(
         &self,
         ctx: &GpuContext,
@@ -295,44 +293,61 @@ impl NeuralKernel {
                 nets.len()
             )));
         }
-        let bytes = (nets.len() * NET_VEC4 * 16) as u64;
-        if bytes > ctx.max_binding() {
+        if let Some(n) = nets.iter().find(|n| n.len() != FLAT_WEIGHTS) {
             return Err(GpuError::Limits(format!(
-                "{} neural BRDFs need {bytes} bytes of weights in one buffer; the adapter \
-                 binds at most {} ({} networks)",
-                nets.len(),
-                ctx.max_binding(),
-                ctx.max_binding() / (NET_VEC4 as u64 * 16)
+                "a neural BRDF of {} weights (one has {FLAT_WEIGHTS})",
+                n.len()
             )));
         }
-        let mut w = Vec::with_capacity(nets.len() * 4 * NET_VEC4);
-        for n in nets {
-            if n.len() != FLAT_WEIGHTS {
-                return Err(GpuError::Limits(format!(
-                    "a neural BRDF of {} weights (one has {FLAT_WEIGHTS})",
-                    n.len()
-                )));
-            }
-            w.extend(kernel_weights(n));
+        let limits = &ctx.limits;
+        if (limits.max_uniform_buffer_binding_size as usize) < REGION_BYTES {
+            return Err(GpuError::Limits(format!(
+                "the adapter binds at most {} bytes of uniforms; a block of neural BRDFs needs \
+                 {REGION_BYTES}",
+                limits.max_uniform_buffer_binding_size
+            )));
         }
-        let descs = block_descs(rows);
+        let stride = (REGION_BYTES as u64)
+            .next_multiple_of(limits.min_uniform_buffer_offset_alignment.max(16) as u64);
+        let blocks = block_descs(rows);
+        let bytes = stride * blocks.len().max(1) as u64;
+        if bytes > limits.max_buffer_size {
+            return Err(GpuError::Limits(format!(
+                "{} neural rows need {bytes} bytes of weights; the adapter's buffers hold at \
+                 most {}",
+                rows.len(),
+                limits.max_buffer_size
+            )));
+        }
+        let kernel: Vec<Vec<f32>> = nets.iter().map(|n| kernel_weights(n)).collect();
+        let mut data = vec![0u8; bytes as usize];
+        for (b, (desc, used)) in blocks.iter().enumerate() {
+            let region = &mut data[b * stride as usize..][..REGION_BYTES];
+            let (head, w) = region.split_at_mut(std::mem::size_of::<BlockDesc>());
+            head.copy_from_slice(bytemuck::bytes_of(desc));
+            for (slot, &net) in used.iter().enumerate() {
+                w[slot * NET_VEC4 * 16..(slot + 1) * NET_VEC4 * 16]
+                    .copy_from_slice(bytemuck::cast_slice(&kernel[net]));
+            }
+        }
+        use wgpu::util::DeviceExt;
+        let regions = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("neural row blocks"),
+                contents: &data,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
         Ok(NeuralRows {
-            weights: ctx.storage_init(
-                "neural weights",
-                bytemuck::cast_slice(&w),
-                wgpu::BufferUsages::empty(),
-            ),
-            blocks: ctx.storage_init(
-                "neural row blocks",
-                bytemuck::cast_slice(&descs),
-                wgpu::BufferUsages::empty(),
-            ),
-            n_blocks: descs.len(),
+            regions,
+            stride,
+            n_blocks: blocks.len(),
         })
     }
 
     /// Records, into `encoder`, the evaluation of every row block of `rows` at the cells
-    /// uploaded in `cells`, written to `target`.
+    /// uploaded in `cells`, written to `target`: one dispatch per row block (its weights
+    /// bound as uniforms).
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -357,38 +372,39 @@ impl NeuralKernel {
         if n_cells == 0 || rows.n_blocks == 0 {
             return;
         }
-        let per = ctx.limits.max_compute_workgroups_per_dimension.max(1) as usize;
-        for first in (0..rows.n_blocks).step_by(per) {
-            let count = (rows.n_blocks - first).min(per);
-            let params = NeuralParams {
-                n_cells,
-                row_stride: target.row_stride as u32,
-                out_base: target.base as u32,
-                first_block: first as u32,
-                n_blocks: rows.n_blocks as u32,
-                _pad0: 0,
-                _pad1: 0,
-                _pad2: 0,
-            };
-            let pbuf = ctx.uniform("neural params", &params);
+        let params = NeuralParams {
+            n_cells,
+            row_stride: target.row_stride as u32,
+            out_base: target.base as u32,
+            _pad0: 0,
+        };
+        let pbuf = ctx.uniform("neural params", &params);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("neural rows"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        for b in 0..rows.n_blocks {
             let bind = ctx.bind_at(
                 &self.pipeline,
                 vec![
                     (0, pbuf.as_entire_binding()),
-                    (1, rows.weights.as_entire_binding()),
-                    (2, rows.blocks.as_entire_binding()),
-                    (3, cells.cells.as_entire_binding()),
-                    (4, cells.scales.as_entire_binding()),
-                    (5, wgpu::BindingResource::TextureView(features)),
-                    (6, wgpu::BindingResource::TextureView(target.view)),
+                    (
+                        1,
+                        wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &rows.regions,
+                            offset: b as u64 * rows.stride,
+                            size: std::num::NonZeroU64::new(REGION_BYTES as u64),
+                        }),
+                    ),
+                    (2, cells.cells.as_entire_binding()),
+                    (3, cells.scales.as_entire_binding()),
+                    (4, wgpu::BindingResource::TextureView(features)),
+                    (5, wgpu::BindingResource::TextureView(target.view)),
                 ],
             );
-            dispatch(
-                encoder,
-                &self.pipeline,
-                &bind,
-                (n_cells.div_ceil(WORKGROUP), count as u32),
-            );
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(n_cells.div_ceil(WORKGROUP), 1, 1);
         }
     }
 
@@ -464,7 +480,12 @@ impl NeuralKernel {
             padded.resize(rb.len().div_ceil(4) * 4, None);
             let blocks = padded.len() / 4;
             let prepared = self.prepare(ctx, nets, &padded)?;
+            let by_dispatch = ctx.limits.max_compute_workgroups_per_dimension as usize
+                * WORKGROUP as usize
+                / TEX_W
+                * TEX_W;
             let chunk = ((BUDGET / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
+                .min(by_dispatch)
                 .clamp(TEX_W, n.next_multiple_of(TEX_W));
             let texture = ctx.packed_texture(
                 "neural rows",
