@@ -54,7 +54,7 @@ fn main() {
             .iter()
             .map(|l| match l {
                 Lobe::Analytic(p) => *p,
-                Lobe::Measured { .. } => unreachable!(),
+                _ => unreachable!(),
             })
             .collect();
         let rate = pack(&ctx, &params, &cells);

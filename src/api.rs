@@ -86,6 +86,9 @@ pub enum Error {
     /// The paper's experiment.
     #[error(transparent)]
     Experiment(#[from] crate::experiment::ExperimentError),
+    /// A tabulated material that is not finite ([`tabulate`]).
+    #[error(transparent)]
+    NotFinite(Box<NotFiniteError>),
     /// The experiment's report tree (feature `plot`).
     #[cfg(feature = "plot")]
     #[error(transparent)]
@@ -232,6 +235,310 @@ pub fn cross_validate(backend: &dyn Backend, coll: &Collection, p: &CvParams) ->
         &valid,
         &|_, _| {},
     )?)
+}
+
+// ---------------------------------------------------------------------------------------
+// What a host in another language needs beyond the stages above (the Python bindings in
+// `python/`): the command line's `tabulate` and `select` as functions, a dense NNLS, and a
+// progress callback on the long stages.
+// ---------------------------------------------------------------------------------------
+
+pub use crate::backend::Progress;
+pub use crate::cluster::GcukParams;
+pub use crate::nnls::NnlsSolution;
+pub use crate::select::SelectOutput;
+
+/// A material's reflectance is not a finite f32 number in some valid cells.
+#[derive(Debug, thiserror::Error)]
+#[error("material `{material}` ({origin}): its reflectance is not a finite f32 number in {cells} valid cells ({cause})")]
+pub struct NotFiniteError {
+    /// The material.
+    pub material: String,
+    /// Where it came from.
+    pub origin: String,
+    /// Number of valid cells with a non-finite value.
+    pub cells: usize,
+    /// Why, in words: the parameters of an analytic material, or a network's output
+    /// overflowing.
+    pub cause: String,
+}
+
+/// Material `name` of `coll` on the full MERL grid, as `brdf-basis tabulate` writes it:
+/// `rgb[c * N_CELLS + cell]` (channel-major, [`crate::merl::grid::flat`] cell order),
+/// invalid cells `-1`. Analytic materials are tabulated on `backend`; measured ones are
+/// their table.
+///
+/// # Errors
+/// [`Error::Collection`] for an unknown name, [`Error::Backend`] for a failed pass,
+/// [`Error::NotFinite`] when the parameters overflow f32 in some valid cell.
+pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<Vec<f32>> {
+    use crate::collection::MaterialData;
+    use crate::merl::grid::{cell_info, N_CELLS};
+    let m = coll.get(name)?;
+    match &m.data {
+        MaterialData::Measured(t) => Ok(t.rgb.clone()),
+        MaterialData::Rgl(r) => Ok(r.table().rgb.clone()),
+        MaterialData::Analytic(_) | MaterialData::Neural(_) => {
+            let lobes: Vec<crate::backend::Lobe> = (0..3)
+                .map(|c| crate::fit::channel_lobe(&m.data, c))
+                .collect();
+            let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+            let mut rgb = backend.tabulate(&lobes, &cells)?;
+            let mut overflow = 0usize;
+            for cell in 0..N_CELLS {
+                if !cell_info(cell).valid {
+                    for c in 0..3 {
+                        rgb[c * N_CELLS + cell] = -1.0;
+                    }
+                } else if (0..3).any(|c| !rgb[c * N_CELLS + cell].is_finite()) {
+                    overflow += 1;
+                }
+            }
+            if overflow > 0 {
+                return Err(Error::NotFinite(Box::new(NotFiniteError {
+                    material: crate::error::short_name(&m.name).to_string(),
+                    origin: m.origin.clone(),
+                    cells: overflow,
+                    cause: match m.analytic() {
+                        Some(a) => format!("parameters too large: n = {}, s = {:?}", a.n, a.s),
+                        None => "the network's output overflows f32".into(),
+                    },
+                })));
+            }
+            Ok(rgb)
+        }
+    }
+}
+
+/// Non-negative least squares `min |A x - b|` subject to `x >= 0` for a dense row-major
+/// `A` (`rows` x `cols`), by the crate's exact Lawson-Hanson solver on the Gram form
+/// (`G = A^T A`, `h = A^T b`, summed in f64).
+///
+/// # Errors
+/// [`Error::Nnls`] for mismatched lengths, non-finite entries or no column.
+pub fn nnls(a: &[f64], rows: usize, cols: usize, b: &[f64]) -> Result<NnlsSolution> {
+    use crate::nnls::NnlsError;
+    if a.len() != rows * cols {
+        return Err(NnlsError::DimensionMismatch {
+            what: "A",
+            expected: rows * cols,
+            found: a.len(),
+        }
+        .into());
+    }
+    if b.len() != rows {
+        return Err(NnlsError::DimensionMismatch {
+            what: "b",
+            expected: rows,
+            found: b.len(),
+        }
+        .into());
+    }
+    for (what, v, width) in [("A", a, cols.max(1)), ("b", b, 1)] {
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(NnlsError::NonFinite {
+                what,
+                row: i / width,
+                col: i % width,
+                value: v[i],
+            }
+            .into());
+        }
+    }
+    let mut g = vec![0f64; cols * cols];
+    let mut h = vec![0f64; cols];
+    for r in 0..rows {
+        let row = &a[r * cols..(r + 1) * cols];
+        for i in 0..cols {
+            h[i] += row[i] * b[r];
+            for j in 0..cols {
+                g[i * cols + j] += row[i] * row[j];
+            }
+        }
+    }
+    let bb: f64 = b.iter().map(|x| x * x).sum();
+    let problem = crate::nnls::GramProblem::new(cols, &g, &h, bb)?;
+    Ok(crate::nnls::lawson_hanson::solve(
+        &problem,
+        &crate::nnls::lawson_hanson::LhParams::default(),
+    )?)
+}
+
+/// A method of [`select`] with its settings (those of `brdf-basis select`).
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub enum SelectMethod {
+    /// The paper's Algorithm 1: materials contributing to more than `more_than` fits.
+    Empirical {
+        /// Threshold (the command line's `--more-than`).
+        more_than: usize,
+    },
+    /// Seeded k-medoids runs per k on the distance matrix.
+    KMedoids {
+        /// The basis sizes.
+        ks: Vec<usize>,
+        /// Runs per k (seeds `seed`, `seed + 1`, ...).
+        runs: usize,
+        /// FasterPAM or PAM.
+        algorithm: KMedoidsAlgorithm,
+    },
+    /// GCUK runs on the distance matrix.
+    Gcuk {
+        /// k range, population, generations.
+        params: GcukParams,
+        /// Runs (seeds `seed`, `seed + 1`, ...).
+        runs: usize,
+    },
+    /// Greedy forward selection by fitting error.
+    Greedy(SearchParams),
+    /// Swap refinement by fitting error.
+    Swap(SearchParams),
+    /// The genetic algorithm by fitting error (its seed is `GaParams::seed`).
+    Ga(SearchParams, GaParams),
+}
+
+/// What [`select`] runs: the method, the grid cells, the clustering metric and the seed.
+#[derive(Debug, Clone)]
+pub struct SelectRequest {
+    /// The method and its settings.
+    pub method: SelectMethod,
+    /// Distance of the clustering methods.
+    pub metric: Metric,
+    /// Grid cells.
+    pub mask: Mask,
+    /// Cell weights.
+    pub weighting: Weighting,
+    /// Grid sub-sampling stride (1 = full grid).
+    pub stride: usize,
+    /// Seed of the stochastic methods (the command line's `--seed`).
+    pub seed: u64,
+}
+
+/// Runs a basis selection as `brdf-basis select` does and returns what it writes
+/// ([`SelectOutput::to_json`] is the `--json` file). `progress(done, total)` is called
+/// from the working threads.
+///
+/// # Errors
+/// The parameters' errors before any work (k out of range, zero runs, ...), then the
+/// stages' errors.
+pub fn select(
+    backend: &dyn Backend,
+    coll: &Collection,
+    req: &SelectRequest,
+    progress: Progress<'_>,
+) -> Result<SelectOutput> {
+    use crate::cluster::ClusterError;
+    use crate::select::output::ErrorDrivenOutput;
+    use crate::select::runs::{gcuk_runs, kmedoids_runs, named_runs};
+    let fingerprint = Some(coll.fingerprint());
+    let n = coll.len();
+    let objective_of = || {
+        ObjectiveParams::default()
+            .mask(req.mask)
+            .weighting(req.weighting)
+            .stride(req.stride)
+            .check()
+    };
+    let error_driven =
+        |sp: &SearchParams,
+         run: &dyn Fn(&Objective, &crate::select::ValidSearchParams) -> Result<Selection>|
+         -> Result<SelectOutput> {
+            let vsp = sp.check(&coll.names())?;
+            let obj = Objective::new(backend, coll, &objective_of()?, progress)?;
+            Ok(SelectOutput::ErrorDriven(ErrorDrivenOutput {
+                selection: run(&obj, &vsp)?,
+                collection_fingerprint: fingerprint.clone(),
+            }))
+        };
+    let matrix = || -> Result<DistanceMatrix> {
+        let dp = DistanceParams::default()
+            .metric(req.metric)
+            .mask(req.mask)
+            .weighting(req.weighting)
+            .stride(req.stride)
+            .check(coll)?;
+        Ok(crate::distance::distance_matrix(
+            backend, coll, &dp, progress,
+        )?)
+    };
+    let metric = req.metric.to_string();
+    match &req.method {
+        SelectMethod::Empirical { more_than } => {
+            let p = EmpiricalParams {
+                fit: FitParams {
+                    mask: req.mask,
+                    weighting: req.weighting,
+                    stride: req.stride,
+                    ..Default::default()
+                },
+                more_than: *more_than,
+            };
+            let e = crate::select::empirical(backend, coll, &p, progress)?;
+            Ok(SelectOutput::Empirical(
+                crate::select::EmpiricalOutput::new(&e, *more_than, fingerprint)?,
+            ))
+        }
+        SelectMethod::KMedoids {
+            ks,
+            runs,
+            algorithm,
+        } => {
+            if *runs == 0 {
+                return Err(ClusterError::ZeroRuns.into());
+            }
+            for &k in ks {
+                KMedoidsParams::new(k).algorithm(*algorithm).check()?;
+                if k > n {
+                    return Err(ClusterError::KOutOfRange { k, n }.into());
+                }
+            }
+            let d = matrix()?;
+            let r = kmedoids_runs(&d, ks, *runs, req.seed, *algorithm, progress)?;
+            Ok(SelectOutput::Clustering(
+                crate::select::ClusteringOutput::new(
+                    "kmedoids",
+                    Some(algorithm.to_string()),
+                    &metric,
+                    named_runs(&d, &r)?,
+                    fingerprint,
+                )?,
+            ))
+        }
+        SelectMethod::Gcuk { params, runs } => {
+            if *runs == 0 {
+                return Err(ClusterError::ZeroRuns.into());
+            }
+            let vp = params.check()?;
+            if params.k_max > n {
+                return Err(ClusterError::KMaxTooLarge {
+                    k_max: params.k_max,
+                    n,
+                }
+                .into());
+            }
+            let d = matrix()?;
+            let r = gcuk_runs(&d, &vp, *runs, req.seed, progress)?;
+            Ok(SelectOutput::Clustering(
+                crate::select::ClusteringOutput::new(
+                    "gcuk",
+                    None,
+                    &metric,
+                    named_runs(&d, &r)?,
+                    fingerprint,
+                )?,
+            ))
+        }
+        SelectMethod::Greedy(sp) => {
+            error_driven(sp, &|o, v| Ok(crate::select::greedy(o, v, progress)?))
+        }
+        SelectMethod::Swap(sp) => {
+            error_driven(sp, &|o, v| Ok(crate::select::swap(o, v, progress)?))
+        }
+        SelectMethod::Ga(sp, gp) => {
+            let vgp = gp.check()?;
+            error_driven(sp, &|o, v| Ok(crate::select::ga(o, v, &vgp, progress)?))
+        }
+    }
 }
 
 #[cfg(test)]

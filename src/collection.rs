@@ -1,9 +1,12 @@
 //! Collections: ordered lists of uniquely named materials, analytic (Ashikhmin-Shirley
-//! rows of a CSV, SPEC 1) or measured (MERL `.binary` tables, SPEC 2).
+//! rows of a CSV, SPEC 1), measured (MERL `.binary` tables, SPEC 2) or neural (NBRDF
+//! sets of six float32 `.npy` files, SPEC 9).
 
-use crate::brdf::AshikhminShirley;
+use crate::brdf::nbrdf::NBRDF_PARTS;
+use crate::brdf::{AshikhminShirley, Nbrdf, NBRDF_WEIGHTS};
 use crate::error::CollectionError;
 use crate::merl::{read_binary, MerlTable};
+use crate::rgl::RglMaterial;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -25,6 +28,41 @@ pub enum MaterialData {
     Analytic(AshikhminShirley),
     /// A measured table on the MERL grid.
     Measured(Arc<MerlTable>),
+    /// An RGL-EPFL measured file: its exact evaluation and its table on the MERL grid.
+    Rgl(Arc<RglMaterial>),
+    /// A neural BRDF (SPEC 9).
+    Neural(Arc<Nbrdf>),
+}
+
+impl MaterialData {
+    /// The kind, as `info` prints it: `analytic`, `MERL table`, `neural`, `RGL-EPFL`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            MaterialData::Analytic(_) => "analytic",
+            MaterialData::Measured(_) => "MERL table",
+            MaterialData::Neural(_) => "neural",
+            MaterialData::Rgl(_) => "RGL-EPFL",
+        }
+    }
+
+    /// RGB reflectance at a direction pair (unit vectors in the local frame, SPEC 9):
+    /// analytic and neural materials exactly, RGL files by their own evaluation, MERL tables at the cell of the MERL lookup
+    /// (`None` when that cell is invalid in the table). Below the horizon: 0.
+    pub fn eval_dirs(&self, wi: [f64; 3], wo: [f64; 3]) -> Option<[f64; 3]> {
+        if wi[2] <= 0.0 || wo[2] <= 0.0 {
+            return Some([0.0; 3]);
+        }
+        match self {
+            MaterialData::Analytic(a) => Some(a.eval(wi, wo)),
+            MaterialData::Neural(n) => Some(n.eval_dirs(wi, wo)),
+            MaterialData::Rgl(r) => Some(r.eval_dirs(wi, wo)),
+            MaterialData::Measured(t) => {
+                let cell = crate::merl::grid::lookup(wi, wo);
+                t.is_valid(cell)
+                    .then(|| [0, 1, 2].map(|c| t.value(c, cell) as f64))
+            }
+        }
+    }
 }
 
 /// One named material.
@@ -43,7 +81,7 @@ impl Material {
     pub fn analytic(&self) -> Option<&AshikhminShirley> {
         match &self.data {
             MaterialData::Analytic(a) => Some(a),
-            MaterialData::Measured(_) => None,
+            MaterialData::Measured(_) | MaterialData::Rgl(_) | MaterialData::Neural(_) => None,
         }
     }
 }
@@ -122,24 +160,11 @@ impl Collection {
         // a device): directories are listed, regular files read, anything else refused.
         let meta = std::fs::metadata(path).map_err(io)?;
         if meta.is_dir() {
-            let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-                .map_err(io)?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "binary"))
-                .collect();
-            files.sort();
-            if files.is_empty() {
-                return Err(CollectionError::EmptyDir {
-                    path: path.to_path_buf(),
-                });
-            }
-            for f in files {
-                self.push_measured(&f)?;
-            }
-            return Ok(());
+            return self.extend_from_dir(path);
         }
         match path.extension().and_then(|e| e.to_str()) {
             Some("binary") => self.push_measured(path),
+            Some("bsdf") => self.push_rgl(path),
             Some("csv") => {
                 let bytes = read_regular(path, MAX_CSV_BYTES)?;
                 let parsed = parse_csv(&bytes, path)?;
@@ -154,12 +179,82 @@ impl Collection {
         }
     }
 
-    fn push_measured(&mut self, f: &Path) -> Result<(), CollectionError> {
-        let table = read_binary(f)?;
-        let name = f
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
+    /// A directory: its `.binary` and `.bsdf` files and NBRDF sets (`NAME_fc1.npy` ... `NAME_b3.npy`),
+    /// all sorted by material name; other files are ignored, except a `.npy` that is not
+    /// part of a set (an error naming it).
+    fn extend_from_dir(&mut self, path: &Path) -> Result<(), CollectionError> {
+        let io = |source| CollectionError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+            .map_err(io)?
+            .map(|e| e.map(|e| e.path()).map_err(io))
+            .collect::<Result<_, _>>()?;
+        files.sort();
+        // (material name, what it is): a `.binary` file or the first file of an NBRDF set.
+        enum Entry {
+            Binary(PathBuf),
+            Rgl(PathBuf),
+            Neural(PathBuf),
+        }
+        let mut entries: Vec<(String, Entry)> = Vec::new();
+        let mut sets: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
+        for f in files {
+            match f.extension().and_then(|e| e.to_str()) {
+                Some("binary") => entries.push((stem(&f), Entry::Binary(f))),
+                Some("bsdf") => entries.push((stem(&f), Entry::Rgl(f))),
+                Some("npy") => {
+                    let st = stem(&f);
+                    let name = NBRDF_PARTS.iter().find_map(|(part, _, _)| {
+                        st.strip_suffix(part)?
+                            .strip_suffix('_')
+                            .filter(|n| !n.is_empty())
+                    });
+                    match name {
+                        Some(n) => sets.entry(n.to_string()).or_default().push(f),
+                        None => {
+                            return Err(CollectionError::Neural {
+                                path: f,
+                                message: "a .npy file that is not part of a neural BRDF set (a set is NAME_fc1.npy, NAME_b1.npy, NAME_fc2.npy, NAME_b2.npy, NAME_fc3.npy and NAME_b3.npy)".into(),
+                            })
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        for (name, files) in sets {
+            entries.push((name, Entry::Neural(files[0].clone())));
+        }
+        if entries.is_empty() {
+            return Err(CollectionError::EmptyDir {
+                path: path.to_path_buf(),
+            });
+        }
+        entries.sort_by(|a, b| a.0.cmp(&b.0));
+        for (name, e) in entries {
+            match e {
+                Entry::Binary(f) => self.push_measured(&f)?,
+                Entry::Rgl(f) => self.push_rgl(&f)?,
+                Entry::Neural(f) => {
+                    let dir = f.parent().unwrap_or(path);
+                    let net = read_nbrdf_set(dir, &name)?;
+                    let origin = dir.join(format!("{name}_*.npy"));
+                    self.push_named(name, MaterialData::Neural(Arc::new(net)), &origin)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Appends a material read from `f` (a file, or a set's pattern), its name checked.
+    fn push_named(
+        &mut self,
+        name: String,
+        data: MaterialData,
+        f: &Path,
+    ) -> Result<(), CollectionError> {
         check_name(&name).map_err(|message| CollectionError::BadName {
             path: f.to_path_buf(),
             name: name.clone(),
@@ -168,12 +263,30 @@ impl Collection {
         self.push(
             Material {
                 name,
-                data: MaterialData::Measured(Arc::new(table)),
+                data,
                 origin: f.display().to_string(),
             },
             f,
             0,
         )
+    }
+
+    fn push_measured(&mut self, f: &Path) -> Result<(), CollectionError> {
+        let table = read_binary(f)?;
+        self.push_file(f, MaterialData::Measured(Arc::new(table)))
+    }
+
+    /// An RGL-EPFL `.bsdf` file, named by its stem (tabulated on the grid as it loads).
+    fn push_rgl(&mut self, f: &Path) -> Result<(), CollectionError> {
+        // The name first: a bad name is found before the tabulation's work.
+        file_name(f)?;
+        let m = RglMaterial::load(f)?;
+        self.push_file(f, MaterialData::Rgl(Arc::new(m)))
+    }
+
+    /// Appends the material read from the file `f`, named by its stem.
+    fn push_file(&mut self, f: &Path, data: MaterialData) -> Result<(), CollectionError> {
+        self.push_named(stem(f), data, f)
     }
 
     /// Materials in order.
@@ -215,6 +328,22 @@ impl Collection {
         Ok(&self.materials[self.index_of(name)?])
     }
 
+    /// Materials per kind ([`MaterialData::kind`]), in the order analytic, MERL table,
+    /// neural, RGL-EPFL; kinds the collection does not hold are left out.
+    pub fn kind_counts(&self) -> Vec<(&'static str, usize)> {
+        let mut out: Vec<(&'static str, usize)> = Vec::new();
+        for m in &self.materials {
+            let k = m.data.kind();
+            match out.iter_mut().find(|(x, _)| *x == k) {
+                Some((_, n)) => *n += 1,
+                None => out.push((k, 1)),
+            }
+        }
+        let order = ["analytic", "MERL table", "neural", "RGL-EPFL"];
+        out.sort_by_key(|(k, _)| order.iter().position(|o| o == k).unwrap_or(order.len()));
+        out
+    }
+
     /// Whether every material is analytic.
     pub fn all_analytic(&self) -> bool {
         self.materials.iter().all(|m| m.analytic().is_some())
@@ -237,6 +366,14 @@ impl Collection {
                 MaterialData::Measured(t) => {
                     h.write(b"M");
                     h.write_f32s(&t.rgb);
+                }
+                MaterialData::Rgl(t) => {
+                    h.write(b"R");
+                    h.write_f32s(&t.table().rgb);
+                }
+                MaterialData::Neural(n) => {
+                    h.write(b"N");
+                    h.write_f32s(n.weights());
                 }
             }
         }
@@ -268,6 +405,70 @@ impl Collection {
             .map(|(_, n)| n.to_string())
             .collect()
     }
+}
+
+/// The material name of a measured file: its stem, checked.
+fn file_name(f: &Path) -> Result<String, CollectionError> {
+    let name = stem(f);
+    check_name(&name).map_err(|message| CollectionError::BadName {
+        path: f.to_path_buf(),
+        name: name.clone(),
+        message,
+    })?;
+    Ok(name)
+}
+
+/// The file stem of `f` (a material name), lossily as text.
+fn stem(f: &Path) -> String {
+    f.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// Reads the NBRDF set `NAME_fc1.npy` ... `NAME_b3.npy` of material `name` in `dir`
+/// (SPEC 9): each file a float32 array of its exact shape, every value finite. Any other
+/// file, shape or value is an error naming the file.
+pub fn read_nbrdf_set(dir: &Path, name: &str) -> Result<Nbrdf, CollectionError> {
+    let mut flat = Vec::with_capacity(NBRDF_WEIGHTS);
+    for (part, shape, offset) in NBRDF_PARTS {
+        let f = dir.join(format!("{name}_{part}.npy"));
+        let err = |message: String| CollectionError::Neural {
+            path: f.clone(),
+            message,
+        };
+        if !f.exists() {
+            return Err(err(format!(
+                "missing: the neural BRDF `{}` needs all six files {name}_fc1.npy, _b1, _fc2, _b2, _fc3 and _b3.npy",
+                crate::error::short_name(name)
+            )));
+        }
+        let a = crate::npy_format::read_npy_f32(&f, 4096).map_err(err)?;
+        let want = |s: &[usize]| {
+            s.iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join(" x ")
+        };
+        if a.shape != shape {
+            return Err(err(format!(
+                "shape {} where `{part}` of a neural BRDF is {}",
+                want(&a.shape),
+                want(shape)
+            )));
+        }
+        if let Some(i) = a.data.iter().position(|v| !v.is_finite()) {
+            return Err(err(format!(
+                "value {i} is not a finite number ({})",
+                a.data[i]
+            )));
+        }
+        debug_assert_eq!(flat.len(), offset);
+        flat.extend_from_slice(&a.data);
+    }
+    Nbrdf::from_weights(flat).map_err(|message| CollectionError::Neural {
+        path: dir.join(format!("{name}_*.npy")),
+        message,
+    })
 }
 
 /// Largest analytic CSV read (a table of 10,000 materials is about 1 MB).
@@ -462,7 +663,8 @@ impl crate::merl::CellSet {
             .iter()
             .filter_map(|m| match &m.data {
                 MaterialData::Measured(t) => Some(t.as_ref()),
-                MaterialData::Analytic(_) => None,
+                MaterialData::Rgl(t) => Some(t.table().as_ref()),
+                MaterialData::Analytic(_) | MaterialData::Neural(_) => None,
             })
             .collect();
         if !tables.is_empty() {

@@ -122,8 +122,11 @@ pub enum CollectionError {
     /// A measured file could not be read.
     #[error(transparent)]
     Merl(#[from] MerlError),
-    /// A directory given as a collection holds no `.binary` file.
-    #[error("{path}: a directory with no MERL .binary file in it (a collection is an analytic .csv file, a .binary file or a directory of .binary files)")]
+    /// An RGL-EPFL `.bsdf` file could not be read.
+    #[error(transparent)]
+    Rgl(#[from] RglError),
+    /// A directory given as a collection holds no material file.
+    #[error("{path}: a directory with no material in it (a collection is an analytic .csv file, a MERL .binary file, an RGL-EPFL .bsdf file, or a directory of .binary and .bsdf files and neural BRDF sets NAME_fc1.npy ... NAME_b3.npy)")]
     EmptyDir {
         /// The directory.
         path: PathBuf,
@@ -156,6 +159,15 @@ pub enum CollectionError {
         /// What is wrong.
         message: String,
     },
+    /// A file of a neural BRDF set is missing, unreadable, misshapen or holds a
+    /// non-finite value, or a `.npy` file belongs to no set.
+    #[error("{path}: {message}")]
+    Neural {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// The same collection file or directory is given twice.
     #[error("{path}: this collection is given twice")]
     GivenTwice {
@@ -185,6 +197,168 @@ fn suggest(s: &[String]) -> String {
                 .join(", ")
         )
     }
+}
+
+/// Errors reading RGL-EPFL `.bsdf` files (the `tensor_file` container and its fields).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RglError {
+    /// I/O failure.
+    #[error("{path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The path is a FIFO, a device, a directory or another non-regular file.
+    #[error("{path}: is {kind}, not a regular RGL-EPFL .bsdf file")]
+    NotRegular {
+        /// The path.
+        path: PathBuf,
+        /// What it is.
+        kind: &'static str,
+    },
+    /// The file is larger than any `.bsdf` file read.
+    #[error("{path}: {bytes} bytes, larger than the {max} bytes accepted for a .bsdf file")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+        /// The limit.
+        max: u64,
+    },
+    /// The file does not start with `tensor_file\0`.
+    #[error("{path}: not an RGL-EPFL .bsdf file (it does not start with the magic bytes `tensor_file\\0` of Mitsuba's tensor_file container)")]
+    Magic {
+        /// File.
+        path: PathBuf,
+    },
+    /// The container's major version is not 1.
+    #[error("{path}: tensor_file version {major}.{minor}; only version 1.x is read")]
+    Version {
+        /// File.
+        path: PathBuf,
+        /// Major version found.
+        major: u8,
+        /// Minor version found.
+        minor: u8,
+    },
+    /// The header ends before a value it must hold.
+    #[error("{path}: truncated: the header ends before {what} (it needs {needed} bytes, the file has {len})")]
+    Truncated {
+        /// File.
+        path: PathBuf,
+        /// What is missing, in words.
+        what: String,
+        /// Bytes the header needs up to the end of the missing value.
+        needed: u64,
+        /// Bytes in the file.
+        len: u64,
+    },
+    /// A field's dtype code is not one of the container's types.
+    #[error("{path}: field `{}`: unknown dtype code {code} (float32 is 10, uint8 is 1)", .field.escape_debug())]
+    UnknownDtype {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: String,
+        /// The code found.
+        code: u8,
+    },
+    /// A field's element count or byte size does not fit in 64 bits.
+    #[error("{path}: field `{}`: shape {shape:?} overflows (its size in bytes does not fit in 64 bits)", .field.escape_debug())]
+    Overflow {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: String,
+        /// The shape.
+        shape: Vec<u64>,
+    },
+    /// A field's data runs past the end of the file.
+    #[error("{path}: field `{}`: its data ({size} bytes at offset {offset}) runs past the end of the file ({len} bytes): truncated file or wrong shape", .field.escape_debug())]
+    PastEnd {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: String,
+        /// Offset of the data.
+        offset: u64,
+        /// Size of the data in bytes.
+        size: u64,
+        /// Bytes in the file.
+        len: u64,
+    },
+    /// Two fields share a name.
+    #[error("{path}: field `{}` appears twice", .field.escape_debug())]
+    DuplicateField {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: String,
+    },
+    /// A field the evaluation needs is absent.
+    #[error("{path}: missing field `{field}` (an RGL-EPFL measured BSDF has description, phi_i, theta_i, sigma, ndf, vndf, luminance, rgb and jacobian)")]
+    MissingField {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: &'static str,
+    },
+    /// A field has the wrong element type.
+    #[error("{path}: field `{field}` is {found}, expected {expected}")]
+    WrongDtype {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: &'static str,
+        /// Type expected.
+        expected: &'static str,
+        /// Type found.
+        found: &'static str,
+    },
+    /// A field's shape disagrees with the format or with the other fields.
+    #[error("{path}: field `{field}` has shape {found:?}, expected {expected}")]
+    Shape {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: &'static str,
+        /// The shape expected, in words.
+        expected: String,
+        /// The shape found.
+        found: Vec<u64>,
+    },
+    /// A value is not finite or out of its range.
+    #[error("{path}: field `{field}`, value {index}: {value:e}: {message}")]
+    BadValue {
+        /// File.
+        path: PathBuf,
+        /// Field name.
+        field: &'static str,
+        /// 0-based index of the value in the field (last dimension fastest).
+        index: u64,
+        /// The value.
+        value: f64,
+        /// What is wrong.
+        message: String,
+    },
+    /// An anisotropic file (more than one `phi_i` slice).
+    #[error("{path}: anisotropic material ({count} phi_i slices): only isotropic RGL-EPFL files (one phi_i slice) are supported for now")]
+    Anisotropic {
+        /// File.
+        path: PathBuf,
+        /// Number of `phi_i` entries.
+        count: u64,
+    },
+    /// A spectral file without an `rgb` table.
+    #[error("{path}: spectral-only file (a `spectra` field and no `rgb` field): only the RGB files of the RGL-EPFL database (`*_rgb.bsdf`) are supported for now")]
+    SpectralOnly {
+        /// File.
+        path: PathBuf,
+    },
 }
 
 /// Errors reading or writing MERL `.binary` files.

@@ -58,6 +58,7 @@ pub use pollster;
 /// The wgpu this crate is built against (hand [`gpu_backend`] a device from it).
 pub use wgpu;
 
+pub mod acquire;
 pub mod atomic;
 pub mod backend;
 pub mod brdf;
@@ -72,8 +73,10 @@ pub mod hash;
 pub mod io;
 pub mod merl;
 pub mod nnls;
+pub mod npy_format;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod rgl;
 pub mod select;
 pub mod separable;
 pub mod stats;

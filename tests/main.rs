@@ -7,6 +7,7 @@
 
 mod common;
 
+mod acquisition;
 mod cli;
 mod collection;
 mod determinism;
@@ -23,9 +24,11 @@ mod integrity;
 mod kmedoids;
 mod leftovers;
 mod measured;
+mod nbrdf;
 mod nbrdf_gpu;
 mod outputs;
 mod reproduce;
+mod rgl;
 mod saved_matrix;
 mod select_defects;
 mod selection;

@@ -25,9 +25,19 @@
 //! `a x b + c` into a fused multiply-add (SPIR-V allows it): its sums then differ in the
 //! last bits of some cells' values (~1e-8 relative on BRDF_it), which the clustering's
 //! tie margin (`cluster::TIE_TOLERANCE`, 1e-6) absorbs.
+//!
+//! # Neural lobes
+//!
+//! A neural lobe ([`Lobe::Neural`]) is evaluated per chunk of cells by the f32 twin of its
+//! network ([`crate::brdf::Nbrdf::eval_cells`]), never stored as a whole table: the
+//! lobes of one network (its three channels, or the mean) share one evaluation per chunk
+//! ([`fill_rows`]). A row value is the chosen channel (or the f64 mean of the three) times
+//! the row scale in f64, rounded once to f32, like a measured row; the GPU back-end packs
+//! the rows [`fill_rows`] gives, so the reductions agree bit for bit.
 
 use super::blocks::{add_block, PairOp, BLOCK};
 use super::{Backend, Lobe, LobeParams, Progress};
+use crate::brdf::Nbrdf;
 use crate::error::BackendError;
 use crate::merl::grid::{unflat, N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
@@ -186,6 +196,17 @@ impl CpuBackend {
                 .iter()
                 .map(|&c| lobe.eval_f64(t, c as usize))
                 .collect(),
+            // The tabulated lobe (the f32 twin, within SPEC 9's accuracy of the f64
+            // network, `Lobe::eval_f64`): the values every reduction runs over.
+            Lobe::Neural { .. } => {
+                let mut out = vec![0f32; cells.len()];
+                self.install(|| {
+                    out.par_chunks_mut(1 << 14)
+                        .zip(cells.par_chunks(1 << 14))
+                        .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o))
+                });
+                out.into_iter().map(f64::from).collect()
+            }
         }
     }
 
@@ -213,8 +234,103 @@ impl CpuBackend {
                     *o = (scale.map_or(1.0, |s| s[c]) * lobe.eval_f64(t, cell as usize)) as f32;
                 }
             }
+            Lobe::Neural { net, channel } => {
+                let mut rows = [(*channel, &mut out[..cells.len()])];
+                neural_rows(net, cells, scale, &mut rows);
+            }
         }
     }
+}
+
+/// The rows of one network's lobes at `cells`: each `(channel, row)` gets the channel
+/// (`None`: the f64 mean of R, G, B) times `scale[c]`, rounded once to f32. The network
+/// runs once per [`NEURAL_RUN`] cells for all of them.
+fn neural_rows(
+    net: &Nbrdf,
+    cells: &[u32],
+    scale: Option<&[f64]>,
+    rows: &mut [(Option<usize>, &mut [f32])],
+) {
+    let run = NEURAL_RUN.min(cells.len());
+    let (mut r, mut g, mut b) = (vec![0f32; run], vec![0f32; run], vec![0f32; run]);
+    for (start, cc) in (0..cells.len())
+        .step_by(NEURAL_RUN)
+        .zip(cells.chunks(NEURAL_RUN))
+    {
+        let len = cc.len();
+        net.eval_cells(cc, true, [&mut r[..len], &mut g[..len], &mut b[..len]]);
+        let ch: [&[f32]; 3] = [&r[..len], &g[..len], &b[..len]];
+        for (channel, row) in rows.iter_mut() {
+            let row = &mut row[start..start + len];
+            match *channel {
+                Some(c) => {
+                    for (k, (o, &v)) in row.iter_mut().zip(ch[c]).enumerate() {
+                        *o = (scale.map_or(1.0, |s| s[start + k]) * v as f64) as f32;
+                    }
+                }
+                None => {
+                    for (k, o) in row.iter_mut().enumerate() {
+                        let v = (ch[0][k] as f64 + ch[1][k] as f64 + ch[2][k] as f64) / 3.0;
+                        *o = (scale.map_or(1.0, |s| s[start + k]) * v) as f32;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Cells a network is run over at once in [`neural_rows`] (its RGB stays in L1).
+const NEURAL_RUN: usize = 1024;
+
+/// Fills the rows of non-analytic lobes at `cells`, each value times `scale[c]` (if
+/// given), rounded once to f32: `rows` pairs a lobe with its output row (`cells.len()`
+/// values). The lobes of one network share one evaluation; rayon runs the networks (and
+/// measured rows) in parallel. Analytic lobes are refused (they have their own paths).
+/// The CPU back-end and the GPU back-end's host packing both fill measured and neural
+/// rows with this, so their values agree bit for bit.
+pub fn fill_rows(
+    rows: Vec<(&Lobe, &mut [f32])>,
+    cells: &[u32],
+    scale: Option<&[f64]>,
+) -> Result<(), BackendError> {
+    let tables = &GridTables::new();
+    type NetRows<'a, 'b> = (&'a Nbrdf, Vec<(Option<usize>, &'b mut [f32])>);
+    let mut nets: Vec<NetRows> = Vec::new();
+    let mut tables_rows: Vec<(&Lobe, &mut [f32])> = Vec::new();
+    for (lobe, row) in rows {
+        if row.len() != cells.len() {
+            return Err(BackendError::Invalid(format!(
+                "fill_rows: a row of {} values for {} cells",
+                row.len(),
+                cells.len()
+            )));
+        }
+        match lobe {
+            Lobe::Analytic(_) => {
+                return Err(BackendError::Invalid(
+                    "fill_rows: analytic lobes are tabulated from their parameters".into(),
+                ))
+            }
+            Lobe::Measured { .. } => tables_rows.push((lobe, row)),
+            Lobe::Neural { net, channel } => {
+                match nets
+                    .iter_mut()
+                    .find(|(n, _)| std::ptr::eq(*n, net.as_ref()))
+                {
+                    Some((_, v)) => v.push((*channel, row)),
+                    None => nets.push((net.as_ref(), vec![(*channel, row)])),
+                }
+            }
+        }
+    }
+    tables_rows.into_par_iter().for_each(|(lobe, row)| {
+        for (c, (&cell, o)) in cells.iter().zip(row.iter_mut()).enumerate() {
+            *o = (scale.map_or(1.0, |s| s[c]) * lobe.eval_f64(tables, cell as usize)) as f32;
+        }
+    });
+    nets.into_par_iter()
+        .for_each(|(net, mut rows)| neural_rows(net, cells, scale, &mut rows));
+    Ok(())
 }
 
 /// `op` of one cell into a lane sum, as the GPU kernel does it (products rounded: no fma).
@@ -433,15 +549,32 @@ impl Backend for CpuBackend {
         if cells.is_empty() {
             return Ok(out);
         }
+        let n = cells.len();
         self.install(|| {
-            out.par_chunks_mut(cells.len())
-                .zip(lobes.par_iter())
-                .for_each(|(row, lobe)| {
-                    row.par_chunks_mut(1 << 16)
-                        .zip(cells.par_chunks(1 << 16))
-                        .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o));
-                })
-        });
+            let (analytic, other): (Vec<_>, Vec<_>) = out
+                .chunks_mut(n)
+                .zip(lobes)
+                .map(|(row, lobe)| (lobe, row))
+                .partition(|(lobe, _)| lobe.is_analytic());
+            analytic.into_par_iter().for_each(|(lobe, row)| {
+                row.par_chunks_mut(1 << 16)
+                    .zip(cells.par_chunks(1 << 16))
+                    .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o));
+            });
+            // Measured and neural rows per run of cells, the lobes of one network sharing
+            // its evaluation.
+            const RUN: usize = 1 << 14;
+            let mut runs: Vec<Vec<(&Lobe, &mut [f32])>> =
+                (0..n.div_ceil(RUN)).map(|_| Vec::new()).collect();
+            for (lobe, row) in other {
+                for (run, part) in runs.iter_mut().zip(row.chunks_mut(RUN)) {
+                    run.push((lobe, part));
+                }
+            }
+            runs.into_par_iter()
+                .zip(cells.par_chunks(RUN))
+                .try_for_each(|(rows, cc)| fill_rows(rows, cc, None))
+        })?;
         Ok(out)
     }
 
@@ -468,7 +601,7 @@ impl Backend for CpuBackend {
                         let sp = SeparableLobe::new(&self.tables, p);
                         Some((sp.alpha as f32, sp.beta.iter().map(|&b| b as f32).collect()))
                     }
-                    Lobe::Measured { .. } => None,
+                    Lobe::Measured { .. } | Lobe::Neural { .. } => None,
                 })
                 .collect()
         });
@@ -491,14 +624,21 @@ impl Backend for CpuBackend {
                     (e, (g * s) as f32, s as f32)
                 })
                 .collect();
-            self.install(|| {
-                buf[..n * len]
-                    .par_chunks_mut(len)
-                    .zip(lobes.par_iter().zip(&seps))
-                    .for_each(|(row, (lobe, sep))| match sep {
-                        Some((alpha, beta)) => fill_analytic(beta, *alpha, &factors, row),
-                        None => self.tabulate_into(lobe, cc, Some(&scale), row),
-                    });
+            self.install(|| -> Result<(), BackendError> {
+                let mut other: Vec<(&Lobe, &mut [f32])> = Vec::new();
+                let mut analytic = Vec::new();
+                for (row, (lobe, sep)) in
+                    buf[..n * len].chunks_mut(len).zip(lobes.iter().zip(&seps))
+                {
+                    match sep {
+                        Some(sep) => analytic.push((sep, row)),
+                        None => other.push((lobe, row)),
+                    }
+                }
+                analytic
+                    .into_par_iter()
+                    .for_each(|((alpha, beta), row)| fill_analytic(beta, *alpha, &factors, row));
+                fill_rows(other, cc, Some(&scale))?;
                 buf[n * len..n_pad * len].fill(0.0);
                 let rows: Vec<&[f32]> = buf[..n_pad * len].chunks(len).collect();
                 sums.par_iter_mut()
@@ -508,7 +648,8 @@ impl Backend for CpuBackend {
                         let b = std::array::from_fn(|q| rows[bj as usize * BLOCK + q]);
                         block_reduce_same_len(op, a, b, acc);
                     });
-            });
+                Ok(())
+            })?;
             done += len as u64;
             progress(done, total);
         }

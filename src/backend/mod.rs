@@ -13,6 +13,7 @@ mod open;
 pub use blocks::{PairOp, BLOCK};
 pub use open::{open, BackendChoice};
 
+use crate::brdf::Nbrdf;
 use crate::error::BackendError;
 use crate::merl::{CellSet, MerlTable};
 use std::sync::Arc;
@@ -31,6 +32,14 @@ pub enum Lobe {
         /// `None`: mean over R, G, B; `Some(c)`: channel c.
         channel: Option<usize>,
     },
+    /// A neural BRDF (SPEC 9), evaluated per chunk of cells where needed (never stored
+    /// as a whole table): the mean of the three channels (`channel = None`) or one channel.
+    Neural {
+        /// The network.
+        net: Arc<Nbrdf>,
+        /// `None`: mean over R, G, B; `Some(c)`: channel c.
+        channel: Option<usize>,
+    },
 }
 
 impl Lobe {
@@ -46,7 +55,21 @@ impl Lobe {
                 Some(c) => table.value(*c, cell) as f64,
                 None => (0..3).map(|c| table.value(c, cell) as f64).sum::<f64>() / 3.0,
             },
+            Lobe::Neural { net, channel } => {
+                let (th, td, pd) = crate::merl::grid::cell_angles(cell);
+                let v = net.eval_f64(th, td, pd);
+                match channel {
+                    Some(c) => v[*c],
+                    None => v.iter().sum::<f64>() / 3.0,
+                }
+            }
         }
+    }
+
+    /// Whether the lobe is analytic (tabulated from its parameters; every other kind is
+    /// packed row by row per chunk of cells).
+    pub fn is_analytic(&self) -> bool {
+        matches!(self, Lobe::Analytic(_))
     }
 }
 

@@ -45,10 +45,18 @@ pub struct FitArgs {
     /// mapping material names to files.
     #[arg(long)]
     pub export: Option<PathBuf>,
+    /// Fit a new material from its measured samples (SPEC 10) instead of collection
+    /// materials: a CSV `theta_i,phi_i,theta_o,phi_o,r,g,b[,sigma | ,sigma_r,sigma_g,sigma_b]`
+    /// (degrees) or an ASTM E1392 `.astm` file; the target is named after the file's stem.
+    #[arg(long, conflicts_with_all = ["targets", "all_others"])]
+    pub samples: Option<PathBuf>,
 }
 
 /// Runs the fits.
 pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
+    if a.samples.is_some() {
+        return run_samples(g, a);
+    }
     // Output paths before the work: a typo costs no computation.
     let mut plan = OutputPlan::new(&a.collection);
     plan.file(&a.json, "--json")?;
@@ -239,4 +247,79 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
         files.push(f.to_string());
     }
     Some(files)
+}
+
+/// `fit --samples`: the material of a samples file fitted by the basis (SPEC 10), its
+/// JSON (the `fit` schema with `samples` and `fitted_from`; residual and MAE on the
+/// samples) and, with `--export`, the whole reconstruction as a MERL `.binary`.
+fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
+    use brdf_basis::acquire::{fit, plan, read_samples};
+    let path = a.samples.clone().expect("run_samples is called with --samples");
+    let mut out_plan = OutputPlan::new(&a.collection);
+    out_plan.file(&a.json, "--json")?;
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "samples".into());
+    let files = export_file_names(&[stem.as_str()]);
+    if let Some(dir) = &a.export {
+        plan_export(&mut out_plan, dir, &files)?;
+    }
+    let mut out = out_plan.into_set()?;
+    let coll = super::load_collection(&a.collection)?;
+    let basis: Vec<usize> = a
+        .basis
+        .iter()
+        .map(|n| coll.index_of(n.trim()))
+        .collect::<Result<_, _>>()?;
+    let samples = read_samples(&path)?;
+    let sf = fit::fit_samples(&coll, &basis, &samples)?;
+    let d = &sf.determination;
+    let more = d.columns.saturating_sub(d.rank.min(d.samples)).max(3);
+    let hint = if d.rank < d.columns || d.condition > fit::WARN_CONDITION {
+        plan::suggest(&coll, &basis, &samples, more, g.seed)?
+    } else {
+        String::new()
+    };
+    for w in fit::determination_warnings(d, fit::WARN_CONDITION, &hint) {
+        eprintln!("warning: {w}");
+    }
+    let p = FitParams {
+        mask: a.grid.mask,
+        weighting: a.grid.weighting,
+        stride: a.grid.stride,
+        solver: a.solver,
+        gram: a.gram,
+    };
+    let tf = sf.target_fit(&stem);
+    if let Some(dir) = &a.export {
+        let rgb = combination_grid(&coll, &basis, &tf);
+        out.stage(&dir.join(&files[0]), |w| write_binary_to(w, &rgb))?;
+        let index = export_index_csv(&[stem.as_str()], &files)?;
+        out.stage(&dir.join(EXPORT_INDEX), |w| w.write_all(&index))?;
+    }
+    let mut file = FitFile::new(&coll, &basis, std::slice::from_ref(&tf), &p);
+    file.samples = Some(samples.len());
+    file.fitted_from = Some(path.display().to_string());
+    let text = serde_json::to_string_pretty(&file)?;
+    out.stage(&a.json, |w| {
+        w.write_all(text.as_bytes())?;
+        w.write_all(b"\n")
+    })?;
+    out.commit()?;
+    println!(
+        "wrote {} ({} samples, rank {} of {}, condition number {}, relative residual on the samples {})",
+        a.json.display(),
+        samples.len(),
+        d.rank,
+        d.columns,
+        brdf_basis::stats::num(d.condition),
+        brdf_basis::stats::num(sf.relative_residual)
+    );
+    if let Some(dir) = &a.export {
+        for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
+            println!("wrote {}", dir.join(file).display());
+        }
+    }
+    Ok(())
 }

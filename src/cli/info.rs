@@ -8,11 +8,29 @@ use brdf_basis::backend::BackendChoice;
 
 /// Arguments of `info`.
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu")]
-pub struct InfoArgs {}
+#[command(
+    after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu\n  brdf-basis info ../shared/data/real/nbrdf/merl100"
+)]
+pub struct InfoArgs {
+    /// Collection(s) to describe (materials per kind); none: only the back-end.
+    pub collection: Vec<std::path::PathBuf>,
+}
 
 /// Prints the back-end, adapter, driver and limits.
-pub fn run(g: &Global, _a: InfoArgs) -> anyhow::Result<()> {
+pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
+    if !a.collection.is_empty() {
+        let coll = super::load_collection(&a.collection)?;
+        let kinds: Vec<String> = coll
+            .kind_counts()
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        println!(
+            "collection: {} materials ({})",
+            coll.len(),
+            kinds.join(", ")
+        );
+    }
     let gpu = if g.backend == BackendChoice::Cpu {
         None
     } else {

@@ -5,6 +5,7 @@ pub mod distance;
 pub mod fit;
 pub mod info;
 pub mod merge;
+pub mod plan;
 pub mod plot;
 pub mod render;
 pub mod reproduce;
@@ -93,6 +94,8 @@ pub enum Command {
     Cv(cv::CvArgs),
     /// Specular-lobe polar plots of a material and its fits (SVG or PNG).
     Plot(plot::PlotArgs),
+    /// Where to measure a new material: n direction pairs for a basis (SPEC 10).
+    Plan(plan::PlanArgs),
     /// Assemble the tiles of `distance --tile I/N` into the whole matrix.
     Merge(merge::MergeArgs),
 }
@@ -110,6 +113,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Cv(a) => cv::run(&cli.global, a),
         Command::Plot(a) => plot::run(&cli.global, a),
         Command::Merge(a) => merge::run(&cli.global, a),
+        Command::Plan(a) => plan::run(&cli.global, a),
     }
 }
 

@@ -1,12 +1,9 @@
 //! `brdf-basis tabulate`.
 
 use super::Global;
-use anyhow::Context;
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::backend::Lobe;
+use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::collection::MaterialData;
-use brdf_basis::fit::channel_lobe;
-use brdf_basis::merl::grid::{cell_info, N_CELLS};
 use brdf_basis::merl::write_binary_to;
 use std::path::PathBuf;
 
@@ -33,35 +30,17 @@ pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
     let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let m = coll.get(&a.material)?;
-    let mut rgb = vec![0f32; 3 * N_CELLS];
-    match &m.data {
-        MaterialData::Analytic(_) => {
-            let backend = super::backend(g)?;
-            let lobes: Vec<Lobe> = (0..3).map(|c| channel_lobe(&m.data, c)).collect();
-            let cells: Vec<u32> = (0..N_CELLS as u32).collect();
-            rgb = backend.tabulate(&lobes, &cells).context("tabulating")?;
-            let mut overflow = 0usize;
-            for cell in 0..N_CELLS {
-                if !cell_info(cell).valid {
-                    for c in 0..3 {
-                        rgb[c * N_CELLS + cell] = -1.0;
-                    }
-                } else if (0..3).any(|c| !rgb[c * N_CELLS + cell].is_finite()) {
-                    overflow += 1;
-                }
-            }
-            if overflow > 0 {
-                anyhow::bail!(
-                    "material `{}` ({}): its reflectance is not a finite f32 number in {overflow} valid cells (parameters too large: n = {}, s = {:?}); nothing written",
-                    brdf_basis::error::short_name(&m.name),
-                    m.origin,
-                    m.analytic().map_or(0.0, |p| p.n),
-                    m.analytic().map_or([0.0; 3], |p| p.s),
-                );
-            }
+    // Tables are copied as they are; only a material evaluated on the grid needs the
+    // back-end (a GPU is not opened for a copy).
+    let rgb = match &m.data {
+        MaterialData::Measured(_) | MaterialData::Rgl(_) => {
+            brdf_basis::tabulate(&CpuBackend::new(), &coll, &a.material)
         }
-        MaterialData::Measured(t) => rgb.copy_from_slice(&t.rgb),
+        MaterialData::Analytic(_) | MaterialData::Neural(_) => {
+            brdf_basis::tabulate(super::backend(g)?.as_ref(), &coll, &a.material)
+        }
     }
+    .map_err(|e| anyhow::anyhow!("{e}; nothing written"))?;
     out.stage(&a.out, |w| write_binary_to(w, &rgb))?;
     out.commit()?;
     println!(

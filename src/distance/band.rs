@@ -111,7 +111,9 @@ pub fn distance_band(
                 .iter()
                 .map(|m| match &m.data {
                     MaterialData::Analytic(a) => Ok((a.f0, a.n)),
-                    MaterialData::Measured(_) => Err(DistanceError::NoParameters(m.name.clone())),
+                    MaterialData::Measured(_) | MaterialData::Rgl(_) | MaterialData::Neural(_) => {
+                        Err(DistanceError::NoParameters(m.name.clone()))
+                    }
                 })
                 .collect::<Result<_, _>>()?;
             for i in block_rows(n, band_rows, rows.clone()) {

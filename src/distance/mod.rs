@@ -203,6 +203,14 @@ pub fn lobes(coll: &Collection, kind: LobeKind) -> Vec<Lobe> {
                 table: t.clone(),
                 channel: None,
             },
+            (MaterialData::Rgl(t), _) => Lobe::Measured {
+                table: t.table().clone(),
+                channel: None,
+            },
+            (MaterialData::Neural(net), _) => Lobe::Neural {
+                net: net.clone(),
+                channel: None,
+            },
         })
         .collect()
 }

@@ -1,5 +1,5 @@
 //! BRDF closures for rendering: an analytic material, a measured one (MERL lookup, SPEC
-//! 7), or a fitted combination `a0 / pi + sum_k a_k f_k`.
+//! 7), a neural one (its network at the direction pair, SPEC 9), or a fitted combination `a0 / pi + sum_k a_k f_k`.
 
 use crate::collection::{Collection, MaterialData};
 use crate::merl::grid::lookup;
@@ -27,6 +27,16 @@ pub fn material_brdf(m: &MaterialData) -> BrdfFn {
                 }
                 [0, 1, 2].map(|c| t.value(c, cell) as f64)
             })
+        }
+        // An RGL file is evaluated exactly at the pixel's directions (SPEC 9), with its
+        // table's convention: a negative measured value counts as 0.
+        MaterialData::Rgl(t) => {
+            let t = t.clone();
+            Box::new(move |wi, wo| t.eval_dirs(wi, wo).map(|v| v.max(0.0)))
+        }
+        MaterialData::Neural(n) => {
+            let n = n.clone();
+            Box::new(move |wi, wo| n.eval_dirs(wi, wo))
         }
     }
 }

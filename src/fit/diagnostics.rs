@@ -5,6 +5,7 @@
 use super::TargetFit;
 use crate::collection::Collection;
 use crate::error::short_name;
+use crate::stats::num;
 
 /// Relative residual above which a fit is reported as meaningless: the basis explains
 /// less than half of the target's weighted energy.
@@ -56,23 +57,61 @@ pub fn fit_warnings(
             let worst = albedo.iter().cloned().fold(0.0, f64::max);
             if worst > WARN_ALBEDO {
                 w.push(format!(
-                    "the fit of `{}` has a diffuse albedo of {worst:.3} (above 1: it reflects more light than it receives); the basis cannot represent it and its numbers mean little",
-                    short_name(&f.material)
+                    "the fit of `{}` has a diffuse albedo of {} (above 1: it reflects more light than it receives); the basis cannot represent it and its numbers mean little",
+                    short_name(&f.material), num(worst)
                 ));
                 continue;
             }
         }
         if f.relative_mae > WARN_RELATIVE_MAE {
             w.push(format!(
-                "the fit of `{}` is almost as far from it as a black material (relative MAE {:.2}, relative residual {:.2}): this basis cannot represent it",
-                short_name(&f.material), f.relative_mae, f.relative_residual
+                "the fit of `{}` is almost as far from it as a black material (relative MAE {}, relative residual {}): this basis cannot represent it",
+                short_name(&f.material), num(f.relative_mae), num(f.relative_residual)
             ));
         } else if f.relative_residual > WARN_RELATIVE_RESIDUAL {
             w.push(format!(
-                "the fit of `{}` explains little of it (relative residual {:.2}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
-                short_name(&f.material), f.relative_residual
+                "the fit of `{}` explains little of it (relative residual {}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
+                short_name(&f.material), num(f.relative_residual)
             ));
         }
     }
     w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn target(name: &str, relative_residual: f64, relative_mae: f64) -> TargetFit {
+        TargetFit {
+            material: name.into(),
+            coefficients: vec![[0.0; 3]; 2],
+            residual: [0.0; 3],
+            mae: 0.0,
+            relative_residual,
+            relative_mae,
+            kkt: [0.0; 3],
+            iterations: [0; 3],
+        }
+    }
+
+    #[test]
+    fn warnings_follow_the_thresholds_in_the_crate_number_format() {
+        let coll = Collection::embedded_default();
+        let names = coll.names();
+        let fits = [
+            target(&names[1], 0.1, 0.2),
+            target(&names[2], 0.61234, 0.3),
+            target(&names[3], 0.9, 0.812345),
+        ];
+        let w = fit_warnings(&coll, &[0], &[0, 1, 2, 3], &fits);
+        assert_eq!(w.len(), 3, "{w:?}");
+        assert!(w[0].contains("is in the basis"), "{}", w[0]);
+        assert!(w[1].contains("relative residual 0.6123;"), "{}", w[1]);
+        assert!(
+            w[2].contains("relative MAE 0.8123, relative residual 0.9000)"),
+            "{}",
+            w[2]
+        );
+    }
 }

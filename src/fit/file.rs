@@ -133,6 +133,13 @@ pub struct FitFile {
     pub mask: String,
     /// One entry per fitted target.
     pub targets: Vec<FitTarget>,
+    /// `fit --samples` (SPEC 10): the number of samples fitted (each target's `residual`
+    /// and `mae` are then on the samples); absent for a fit on the grid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub samples: Option<usize>,
+    /// `fit --samples`: the samples file fitted from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted_from: Option<String>,
 }
 
 impl FitTarget {
@@ -178,6 +185,8 @@ impl FitFile {
             basis: names,
             weighting: p.weighting.to_string(),
             mask: p.mask.to_string(),
+            samples: None,
+            fitted_from: None,
         }
     }
 

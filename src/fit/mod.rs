@@ -178,6 +178,14 @@ pub fn channel_lobe(m: &MaterialData, c: usize) -> Lobe {
             table: t.clone(),
             channel: Some(c),
         },
+        MaterialData::Rgl(t) => Lobe::Measured {
+            table: t.table().clone(),
+            channel: Some(c),
+        },
+        MaterialData::Neural(net) => Lobe::Neural {
+            net: net.clone(),
+            channel: Some(c),
+        },
     }
 }
 
@@ -209,7 +217,7 @@ pub fn separable_lobes(lobes: &[Lobe]) -> Option<Vec<SeparableLobe>> {
         .iter()
         .map(|l| match l {
             Lobe::Analytic(p) => Some(SeparableLobe::new(&t, p)),
-            Lobe::Measured { .. } => None,
+            Lobe::Measured { .. } | Lobe::Neural { .. } => None,
         })
         .collect()
 }
@@ -479,7 +487,7 @@ fn grid_errors(
                 .map(|(&ti, s)| {
                     let target = match channel_lobe(&coll.materials()[ti].data, c) {
                         Lobe::Analytic(tp) => SeparableLobe::new(&t, &tp),
-                        Lobe::Measured { .. } => {
+                        Lobe::Measured { .. } | Lobe::Neural { .. } => {
                             unreachable!("moments exist only when every material is analytic")
                         }
                     };

@@ -1,5 +1,6 @@
 //! NumPy `.npy` files of 2-D little-endian float64 arrays in C order: one writer, one
-//! reader, and a header parser that reads the header as what it is (a Python dict
+//! reader; a reader of small 1-D or 2-D float32 arrays (network weights,
+//! [`read_npy_f32`]); and one header parser that reads the header as what it is (a Python dict
 //! literal), so headers written by NumPy or other tools with other key orders, quotes or
 //! spacing, and format versions 1.0 to 3.0, are accepted.
 //!
@@ -12,6 +13,11 @@ use crate::error::OutputError;
 use crate::hash::{Hasher, HashingWriter};
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
+
+#[doc(hidden)]
+pub use crate::npy_format::npy_f32_bytes;
+use crate::npy_format::read_header_text;
+pub use crate::npy_format::{parse_header_dict, parse_header_f32, NpyF32};
 
 /// Size and checksum of a `.npy` file as written or read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -121,202 +127,6 @@ pub struct NpyHeader {
     pub data_offset: u64,
 }
 
-/// A value of the header's dict literal.
-#[derive(Debug, PartialEq)]
-enum PyValue {
-    Str(String),
-    Bool(bool),
-    Tuple(Vec<u64>),
-}
-
-/// A tiny parser of the Python literal NumPy writes as the header:
-/// `{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3), }`, with either quote,
-/// any spacing, keys in any order and an optional trailing comma.
-struct Literal<'a> {
-    s: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Literal<'a> {
-    fn skip_ws(&mut self) {
-        while self.at < self.s.len() && self.s[self.at].is_ascii_whitespace() {
-            self.at += 1;
-        }
-    }
-
-    fn peek(&mut self) -> Option<u8> {
-        self.skip_ws();
-        self.s.get(self.at).copied()
-    }
-
-    fn expect(&mut self, c: u8) -> Result<(), String> {
-        match self.peek() {
-            Some(x) if x == c => {
-                self.at += 1;
-                Ok(())
-            }
-            Some(x) => Err(format!(
-                "expected `{}` at character {}, found `{}`",
-                c as char, self.at, x as char
-            )),
-            None => Err(format!("expected `{}`, the header ends", c as char)),
-        }
-    }
-
-    fn string(&mut self) -> Result<String, String> {
-        let q = match self.peek() {
-            Some(q @ (b'\'' | b'"')) => q,
-            _ => return Err(format!("expected a quoted string at character {}", self.at)),
-        };
-        self.at += 1;
-        let start = self.at;
-        while self.at < self.s.len() && self.s[self.at] != q {
-            if self.s[self.at] == b'\\' {
-                return Err("escapes in header strings are not supported".into());
-            }
-            self.at += 1;
-        }
-        if self.at >= self.s.len() {
-            return Err("unterminated string".into());
-        }
-        let out = String::from_utf8_lossy(&self.s[start..self.at]).into_owned();
-        self.at += 1;
-        Ok(out)
-    }
-
-    fn word(&mut self) -> &'a [u8] {
-        self.skip_ws();
-        let start = self.at;
-        while self.at < self.s.len() && (self.s[self.at].is_ascii_alphanumeric()) {
-            self.at += 1;
-        }
-        &self.s[start..self.at]
-    }
-
-    fn tuple(&mut self) -> Result<Vec<u64>, String> {
-        self.expect(b'(')?;
-        let mut out = Vec::new();
-        loop {
-            if self.peek() == Some(b')') {
-                self.at += 1;
-                return Ok(out);
-            }
-            let w = self.word();
-            // NumPy may write `3L` (Python 2).
-            let digits = w.strip_suffix(b"L").unwrap_or(w);
-            let v = std::str::from_utf8(digits)
-                .ok()
-                .and_then(|d| d.parse::<u64>().ok())
-                .ok_or_else(|| {
-                    format!(
-                        "`{}` is not a dimension (a whole number)",
-                        String::from_utf8_lossy(w)
-                    )
-                })?;
-            out.push(v);
-            match self.peek() {
-                Some(b',') => self.at += 1,
-                Some(b')') => {}
-                _ => return Err("expected `,` or `)` in the shape".into()),
-            }
-        }
-    }
-
-    fn value(&mut self) -> Result<PyValue, String> {
-        match self.peek() {
-            Some(b'\'' | b'"') => Ok(PyValue::Str(self.string()?)),
-            Some(b'(') => Ok(PyValue::Tuple(self.tuple()?)),
-            _ => match self.word() {
-                b"True" => Ok(PyValue::Bool(true)),
-                b"False" => Ok(PyValue::Bool(false)),
-                w => Err(format!(
-                    "unexpected value `{}` at character {}",
-                    String::from_utf8_lossy(w),
-                    self.at
-                )),
-            },
-        }
-    }
-
-    fn dict(&mut self) -> Result<Vec<(String, PyValue)>, String> {
-        self.expect(b'{')?;
-        let mut out: Vec<(String, PyValue)> = Vec::new();
-        loop {
-            if self.peek() == Some(b'}') {
-                self.at += 1;
-                break;
-            }
-            let k = self.string()?;
-            self.expect(b':')?;
-            let v = self.value()?;
-            if out.iter().any(|(x, _)| *x == k) {
-                return Err(format!("key `{k}` appears twice"));
-            }
-            out.push((k, v));
-            match self.peek() {
-                Some(b',') => self.at += 1,
-                Some(b'}') => {}
-                _ => return Err("expected `,` or `}` after a value".into()),
-            }
-        }
-        if self.peek().is_some() {
-            return Err(format!(
-                "text after the closing `}}` at character {}",
-                self.at
-            ));
-        }
-        Ok(out)
-    }
-}
-
-/// Parses the text of a `.npy` header (the dict literal) for a 2-D little-endian
-/// float64 C-order array; returns `(rows, cols)`. The message says what is wrong.
-pub fn parse_header_dict(text: &str) -> Result<(usize, usize), String> {
-    let entries = Literal {
-        s: text.as_bytes(),
-        at: 0,
-    }
-    .dict()
-    .map_err(|e| format!("unreadable header `{}`: {e}", text.trim()))?;
-    let (mut descr, mut fortran, mut shape) = (None, None, None);
-    for (k, v) in entries {
-        match (k.as_str(), v) {
-            ("descr", PyValue::Str(s)) => descr = Some(s),
-            ("fortran_order", PyValue::Bool(b)) => fortran = Some(b),
-            ("shape", PyValue::Tuple(t)) => shape = Some(t),
-            (k @ ("descr" | "fortran_order" | "shape"), v) => {
-                return Err(format!("header key `{k}` has an unexpected value {v:?}"))
-            }
-            (k, _) => return Err(format!("unknown header key `{k}`")),
-        }
-    }
-    let descr = descr.ok_or("the header has no `descr`")?;
-    let fortran = fortran.ok_or("the header has no `fortran_order`")?;
-    let shape = shape.ok_or("the header has no `shape`")?;
-    if descr != "<f8" {
-        return Err(format!(
-            "data type `{descr}`: expected little-endian float64 (`<f8`)"
-        ));
-    }
-    if fortran {
-        return Err("the array is in Fortran order: expected C order".into());
-    }
-    match shape[..] {
-        [r, c] => Ok((
-            usize::try_from(r).map_err(|_| "shape too large")?,
-            usize::try_from(c).map_err(|_| "shape too large")?,
-        )),
-        _ => Err(format!(
-            "shape ({}) is not two-dimensional",
-            shape
-                .iter()
-                .map(u64::to_string)
-                .collect::<Vec<_>>()
-                .join(", ")
-        )),
-    }
-}
-
 /// Reads and parses the header of the `.npy` at the start of `r`, hashing the bytes read.
 fn read_header(
     r: &mut impl Read,
@@ -327,52 +137,20 @@ fn read_header(
         path: path.to_path_buf(),
         message,
     };
-    let mut magic = [0u8; 8];
-    r.read_exact(&mut magic)
-        .map_err(|_| bad("not a .npy file (shorter than its 8-byte magic)".into()))?;
-    if &magic[..6] != b"\x93NUMPY" {
-        return Err(bad("not a .npy file (no NumPy magic)".into()));
-    }
-    hash.write(&magic);
-    let (hl, len_bytes) = match magic[6] {
-        1 => {
-            let mut b = [0u8; 2];
-            r.read_exact(&mut b)
-                .map_err(|_| bad("truncated header".into()))?;
-            hash.write(&b);
-            (u16::from_le_bytes(b) as usize, 2)
-        }
-        2 | 3 => {
-            let mut b = [0u8; 4];
-            r.read_exact(&mut b)
-                .map_err(|_| bad("truncated header".into()))?;
-            hash.write(&b);
-            (u32::from_le_bytes(b) as usize, 4)
-        }
-        v => {
-            return Err(bad(format!(
-                ".npy format version {v}.{} is not supported (1.0 to 3.0 are)",
-                magic[7]
-            )))
-        }
-    };
-    if hl > 1 << 20 {
-        return Err(bad(format!("header of {hl} bytes: not a matrix header")));
-    }
-    let mut header = vec![0u8; hl];
-    r.read_exact(&mut header).map_err(|_| {
-        bad(format!(
-            "truncated header: the file ends before the {hl} header bytes it announces"
-        ))
-    })?;
-    hash.write(&header);
-    let text =
-        std::str::from_utf8(&header).map_err(|_| bad("the header is not UTF-8 text".into()))?;
-    let (rows, cols) = parse_header_dict(text).map_err(bad)?;
+    let (text, data_offset) = read_header_text(r, hash).map_err(bad)?;
+    let (rows, cols) = parse_header_dict(&text).map_err(bad)?;
     Ok(NpyHeader {
         rows,
         cols,
-        data_offset: (8 + len_bytes + hl) as u64,
+        data_offset,
+    })
+}
+
+/// [`crate::npy_format::read_npy_f32`] with the file named in its errors.
+pub fn read_npy_f32(path: &Path, max_values: usize) -> Result<NpyF32, MatrixFileError> {
+    crate::npy_format::read_npy_f32(path, max_values).map_err(|message| MatrixFileError::Format {
+        path: path.to_path_buf(),
+        message,
     })
 }
 
@@ -575,6 +353,79 @@ mod tests {
             let e = parse_header_dict(h).expect_err(h);
             assert!(e.contains(want), "{h}: {e}");
         }
+    }
+
+    #[test]
+    fn f32_headers_of_one_or_two_dimensions_parse_and_others_say_why_not() {
+        assert_eq!(
+            parse_header_f32("{'descr': '<f4', 'fortran_order': False, 'shape': (21,), }"),
+            Ok(vec![21])
+        );
+        assert_eq!(
+            parse_header_f32("{'descr': '<f4', 'fortran_order': False, 'shape': (6, 21), }"),
+            Ok(vec![6, 21])
+        );
+        for (h, want) in [
+            (
+                "{'descr': '<f8', 'fortran_order': False, 'shape': (3,)}",
+                "`<f8`",
+            ),
+            (
+                "{'descr': '>f4', 'fortran_order': False, 'shape': (3,)}",
+                "float32",
+            ),
+            (
+                "{'descr': '<f4', 'fortran_order': True, 'shape': (3, 3)}",
+                "Fortran",
+            ),
+            (
+                "{'descr': '<f4', 'fortran_order': False, 'shape': ()}",
+                "0 dimensions",
+            ),
+            (
+                "{'descr': '<f4', 'fortran_order': False, 'shape': (1, 2, 3)}",
+                "3 dimensions",
+            ),
+        ] {
+            let e = parse_header_f32(h).expect_err(h);
+            assert!(e.contains(want), "{h}: {e}");
+        }
+        // The f64 matrix header keeps its messages.
+        let e = parse_header_dict("{'descr': '<f4', 'fortran_order': False, 'shape': (3, 3)}")
+            .unwrap_err();
+        assert!(e.contains("expected little-endian float64 (`<f8`)"), "{e}");
+    }
+
+    #[test]
+    fn f32_files_round_trip_and_lying_files_are_refused() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let p = dir.path().join("a.npy");
+        let data: Vec<f32> = (0..12).map(|i| i as f32 * 0.5 - 1.0).collect();
+        let bytes = npy_f32_bytes(&[3, 4], &data);
+        std::fs::write(&p, &bytes).expect("write");
+        let a = read_npy_f32(&p, 100).expect("read");
+        assert_eq!((a.shape, a.data), (vec![3, 4], data.clone()));
+        for (cut, want) in [
+            (bytes.len() - 1, "needs"),
+            (5, "magic"),
+            (20, "truncated header"),
+        ] {
+            std::fs::write(&p, &bytes[..cut]).expect("write");
+            let e = read_npy_f32(&p, 100).unwrap_err().to_string();
+            assert!(e.contains("a.npy") && e.contains(want), "{cut}: {e}");
+        }
+        let mut long = bytes.clone();
+        long.extend_from_slice(&[0; 4]);
+        std::fs::write(&p, &long).expect("write");
+        assert!(read_npy_f32(&p, 100)
+            .unwrap_err()
+            .to_string()
+            .contains("needs"));
+        std::fs::write(&p, &bytes).expect("write");
+        assert!(read_npy_f32(&p, 5)
+            .unwrap_err()
+            .to_string()
+            .contains("more than 5"));
     }
 
     #[test]

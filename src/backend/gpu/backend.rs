@@ -5,7 +5,7 @@ use super::tabulate::TabulateKernel;
 use super::GpuContext;
 use crate::backend::{Backend, Lobe, LobeParams, PairOp, Progress};
 use crate::error::{BackendError, GpuError};
-use crate::merl::{CellSet, GridTables};
+use crate::merl::CellSet;
 use crate::nnls::pgd::PgdParams;
 use crate::nnls::{GramBatch, NnlsSolution};
 
@@ -88,13 +88,23 @@ impl Backend for GpuBackend {
         for (r, (i, _)) in analytic.iter().enumerate() {
             out[i * n..(i + 1) * n].copy_from_slice(&vals[r * n..(r + 1) * n]);
         }
-        let tables = GridTables::new();
-        for (i, l) in lobes.iter().enumerate() {
-            if let Lobe::Measured { .. } = l {
-                for (o, &c) in out[i * n..(i + 1) * n].iter_mut().zip(cells) {
-                    *o = l.eval_f64(&tables, c as usize) as f32;
+        // Measured and neural rows on the host (neural: the CPU back-end's f32 twin, per
+        // run of cells, never more than one run's network outputs at once).
+        const RUN: usize = 1 << 14;
+        let mut runs: Vec<Vec<(&Lobe, &mut [f32])>> =
+            (0..n.div_ceil(RUN)).map(|_| Vec::new()).collect();
+        for (row, l) in out.chunks_mut(n.max(1)).zip(lobes) {
+            if !l.is_analytic() {
+                for (run, part) in runs.iter_mut().zip(row.chunks_mut(RUN)) {
+                    run.push((l, part));
                 }
             }
+        }
+        {
+            use rayon::prelude::*;
+            runs.into_par_iter()
+                .zip(cells.par_chunks(RUN))
+                .try_for_each(|(rows, cc)| crate::backend::cpu::fill_rows(rows, cc, None))?;
         }
         Ok(out)
     }
@@ -107,10 +117,7 @@ impl Backend for GpuBackend {
         op: PairOp,
         progress: Progress<'_>,
     ) -> Result<Vec<f64>, BackendError> {
-        let n_measured = lobes
-            .iter()
-            .filter(|l| matches!(l, Lobe::Measured { .. }))
-            .count();
+        let n_measured = lobes.iter().filter(|l| !l.is_analytic()).count();
         let plan = self.plan(lobes.len(), n_measured, cells.len())?;
         Ok(self
             .pair

@@ -161,7 +161,7 @@ pub(crate) struct GridEval<'a> {
 }
 
 impl<'a> GridEval<'a> {
-    fn new(coll: &'a Collection, fp: &FitParams) -> Self {
+    pub(crate) fn new(coll: &'a Collection, fp: &FitParams) -> Self {
         let all: Vec<usize> = (0..coll.len()).collect();
         let cells = fit_cells(coll, &all, fp)
             .expect("the stride of checked objective parameters is at least 1");
@@ -185,7 +185,7 @@ impl<'a> GridEval<'a> {
     }
 
     /// Weighted mean of |fit - target| over the cells, averaged over channels.
-    fn mae(&self, basis: &[usize], t: usize, coef: &[[f64; 3]]) -> f64 {
+    pub(crate) fn mae(&self, basis: &[usize], t: usize, coef: &[[f64; 3]]) -> f64 {
         let cols: Vec<Option<usize>> = std::iter::once(None)
             .chain(basis.iter().map(|&b| Some(b)))
             .collect();
@@ -194,7 +194,7 @@ impl<'a> GridEval<'a> {
             let x: Vec<f64> = coef.iter().map(|a| a[c]).collect();
             let sep = |l: Lobe| match l {
                 Lobe::Analytic(p) => Some(SeparableLobe::new(&self.tables, &p)),
-                Lobe::Measured { .. } => None,
+                Lobe::Measured { .. } | Lobe::Neural { .. } => None,
             };
             let analytic = self.moments.as_ref().and_then(|mom| {
                 let lobes: Vec<SeparableLobe> = cols

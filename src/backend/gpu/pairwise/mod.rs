@@ -93,7 +93,7 @@ fn table_texels(lobes: &[Lobe], layout: &RowLayout, blocks: usize) -> Vec<f32> {
         .iter()
         .map(|&i| match &lobes[i] {
             Lobe::Analytic(l) => Some(*l),
-            Lobe::Measured { .. } => None,
+            Lobe::Measured { .. } | Lobe::Neural { .. } => None,
         })
         .collect();
     rows.resize(4 * (blocks + 1), None);
@@ -327,12 +327,26 @@ fn pack_chunk(
         t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
     }
     ctx.write_texel_rows(info, 0, &texels);
-    for (m, group) in layout.measured.chunks(4).enumerate() {
+    // Measured and neural rows, filled as the CPU back-end fills them (bit for bit).
+    let scale: Vec<f64> = cw.iter().map(|&w| op.row_scale(w)).collect();
+    let len = cc.len();
+    let mut rows = vec![0f32; layout.measured.len() * len];
+    crate::backend::cpu::fill_rows(
+        layout
+            .measured
+            .iter()
+            .map(|&i| &lobes[i])
+            .zip(rows.chunks_mut(len.max(1)))
+            .collect(),
+        cc,
+        Some(&scale),
+    )
+    .expect("rows of the chunk's length, of non-analytic lobes only (RowLayout)");
+    for (m, group) in rows.chunks(4 * len.max(1)).enumerate() {
         texels.fill(0.0);
-        for (q, &i) in group.iter().enumerate() {
-            for (c, (&cell, &w)) in cc.iter().zip(cw).enumerate() {
-                texels[4 * c + q] =
-                    (op.row_scale(w) * lobes[i].eval_f64(tables, cell as usize)) as f32;
+        for (q, row) in group.chunks(len.max(1)).enumerate() {
+            for (c, &v) in row.iter().enumerate() {
+                texels[4 * c + q] = v;
             }
         }
         ctx.write_texel_rows(

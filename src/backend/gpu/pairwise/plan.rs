@@ -52,7 +52,7 @@ impl RowLayout {
     /// The layout of `lobes`.
     pub fn new(lobes: &[Lobe]) -> Self {
         let (measured, analytic): (Vec<usize>, Vec<usize>) =
-            (0..lobes.len()).partition(|&i| matches!(lobes[i], Lobe::Measured { .. }));
+            (0..lobes.len()).partition(|&i| !lobes[i].is_analytic());
         let measured_start = analytic.len().div_ceil(4) * 4;
         let mut row = vec![0; lobes.len()];
         for (k, &i) in analytic.iter().enumerate() {

@@ -1,0 +1,313 @@
+"""brdf-basis from Python: BRDF bases, distances, selections and NNLS fits on NumPy arrays.
+
+Every computation is the Rust library's (``brdf_basis._native``, PyO3); this module adds
+small result classes over the JSON the command line writes, so that ``result.to_json()``
+is byte for byte what ``brdf-basis select|fit|cv --json`` would write.
+
+>>> import brdf_basis as bb
+>>> coll = bb.Collection.default()
+>>> d = bb.distance_matrix(coll, stride=8)        # (N, N) float64, BRDF_it
+>>> d.shape == (len(coll), len(coll))
+True
+>>> sel = bb.select(coll, method="greedy", k=3, stride=8)
+>>> fits = bb.fit(coll, sel.basis, stride=8)
+>>> len(fits.targets) == len(coll) - 3
+True
+
+Long calls release the GIL, stop on Ctrl-C (``KeyboardInterrupt``) and report progress
+with ``progress=True`` (a line on stderr) or ``progress=callable(done, total)``.
+``backend`` is ``"auto"`` (a hardware GPU if any, else the CPU), ``"cpu"`` or ``"gpu"``.
+Errors are ``ValueError`` (bad input), ``FileNotFoundError`` / ``OSError`` (files) or
+``RuntimeError`` (GPU), with the library's message.
+"""
+
+from __future__ import annotations
+
+import json as _json
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional, Sequence, Union
+
+import os as _os
+import tempfile as _tempfile
+
+import numpy as np
+
+# Mesa's Vulkan loader (probed by backend="auto" and "gpu") complains on every probe
+# without a runtime directory; the command line makes a private one too.
+if not _os.environ.get("XDG_RUNTIME_DIR"):
+    _os.environ["XDG_RUNTIME_DIR"] = _tempfile.mkdtemp(prefix="brdf-basis-runtime-")
+
+from . import _native  # noqa: E402
+from ._native import (  # noqa: E402
+    Brdf,
+    Collection,
+    backend_name,
+    distance_matrix,
+    image_error,
+    mask,
+    nnls,
+    render,
+    silhouette,
+)
+
+__all__ = [
+    "Brdf",
+    "Collection",
+    "CvResult",
+    "FitResult",
+    "FriedmanResult",
+    "KMedoidsResult",
+    "MannWhitneyResult",
+    "Selection",
+    "TargetFit",
+    "WilcoxonResult",
+    "backend_name",
+    "cross_validate",
+    "distance_matrix",
+    "fit",
+    "friedman",
+    "image_error",
+    "kmedoids",
+    "mann_whitney",
+    "mask",
+    "nnls",
+    "render",
+    "select",
+    "silhouette",
+    "wilcoxon",
+]
+
+Progress = Union[bool, Callable[[int, int], Any], None]
+
+
+@dataclass(frozen=True)
+class Selection:
+    """A basis selection: what ``brdf-basis select --json`` writes.
+
+    ``basis`` is the chosen materials (empirical: the contributors; k-medoids and GCUK:
+    the medoids of the best run; greedy, swap, GA: the basis found). ``data`` is the
+    whole JSON object; ``score`` (greedy, swap, ga) and ``db_index`` (kmedoids, gcuk)
+    are ``None`` where they do not apply.
+    """
+
+    method: str
+    basis: list
+    score: Optional[float]
+    db_index: Optional[float]
+    data: dict = field(repr=False)
+    _json: str = field(repr=False)
+
+    @classmethod
+    def from_json(cls, text: str) -> "Selection":
+        d = _json.loads(text)
+        best = d.get("best")
+        return cls(
+            method=d["method"],
+            basis=list(best["medoids"] if best else d["basis"]),
+            score=d.get("score"),
+            db_index=best["db_index"] if best else None,
+            data=d,
+            _json=text,
+        )
+
+    def to_json(self) -> str:
+        """The JSON text, as the command line writes it."""
+        return self._json
+
+
+@dataclass(frozen=True)
+class TargetFit:
+    """The fit of one target: ``lambertian`` (3,), ``coefficients`` (k, 3) in basis order."""
+
+    material: str
+    lambertian: np.ndarray
+    coefficients: np.ndarray
+    mae: float
+    residual: np.ndarray
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Fits of targets by a basis: what ``brdf-basis fit --json`` writes.
+
+    ``coefficients`` is (targets, 1 + k, 3): the Lambertian column, then the basis.
+    """
+
+    basis: list
+    mask: str
+    weighting: str
+    targets: list
+    data: dict = field(repr=False)
+    _json: str = field(repr=False)
+
+    @classmethod
+    def from_json(cls, text: str) -> "FitResult":
+        d = _json.loads(text)
+        basis = list(d["basis"])
+        targets = [
+            TargetFit(
+                material=t["material"],
+                lambertian=np.array(t["lambertian"], dtype=np.float64),
+                coefficients=np.array([t["coefficients"][b] for b in basis], dtype=np.float64).reshape(len(basis), 3),
+                mae=t["mae"],
+                residual=np.array(t["residual"], dtype=np.float64),
+            )
+            for t in d["targets"]
+        ]
+        return cls(basis, d["mask"], d["weighting"], targets, d, text)
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        return np.stack([np.vstack([t.lambertian, t.coefficients]) for t in self.targets])
+
+    @property
+    def mae(self) -> np.ndarray:
+        return np.array([t.mae for t in self.targets])
+
+    def to_json(self) -> str:
+        """The JSON text, as the command line writes it."""
+        return self._json
+
+    def save(self, path) -> None:
+        """Writes the JSON (readable by ``brdf-basis render --fit`` and ``Brdf.fitted``)."""
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(self._json)
+
+
+@dataclass(frozen=True)
+class CvResult:
+    """K-fold cross-validation: what ``brdf-basis cv --json`` writes."""
+
+    folds: list
+    results: list
+    tests: list
+    data: dict = field(repr=False)
+    _json: str = field(repr=False)
+
+    @classmethod
+    def from_json(cls, text: str) -> "CvResult":
+        d = _json.loads(text)
+        return cls(d["folds"], d["results"], d["tests"], d, text)
+
+    def to_json(self) -> str:
+        return self._json
+
+
+@dataclass(frozen=True)
+class KMedoidsResult:
+    """k-medoids on a matrix: medoids (indices), labels (index into medoids), loss."""
+
+    medoids: list
+    labels: list
+    loss: float
+    iterations: int
+    db_index: float
+
+
+@dataclass(frozen=True)
+class WilcoxonResult:
+    """Wilcoxon signed-rank test (two-sided): statistic = min(W+, W-)."""
+
+    n: int
+    zeros: int
+    w_plus: float
+    w_minus: float
+    statistic: float
+    z: Optional[float]
+    p_value: float
+    method: str
+
+
+@dataclass(frozen=True)
+class FriedmanResult:
+    """Friedman test (tie-corrected chi-square) with the Iman-Davenport F variant."""
+
+    statistic: float
+    dof: int
+    p_value: float
+    mean_ranks: list
+    blocks: int
+    iman_davenport: dict
+
+
+@dataclass(frozen=True)
+class MannWhitneyResult:
+    """Mann-Whitney U test (two-sided, normal approximation)."""
+
+    u: float
+    z: float
+    p_value: float
+
+
+def _fields(cls, d: dict) -> dict:
+    return {k: d[k] for k in cls.__dataclass_fields__}
+
+
+def select(collection: Collection, method: str, k: Optional[int] = None, **options) -> Selection:
+    """Selects a basis as ``brdf-basis select --method METHOD``.
+
+    ``method``: ``empirical``, ``kmedoids``, ``gcuk``, ``greedy``, ``swap``, ``ga``.
+    Options (the command line's flags, underscores for dashes): ``k_min``, ``k_max``,
+    ``runs``, ``algorithm``, ``population``, ``generations``, ``more_than``,
+    ``candidates``, ``targets``, ``init`` (lists of names), ``ga_population``,
+    ``ga_generations``, ``ga_crossover``, ``ga_mutation``, ``metric``, ``mask``,
+    ``weighting``, ``stride``, ``seed``, ``backend``, ``progress``.
+
+    >>> sel = select(Collection.default(), "kmedoids", k=3, runs=2, stride=8)
+    >>> len(sel.basis)
+    3
+    """
+    return Selection.from_json(_native.select_json(collection, method, k=k, **options))
+
+
+def fit(collection: Collection, basis: Sequence[str], targets: Optional[Sequence[str]] = None, **options) -> FitResult:
+    """Fits ``targets`` (default: every material outside ``basis``) as non-negative
+    combinations of a Lambertian term and ``basis``, as ``brdf-basis fit``.
+
+    Options: ``mask``, ``weighting``, ``stride``, ``solver`` (``exact``, ``pgd``),
+    ``gram`` (``auto``, ``grid``), ``backend``, ``progress``.
+
+    >>> r = fit(Collection.default(), ["polished-gold", "matte-white-paint"], ["polished-copper"], stride=8)
+    >>> r.coefficients.shape
+    (1, 3, 3)
+    """
+    t = None if targets is None else list(targets)
+    return FitResult.from_json(_native.fit_json(collection, list(basis), t, **options))
+
+
+def cross_validate(collection: Collection, **options) -> CvResult:
+    """K-fold cross-validation of selection methods, as ``brdf-basis cv``.
+
+    Options: ``methods`` (list), ``ks`` (list), ``folds``, ``metric``, ``mask``,
+    ``weighting``, ``stride``, ``runs``, ``ga_population``, ``ga_generations``,
+    ``render_size``, ``seed``, ``backend``, ``progress``.
+    """
+    return CvResult.from_json(_native.cross_validate_json(collection, **options))
+
+
+def kmedoids(d: np.ndarray, k: int, *, seed: int = 1, init: str = "build", algorithm: str = "fasterpam") -> KMedoidsResult:
+    """k-medoids (FasterPAM or PAM) on a precomputed (N, N) distance matrix.
+
+    >>> import numpy as np
+    >>> x = np.array([0.0, 0.1, 5.0, 5.2]); d = np.abs(x[:, None] - x[None, :])
+    >>> kmedoids(d, 2).loss
+    0.30000000000000004
+    """
+    m, l, loss, it, db = _native.kmedoids(np.ascontiguousarray(d, dtype=np.float64), k, seed=seed, init=init, algorithm=algorithm)
+    return KMedoidsResult(m, l, loss, it, db)
+
+
+def wilcoxon(x: Sequence[float], y: Sequence[float]) -> WilcoxonResult:
+    """Wilcoxon signed-rank test of paired samples (as ``scipy.stats.wilcoxon``)."""
+    return WilcoxonResult(**_fields(WilcoxonResult, _json.loads(_native.wilcoxon_json(list(map(float, x)), list(map(float, y))))))
+
+
+def friedman(blocks: np.ndarray) -> FriedmanResult:
+    """Friedman test; ``blocks[r, j]`` is treatment ``j`` in block ``r``."""
+    b = np.ascontiguousarray(blocks, dtype=np.float64)
+    return FriedmanResult(**_fields(FriedmanResult, _json.loads(_native.friedman_json(b))))
+
+
+def mann_whitney(x: Sequence[float], y: Sequence[float]) -> MannWhitneyResult:
+    """Mann-Whitney U test of two independent samples."""
+    return MannWhitneyResult(**_fields(MannWhitneyResult, _json.loads(_native.mann_whitney_json(list(map(float, x)), list(map(float, y))))))

@@ -1,0 +1,916 @@
+//! `brdf_basis._native`: the PyO3 bindings of the brdf-basis library.
+//!
+//! A thin layer: every computation is a call into the library's facade (`brdf_basis::*`,
+//! `src/api.rs`) or one of the module functions the facade documents; this file only
+//! converts arguments (strings to enums, NumPy arrays to slices), results (to NumPy
+//! arrays or to the JSON the command line writes) and errors (to Python exceptions with
+//! the library's message). Long calls run on a worker thread with the GIL released while
+//! the calling thread polls for signals (Ctrl-C cancels the work through the library's
+//! progress callback) and reports progress.
+
+// PyO3's generated code and our argument lists (mirroring the command line's flags).
+#![allow(clippy::too_many_arguments)]
+#![allow(clippy::result_large_err)]
+
+use brdf_basis as bb;
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn};
+use numpy::{PyUntypedArrayMethods, ToPyArray};
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyKeyboardInterrupt, PyOSError, PyPermissionError, PyRuntimeError,
+    PyValueError,
+};
+use pyo3::prelude::*;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+
+// ---------------------------------------------------------------------------------------
+// Errors
+// ---------------------------------------------------------------------------------------
+
+/// The Python exception of a library error, with its message: `FileNotFoundError`,
+/// `PermissionError` or `OSError` when the cause is an I/O error, `RuntimeError` for the
+/// GPU, `ValueError` otherwise (bad input: a file's content, a parameter, a name).
+fn py_err(e: bb::Error) -> PyErr {
+    let msg = e.to_string();
+    let mut cur: Option<&(dyn std::error::Error + 'static)> = Some(&e);
+    while let Some(c) = cur {
+        if let Some(io) = c.downcast_ref::<std::io::Error>() {
+            return match io.kind() {
+                std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(msg),
+                std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(msg),
+                _ => PyOSError::new_err(msg),
+            };
+        }
+        cur = c.source();
+    }
+    match e {
+        bb::Error::Gpu(_) | bb::Error::Backend(_) => PyRuntimeError::new_err(msg),
+        bb::Error::Output(_) => PyOSError::new_err(msg),
+        _ => PyValueError::new_err(msg),
+    }
+}
+
+/// Any error of a module, through the library's one [`bb::Error`].
+fn lib_err<E: Into<bb::Error>>(e: E) -> PyErr {
+    py_err(e.into())
+}
+
+fn value_err(msg: impl Into<String>) -> PyErr {
+    PyValueError::new_err(msg.into())
+}
+
+/// A string argument parsed by the library's own `FromStr` (its message names the
+/// accepted spellings).
+fn parse<T>(s: &str) -> PyResult<T>
+where
+    T: std::str::FromStr,
+    T::Err: Into<bb::Error>,
+{
+    s.parse::<T>().map_err(lib_err)
+}
+
+fn backend_choice(s: &str) -> PyResult<bb::BackendChoice> {
+    [
+        bb::BackendChoice::Auto,
+        bb::BackendChoice::Cpu,
+        bb::BackendChoice::Gpu,
+    ]
+    .into_iter()
+    .find(|c| c.as_str() == s)
+    .ok_or_else(|| value_err(format!("invalid backend `{s}` (expected auto, cpu, gpu)")))
+}
+
+/// The back-end of `s`, opened once per process (opening probes the Vulkan adapters).
+fn open_backend(s: &str) -> PyResult<Arc<dyn bb::Backend>> {
+    static OPEN: std::sync::Mutex<Vec<(&'static str, Arc<dyn bb::Backend>)>> =
+        std::sync::Mutex::new(Vec::new());
+    let choice = backend_choice(s)?;
+    let mut open = OPEN.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, b)) = open.iter().find(|(c, _)| *c == choice.as_str()) {
+        return Ok(b.clone());
+    }
+    let b: Arc<dyn bb::Backend> = bb::open_backend(choice).map_err(lib_err)?.into();
+    open.push((choice.as_str(), b.clone()));
+    Ok(b)
+}
+
+// ---------------------------------------------------------------------------------------
+// Long calls: GIL released, Ctrl-C, progress
+// ---------------------------------------------------------------------------------------
+
+/// The panic payload that unwinds a cancelled computation out of the library (raised in
+/// its progress callback, caught here).
+struct Cancelled;
+
+/// How progress is reported: not at all, a line on `sys.stderr`, or a Python callable
+/// `f(done, total)`.
+enum Report<'py> {
+    None,
+    Stderr(String),
+    Callable(Bound<'py, PyAny>),
+}
+
+impl<'py> Report<'py> {
+    fn of(progress: Option<Bound<'py, PyAny>>, label: &str) -> PyResult<Self> {
+        Ok(match progress {
+            None => Report::None,
+            Some(p) if p.is_callable() => Report::Callable(p),
+            Some(p) if p.is_truthy()? => Report::Stderr(label.to_string()),
+            Some(_) => Report::None,
+        })
+    }
+
+    fn show(&self, py: Python<'py>, done: u64, total: u64, last: bool) -> PyResult<()> {
+        match self {
+            Report::None => Ok(()),
+            Report::Callable(f) => f.call1((done, total)).map(|_| ()),
+            Report::Stderr(label) => {
+                let err = py.import("sys")?.getattr("stderr")?;
+                let end = if last { "\n" } else { "" };
+                err.call_method1("write", (format!("\r{label}: {done}/{total}{end}"),))?;
+                err.call_method0("flush").map(|_| ())
+            }
+        }
+    }
+}
+
+/// Runs `work` on a worker thread with the GIL released. The calling thread wakes every
+/// 20 ms to run Python's signal handlers (a `KeyboardInterrupt` sets the cancel flag,
+/// which the library's progress callback turns into an unwind: the work stops at its
+/// next progress report) and to report progress.
+fn run_long<'py, T: Send>(
+    py: Python<'py>,
+    progress: Option<Bound<'py, PyAny>>,
+    label: &str,
+    work: impl FnOnce(bb::Progress<'_>) -> bb::Result<T> + Send,
+) -> PyResult<T> {
+    let report = Report::of(progress, label)?;
+    let cancel = AtomicBool::new(false);
+    let finished = AtomicBool::new(false);
+    let done = AtomicU64::new(0);
+    let total = AtomicU64::new(0);
+    let callback = |d: u64, t: u64| {
+        done.store(d, Ordering::Relaxed);
+        total.store(t, Ordering::Relaxed);
+        if cancel.load(Ordering::Relaxed) {
+            std::panic::resume_unwind(Box::new(Cancelled));
+        }
+    };
+    let (outcome, interrupt, shown) = std::thread::scope(|s| {
+        let worker = s.spawn(|| {
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&callback)));
+            finished.store(true, Ordering::SeqCst);
+            r
+        });
+        let mut interrupt: Option<PyErr> = None;
+        let mut shown = (u64::MAX, u64::MAX);
+        let mut report_err: Option<PyErr> = None;
+        while !finished.load(Ordering::SeqCst) {
+            py.detach(|| {
+                for _ in 0..4 {
+                    if finished.load(Ordering::SeqCst) {
+                        break;
+                    }
+                    std::thread::sleep(std::time::Duration::from_millis(5));
+                }
+            });
+            if interrupt.is_none() {
+                if let Err(e) = py.check_signals() {
+                    cancel.store(true, Ordering::SeqCst);
+                    interrupt = Some(e);
+                }
+            }
+            let now = (done.load(Ordering::Relaxed), total.load(Ordering::Relaxed));
+            if now != shown && now.1 > 0 && report_err.is_none() {
+                shown = now;
+                if let Err(e) = report.show(py, now.0, now.1, false) {
+                    // A failing progress callable cancels the work and is raised.
+                    cancel.store(true, Ordering::SeqCst);
+                    report_err = Some(e);
+                }
+            }
+        }
+        let joined = worker.join();
+        (joined, interrupt.or(report_err), shown)
+    });
+    if let Some(e) = interrupt {
+        return Err(e);
+    }
+    if shown.1 > 0 && shown.1 != u64::MAX {
+        let t = total.load(Ordering::Relaxed);
+        report.show(py, done.load(Ordering::Relaxed).max(shown.0), t, true)?;
+    }
+    match outcome {
+        Ok(Ok(r)) => r.map_err(py_err),
+        Ok(Err(payload)) | Err(payload) => {
+            if payload.is::<Cancelled>() {
+                Err(PyKeyboardInterrupt::new_err("interrupted"))
+            } else {
+                let msg = payload
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "internal error".into());
+                Err(PyRuntimeError::new_err(format!("brdf-basis panicked: {msg}")))
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Collection
+// ---------------------------------------------------------------------------------------
+
+/// An ordered collection of uniquely named materials (see the stub file for the docs).
+#[pyclass(frozen, module = "brdf_basis._native", name = "Collection")]
+struct Collection {
+    inner: Arc<bb::Collection>,
+}
+
+#[pymethods]
+impl Collection {
+    /// Loads COLLECTION arguments (analytic .csv, MERL .binary, directories of .binary),
+    /// in order; no argument: the embedded default collection.
+    #[staticmethod]
+    #[pyo3(signature = (*paths))]
+    fn load(paths: Vec<PathBuf>) -> PyResult<Self> {
+        let c = bb::Collection::load_many(&paths).map_err(lib_err)?;
+        Ok(Self { inner: Arc::new(c) })
+    }
+
+    /// The embedded default collection.
+    #[staticmethod]
+    fn default() -> Self {
+        Self {
+            inner: Arc::new(bb::Collection::embedded_default()),
+        }
+    }
+
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        self.inner.names()
+    }
+
+    #[getter]
+    fn kinds(&self) -> Vec<&'static str> {
+        self.inner
+            .materials()
+            .iter()
+            .map(|m| match m.data {
+                bb::collection::MaterialData::Analytic(_) => "analytic",
+                bb::collection::MaterialData::Measured(_) => "measured",
+            })
+            .collect()
+    }
+
+    #[getter]
+    fn fingerprint(&self) -> String {
+        self.inner.fingerprint()
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    fn __contains__(&self, name: &str) -> bool {
+        self.inner.index_of(name).is_ok()
+    }
+
+    fn __repr__(&self) -> String {
+        let kinds = self.kinds();
+        let analytic = kinds.iter().filter(|k| **k == "analytic").count();
+        format!(
+            "Collection({} materials: {} analytic, {} measured)",
+            self.inner.len(),
+            analytic,
+            kinds.len() - analytic
+        )
+    }
+
+    /// The index of `name` (ValueError naming close names when unknown).
+    fn index(&self, name: &str) -> PyResult<usize> {
+        self.inner.index_of(name).map_err(lib_err)
+    }
+
+    /// Ashikhmin-Shirley parameters of an analytic material, `None` for a measured one.
+    fn analytic<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let m = self.inner.get(name).map_err(lib_err)?;
+        match m.analytic() {
+            None => Ok(None),
+            Some(a) => {
+                let d = pyo3::types::PyDict::new(py);
+                d.set_item("d", a.d.to_vec())?;
+                d.set_item("s", a.s.to_vec())?;
+                d.set_item("F0", a.f0)?;
+                d.set_item("n", a.n)?;
+                Ok(Some(d.into_any()))
+            }
+        }
+    }
+
+    /// The material on the full MERL grid, shape (3, 90, 90, 180), float32, invalid
+    /// cells -1 (what `brdf-basis tabulate` writes).
+    #[pyo3(signature = (name, *, backend = "auto", progress = None))]
+    fn tabulate<'py>(
+        &self,
+        py: Python<'py>,
+        name: &str,
+        backend: &str,
+        progress: Option<Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let backend = open_backend(backend)?;
+        let coll = &self.inner;
+        let rgb = run_long(py, progress, "tabulate", |_| {
+            bb::tabulate(backend.as_ref(), coll, name)
+        })?;
+        let a = PyArray1::from_vec(py, rgb);
+        Ok(a.reshape([3usize, 90, 90, 180])?.into_any())
+    }
+}
+
+fn coll_of(c: &Bound<'_, Collection>) -> Arc<bb::Collection> {
+    c.get().inner.clone()
+}
+
+/// The boolean mask of the MERL grid, shape (90, 90, 180): `"valid"` (both directions
+/// above the horizon) or `"evaluation"` (theta_i, theta_o <= 80 deg, 2 theta_d >= 3 deg).
+#[pyfunction]
+#[pyo3(signature = (name = "evaluation"))]
+fn mask<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+    let m: bb::Mask = parse(name)?;
+    let v: Vec<bool> = (0..bb::merl::grid::N_CELLS)
+        .map(|c| {
+            let info = bb::merl::grid::cell_info(c);
+            match m {
+                bb::Mask::Evaluation => info.evaluation,
+                _ => info.valid,
+            }
+        })
+        .collect();
+    Ok(PyArray1::from_vec(py, v)
+        .reshape([90usize, 90, 180])?
+        .into_any())
+}
+
+// ---------------------------------------------------------------------------------------
+// Distances, selection, fits, cross-validation
+// ---------------------------------------------------------------------------------------
+
+/// The distance matrix (N, N), float64, as `brdf-basis distance` writes it.
+#[pyfunction]
+#[pyo3(signature = (collection, *, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, backend = "auto", progress = None))]
+fn distance_matrix<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    metric: &str,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let coll = coll_of(collection);
+    let p = bb::DistanceParams::default()
+        .metric(parse(metric)?)
+        .mask(parse(mask)?)
+        .weighting(parse(weighting)?)
+        .stride(stride);
+    let valid = p.check(&coll).map_err(lib_err)?;
+    let backend = open_backend(backend)?;
+    let d = run_long(py, progress, "distances", |pr| {
+        Ok(bb::distance::distance_matrix(
+            backend.as_ref(),
+            &coll,
+            &valid,
+            pr,
+        )?)
+    })?;
+    let n = coll.len();
+    Ok(PyArray1::from_slice(py, d.as_full())
+        .reshape([n, n])?
+        .into_any())
+}
+
+fn indices(coll: &bb::Collection, names: Option<Vec<String>>) -> PyResult<Option<Vec<usize>>> {
+    names
+        .map(|v| {
+            v.iter()
+                .map(|n| coll.index_of(n.trim()))
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .transpose()
+        .map_err(lib_err)
+}
+
+/// A basis selection as `brdf-basis select`: returns the `--json` text.
+#[pyfunction]
+#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = "fasterpam", population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+fn select_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    method: &str,
+    k: Option<usize>,
+    k_min: Option<usize>,
+    k_max: Option<usize>,
+    runs: Option<usize>,
+    algorithm: &str,
+    population: Option<usize>,
+    generations: Option<usize>,
+    more_than: Option<usize>,
+    candidates: Option<Vec<String>>,
+    targets: Option<Vec<String>>,
+    init: Option<Vec<String>>,
+    ga_population: Option<usize>,
+    ga_generations: Option<usize>,
+    ga_crossover: Option<f64>,
+    ga_mutation: Option<f64>,
+    metric: &str,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    seed: u64,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let ep = bb::experiment::ExperimentParams::default();
+    let search = |k: Option<usize>| -> PyResult<bb::SearchParams> {
+        let k = k.ok_or_else(|| {
+            value_err(format!(
+                "give the basis size k (method {method} chooses exactly k materials)"
+            ))
+        })?;
+        let mut sp = bb::SearchParams::new(k);
+        sp.candidates = indices(&coll, candidates.clone())?;
+        sp.targets = indices(&coll, targets.clone())?;
+        sp.init = indices(&coll, init.clone())?;
+        Ok(sp)
+    };
+    let clustering = matches!(method, "kmedoids" | "gcuk");
+    let error_driven = matches!(method, "greedy" | "swap" | "ga");
+    if !clustering && (k_min.is_some() || k_max.is_some()) {
+        return Err(value_err(format!(
+            "k_min and k_max apply to kmedoids and gcuk, not to method {method}"
+        )));
+    }
+    if !error_driven && (candidates.is_some() || targets.is_some() || init.is_some()) {
+        return Err(value_err(format!(
+            "candidates, targets and init apply to greedy, swap and ga, not to method {method}"
+        )));
+    }
+    if method != "ga"
+        && (ga_population.is_some()
+            || ga_generations.is_some()
+            || ga_crossover.is_some()
+            || ga_mutation.is_some())
+    {
+        return Err(value_err(format!(
+            "the ga_* settings apply to method ga, not to {method}"
+        )));
+    }
+    let sm = match method {
+        "empirical" | "gcuk" if k.is_some() => {
+            return Err(value_err(format!(
+                "k does not apply to method {method} (it chooses the basis size itself)"
+            )))
+        }
+        "empirical" => bb::SelectMethod::Empirical {
+            more_than: more_than.unwrap_or(bb::EmpiricalParams::default().more_than),
+        },
+        "kmedoids" => {
+            if k.is_some() && (k_min.is_some() || k_max.is_some()) {
+                return Err(value_err("give either k or k_min/k_max, not both"));
+            }
+            let (lo, hi) = (k_min.unwrap_or(ep.k_min), k_max.unwrap_or(ep.k_max));
+            if k.is_none() && lo > hi {
+                return Err(lib_err(bb::cluster::ClusterError::EmptyKRange {
+                    k_min: lo,
+                    k_max: hi,
+                }));
+            }
+            bb::SelectMethod::KMedoids {
+                ks: k.map_or_else(|| (lo..=hi).collect(), |k| vec![k]),
+                runs: runs.unwrap_or(ep.runs),
+                algorithm: parse(algorithm)?,
+            }
+        }
+        "gcuk" => {
+            let d = bb::GcukParams::default();
+            bb::SelectMethod::Gcuk {
+                params: bb::GcukParams::default()
+                    .k_range(k_min.unwrap_or(d.k_min), k_max.unwrap_or(d.k_max))
+                    .population(population.unwrap_or(d.population))
+                    .generations(generations.unwrap_or(d.generations)),
+                runs: runs.unwrap_or(ep.runs),
+            }
+        }
+        "greedy" => bb::SelectMethod::Greedy(search(k)?),
+        "swap" => bb::SelectMethod::Swap(search(k)?),
+        "ga" => {
+            let d = bb::GaParams::default();
+            let mut gp = bb::GaParams::default()
+                .population(ga_population.unwrap_or(d.population))
+                .generations(ga_generations.unwrap_or(d.generations))
+                .crossover_prob(ga_crossover.unwrap_or(d.crossover_prob))
+                .seed(seed);
+            gp.mutation_prob = ga_mutation;
+            bb::SelectMethod::Ga(search(k)?, gp)
+        }
+        other => {
+            return Err(value_err(format!(
+                "invalid method `{other}` (expected empirical, kmedoids, gcuk, greedy, swap, ga)"
+            )))
+        }
+    };
+    let req = bb::SelectRequest {
+        method: sm,
+        metric: parse(metric)?,
+        mask: parse(mask)?,
+        weighting: parse(weighting)?,
+        stride,
+        seed,
+    };
+    let backend = open_backend(backend)?;
+    let out = run_long(py, progress, method, |pr| {
+        bb::select(backend.as_ref(), &coll, &req, pr)
+    })?;
+    Ok(out.to_json())
+}
+
+fn fit_params(
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    solver: &str,
+    gram: &str,
+) -> PyResult<bb::FitParams> {
+    Ok(bb::FitParams {
+        mask: parse(mask)?,
+        weighting: parse(weighting)?,
+        stride,
+        solver: match solver {
+            "exact" => bb::Solver::Exact,
+            "pgd" => bb::Solver::Pgd,
+            s => return Err(value_err(format!("invalid solver `{s}` (expected exact, pgd)"))),
+        },
+        gram: match gram {
+            "auto" => bb::GramMode::Auto,
+            "grid" => bb::GramMode::Grid,
+            s => return Err(value_err(format!("invalid gram `{s}` (expected auto, grid)"))),
+        },
+    })
+}
+
+/// Fits `targets` (default: every material outside the basis) by `basis`: returns the
+/// JSON `brdf-basis fit --json` writes.
+#[pyfunction]
+#[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", backend = "auto", progress = None))]
+fn fit_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    basis: Vec<String>,
+    targets: Option<Vec<String>>,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    solver: &str,
+    gram: &str,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let basis = indices(&coll, Some(basis))?.unwrap_or_default();
+    let targets = match indices(&coll, targets)? {
+        Some(t) => t,
+        None => (0..coll.len()).filter(|i| !basis.contains(i)).collect(),
+    };
+    let p = fit_params(mask, weighting, stride, solver, gram)?;
+    let backend = open_backend(backend)?;
+    let fits = run_long(py, progress, "fit", |pr| {
+        Ok(bb::fit::fit(
+            backend.as_ref(),
+            &coll,
+            &basis,
+            &targets,
+            &p,
+            pr,
+        )?)
+    })?;
+    let file = bb::fit::file::FitFile::new(&coll, &basis, &fits, &p);
+    let text = serde_json::to_string_pretty(&file).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}
+
+/// K-fold cross-validation as `brdf-basis cv`: returns the `--json` text.
+#[pyfunction]
+#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, backend = "auto", progress = None))]
+fn cross_validate_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    methods: Option<Vec<String>>,
+    ks: Option<Vec<usize>>,
+    folds: Option<usize>,
+    metric: &str,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    runs: Option<usize>,
+    ga_population: Option<usize>,
+    ga_generations: Option<usize>,
+    render_size: Option<u32>,
+    seed: u64,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let d = bb::CvParams::default();
+    let g = bb::GaParams::default();
+    let methods = match methods {
+        None => d.methods.clone(),
+        Some(v) => v
+            .iter()
+            .map(|m| parse::<bb::CvMethod>(m.trim()))
+            .collect::<PyResult<_>>()?,
+    };
+    let p = bb::CvParams {
+        methods,
+        ks: ks.unwrap_or_else(|| d.ks.clone()),
+        folds: folds.unwrap_or(d.folds),
+        seed,
+        objective: bb::ObjectiveParams::default()
+            .mask(parse(mask)?)
+            .weighting(parse(weighting)?)
+            .stride(stride),
+        metric: parse(metric)?,
+        runs: runs.unwrap_or(d.runs),
+        ga: bb::GaParams::default()
+            .population(ga_population.unwrap_or(g.population))
+            .generations(ga_generations.unwrap_or(g.generations))
+            .seed(seed),
+        render_size: render_size.unwrap_or(d.render_size),
+    };
+    let valid = p.check(coll.len()).map_err(lib_err)?;
+    let backend = open_backend(backend)?;
+    let res = run_long(py, progress, "cv", |pr| {
+        Ok(bb::select::cross_validate(
+            backend.as_ref(),
+            &coll,
+            &valid,
+            pr,
+        )?)
+    })?;
+    let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}
+
+// ---------------------------------------------------------------------------------------
+// Solvers, clustering and statistics on arrays
+// ---------------------------------------------------------------------------------------
+
+/// `argmin |A x - b|` subject to `x >= 0` (the crate's Lawson-Hanson solver).
+#[pyfunction]
+fn nnls<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    b: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (rows, cols) = (a.shape()[0], a.shape()[1]);
+    let av: Vec<f64> = a.as_array().iter().copied().collect();
+    let bv: Vec<f64> = b.as_array().iter().copied().collect();
+    let s = py
+        .detach(|| bb::nnls(&av, rows, cols, &bv))
+        .map_err(py_err)?;
+    Ok(PyArray1::from_vec(py, s.x))
+}
+
+fn matrix_of(d: &PyReadonlyArray2<'_, f64>) -> PyResult<bb::DistanceMatrix> {
+    let (r, c) = (d.shape()[0], d.shape()[1]);
+    if r != c {
+        return Err(value_err(format!(
+            "the distance matrix must be square, got {r} x {c}"
+        )));
+    }
+    let names = (0..r).map(|i| format!("item {i}")).collect();
+    bb::DistanceMatrix::from_full(names, d.as_array().iter().copied().collect()).map_err(lib_err)
+}
+
+/// Mean silhouette of `labels` on the precomputed distance matrix `d`.
+#[pyfunction]
+fn silhouette(d: PyReadonlyArray2<'_, f64>, labels: Vec<usize>) -> PyResult<f64> {
+    let m = matrix_of(&d)?;
+    bb::cluster::indices::silhouette(&m, &labels).map_err(lib_err)
+}
+
+/// k-medoids on a precomputed matrix: (medoids, labels, loss, iterations, db_index).
+#[pyfunction]
+#[pyo3(signature = (d, k, *, seed = 1, init = "build", algorithm = "fasterpam"))]
+fn kmedoids(
+    py: Python<'_>,
+    d: PyReadonlyArray2<'_, f64>,
+    k: usize,
+    seed: u64,
+    init: &str,
+    algorithm: &str,
+) -> PyResult<(Vec<usize>, Vec<usize>, f64, usize, f64)> {
+    let m = matrix_of(&d)?;
+    let init = match init {
+        "build" => bb::KMedoidsInit::Build,
+        "random" => bb::KMedoidsInit::Random,
+        s => return Err(value_err(format!("invalid init `{s}` (expected build, random)"))),
+    };
+    let p = bb::KMedoidsParams::new(k)
+        .seed(seed)
+        .init(init)
+        .algorithm(parse(algorithm)?);
+    let r = py.detach(|| p.fit(&m)).map_err(lib_err)?;
+    Ok((r.medoids, r.labels, r.loss, r.iterations, r.db_index))
+}
+
+fn json_of<T: serde::Serialize>(v: &T) -> PyResult<String> {
+    serde_json::to_string(v).map_err(|e| value_err(e.to_string()))
+}
+
+/// Wilcoxon signed-rank test of paired samples (JSON of the library's result).
+#[pyfunction]
+fn wilcoxon_json(x: Vec<f64>, y: Vec<f64>) -> PyResult<String> {
+    json_of(&bb::stats::wilcoxon_signed_rank(&x, &y).map_err(lib_err)?)
+}
+
+/// Friedman test: `blocks[r][j]` is treatment `j` in block `r` (JSON of the result).
+#[pyfunction]
+fn friedman_json(blocks: PyReadonlyArray2<'_, f64>) -> PyResult<String> {
+    let rows: Vec<Vec<f64>> = blocks
+        .as_array()
+        .rows()
+        .into_iter()
+        .map(|r| r.to_vec())
+        .collect();
+    json_of(&bb::stats::friedman(&rows).map_err(lib_err)?)
+}
+
+/// Mann-Whitney U test of two independent samples (JSON of the result).
+#[pyfunction]
+fn mann_whitney_json(x: Vec<f64>, y: Vec<f64>) -> PyResult<String> {
+    json_of(&bb::stats::mann_whitney_u(&x, &y).map_err(lib_err)?)
+}
+
+// ---------------------------------------------------------------------------------------
+// BRDFs and the sphere renderer (SPEC 7)
+// ---------------------------------------------------------------------------------------
+
+/// A BRDF `f(wi, wo) -> RGB` in a local frame with the normal on +z: an analytic
+/// material, a measured one (MERL lookup), or a fitted combination.
+#[pyclass(frozen, module = "brdf_basis._native", name = "Brdf")]
+struct Brdf {
+    f: bb::eval::shade::BrdfFn,
+    label: String,
+}
+
+#[pymethods]
+impl Brdf {
+    /// The BRDF of material `name` of `collection`.
+    #[staticmethod]
+    fn material(collection: &Bound<'_, Collection>, name: &str) -> PyResult<Self> {
+        let coll = coll_of(collection);
+        let m = coll.get(name).map_err(lib_err)?;
+        Ok(Self {
+            f: bb::eval::shade::material_brdf(&m.data),
+            label: name.to_string(),
+        })
+    }
+
+    /// The fitted combination of `target` read from a `fit` JSON file.
+    #[staticmethod]
+    fn fitted(collection: &Bound<'_, Collection>, fit: PathBuf, target: &str) -> PyResult<Self> {
+        let coll = coll_of(collection);
+        let f = bb::fit::file::FitFile::combination_from(&fit, &coll, target).map_err(lib_err)?;
+        Ok(Self {
+            f,
+            label: format!("fit of {target} ({})", fit.display()),
+        })
+    }
+
+    /// Evaluates at one pair of directions (3 floats each): (r, g, b).
+    fn eval1(&self, wi: [f64; 3], wo: [f64; 3]) -> (f64, f64, f64) {
+        let v = (self.f)(wi, wo);
+        (v[0], v[1], v[2])
+    }
+
+    /// Evaluates at arrays of directions, shape (..., 3) each: returns (..., 3) float64.
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        wi: PyReadonlyArrayDyn<'py, f64>,
+        wo: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let shape = wi.shape().to_vec();
+        if shape != wo.shape() || shape.last() != Some(&3) {
+            return Err(value_err(format!(
+                "wi and wo must have the same shape (..., 3), got {:?} and {:?}",
+                shape,
+                wo.shape()
+            )));
+        }
+        let a: Vec<f64> = wi.as_array().iter().copied().collect();
+        let b: Vec<f64> = wo.as_array().iter().copied().collect();
+        let f = &self.f;
+        let out = py.detach(|| {
+            let mut out = vec![0f64; a.len()];
+            for ((o, x), y) in out.chunks_mut(3).zip(a.chunks(3)).zip(b.chunks(3)) {
+                o.copy_from_slice(&f([x[0], x[1], x[2]], [y[0], y[1], y[2]]));
+            }
+            out
+        });
+        Ok(PyArray1::from_vec(py, out).reshape(shape)?.into_any())
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Brdf({})", self.label)
+    }
+}
+
+/// The sphere of SPEC 7 (orthographic from +z, one directional light from
+/// `light = (theta, phi)` degrees): linear radiance, shape (size, size, 3) float32, row 0
+/// at the top (what `brdf-basis render --out` writes).
+#[pyfunction]
+#[pyo3(signature = (brdf, *, size = 256, light = (45.0, 45.0)))]
+fn render<'py>(
+    py: Python<'py>,
+    brdf: &Bound<'py, Brdf>,
+    size: u32,
+    light: (f64, f64),
+) -> PyResult<Bound<'py, PyAny>> {
+    let p = bb::eval::render::RenderParams::default()
+        .with_size(size)
+        .with_light(light.0, light.1);
+    let f = &brdf.get().f;
+    let img = py
+        .detach(|| bb::eval::render::render_sphere(&p, f))
+        .map_err(lib_err)?;
+    let s = size as usize;
+    Ok(img.data.to_pyarray(py).reshape([s, s, 3])?.into_any())
+}
+
+fn image_of(a: &PyReadonlyArrayDyn<'_, f32>) -> PyResult<bb::eval::render::Image> {
+    let sh = a.shape();
+    if sh.len() != 3 || sh[2] != 3 {
+        return Err(value_err(format!(
+            "an image has shape (height, width, 3), got {sh:?}"
+        )));
+    }
+    let (h, w) = (sh[0] as u32, sh[1] as u32);
+    Ok(bb::eval::render::Image {
+        width: w,
+        height: h,
+        data: a.as_array().iter().copied().collect(),
+        mask: bb::eval::render::sphere_mask(w, h),
+    })
+}
+
+/// Normalised image error of SPEC 7 between two sphere renders (float32 arrays
+/// (size, size, 3)): the mean over sphere pixels and channels of |a - b| after the
+/// display mapping (exposure, gamma, clamp).
+#[pyfunction]
+#[pyo3(signature = (a, b, *, exposure = 0.0, gamma = 2.2))]
+fn image_error(
+    a: PyReadonlyArrayDyn<'_, f32>,
+    b: PyReadonlyArrayDyn<'_, f32>,
+    exposure: f64,
+    gamma: f64,
+) -> PyResult<f64> {
+    let d = bb::eval::image_error::DisplayParams::default()
+        .with_exposure(exposure)
+        .with_gamma(gamma);
+    d.check().map_err(lib_err)?;
+    bb::eval::image_error::normalized_image_error(&image_of(&a)?, &image_of(&b)?, &d)
+        .map_err(lib_err)
+}
+
+/// The name of the back-end `backend` opens (`cpu (2 threads, avx2)`, `gpu: ...`).
+#[pyfunction]
+#[pyo3(signature = (backend = "auto"))]
+fn backend_name(backend: &str) -> PyResult<String> {
+    Ok(open_backend(backend)?.name())
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Collection>()?;
+    m.add_class::<Brdf>()?;
+    m.add_function(wrap_pyfunction!(mask, m)?)?;
+    m.add_function(wrap_pyfunction!(distance_matrix, m)?)?;
+    m.add_function(wrap_pyfunction!(select_json, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_json, m)?)?;
+    m.add_function(wrap_pyfunction!(cross_validate_json, m)?)?;
+    m.add_function(wrap_pyfunction!(nnls, m)?)?;
+    m.add_function(wrap_pyfunction!(silhouette, m)?)?;
+    m.add_function(wrap_pyfunction!(kmedoids, m)?)?;
+    m.add_function(wrap_pyfunction!(wilcoxon_json, m)?)?;
+    m.add_function(wrap_pyfunction!(friedman_json, m)?)?;
+    m.add_function(wrap_pyfunction!(mann_whitney_json, m)?)?;
+    m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add_function(wrap_pyfunction!(image_error, m)?)?;
+    m.add_function(wrap_pyfunction!(backend_name, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,315 @@
+//! Fitting a material from its samples (SPEC 10): per channel c, with weights
+//! `w_s = 1 / sigma_s^2` (1 without sigma),
+//!
+//! ```text
+//! minimise  sum_s w_s (a0 / pi + sum_b a_b f_b,c(s) - y_c(s))^2   subject to a >= 0
+//! ```
+//!
+//! section 5's problem on the samples instead of the grid, solved by the crate's exact
+//! Lawson-Hanson solver on its Gram form (`G = A^T W A`, `h = A^T W y`). The basis is
+//! evaluated at the exact sample directions ([`super::material_at`]). With fewer samples
+//! than columns, or a rank-deficient or ill-conditioned sampled design, the fit is not
+//! determined by the samples: NNLS still returns a non-negative solution closest to them
+//! (often a good one), so that is a warning, never a refusal.
+
+use super::eval::material_at;
+use super::linalg::singular_values;
+use super::samples::Sample;
+use super::AcquireError;
+use crate::collection::Collection;
+use crate::fit::TargetFit;
+use crate::nnls::{lawson_hanson, GramProblem, NnlsError, NnlsSolution};
+use std::f64::consts::FRAC_1_PI;
+
+/// Condition number of the column-scaled sampled design above which `fit --samples` warns:
+/// a relative error of 1e-4 in the samples (a good gonioreflectometer) may then move the
+/// coefficients by 10% or more.
+pub const WARN_CONDITION: f64 = 1e3;
+
+/// Singular values below `RANK_TOL x` the largest count as zero in the rank of the
+/// column-scaled sampled design (they come from the eigenvalues of its Gram matrix, whose
+/// rounding puts a floor of about `sqrt(1e-16) = 1e-8` under the ratio).
+pub const RANK_TOL: f64 = 1e-6;
+
+/// The sampled design: per channel, one row `[1/pi, f_1,c(s), .., f_k,c(s)]` per sample.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Design {
+    /// Columns: the Lambertian term and the basis.
+    pub m: usize,
+    /// Per channel, `n x m` row-major.
+    pub rows: [Vec<f64>; 3],
+}
+
+impl Design {
+    /// The basis (collection indices) evaluated at the samples' exact directions.
+    pub fn at_samples(
+        coll: &Collection,
+        basis: &[usize],
+        samples: &[Sample],
+    ) -> Result<Self, AcquireError> {
+        let m = basis.len() + 1;
+        let mut rows: [Vec<f64>; 3] = Default::default();
+        for r in rows.iter_mut() {
+            r.reserve(samples.len() * m);
+        }
+        for s in samples {
+            for r in rows.iter_mut() {
+                r.push(FRAC_1_PI);
+            }
+            for &b in basis {
+                let v = material_at(&coll.materials()[b], s.wi, s.wo)?;
+                for (c, r) in rows.iter_mut().enumerate() {
+                    r.push(v[c]);
+                }
+            }
+        }
+        Ok(Self { m, rows })
+    }
+
+    /// Number of samples (rows).
+    pub fn n(&self) -> usize {
+        self.rows[0].len() / self.m.max(1)
+    }
+
+    /// The mean over channels of the rows (`n x m`): the design of SPEC 10's condition
+    /// criterion.
+    pub fn mean_rows(&self) -> Vec<f64> {
+        (0..self.rows[0].len())
+            .map(|i| (self.rows[0][i] + self.rows[1][i] + self.rows[2][i]) / 3.0)
+            .collect()
+    }
+}
+
+/// The weighted NNLS of one channel: rows `n x m`, values `y` and weights `w` (one per
+/// row), through the Gram form and the crate's Lawson-Hanson solver.
+pub fn solve_rows(m: usize, rows: &[f64], y: &[f64], w: &[f64]) -> Result<NnlsSolution, NnlsError> {
+    let mut g = vec![0.0; m * m];
+    let mut h = vec![0.0; m];
+    let mut bb = 0.0;
+    for ((row, &yv), &wv) in rows.chunks_exact(m).zip(y).zip(w) {
+        for i in 0..m {
+            let wi = wv * row[i];
+            h[i] += wi * yv;
+            for j in 0..=i {
+                g[i * m + j] += wi * row[j];
+            }
+        }
+        bb += wv * yv * yv;
+    }
+    for i in 0..m {
+        for j in 0..i {
+            g[j * m + i] = g[i * m + j];
+        }
+    }
+    let p = GramProblem::new(m, &g, &h, bb)?;
+    lawson_hanson::solve(&p, &lawson_hanson::LhParams::default())
+}
+
+/// What a sample set can determine: rank and condition number of the column-scaled design
+/// (mean over channels; every non-zero column scaled to unit norm).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Determination {
+    /// Samples.
+    pub samples: usize,
+    /// Columns (Lambertian + basis).
+    pub columns: usize,
+    /// Numerical rank ([`RANK_TOL`]).
+    pub rank: usize,
+    /// Largest over smallest of its `min(samples, columns)` singular values (infinite when
+    /// rank-deficient).
+    pub condition: f64,
+}
+
+/// Rank and condition of the column-scaled `n x m` design `d`.
+pub fn determination(n: usize, m: usize, d: &[f64]) -> Determination {
+    let mut d = d.to_vec();
+    for j in 0..m {
+        let norm = (0..n).map(|r| d[r * m + j] * d[r * m + j]).sum::<f64>().sqrt();
+        if norm > 0.0 {
+            (0..n).for_each(|r| d[r * m + j] /= norm);
+        }
+    }
+    let s = singular_values(n, m, &d);
+    let hi = s.first().copied().unwrap_or(0.0);
+    let rank = s.iter().filter(|&&v| v > RANK_TOL * hi && v > 0.0).count();
+    let lo = s.last().copied().unwrap_or(0.0);
+    Determination {
+        samples: n,
+        columns: m,
+        rank,
+        condition: if rank == m && lo > 0.0 { hi / lo } else { f64::INFINITY },
+    }
+}
+
+/// The fit of one material from its samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SampleFit {
+    /// Coefficients per column (0 = Lambertian, then the basis), RGB.
+    pub coefficients: Vec<[f64; 3]>,
+    /// `sqrt(sum_s w_s r_s^2)` per channel, on the samples.
+    pub residual: [f64; 3],
+    /// Weighted mean of |fit - y| over the samples, averaged over channels.
+    pub mae: f64,
+    /// `sum_c residual_c^2 / sum_c sum_s w_s y_c(s)^2` on the samples.
+    pub relative_residual: f64,
+    /// Largest scaled KKT violation per channel.
+    pub kkt: [f64; 3],
+    /// Solver iterations per channel.
+    pub iterations: [usize; 3],
+    /// Rank and condition of the sampled design.
+    pub determination: Determination,
+}
+
+impl SampleFit {
+    /// As a [`TargetFit`] named `material` (residual and MAE on the samples), for the fit
+    /// JSON and the export.
+    pub fn target_fit(&self, material: &str) -> TargetFit {
+        TargetFit {
+            material: material.to_string(),
+            coefficients: self.coefficients.clone(),
+            residual: self.residual,
+            mae: self.mae,
+            relative_residual: self.relative_residual,
+            relative_mae: 0.0,
+            kkt: self.kkt,
+            iterations: self.iterations,
+        }
+    }
+}
+
+/// Parameters of [`fit_samples`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleFitParams {
+    /// Condition number above which the fit warns ([`WARN_CONDITION`]).
+    pub warn_condition: f64,
+}
+
+impl Default for SampleFitParams {
+    fn default() -> Self {
+        Self {
+            warn_condition: WARN_CONDITION,
+        }
+    }
+}
+
+/// Fits the samples by the basis (collection indices, each once): per channel the weighted
+/// NNLS of SPEC 10. Refused: an empty basis, a duplicate, no sample, a basis value
+/// undefined at a sample (a MERL cell without measurement).
+pub fn fit_samples(
+    coll: &Collection,
+    basis: &[usize],
+    samples: &[Sample],
+) -> Result<SampleFit, AcquireError> {
+    if basis.is_empty() {
+        return Err(crate::fit::FitError::EmptyBasis.into());
+    }
+    for (i, &b) in basis.iter().enumerate() {
+        if basis[..i].contains(&b) {
+            return Err(crate::fit::FitError::DuplicateBasis(coll.materials()[b].name.clone()).into());
+        }
+    }
+    if samples.is_empty() {
+        return Err(AcquireError::NoSamples {
+            what: "the samples".into(),
+        });
+    }
+    let d = Design::at_samples(coll, basis, samples)?;
+    Ok(fit_design(&d, samples))
+}
+
+/// [`fit_samples`] on a given design (rows at the samples, in order).
+pub fn fit_design(d: &Design, samples: &[Sample]) -> SampleFit {
+    let m = d.m;
+    let n = samples.len();
+    let mut out = SampleFit {
+        coefficients: vec![[0.0; 3]; m],
+        residual: [0.0; 3],
+        mae: 0.0,
+        relative_residual: 0.0,
+        kkt: [0.0; 3],
+        iterations: [0; 3],
+        determination: determination(n, m, &d.mean_rows()),
+    };
+    let (mut sq, mut energy) = (0.0, 0.0);
+    for c in 0..3 {
+        let y: Vec<f64> = samples.iter().map(|s| s.rgb[c]).collect();
+        let w: Vec<f64> = samples.iter().map(|s| s.weight(c)).collect();
+        // Validated samples and a finite design: the Gram problem is valid.
+        let sol = solve_rows(m, &d.rows[c], &y, &w)
+            .expect("validated samples give a finite, well-formed Gram problem");
+        let (mut r2, mut ab, mut wsum) = (0.0, 0.0, 0.0);
+        for ((row, &yv), &wv) in d.rows[c].chunks_exact(m).zip(&y).zip(&w) {
+            let f: f64 = row.iter().zip(&sol.x).map(|(a, x)| a * x).sum();
+            r2 += wv * (f - yv) * (f - yv);
+            ab += wv * (f - yv).abs();
+            wsum += wv;
+            energy += wv * yv * yv;
+        }
+        sq += r2;
+        out.residual[c] = r2.sqrt();
+        out.mae += ab / wsum / 3.0;
+        out.kkt[c] = sol.max_kkt_violation;
+        out.iterations[c] = sol.iterations;
+        for (k, &a) in sol.x.iter().enumerate() {
+            out.coefficients[k][c] = a;
+        }
+    }
+    out.relative_residual = if energy > 0.0 { sq / energy } else { 0.0 };
+    out
+}
+
+/// Warnings of a fit whose samples cannot determine it: fewer samples than columns, a
+/// rank-deficient sampled design, or a condition number above `bound`; each says how many
+/// more samples would help (`where_` lists suggested directions, e.g. from
+/// [`super::plan::suggest`]).
+pub fn determination_warnings(d: &Determination, bound: f64, where_: &str) -> Vec<String> {
+    let mut w = Vec::new();
+    let at = if where_.is_empty() {
+        String::new()
+    } else {
+        format!(", e.g. at {where_}")
+    };
+    if d.samples < d.columns {
+        w.push(format!(
+            "{} samples for {} unknowns per channel (the Lambertian term and {} basis materials): the samples cannot determine the fit; NNLS returns the non-negative combination closest to them, often a good one, but {} more samples would determine it{at}",
+            d.samples,
+            d.columns,
+            d.columns - 1,
+            d.columns - d.samples
+        ));
+    } else if d.rank < d.columns {
+        w.push(format!(
+            "the sampled design has rank {} of {} (some basis materials look alike at these directions): the samples cannot tell them apart; at least {} more samples at other directions would help{at}",
+            d.rank,
+            d.columns,
+            d.columns - d.rank
+        ));
+    } else if d.condition > bound {
+        w.push(format!(
+            "the sampled design is ill-conditioned (condition number {} > {}): noise in the samples is amplified that much in the coefficients; a few more samples at other directions would help{at}",
+            crate::stats::num(d.condition),
+            crate::stats::num(bound)
+        ));
+    }
+    w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two rows, two columns: `[1 0; 0 2] x = [3, 4]` has the exact solution (3, 2).
+    #[test]
+    fn an_exactly_determined_hand_made_system() {
+        let s = solve_rows(2, &[1.0, 0.0, 0.0, 2.0], &[3.0, 4.0], &[1.0, 1.0]).unwrap();
+        assert!((s.x[0] - 3.0).abs() < 1e-14 && (s.x[1] - 2.0).abs() < 1e-14, "{:?}", s.x);
+        let d = determination(2, 2, &[1.0, 0.0, 0.0, 2.0]);
+        assert_eq!(d.rank, 2);
+        assert!((d.condition - 1.0).abs() < 1e-12);
+        let dep = determination(3, 2, &[1.0, 2.0, 2.0, 4.0, 3.0, 6.0]);
+        assert_eq!(dep.rank, 1);
+        assert!(dep.condition.is_infinite());
+        let w = determination_warnings(&dep, WARN_CONDITION, "");
+        assert!(w[0].contains("rank 1 of 2"), "{w:?}");
+    }
+}

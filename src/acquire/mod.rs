@@ -1,0 +1,110 @@
+//! Acquisition (SPEC 10): a material from a few measured samples, and where to measure.
+//!
+//! * [`eval`]: a material at an arbitrary direction pair (SPEC 9): analytic rows exactly,
+//!   MERL tables by the cell of the MERL lookup (an invalid cell is an error).
+//! * [`samples`]: the samples file (CSV of SPEC 10, or ASTM E1392 `.astm`), validated with
+//!   errors naming the line and column.
+//! * [`fit`]: the per-channel weighted NNLS of SPEC 10 on the samples (section 5's problem
+//!   on the samples instead of the grid; the crate's Lawson-Hanson solver), its warnings
+//!   (fewer samples than columns, a rank-deficient or ill-conditioned sampled design) and
+//!   the score of a reconstruction on the whole fit mask.
+//! * [`plan`]: where to measure: `error` (greedy on the mean training score), `condition`
+//!   (greedy on the condition number of the sampled design) and `random`.
+//! * [`cv`]: acquisition cross-validation (folds of SPEC 8; basis and plan chosen on the
+//!   training materials, held-out materials measured at the plan and scored).
+
+pub mod cv;
+pub mod eval;
+pub mod fit;
+pub mod linalg;
+pub mod plan;
+pub mod samples;
+
+pub use cv::{acquisition_cv, AcqCv, AcqCvParams};
+pub use eval::material_at;
+pub use fit::{fit_samples, SampleFit, SampleFitParams};
+pub use plan::{plan, Candidate, Criterion, Plan, PlanParams, PlannedSample};
+pub use samples::{read_samples, Sample};
+
+use std::path::PathBuf;
+
+/// Errors of acquisition.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AcquireError {
+    /// A direction is not above the horizon.
+    #[error("{what} direction {dir:?} is not above the horizon (its z must be positive)")]
+    BelowHorizon {
+        /// `incoming` or `outgoing`.
+        what: &'static str,
+        /// The direction.
+        dir: [f64; 3],
+    },
+    /// A direction is not a finite non-zero vector.
+    #[error("{what} direction {dir:?} is not a finite non-zero vector")]
+    BadDirection {
+        /// `incoming` or `outgoing`.
+        what: &'static str,
+        /// The direction.
+        dir: [f64; 3],
+    },
+    /// A measured table has no value at the cell a direction pair falls in.
+    #[error("material `{}` has no measurement in MERL cell {cell} (theta_h index {}, theta_d index {}, phi_d index {}), where a sample falls: its value is undefined there", crate::error::short_name(.material), .cell / 16200, (.cell / 180) % 90, .cell % 180)]
+    InvalidCell {
+        /// Material.
+        material: String,
+        /// Flat MERL cell index.
+        cell: usize,
+    },
+    /// A samples file could not be read.
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// A samples file is malformed (line 1 is the header; columns count from 1).
+    #[error("{path}: line {line}{}: {message}", .column.as_ref().map(|c| format!(", column `{c}`")).unwrap_or_default())]
+    Parse {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// Column name, when one is at fault.
+        column: Option<String>,
+        /// What is wrong.
+        message: String,
+    },
+    /// No sample to fit from.
+    #[error("{what}: no sample: at least one measured direction pair is needed")]
+    NoSamples {
+        /// The file or the caller's arrays.
+        what: String,
+    },
+    /// An invalid parameter.
+    #[error("{name} = {value}: {expected}")]
+    InvalidParam {
+        /// Parameter.
+        name: &'static str,
+        /// Value given.
+        value: String,
+        /// What is expected.
+        expected: &'static str,
+    },
+    /// A fit failed.
+    #[error(transparent)]
+    Fit(#[from] crate::fit::FitError),
+    /// The solver failed.
+    #[error(transparent)]
+    Nnls(#[from] crate::nnls::NnlsError),
+    /// Basis selection (cross-validation) failed.
+    #[error(transparent)]
+    Selection(#[from] crate::select::SelectionError),
+    /// A collection lookup failed.
+    #[error(transparent)]
+    Collection(#[from] crate::error::CollectionError),
+    /// A render failed.
+    #[error("render: {0}")]
+    Render(String),
+}

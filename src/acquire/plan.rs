@@ -1,0 +1,709 @@
+//! Where to measure (SPEC 10 "Plan"): n direction pairs chosen from candidates (default:
+//! the cell centres of the evaluation mask) for a basis and training materials, seeded.
+//!
+//! * `error`: greedy on the mean noise-free score (rho of SPEC 8 on the whole fit mask) of
+//!   the training materials fitted from the samples. Each step examines a seeded random
+//!   subset of `candidates_per_step` candidates (all of them when 0 or more than there are).
+//!   The sweep is parallel and screened by an exact rank-one update: for each training
+//!   material and channel, the current sample fit's passive set (its columns with a > 0)
+//!   is kept and its least-squares solution updated by Sherman-Morrison for the added row
+//!   (negative coefficients clipped), its grid score read from the full-mask Gram matrix in
+//!   O(p^2). The update is exact whenever the passive set does not change. The best
+//!   `shortlist` candidates of the screen are then fitted exactly (Lawson-Hanson on the
+//!   sampled Gram form, every training material and channel) and the one with the lowest
+//!   exact mean score is added (ties: the earliest candidate). `shortlist = 0` fits every
+//!   examined candidate exactly.
+//! * `condition`: greedy on the condition number of the sampled design `[1/pi, mean over
+//!   channels of f_b]` (unscaled, SPEC 10); the first sample is the candidate of largest
+//!   row norm.
+//! * `random`: n distinct uniform candidates (a prefix of a seeded permutation).
+//!
+//! Every criterion is nested: the first n' samples of an n-plan are the n'-plan (greedy by
+//! construction; random by the permutation). `history` holds the exact mean training score
+//! after each sample, whatever the criterion.
+
+use super::eval::{angles_deg, material_at};
+use super::fit::solve_rows;
+use super::linalg::{condition_number, sym_eigen};
+use super::samples::Sample;
+use super::AcquireError;
+use crate::backend::cpu::CpuBackend;
+use crate::backend::Backend;
+use crate::collection::Collection;
+use crate::fit::{channel_gram, channel_lobe, fit_cells, ChannelGram, FitParams};
+use crate::merl::grid::cell_directions;
+use rand::SeedableRng;
+use rayon::prelude::*;
+use std::f64::consts::FRAC_1_PI;
+
+/// A planning criterion.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Criterion {
+    /// Greedy on the mean training score.
+    Error,
+    /// Greedy on the condition number of the sampled design.
+    Condition,
+    /// Uniform random candidates.
+    Random,
+}
+
+impl Criterion {
+    /// The spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Criterion::Error => "error",
+            Criterion::Condition => "condition",
+            Criterion::Random => "random",
+        }
+    }
+}
+
+impl std::str::FromStr for Criterion {
+    type Err = AcquireError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        [Criterion::Error, Criterion::Condition, Criterion::Random]
+            .into_iter()
+            .find(|c| c.as_str() == s)
+            .ok_or_else(|| AcquireError::InvalidParam {
+                name: "criterion",
+                value: s.into(),
+                expected: "one of error, condition, random",
+            })
+    }
+}
+
+/// A candidate direction pair, with its MERL cell when it sits at a cell centre.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Candidate {
+    /// Incoming direction.
+    pub wi: [f64; 3],
+    /// Outgoing direction.
+    pub wo: [f64; 3],
+    /// The MERL cell of SPEC 2 when the pair is that cell's centre.
+    pub cell: Option<u32>,
+}
+
+/// A planned sample as written (`plan --json`, `cv --acquisition`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PlannedSample {
+    /// Incoming polar angle, degrees.
+    pub theta_i: f64,
+    /// Incoming azimuth, degrees.
+    pub phi_i: f64,
+    /// Outgoing polar angle, degrees.
+    pub theta_o: f64,
+    /// Outgoing azimuth, degrees.
+    pub phi_o: f64,
+    /// MERL cell index when the sample sits at a cell centre, else null.
+    pub cell: Option<u32>,
+}
+
+impl From<&Candidate> for PlannedSample {
+    fn from(c: &Candidate) -> Self {
+        let (theta_i, phi_i) = angles_deg(c.wi);
+        let (theta_o, phi_o) = angles_deg(c.wo);
+        Self {
+            theta_i,
+            phi_i,
+            theta_o,
+            phi_o,
+            cell: c.cell,
+        }
+    }
+}
+
+/// Parameters of [`plan`]. Defaults: `n = 20`, `error`, 10,000 candidates per step, a
+/// shortlist of 32, seed 1.
+#[derive(Clone, Debug)]
+pub struct PlanParams {
+    /// Samples to plan.
+    pub n: usize,
+    /// Criterion.
+    pub criterion: Criterion,
+    /// Candidates examined per step (0: all).
+    pub candidates_per_step: usize,
+    /// Candidates of the error screen fitted exactly per step (0: every examined one).
+    pub shortlist: usize,
+    /// Seed of the candidate subsets and of `random`.
+    pub seed: u64,
+    /// Fit mask and weighting of the training scores.
+    pub fit: FitParams,
+}
+
+impl Default for PlanParams {
+    fn default() -> Self {
+        Self {
+            n: 20,
+            criterion: Criterion::Error,
+            candidates_per_step: 10_000,
+            shortlist: 32,
+            seed: 1,
+            fit: FitParams::default(),
+        }
+    }
+}
+
+/// A plan (the `plan --json` schema of SPEC-cli).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Plan {
+    /// Basis, in column order.
+    pub basis: Vec<String>,
+    /// Criterion.
+    pub criterion: Criterion,
+    /// Samples planned.
+    pub n: usize,
+    /// Candidates examined per step.
+    pub candidates_per_step: usize,
+    /// Total candidates.
+    pub candidates: usize,
+    /// Samples in the order chosen.
+    pub samples: Vec<PlannedSample>,
+    /// Exact mean training score after each sample (empty without training materials).
+    pub history: Vec<f64>,
+    /// Seed.
+    pub seed: u64,
+    /// The chosen candidates, in order (not written).
+    #[serde(skip)]
+    pub chosen: Vec<Candidate>,
+}
+
+/// The cell centres of the fit mask valid in every material `idx` of `coll`.
+pub fn cell_candidates(coll: &Collection, idx: &[usize], fit: &FitParams) -> Result<Vec<Candidate>, AcquireError> {
+    let cells = fit_cells(coll, idx, fit)?;
+    Ok(cells
+        .cells
+        .iter()
+        .map(|&c| {
+            let (wi, wo) = cell_directions(c as usize);
+            Candidate { wi, wo, cell: Some(c) }
+        })
+        .collect())
+}
+
+/// Values of materials at candidates, per channel: `v[c][mat][cand]` (`mat` indexes
+/// `mats`); cell centres from the grid's f64 values (the same as the Gram matrices), other
+/// pairs by [`material_at`].
+pub(crate) fn values_at(
+    coll: &Collection,
+    mats: &[usize],
+    cands: &[Candidate],
+) -> Result<[Vec<Vec<f64>>; 3], AcquireError> {
+    let mut out: [Vec<Vec<f64>>; 3] = Default::default();
+    if let Some(cells) = cands.iter().map(|c| c.cell).collect::<Option<Vec<u32>>>() {
+        let cpu = CpuBackend::new();
+        for (c, o) in out.iter_mut().enumerate() {
+            *o = mats
+                .par_iter()
+                .map(|&m| cpu.values_f64(&channel_lobe(&coll.materials()[m].data, c), &cells))
+                .collect();
+        }
+        return Ok(out);
+    }
+    for o in out.iter_mut() {
+        *o = vec![vec![0.0; cands.len()]; mats.len()];
+    }
+    for (mi, &m) in mats.iter().enumerate() {
+        for (k, cand) in cands.iter().enumerate() {
+            let v = material_at(&coll.materials()[m], cand.wi, cand.wo)?;
+            for c in 0..3 {
+                out[c][mi][k] = v[c];
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Full-mask Gram quantities of the basis and the training materials, per channel.
+pub(crate) struct Dense {
+    /// Columns (Lambertian + basis).
+    pub m: usize,
+    /// Per channel.
+    pub g: [ChannelGram; 3],
+}
+
+impl Dense {
+    /// One back-end pass (or the separable closed form) per channel.
+    pub fn new(
+        backend: &dyn Backend,
+        coll: &Collection,
+        basis: &[usize],
+        targets: &[usize],
+        fit: &FitParams,
+    ) -> Result<Self, AcquireError> {
+        let mut all = basis.to_vec();
+        all.extend_from_slice(targets);
+        let cells = fit_cells(coll, &all, fit)?;
+        let g = [0, 1, 2].map(|c| {
+            channel_gram(backend, coll, basis, targets, &cells, c, fit.gram, &|_, _| {})
+        });
+        let [a, b, c] = g;
+        Ok(Self {
+            m: basis.len() + 1,
+            g: [a?, b?, c?],
+        })
+    }
+
+    /// `sum_s w_s r^2` on the full mask of coefficients `x` (channel `c`, target `t`).
+    pub fn r2(&self, c: usize, t: usize, x: &[f64]) -> f64 {
+        let m = self.m;
+        let g = &self.g[c];
+        let h = &g.h[t * m..(t + 1) * m];
+        let mut q = g.bb[t];
+        for i in 0..m {
+            if x[i] != 0.0 {
+                let gx: f64 = (0..m).map(|j| g.gram[i * m + j] * x[j]).sum();
+                q += x[i] * (gx - 2.0 * h[i]);
+            }
+        }
+        q.max(0.0)
+    }
+
+    /// rho of target `t` with per-channel coefficients `x[c]`.
+    pub fn rho(&self, t: usize, x: &[Vec<f64>; 3]) -> f64 {
+        let e: f64 = (0..3).map(|c| self.g[c].bb[t]).sum();
+        let r: f64 = (0..3).map(|c| self.r2(c, t, &x[c])).sum();
+        if e > 0.0 {
+            r / e
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Sampled state of the error criterion: per channel the rows so far; per target and
+/// channel the exact sample fit.
+struct State {
+    m: usize,
+    rows: [Vec<f64>; 3],
+    y: [Vec<Vec<f64>>; 3],
+    x: Vec<[Vec<f64>; 3]>,
+}
+
+impl State {
+    /// Exact fits of every target after adding the candidate row `a[c]` and values
+    /// `y[t][c]` (or with no addition).
+    fn exact_with(&self, add: Option<(&[[f64; 16]; 3], &[[f64; 3]])>) -> Vec<[Vec<f64>; 3]> {
+        let m = self.m;
+        (0..self.x.len())
+            .into_par_iter()
+            .map(|t| {
+                [0, 1, 2].map(|c| {
+                    let mut rows = self.rows[c].clone();
+                    let mut y = self.y[c][t].clone();
+                    if let Some((a, yv)) = add {
+                        rows.extend_from_slice(&a[c][..m]);
+                        y.push(yv[t][c]);
+                    }
+                    if y.is_empty() {
+                        return vec![0.0; m];
+                    }
+                    let w = vec![1.0; y.len()];
+                    solve_rows(m, &rows, &y, &w)
+                        .map(|s| s.x)
+                        .unwrap_or_else(|_| vec![0.0; m])
+                })
+            })
+            .collect()
+    }
+}
+
+/// Largest basis + 1 the error criterion's fixed-size rows support.
+pub const MAX_PLAN_COLUMNS: usize = 16;
+
+/// Plans `p.n` samples for `basis` and the training materials `targets` (collection
+/// indices) from `cands`.
+pub fn plan(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cands: &[Candidate],
+    p: &PlanParams,
+) -> Result<Plan, AcquireError> {
+    let m = basis.len() + 1;
+    if basis.is_empty() {
+        return Err(crate::fit::FitError::EmptyBasis.into());
+    }
+    if m > MAX_PLAN_COLUMNS {
+        return Err(AcquireError::InvalidParam {
+            name: "basis size",
+            value: basis.len().to_string(),
+            expected: "at most 15 materials",
+        });
+    }
+    if p.n == 0 || p.n > cands.len() {
+        return Err(AcquireError::InvalidParam {
+            name: "n",
+            value: p.n.to_string(),
+            expected: "at least 1 and at most the number of candidates",
+        });
+    }
+    if p.criterion == Criterion::Error && targets.is_empty() {
+        return Err(AcquireError::InvalidParam {
+            name: "targets",
+            value: "none".into(),
+            expected: "training materials outside the basis for the error criterion",
+        });
+    }
+    let dense = if targets.is_empty() {
+        None
+    } else {
+        Some(Dense::new(backend, coll, basis, targets, &p.fit)?)
+    };
+    let mut mats = basis.to_vec();
+    mats.extend_from_slice(targets);
+    let per_step = if p.candidates_per_step == 0 {
+        cands.len()
+    } else {
+        p.candidates_per_step.min(cands.len())
+    };
+    let mut chosen: Vec<usize> = Vec::with_capacity(p.n);
+    let mut st = State {
+        m,
+        rows: Default::default(),
+        y: [0, 1, 2].map(|_| vec![Vec::new(); targets.len()]),
+        x: vec![[0, 1, 2].map(|_| vec![0.0; m]); targets.len()],
+    };
+    let mut history = Vec::with_capacity(p.n);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(p.seed);
+    let order: Vec<usize> = if p.criterion == Criterion::Random {
+        // A partial Fisher-Yates shuffle: the first n entries depend only on the first n
+        // draws, so the n'-plan is the prefix of the n-plan.
+        let mut perm: Vec<usize> = (0..cands.len()).collect();
+        for i in 0..p.n {
+            let j = rand::Rng::random_range(&mut rng, i..cands.len());
+            perm.swap(i, j);
+        }
+        perm.truncate(p.n);
+        perm
+    } else {
+        Vec::new()
+    };
+    let mut cond_rows: Vec<f64> = Vec::new();
+    for step in 0..p.n {
+        // The candidates examined at this step: a seeded subset of the ones not chosen.
+        let pool: Vec<usize> = match p.criterion {
+            Criterion::Random => vec![order[step]],
+            _ => {
+                let mut srng = rand_chacha::ChaCha8Rng::seed_from_u64(
+                    p.seed ^ (step as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                );
+                let free: Vec<usize> = (0..cands.len()).filter(|i| !chosen.contains(i)).collect();
+                let mut pick: Vec<usize> = if per_step >= free.len() {
+                    free
+                } else {
+                    rand::seq::index::sample(&mut srng, free.len(), per_step)
+                        .into_iter()
+                        .map(|k| free[k])
+                        .collect()
+                };
+                pick.sort_unstable();
+                pick
+            }
+        };
+        let sub: Vec<Candidate> = pool.iter().map(|&i| cands[i]).collect();
+        let vals = values_at(coll, &mats, &sub)?;
+        let row = |c: usize, k: usize| -> [f64; 16] {
+            let mut r = [0.0; 16];
+            r[0] = FRAC_1_PI;
+            for b in 0..basis.len() {
+                r[b + 1] = vals[c][b][k];
+            }
+            r
+        };
+        let best_k = match p.criterion {
+            Criterion::Random => 0,
+            Criterion::Condition => {
+                let n0 = cond_rows.len() / m;
+                let score = |k: usize| -> f64 {
+                    let r: Vec<f64> = (0..m)
+                        .map(|j| (row(0, k)[j] + row(1, k)[j] + row(2, k)[j]) / 3.0)
+                        .collect();
+                    if n0 == 0 {
+                        -r.iter().map(|v| v * v).sum::<f64>()
+                    } else {
+                        let mut d = cond_rows.clone();
+                        d.extend_from_slice(&r);
+                        condition_number(n0 + 1, m, &d)
+                    }
+                };
+                let scores: Vec<f64> = (0..sub.len()).into_par_iter().map(score).collect();
+                argmin(&scores)
+            }
+            Criterion::Error => {
+                let d = dense.as_ref().expect("targets are given for the error criterion");
+                let nt = targets.len();
+                let ys = |k: usize| -> Vec<[f64; 3]> {
+                    (0..nt)
+                        .map(|t| [0, 1, 2].map(|c| vals[c][basis.len() + t][k]))
+                        .collect()
+                };
+                let screen = Screen::new(&st, d);
+                let scores: Vec<f64> = (0..sub.len())
+                    .into_par_iter()
+                    .map(|k| screen.score(&[row(0, k), row(1, k), row(2, k)], &ys(k)))
+                    .collect();
+                let mut ranked: Vec<usize> = (0..sub.len()).collect();
+                ranked.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]).then(a.cmp(&b)));
+                if p.shortlist > 0 {
+                    ranked.truncate(p.shortlist);
+                }
+                let exact: Vec<f64> = ranked
+                    .iter()
+                    .map(|&k| {
+                        let a = [row(0, k), row(1, k), row(2, k)];
+                        let y = ys(k);
+                        let xs = st.exact_with(Some((&a, &y)));
+                        mean_rho(d, &xs)
+                    })
+                    .collect();
+                let mut best = 0;
+                for i in 1..ranked.len() {
+                    let better = exact[i] < exact[best]
+                        || (exact[i] == exact[best] && ranked[i] < ranked[best]);
+                    if better {
+                        best = i;
+                    }
+                }
+                ranked[best]
+            }
+        };
+        chosen.push(pool[best_k]);
+        let a = [row(0, best_k), row(1, best_k), row(2, best_k)];
+        cond_rows.extend((0..m).map(|j| (a[0][j] + a[1][j] + a[2][j]) / 3.0));
+        if let Some(d) = &dense {
+            for c in 0..3 {
+                st.rows[c].extend_from_slice(&a[c][..m]);
+                for t in 0..targets.len() {
+                    st.y[c][t].push(vals[c][basis.len() + t][best_k]);
+                }
+            }
+            st.x = st.exact_with(None);
+            history.push(mean_rho(d, &st.x));
+        }
+    }
+    Ok(Plan {
+        basis: basis.iter().map(|&b| coll.materials()[b].name.clone()).collect(),
+        criterion: p.criterion,
+        n: p.n,
+        candidates_per_step: if p.criterion == Criterion::Random { cands.len() } else { per_step },
+        candidates: cands.len(),
+        samples: chosen.iter().map(|&i| PlannedSample::from(&cands[i])).collect(),
+        history,
+        seed: p.seed,
+        chosen: chosen.iter().map(|&i| cands[i]).collect(),
+    })
+}
+
+/// Index of the smallest value (ties: the earliest).
+fn argmin(v: &[f64]) -> usize {
+    let mut best = 0;
+    for (i, x) in v.iter().enumerate() {
+        if x < &v[best] {
+            best = i;
+        }
+    }
+    best
+}
+
+fn mean_rho(d: &Dense, xs: &[[Vec<f64>; 3]]) -> f64 {
+    xs.iter().enumerate().map(|(t, x)| d.rho(t, x)).sum::<f64>() / xs.len().max(1) as f64
+}
+
+/// Per target and channel: the passive set of the current sample fit, its solution and
+/// the pseudo-inverse of the sampled Gram on it: what the rank-one screen updates.
+struct Screen<'a> {
+    d: &'a Dense,
+    /// Per channel, the sampled Gram's Lambertian entry and `h_0` of each target (for the
+    /// empty passive set).
+    g00: [f64; 3],
+    h0: Vec<[f64; 3]>,
+    fits: Vec<[PassiveFit; 3]>,
+}
+
+#[derive(Default)]
+struct PassiveFit {
+    cols: Vec<usize>,
+    z: Vec<f64>,
+    /// `p x p` pseudo-inverse of the sampled Gram on `cols`.
+    inv: Vec<f64>,
+}
+
+impl<'a> Screen<'a> {
+    fn new(st: &State, d: &'a Dense) -> Self {
+        let m = st.m;
+        let grams: Vec<Vec<f64>> = (0..3)
+            .map(|c| {
+                let mut g = vec![0.0; m * m];
+                for row in st.rows[c].chunks_exact(m) {
+                    for i in 0..m {
+                        for j in 0..m {
+                            g[i * m + j] += row[i] * row[j];
+                        }
+                    }
+                }
+                g
+            })
+            .collect();
+        let h0 = (0..st.x.len())
+            .map(|t| {
+                [0, 1, 2].map(|c| {
+                    st.rows[c]
+                        .chunks_exact(m)
+                        .zip(&st.y[c][t])
+                        .map(|(r, y)| r[0] * y)
+                        .sum()
+                })
+            })
+            .collect();
+        let fits = st
+            .x
+            .par_iter()
+            .map(|xt| {
+                [0, 1, 2].map(|c| {
+                    let cols: Vec<usize> = (0..m).filter(|&j| xt[c][j] > 0.0).collect();
+                    let p = cols.len();
+                    let sub: Vec<f64> = cols
+                        .iter()
+                        .flat_map(|&i| cols.iter().map(move |&j| (i, j)))
+                        .map(|(i, j)| grams[c][i * m + j])
+                        .collect();
+                    let (l, v) = sym_eigen(p, &sub);
+                    let top = l.first().copied().unwrap_or(0.0);
+                    let mut inv = vec![0.0; p * p];
+                    for (e, &lam) in l.iter().enumerate() {
+                        if lam > 1e-13 * top && lam > 0.0 {
+                            for r in 0..p {
+                                for s in 0..p {
+                                    inv[r * p + s] += v[r * p + e] * v[s * p + e] / lam;
+                                }
+                            }
+                        }
+                    }
+                    PassiveFit {
+                        z: cols.iter().map(|&j| xt[c][j]).collect(),
+                        cols,
+                        inv,
+                    }
+                })
+            })
+            .collect();
+        Self {
+            d,
+            g00: [0, 1, 2].map(|c| grams[c][0]),
+            h0,
+            fits,
+        }
+    }
+
+    /// Screened mean training score after adding rows `a` (per channel) with values `y`.
+    fn score(&self, a: &[[f64; 16]; 3], y: &[[f64; 3]]) -> f64 {
+        let m = self.d.m;
+        let mut total = 0.0;
+        let mut x = [0.0f64; 16];
+        for (t, yt) in y.iter().enumerate() {
+            let (mut r, mut e) = (0.0, 0.0);
+            for c in 0..3 {
+                let pf = &self.fits[t][c];
+                x[..m].fill(0.0);
+                if pf.cols.is_empty() {
+                    // Only the Lambertian column, fitted to every sample so far and the new one.
+                    let g = self.g00[c] + a[c][0] * a[c][0];
+                    x[0] = ((self.h0[t][c] + a[c][0] * yt[c]) / g).max(0.0);
+                } else {
+                    let p = pf.cols.len();
+                    let mut u = [0.0f64; 16];
+                    let (mut au, mut az) = (0.0, 0.0);
+                    for r_ in 0..p {
+                        let ar = a[c][pf.cols[r_]];
+                        az += ar * pf.z[r_];
+                        for s in 0..p {
+                            u[r_] += pf.inv[r_ * p + s] * a[c][pf.cols[s]];
+                        }
+                        au += ar * u[r_];
+                    }
+                    let kappa = (yt[c] - az) / (1.0 + au);
+                    for r_ in 0..p {
+                        x[pf.cols[r_]] = (pf.z[r_] + kappa * u[r_]).max(0.0);
+                    }
+                }
+                r += self.d.r2(c, t, &x[..m]);
+                e += self.d.g[c].bb[t];
+            }
+            total += if e > 0.0 { r / e } else { 0.0 };
+        }
+        total / y.len().max(1) as f64
+    }
+}
+
+/// Up to `count` directions that would best complete the design of `samples` for `basis`
+/// (the condition criterion continued from them over a seeded subset of 4,000
+/// evaluation-mask cells), as text for a warning.
+pub fn suggest(
+    coll: &Collection,
+    basis: &[usize],
+    samples: &[Sample],
+    count: usize,
+    seed: u64,
+) -> Result<String, AcquireError> {
+    let m = basis.len() + 1;
+    let cands = cell_candidates(coll, basis, &FitParams::default())?;
+    if cands.is_empty() || count == 0 {
+        return Ok(String::new());
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let pool: Vec<Candidate> = rand::seq::index::sample(&mut rng, cands.len(), 4000.min(cands.len()))
+        .into_iter()
+        .map(|k| cands[k])
+        .collect();
+    let vals = values_at(coll, basis, &pool)?;
+    let mean_row = |k: usize| -> Vec<f64> {
+        std::iter::once(FRAC_1_PI)
+            .chain((0..basis.len()).map(|b| (vals[0][b][k] + vals[1][b][k] + vals[2][b][k]) / 3.0))
+            .collect()
+    };
+    let mut d: Vec<f64> = super::fit::Design::at_samples(coll, basis, samples)?.mean_rows();
+    let mut out = Vec::new();
+    let mut used = vec![false; pool.len()];
+    for _ in 0..count {
+        let n0 = d.len() / m;
+        let scores: Vec<f64> = (0..pool.len())
+            .into_par_iter()
+            .map(|k| {
+                if used[k] {
+                    return f64::INFINITY;
+                }
+                let mut dd = d.clone();
+                dd.extend(mean_row(k));
+                condition_number(n0 + 1, m, &dd)
+            })
+            .collect();
+        let k = argmin(&scores);
+        used[k] = true;
+        d.extend(mean_row(k));
+        let s = PlannedSample::from(&pool[k]);
+        out.push(format!(
+            "({:.1}, {:.1}, {:.1}, {:.1})",
+            s.theta_i, s.phi_i, s.theta_o, s.phi_o
+        ));
+    }
+    Ok(format!(
+        "(theta_i, phi_i, theta_o, phi_o) = {} degrees",
+        out.join(", ")
+    ))
+}
+
+/// The planned samples as the samples-file header plus directions (degrees), the operator
+/// adding `r,g,b` (and `sigma`) columns.
+pub fn plan_csv(p: &Plan) -> String {
+    let mut s = String::from("theta_i,phi_i,theta_o,phi_o\n");
+    for x in &p.samples {
+        s.push_str(&format!(
+            "{},{},{},{}\n",
+            x.theta_i, x.phi_i, x.theta_o, x.phi_o
+        ));
+    }
+    s
+}

@@ -1,0 +1,124 @@
+//! `brdf-basis plan`: where to measure a new material (SPEC 10).
+
+use super::Global;
+use brdf_basis::acquire::plan::{cell_candidates, plan, plan_csv, Candidate};
+use brdf_basis::acquire::{read_samples, Criterion, PlanParams};
+use brdf_basis::atomic::OutputPlan;
+use brdf_basis::fit::FitParams;
+use std::path::PathBuf;
+
+/// Arguments of `plan`.
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Examples:\n  brdf-basis plan ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,steel,cherry-235 -n 20 --out plan.csv --json plan.json\n  brdf-basis plan --basis gloss-white-enamel,polished-brass -n 10 --criterion condition --out plan.csv"
+)]
+pub struct PlanArgs {
+    /// Collection(s) (none: embedded default).
+    pub collection: Vec<PathBuf>,
+    /// Basis materials, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub basis: Vec<String>,
+    /// Samples to plan.
+    #[arg(short = 'n', default_value_t = 20)]
+    pub n: usize,
+    /// error (greedy on the mean training score), condition (greedy on the condition
+    /// number of the sampled design) or random.
+    #[arg(long, value_enum, default_value_t = Criterion::Error)]
+    pub criterion: Criterion,
+    /// Training materials, comma-separated [default: every material outside the basis].
+    #[arg(long, value_delimiter = ',')]
+    pub targets: Vec<String>,
+    /// Directions the instrument can reach: a CSV with `theta_i,phi_i,theta_o,phi_o`
+    /// (degrees) and `r,g,b` columns (values ignored) [default: the cell centres of the
+    /// evaluation mask].
+    #[arg(long)]
+    pub candidates: Option<PathBuf>,
+    /// Candidates examined per step (0: all).
+    #[arg(long, default_value_t = PlanParams::default().candidates_per_step)]
+    pub candidates_per_step: usize,
+    /// error: screened candidates fitted exactly per step (0: all examined).
+    #[arg(long, default_value_t = PlanParams::default().shortlist)]
+    pub shortlist: usize,
+    /// Output CSV: the samples-file header and one row per sample, in the order chosen.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write the plan as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// Plans the samples.
+pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
+    let mut op = OutputPlan::new(&a.collection);
+    op.file(&a.out, "--out")?;
+    if let Some(j) = &a.json {
+        op.file(j, "--json")?;
+    }
+    let mut out = op.into_set()?;
+    let coll = super::load_collection(&a.collection)?;
+    let basis: Vec<usize> = a
+        .basis
+        .iter()
+        .map(|n| coll.index_of(n.trim()))
+        .collect::<Result<_, _>>()?;
+    let targets: Vec<usize> = if a.targets.is_empty() {
+        (0..coll.len()).filter(|i| !basis.contains(i)).collect()
+    } else {
+        a.targets
+            .iter()
+            .map(|n| coll.index_of(n.trim()))
+            .collect::<Result<_, _>>()?
+    };
+    let fit = FitParams::default();
+    let cands: Vec<Candidate> = match &a.candidates {
+        Some(p) => read_samples(p)?
+            .into_iter()
+            .map(|s| Candidate {
+                wi: s.wi,
+                wo: s.wo,
+                cell: None,
+            })
+            .collect(),
+        None => {
+            let mut all = basis.clone();
+            all.extend_from_slice(&targets);
+            cell_candidates(&coll, &all, &fit)?
+        }
+    };
+    let backend = super::backend(g)?;
+    let p = PlanParams {
+        n: a.n,
+        criterion: a.criterion,
+        candidates_per_step: a.candidates_per_step,
+        shortlist: a.shortlist,
+        seed: g.seed,
+        fit,
+    };
+    let t0 = std::time::Instant::now();
+    let pl = plan(backend.as_ref(), &coll, &basis, &targets, &cands, &p)?;
+    let secs = t0.elapsed().as_secs_f64();
+    let csv = plan_csv(&pl);
+    out.stage(&a.out, |w| w.write_all(csv.as_bytes()))?;
+    if let Some(j) = &a.json {
+        let text = serde_json::to_string_pretty(&pl)?;
+        out.stage(j, |w| {
+            w.write_all(text.as_bytes())?;
+            w.write_all(b"\n")
+        })?;
+    }
+    out.commit()?;
+    println!(
+        "planned {} samples ({}, {} of {} candidates per step, {:.2} s); mean training score after the last: {}",
+        pl.n,
+        pl.criterion.as_str(),
+        pl.candidates_per_step,
+        pl.candidates,
+        secs,
+        pl.history.last().map_or("n/a".into(), |&v| brdf_basis::stats::num(v))
+    );
+    println!("wrote {}", a.out.display());
+    if let Some(j) = &a.json {
+        println!("wrote {}", j.display());
+    }
+    Ok(())
+}

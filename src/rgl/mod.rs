@@ -1,0 +1,128 @@
+//! RGL-EPFL measured materials (`.bsdf` files of the RGL material database; Dupuy & Jakob
+//! 2018, doi:10.1145/3272127.3275059): the `tensor_file` container ([`tensor`]), the
+//! evaluation of the paper's adaptive parameterisation ([`bsdf`]), and a material that
+//! holds both the exact evaluation and its tabulation on the MERL grid (SPEC 9).
+//!
+//! Units: the files' `rgb` tables give `f cos theta_o` divided by the sampling density
+//! (see [`bsdf`]); [`RglBsdf::eval`] returns reflectance `f` per steradian, the unit of
+//! a MERL table's values times its channel scales (SPEC 2), which is what
+//! [`crate::merl::MerlTable`] holds. No rescaling is applied.
+
+pub mod bsdf;
+pub mod tensor;
+
+pub use bsdf::RglBsdf;
+pub use tensor::TensorFile;
+
+use crate::error::RglError;
+use crate::merl::grid::{cell_directions, geometric_validity, N_CELLS};
+use crate::merl::MerlTable;
+use rayon::prelude::*;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Largest `.bsdf` file read (the RGL database's isotropic RGB files are 0.6-1 MB, its
+/// anisotropic spectral ones tens of MB).
+pub const MAX_BSDF_BYTES: u64 = 1 << 30;
+
+/// An RGL-EPFL material: its exact evaluation and its table on the MERL grid (computed
+/// once, when it is loaded).
+#[derive(Debug)]
+pub struct RglMaterial {
+    bsdf: RglBsdf,
+    table: Arc<MerlTable>,
+    clamped: usize,
+}
+
+impl RglMaterial {
+    /// Reads, validates and tabulates a `.bsdf` file.
+    pub fn load(path: &Path) -> Result<Self, RglError> {
+        Ok(Self::new(read(path)?))
+    }
+
+    /// Tabulates an evaluation on the MERL grid (cell centres of SPEC 2, in parallel).
+    /// Cells below the horizon are invalid (-1); a negative measured value in a valid
+    /// cell is stored as 0, so that the cell stays valid (SPEC 2 makes a cell with a
+    /// negative channel invalid, which would remove it from every distance and fit of
+    /// a collection holding this material).
+    pub fn new(bsdf: RglBsdf) -> Self {
+        let valid = geometric_validity();
+        let cells: Vec<[f32; 3]> = (0..N_CELLS)
+            .into_par_iter()
+            .map(|cell| {
+                if !valid[cell] {
+                    return [-1.0; 3];
+                }
+                let (wi, wo) = cell_directions(cell);
+                bsdf.eval(wi, wo).map(|v| v as f32)
+            })
+            .collect();
+        let mut rgb = vec![0f32; 3 * N_CELLS];
+        let mut clamped = 0;
+        for (cell, v) in cells.iter().enumerate() {
+            if valid[cell] && v.iter().any(|&x| x < 0.0) {
+                clamped += 1;
+            }
+            for c in 0..3 {
+                rgb[c * N_CELLS + cell] = if valid[cell] { v[c].max(0.0) } else { -1.0 };
+            }
+        }
+        Self {
+            bsdf,
+            table: Arc::new(MerlTable { rgb }),
+            clamped,
+        }
+    }
+
+    /// RGB reflectance `f(wi, wo)` at unit directions (local frame, z = normal), exact
+    /// (not the table): 0 below the horizon.
+    pub fn eval_dirs(&self, wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
+        self.bsdf.eval(wi, wo)
+    }
+
+    /// The tabulation on the MERL grid.
+    pub fn table(&self) -> &Arc<MerlTable> {
+        &self.table
+    }
+
+    /// The evaluation.
+    pub fn bsdf(&self) -> &RglBsdf {
+        &self.bsdf
+    }
+
+    /// Valid grid cells where some channel evaluated negative and was stored as 0.
+    pub fn clamped_cells(&self) -> usize {
+        self.clamped
+    }
+}
+
+/// Reads and validates a `.bsdf` file (no tabulation). A FIFO or a device is refused from
+/// its metadata, before it is opened.
+pub fn read(path: &Path) -> Result<RglBsdf, RglError> {
+    let io = |source| RglError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(RglError::NotRegular {
+            path: path.to_path_buf(),
+            kind: crate::merl::binary::file_kind(&meta),
+        });
+    }
+    if meta.len() > MAX_BSDF_BYTES {
+        return Err(RglError::TooLarge {
+            path: path.to_path_buf(),
+            bytes: meta.len(),
+            max: MAX_BSDF_BYTES,
+        });
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
+    parse(bytes, path)
+}
+
+/// Parses and validates the bytes of a `.bsdf` file (`path` names it in errors).
+pub fn parse(bytes: Vec<u8>, path: &Path) -> Result<RglBsdf, RglError> {
+    let tf = TensorFile::parse(bytes, path)?;
+    RglBsdf::from_tensor(&tf, path)
+}
