@@ -6,7 +6,9 @@
 //! * `kmedoids`: the saved matrix loaded (`select --distances` path), k-medoids for
 //!   k = 5..20, one seeded run each (the library default algorithm);
 //! * `gcuk`: the saved matrix loaded, one GCUK run (default parameters);
-//! * `greedy`: error-driven greedy selection (SPEC 8) at k = 20 (Gram + greedy);
+//! * `greedy`: error-driven greedy selection (SPEC 8) at k = 20 (Gram + screened greedy;
+//!   at N <= 1,000 also the exhaustive greedy, and whether both chose the same basis);
+//! * `swap`: swap refinement at k = 12 from the greedy basis, N <= 1,000;
 //! * `empirical`: Algorithm 1 (leave-one-out NNLS over the whole collection), N <= 3,000.
 //!
 //! `cargo bench --bench large` runs N = 1000, 3000, 10000. Environment: `BENCH_N=1000,3000`
@@ -76,13 +78,19 @@ fn matrix_path(dir: &Path, n: usize) -> PathBuf {
     dir.join(format!("d{n}.npy"))
 }
 
-/// Error-driven greedy selection (SPEC 8) at k = 20: the Gram of all materials (closed
-/// form), then greedy; a one-line summary.
+/// Error-driven greedy selection (SPEC 8) at k = 20 on the grid of stride
+/// `BENCH_GREEDY_STRIDE` (default 3): the Gram of all materials (closed form), then the
+/// screened greedy (`select --method greedy`); at N <= `BENCH_GREEDY_CHECK` (default
+/// 1,000) also the exhaustive greedy of SPEC 8, and whether both chose the same basis in
+/// the same order with the same scores; a one-line summary.
 fn stage_greedy(coll: &Collection) -> Option<String> {
-    use brdf_basis::select::{greedy, Objective, ObjectiveParams, SearchParams};
+    use brdf_basis::select::greedy::{greedy_exhaustive, greedy_with_counts};
+    use brdf_basis::select::{Objective, ObjectiveParams, SearchParams};
     let cpu = CpuBackend::new();
+    let stride = env_usize("BENCH_GREEDY_STRIDE", 3);
     let t = Instant::now();
     let op = ObjectiveParams::default()
+        .stride(stride)
         .check()
         .expect("objective params");
     let obj = Objective::new(&cpu, coll, &op, &|_, _| {}).expect("objective");
@@ -90,12 +98,61 @@ fn stage_greedy(coll: &Collection) -> Option<String> {
     let p = SearchParams::new(20)
         .check(obj.names())
         .expect("search params");
-    let sel = greedy(&obj, &p, &|_, _| {}).unwrap();
+    let t1 = Instant::now();
+    let (sel, evaluated) = greedy_with_counts(&obj, &p, &|_, _| {}).unwrap();
+    let fast = t1.elapsed().as_secs_f64();
+    let n = coll.len();
+    let swept: usize = (0..sel.indices.len()).map(|s| n - s).sum();
+    let scored: usize = evaluated.iter().sum();
+    let check = if n <= env_usize("BENCH_GREEDY_CHECK", 1000) {
+        let t2 = Instant::now();
+        let exact = greedy_exhaustive(&obj, &p, &|_, _| {}).unwrap();
+        let slow = t2.elapsed().as_secs_f64();
+        format!(
+            "exhaustive greedy {slow:.2} s ({:.1}x), same basis, order and scores: {}",
+            slow / fast,
+            if exact == sel { "yes" } else { "NO" }
+        )
+    } else {
+        "exhaustive greedy not run at this N (BENCH_GREEDY_CHECK)".into()
+    };
     Some(format!(
-        "k 20, S {:.4e}, Gram {gram:.2} s, greedy {:.2} s",
+        "k 20, stride {stride}, S {:.4e}, Gram {gram:.2} s, greedy {fast:.2} s (exact scores {scored} of {swept}); {check}; basis {}",
         sel.score,
-        t.elapsed().as_secs_f64() - gram
+        sel.indices
+            .iter()
+            .map(|i| i.to_string())
+            .collect::<Vec<_>>()
+            .join(",")
     ))
+}
+
+/// Swap refinement (SPEC 8) at k = 12 from the greedy basis (stride as the greedy stage).
+fn stage_swap(coll: &Collection) -> String {
+    use brdf_basis::select::{swap, Objective, ObjectiveParams, SearchParams};
+    let stride = env_usize("BENCH_GREEDY_STRIDE", 3);
+    let t = Instant::now();
+    let op = ObjectiveParams::default()
+        .stride(stride)
+        .check()
+        .expect("objective params");
+    let obj = Objective::new(&CpuBackend::new(), coll, &op, &|_, _| {}).expect("objective");
+    let gram = t.elapsed().as_secs_f64();
+    let p = SearchParams::new(12).check(obj.names()).expect("params");
+    let sel = swap(&obj, &p, &|_, _| {}).unwrap();
+    format!(
+        "k 12, stride {stride}, S {:.4e}, {} exchanges, Gram {gram:.2} s, greedy + swap {:.2} s",
+        sel.score,
+        sel.history.len() - 1,
+        t.elapsed().as_secs_f64() - gram
+    )
+}
+
+fn env_usize(name: &str, default: usize) -> usize {
+    std::env::var(name)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
 }
 
 /// One stage in this process; prints `RESULT ...`.
@@ -159,6 +216,7 @@ fn child(stage: &str, n: usize, dir: &Path) {
                 g.db_index
             )
         }
+        "swap" => stage_swap(&coll),
         "greedy" => match stage_greedy(&coll) {
             Some(s) => s,
             None => "NOT RUN: error-driven selection (src/select) is not on this branch".into(),
@@ -207,12 +265,15 @@ fn main() {
         .iter()
         .map(|s| s.parse().expect("BENCH_N"))
         .collect();
-    let stages = env_list("BENCH_STAGES", "distance,kmedoids,gcuk,greedy,empirical");
+    let stages = env_list(
+        "BENCH_STAGES",
+        "distance,kmedoids,gcuk,greedy,swap,empirical",
+    );
     let dir = tempfile::tempdir().expect("temp dir");
     let exe = std::env::current_exe().expect("exe");
     for &n in &sizes {
         for stage in &stages {
-            if stage == "empirical" && n > 3000 {
+            if (stage == "empirical" && n > 3000) || (stage == "swap" && n > 1000) {
                 continue;
             }
             let out = Command::new(&exe)

@@ -512,17 +512,13 @@ pub enum DistanceError {
         /// Accepted values.
         expected: &'static str,
     },
-    /// More tiles asked for than the matrix has bands.
-    #[error("{count} tiles asked for, but {materials} materials in bands of {band_rows} rows (--band-rows) make {bands} band{}: use at most {bands} tile{}, or a smaller --band-rows", if *.bands == 1 { "" } else { "s" }, if *.bands == 1 { "" } else { "s" })]
+    /// More tiles asked for than the matrix has rows.
+    #[error("{count} tiles asked for, but the collection has {materials} material{}: use at most {materials} tile{}", if *.materials == 1 { "" } else { "s" }, if *.materials == 1 { "" } else { "s" })]
     TooManyTiles {
         /// Tiles asked for.
         count: usize,
-        /// Bands of the matrix.
-        bands: usize,
-        /// Materials.
+        /// Materials (rows of the matrix).
         materials: usize,
-        /// Rows per band.
-        band_rows: usize,
     },
     /// Back-end failure.
     #[error(transparent)]

@@ -2,8 +2,7 @@
 
 use crate::common;
 use brdf_basis::acquire::{
-    fit::fit_samples, material_at, plan::cell_candidates, plan::plan, Criterion, PlanParams,
-    Sample,
+    fit::fit_samples, material_at, plan::cell_candidates, plan::plan, Criterion, PlanParams, Sample,
 };
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::{fit, FitParams};
@@ -33,7 +32,12 @@ fn dir(theta_deg: f64, phi_deg: f64) -> [f64; 3] {
 fn samples_of_an_exact_combination_give_its_coefficients() {
     let c = coll();
     let basis = [0, 1, 2];
-    let a = [[0.1, 0.2, 0.3], [0.5, 0.5, 0.5], [0.25, 0.1, 0.4], [0.75, 1.0, 0.6]];
+    let a = [
+        [0.1, 0.2, 0.3],
+        [0.5, 0.5, 0.5],
+        [0.25, 0.1, 0.4],
+        [0.75, 1.0, 0.6],
+    ];
     let truth = |wi, wo| -> [f64; 3] {
         let mut v = [0.0; 3];
         for ch in 0..3 {
@@ -44,14 +48,27 @@ fn samples_of_an_exact_combination_give_its_coefficients() {
         }
         v
     };
-    let dirs = [(0.0, 0.0, 10.0, 180.0), (20.0, 0.0, 25.0, 180.0), (30.0, 0.0, 31.0, 175.0),
-        (45.0, 90.0, 44.0, 270.0), (60.0, 0.0, 10.0, 90.0), (5.0, 0.0, 70.0, 0.0),
-        (15.0, 30.0, 16.0, 212.0), (40.0, 0.0, 41.0, 180.5)];
+    let dirs = [
+        (0.0, 0.0, 10.0, 180.0),
+        (20.0, 0.0, 25.0, 180.0),
+        (30.0, 0.0, 31.0, 175.0),
+        (45.0, 90.0, 44.0, 270.0),
+        (60.0, 0.0, 10.0, 90.0),
+        (5.0, 0.0, 70.0, 0.0),
+        (15.0, 30.0, 16.0, 212.0),
+        (40.0, 0.0, 41.0, 180.5),
+    ];
     let samples: Vec<Sample> = dirs
         .iter()
         .map(|&(ti, pi, to, po)| {
             let (wi, wo) = (dir(ti, pi), dir(to, po));
-            Sample { wi, wo, rgb: truth(wi, wo), sigma: None, line: 0 }
+            Sample {
+                wi,
+                wo,
+                rgb: truth(wi, wo),
+                sigma: None,
+                line: 0,
+            }
         })
         .collect();
     let f = fit_samples(&c, &basis, &samples).unwrap();
@@ -59,7 +76,11 @@ fn samples_of_an_exact_combination_give_its_coefficients() {
         for ch in 0..3 {
             let got = f.coefficients[k][ch];
             // Tolerance: the Gram form squares the condition number (~1e4 here).
-            assert!((got - row[ch]).abs() < 1e-6 * row[ch].max(1.0), "column {k} channel {ch}: {got} vs {}", row[ch]);
+            assert!(
+                (got - row[ch]).abs() < 1e-6 * row[ch].max(1.0),
+                "column {k} channel {ch}: {got} vs {}",
+                row[ch]
+            );
         }
     }
     assert_eq!(f.determination.rank, 4);
@@ -72,7 +93,11 @@ fn samples_of_an_exact_combination_give_its_coefficients() {
         for (k, &b) in basis.iter().enumerate() {
             got += f.coefficients[k + 1][ch] * material_at(&c.materials()[b], wi, wo).unwrap()[ch];
         }
-        assert!((got - want[ch]).abs() < 1e-6 * want[ch], "{got} vs {}", want[ch]);
+        assert!(
+            (got - want[ch]).abs() < 1e-6 * want[ch],
+            "{got} vs {}",
+            want[ch]
+        );
     }
 }
 
@@ -82,7 +107,10 @@ fn samples_of_an_exact_combination_give_its_coefficients() {
 fn samples_at_all_cell_centres_give_the_grid_fit() {
     let c = coll();
     let basis = [0, 1, 2];
-    let p = FitParams { stride: 4, ..FitParams::default() };
+    let p = FitParams {
+        stride: 4,
+        ..FitParams::default()
+    };
     let grid = fit(&CpuBackend::new(), &c, &basis, &[3], &p, &|_, _| {}).unwrap();
     let cells = brdf_basis::fit::fit_cells(&c, &[0, 1, 2, 3], &p).unwrap();
     let samples: Vec<Sample> = cells
@@ -90,14 +118,23 @@ fn samples_at_all_cell_centres_give_the_grid_fit() {
         .iter()
         .map(|&cell| {
             let (wi, wo) = cell_directions(cell as usize);
-            Sample { wi, wo, rgb: material_at(&c.materials()[3], wi, wo).unwrap(), sigma: None, line: 0 }
+            Sample {
+                wi,
+                wo,
+                rgb: material_at(&c.materials()[3], wi, wo).unwrap(),
+                sigma: None,
+                line: 0,
+            }
         })
         .collect();
     let f = fit_samples(&c, &basis, &samples).unwrap();
     for k in 0..4 {
         for ch in 0..3 {
             let (a, b) = (f.coefficients[k][ch], grid[0].coefficients[k][ch]);
-            assert!((a - b).abs() <= 1e-5 * b.abs().max(1e-3), "column {k} channel {ch}: samples {a} vs grid {b}");
+            assert!(
+                (a - b).abs() <= 1e-5 * b.abs().max(1e-3),
+                "column {k} channel {ch}: samples {a} vs grid {b}"
+            );
         }
     }
 }
@@ -109,7 +146,11 @@ fn a_rank_deficient_sample_set_is_warned_about() {
     let d = common::tmp();
     let collp = common::write(d.path(), "c.csv", CSV);
     let row = "10,0,12,180,0.05,0.04,0.03\n".repeat(5);
-    let s = common::write(d.path(), "meas.csv", format!("theta_i,phi_i,theta_o,phi_o,r,g,b\n{row}"));
+    let s = common::write(
+        d.path(),
+        "meas.csv",
+        format!("theta_i,phi_i,theta_o,phi_o,r,g,b\n{row}"),
+    );
     let json = d.path().join("fit.json");
     let out = common::bin_cpu()
         .arg("fit")
@@ -124,13 +165,23 @@ fn a_rank_deficient_sample_set_is_warned_about() {
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
-    assert!(err.contains("rank 1 of 4") && err.contains("more samples") && err.contains("theta_i"), "{err}");
+    assert!(
+        err.contains("rank 1 of 4") && err.contains("more samples") && err.contains("theta_i"),
+        "{err}"
+    );
     let text = std::fs::read_to_string(&json).unwrap();
-    assert!(text.contains("\"samples\": 5") && text.contains("\"material\": \"meas\""), "{text}");
+    assert!(
+        text.contains("\"samples\": 5") && text.contains("\"material\": \"meas\""),
+        "{text}"
+    );
     let bin = std::fs::metadata(d.path().join("exp/meas.binary")).unwrap();
     assert_eq!(bin.len(), 34_992_012);
     // Refused: a sample below the horizon, named by line and column.
-    let bad = common::write(d.path(), "bad.csv", "theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,12,180,0.05,0.04,0.03\n10,0,92,0,1,1,1\n");
+    let bad = common::write(
+        d.path(),
+        "bad.csv",
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,12,180,0.05,0.04,0.03\n10,0,92,0,1,1,1\n",
+    );
     let out = common::bin_cpu()
         .arg("fit")
         .arg(&collp)
@@ -141,7 +192,10 @@ fn a_rank_deficient_sample_set_is_warned_about() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("line 3") && err.contains("theta_o"), "{err}");
+    assert!(
+        !out.status.success() && err.contains("line 3") && err.contains("theta_o"),
+        "{err}"
+    );
 }
 
 /// Plans are deterministic for a seed and nested; the error plan lowers the training score
@@ -149,20 +203,57 @@ fn a_rank_deficient_sample_set_is_warned_about() {
 #[test]
 fn plans_are_deterministic_nested_and_error_plans_lower_the_score() {
     let c = coll();
-    let cands = cell_candidates(&c, &[0, 1, 2, 3], &FitParams { stride: 3, ..FitParams::default() }).unwrap();
+    let cands = cell_candidates(
+        &c,
+        &[0, 1, 2, 3],
+        &FitParams {
+            stride: 3,
+            ..FitParams::default()
+        },
+    )
+    .unwrap();
     let be = CpuBackend::new();
     for crit in [Criterion::Error, Criterion::Condition, Criterion::Random] {
-        let p = PlanParams { n: 6, criterion: crit, candidates_per_step: 500, seed: 7, ..PlanParams::default() };
+        let p = PlanParams {
+            n: 6,
+            criterion: crit,
+            candidates_per_step: 500,
+            seed: 7,
+            ..PlanParams::default()
+        };
         let a = plan(&be, &c, &[0, 1], &[2, 3], &cands, &p).unwrap();
         let b = plan(&be, &c, &[0, 1], &[2, 3], &cands, &p).unwrap();
         assert_eq!(a, b, "{crit:?}");
-        let short = plan(&be, &c, &[0, 1], &[2, 3], &cands, &PlanParams { n: 3, ..p.clone() }).unwrap();
+        let short = plan(
+            &be,
+            &c,
+            &[0, 1],
+            &[2, 3],
+            &cands,
+            &PlanParams { n: 3, ..p.clone() },
+        )
+        .unwrap();
         assert_eq!(short.samples[..], a.samples[..3], "{crit:?} nested");
         if crit == Criterion::Error {
-            assert!(a.history.windows(2).all(|w| w[1] <= w[0] * (1.0 + 1e-9)), "{:?}", a.history);
+            assert!(
+                a.history.windows(2).all(|w| w[1] <= w[0] * (1.0 + 1e-9)),
+                "{:?}",
+                a.history
+            );
         }
         if crit == Criterion::Random {
-            let other = plan(&be, &c, &[0, 1], &[2, 3], &cands, &PlanParams { seed: 8, ..p.clone() }).unwrap();
+            let other = plan(
+                &be,
+                &c,
+                &[0, 1],
+                &[2, 3],
+                &cands,
+                &PlanParams {
+                    seed: 8,
+                    ..p.clone()
+                },
+            )
+            .unwrap();
             assert_ne!(other.samples, a.samples);
         }
     }

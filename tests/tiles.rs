@@ -5,7 +5,7 @@ use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
-use brdf_basis::distance::band::tile_blocks;
+use brdf_basis::distance::band::tile_rows;
 use brdf_basis::distance::{distance_matrix_banded, distance_tile, lobes, DistanceParams};
 use std::path::{Path, PathBuf};
 
@@ -109,38 +109,35 @@ fn banding_does_not_change_any_value() {
 }
 
 #[test]
-fn tiles_cover_every_band_once_and_balance_work() {
-    for (n, band, count) in [
-        (58usize, 8usize, 3usize),
-        (1000, 16, 7),
-        (100_000, 1024, 64),
-        (9, 4, 3),
+fn tiles_cover_every_row_once_and_balance_work() {
+    for (n, count) in [
+        (58usize, 3usize),
+        (1000, 7),
+        (100_000, 64),
+        (9, 3),
+        (9, 9),
+        (100, 3),
     ] {
-        let nb = n.div_ceil(band);
         let mut next = 0;
         let mut work = Vec::new();
         for i in 1..=count {
-            let r = tile_blocks(n, band, i, count).expect("tile");
+            let r = tile_rows(n, i, count).expect("tile");
             assert_eq!(r.start, next);
             assert!(r.end > r.start);
-            work.push(r.clone().map(|a| nb - a).sum::<usize>());
+            work.push(r.clone().map(|a| n - 1 - a).sum::<usize>());
             next = r.end;
         }
-        assert_eq!(next, nb);
+        assert_eq!(next, n);
         let total: usize = work.iter().sum();
-        if nb >= 4 * count {
-            // Within one band row's work of an even share.
+        if n >= 4 * count {
+            // Within one row's work of an even share.
             let even = total / count;
-            assert!(work.iter().all(|&w| w.abs_diff(even) <= nb), "{work:?}");
+            assert!(work.iter().all(|&w| w.abs_diff(even) <= n), "{work:?}");
         }
     }
-    assert!(tile_blocks(58, 8, 0, 3).is_err());
-    assert!(tile_blocks(58, 8, 4, 3).is_err());
-    assert!(tile_blocks(58, 8, 1, 9).is_err(), "more tiles than bands");
-    assert!(
-        tile_blocks(58, 6, 1, 2).is_err(),
-        "band rows not a multiple of 4"
-    );
+    assert!(tile_rows(58, 0, 3).is_err());
+    assert!(tile_rows(58, 4, 3).is_err());
+    assert!(tile_rows(58, 1, 59).is_err(), "more tiles than rows");
 }
 
 #[test]

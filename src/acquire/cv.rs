@@ -9,7 +9,9 @@
 //! is its limit.
 
 use super::fit::solve_rows;
-use super::plan::{cell_candidates, plan, values_at, Candidate, Criterion, Dense, PlanParams, PlannedSample};
+use super::plan::{
+    cell_candidates, plan, values_at, Candidate, Criterion, Dense, PlanParams, PlannedSample,
+};
 use super::AcquireError;
 use crate::backend::Backend;
 use crate::collection::Collection;
@@ -180,14 +182,19 @@ pub fn acquisition_cv(
             .stride(fp.stride)
             .check(coll)
             .map_err(crate::select::SelectionError::from)?;
-        Some(distance_matrix(backend, coll, &dp, &|_, _| {}).map_err(crate::select::SelectionError::from)?)
+        Some(
+            distance_matrix(backend, coll, &dp, &|_, _| {})
+                .map_err(crate::select::SelectionError::from)?,
+        )
     } else {
         None
     };
     let folds = make_folds(n, p.folds, p.seed);
     let bases = fold_bases(&obj, dist.as_ref(), &folds, &vp, &|_, _| {})?;
     let grid = GridEval::new(coll, &fp);
-    let rp = RenderParams::default().with_size(p.render_size).with_light(45.0, 45.0);
+    let rp = RenderParams::default()
+        .with_size(p.render_size)
+        .with_light(45.0, 45.0);
     let display = DisplayParams::default();
     let originals: Vec<_> = (0..n)
         .into_par_iter()
@@ -216,7 +223,9 @@ pub fn acquisition_cv(
                     let x = [0, 1, 2].map(|c| {
                         let g = &dense.g[c];
                         GramProblem::new(mm, &g.gram, &g.h[t * mm..(t + 1) * mm], g.bb[t])
-                            .and_then(|pr| lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default()))
+                            .and_then(|pr| {
+                                lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default())
+                            })
                             .map(|s| s.x)
                     });
                     let [a, b, c] = x;
@@ -270,7 +279,8 @@ pub fn acquisition_cv(
                                     }
                                     x[c] = solve_rows(mm, &r, &ys[t][c][..ns], &vec![1.0; ns])?.x;
                                 }
-                                let coef: Vec<[f64; 3]> = (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
+                                let coef: Vec<[f64; 3]> =
+                                    (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
                                 let img = render_sphere(&rp, &combination_brdf(coll, basis, &coef))
                                     .map_err(|e| AcquireError::Render(e.to_string()))?;
                                 Ok(AcqHeldOut {
@@ -279,8 +289,12 @@ pub fn acquisition_cv(
                                     rho: dense.rho(t, &x),
                                     dense_rho: dense_rho[t],
                                     mae: grid.mae(basis, ti, &coef),
-                                    image_error: normalized_image_error(&originals[ti], &img, &display)
-                                        .map_err(|e| AcquireError::Render(e.to_string()))?,
+                                    image_error: normalized_image_error(
+                                        &originals[ti],
+                                        &img,
+                                        &display,
+                                    )
+                                    .map_err(|e| AcquireError::Render(e.to_string()))?,
                                 })
                             })
                             .collect::<Result<_, _>>()?;
@@ -294,8 +308,14 @@ pub fn acquisition_cv(
             for (ni, &ns) in p.ns.iter().enumerate() {
                 for (si, &sigma) in p.noises.iter().enumerate() {
                     let (held_out, plans) = std::mem::take(&mut acc[pi][ni][si]);
-                    let col = |g: fn(&AcqHeldOut) -> f64| held_out.iter().map(g).collect::<Vec<f64>>();
-                    let (rho, dr, mae, img) = (col(|h| h.rho), col(|h| h.dense_rho), col(|h| h.mae), col(|h| h.image_error));
+                    let col =
+                        |g: fn(&AcqHeldOut) -> f64| held_out.iter().map(g).collect::<Vec<f64>>();
+                    let (rho, dr, mae, img) = (
+                        col(|h| h.rho),
+                        col(|h| h.dense_rho),
+                        col(|h| h.mae),
+                        col(|h| h.image_error),
+                    );
                     results.push(AcqResult {
                         method: m.name().to_string(),
                         plan: crit,
@@ -317,7 +337,10 @@ pub fn acquisition_cv(
         }
     }
     Ok(AcqCv {
-        folds: folds.iter().map(|f| f.iter().map(|&i| names[i].clone()).collect()).collect(),
+        folds: folds
+            .iter()
+            .map(|f| f.iter().map(|&i| names[i].clone()).collect())
+            .collect(),
         seed: p.seed,
         k: p.k,
         candidates_per_step: p.candidates_per_step,

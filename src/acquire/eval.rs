@@ -1,7 +1,9 @@
 //! A material at an arbitrary direction pair (SPEC 9, "At an arbitrary direction pair").
 
 use super::AcquireError;
-use crate::collection::{Material, MaterialData};
+use crate::collection::Material;
+#[cfg(any(doc, test))]
+use crate::collection::MaterialData;
 use crate::merl::grid::lookup;
 
 /// Checks that `d` is a finite direction above the horizon and returns it normalised.
@@ -18,26 +20,20 @@ pub fn unit_above(what: &'static str, d: [f64; 3]) -> Result<[f64; 3], AcquireEr
 }
 
 /// The RGB reflectance of `m` at the direction pair `(wi, wo)` (local frame, z = normal;
-/// normalised here): analytic materials exactly (the crate's f64 model,
-/// [`crate::brdf::AshikhminShirley::eval`]), MERL tables by the cell the MERL lookup
-/// returns ([`crate::merl::grid::lookup`]); a table with no measurement in that cell is an
-/// error, as is a direction below the horizon.
+/// normalised here), by the one evaluation of every kind
+/// ([`MaterialData::eval_dirs`]): analytic and neural materials exactly, RGL files by their
+/// own evaluation, MERL tables by the cell the MERL lookup returns
+/// ([`crate::merl::grid::lookup`]); a table with no measurement in that cell is an error,
+/// as is a direction below the horizon.
 pub fn material_at(m: &Material, wi: [f64; 3], wo: [f64; 3]) -> Result<[f64; 3], AcquireError> {
     let wi = unit_above("incoming", wi)?;
     let wo = unit_above("outgoing", wo)?;
-    match &m.data {
-        MaterialData::Analytic(a) => Ok(a.eval(wi, wo)),
-        MaterialData::Measured(t) => {
-            let cell = lookup(wi, wo);
-            if !t.is_valid(cell) {
-                return Err(AcquireError::InvalidCell {
-                    material: m.name.clone(),
-                    cell,
-                });
-            }
-            Ok([0, 1, 2].map(|c| t.value(c, cell) as f64))
-        }
-    }
+    m.data
+        .eval_dirs(wi, wo)
+        .ok_or_else(|| AcquireError::InvalidCell {
+            material: m.name.clone(),
+            cell: lookup(wi, wo),
+        })
 }
 
 /// Direction of polar angle `theta` and azimuth `phi` (radians).
@@ -84,7 +80,11 @@ mod tests {
         let pi = std::f64::consts::PI;
         for (c, (d, s)) in [(0.5, 1.0), (0.25, 2.0), (0.1, 0.5)].iter().enumerate() {
             let want = d / pi + s * 11.0 * 0.04 / (8.0 * pi);
-            assert!((v[c] - want).abs() < 1e-15 * want.max(1.0), "{c}: {} vs {want}", v[c]);
+            assert!(
+                (v[c] - want).abs() < 1e-15 * want.max(1.0),
+                "{c}: {} vs {want}",
+                v[c]
+            );
         }
     }
 

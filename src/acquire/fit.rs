@@ -124,7 +124,10 @@ pub struct Determination {
 pub fn determination(n: usize, m: usize, d: &[f64]) -> Determination {
     let mut d = d.to_vec();
     for j in 0..m {
-        let norm = (0..n).map(|r| d[r * m + j] * d[r * m + j]).sum::<f64>().sqrt();
+        let norm = (0..n)
+            .map(|r| d[r * m + j] * d[r * m + j])
+            .sum::<f64>()
+            .sqrt();
         if norm > 0.0 {
             (0..n).for_each(|r| d[r * m + j] /= norm);
         }
@@ -137,7 +140,11 @@ pub fn determination(n: usize, m: usize, d: &[f64]) -> Determination {
         samples: n,
         columns: m,
         rank,
-        condition: if rank == m && lo > 0.0 { hi / lo } else { f64::INFINITY },
+        condition: if rank == m && lo > 0.0 {
+            hi / lo
+        } else {
+            f64::INFINITY
+        },
     }
 }
 
@@ -205,7 +212,9 @@ pub fn fit_samples(
     }
     for (i, &b) in basis.iter().enumerate() {
         if basis[..i].contains(&b) {
-            return Err(crate::fit::FitError::DuplicateBasis(coll.materials()[b].name.clone()).into());
+            return Err(
+                crate::fit::FitError::DuplicateBasis(coll.materials()[b].name.clone()).into(),
+            );
         }
     }
     if samples.is_empty() {
@@ -302,7 +311,11 @@ mod tests {
     #[test]
     fn an_exactly_determined_hand_made_system() {
         let s = solve_rows(2, &[1.0, 0.0, 0.0, 2.0], &[3.0, 4.0], &[1.0, 1.0]).unwrap();
-        assert!((s.x[0] - 3.0).abs() < 1e-14 && (s.x[1] - 2.0).abs() < 1e-14, "{:?}", s.x);
+        assert!(
+            (s.x[0] - 3.0).abs() < 1e-14 && (s.x[1] - 2.0).abs() < 1e-14,
+            "{:?}",
+            s.x
+        );
         let d = determination(2, 2, &[1.0, 0.0, 0.0, 2.0]);
         assert_eq!(d.rank, 2);
         assert!((d.condition - 1.0).abs() < 1e-12);

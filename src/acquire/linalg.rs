@@ -91,7 +91,11 @@ pub fn singular_values(rows: usize, cols: usize, d: &[f64]) -> Vec<f64> {
         }
         (cols, g)
     };
-    sym_eigen(n, &g).0.into_iter().map(|l| l.max(0.0).sqrt()).collect()
+    sym_eigen(n, &g)
+        .0
+        .into_iter()
+        .map(|l| l.max(0.0).sqrt())
+        .collect()
 }
 
 /// Condition number `s_max / s_min` of `d` over its `min(rows, cols)` singular values
@@ -113,7 +117,10 @@ mod tests {
     fn eigen_of_a_hand_made_matrix() {
         // [[2, 1], [1, 2]]: eigenvalues 3 and 1, vectors (1, 1)/sqrt2 and (1, -1)/sqrt2.
         let (l, v) = sym_eigen(2, &[2.0, 1.0, 1.0, 2.0]);
-        assert!((l[0] - 3.0).abs() < 1e-14 && (l[1] - 1.0).abs() < 1e-14, "{l:?}");
+        assert!(
+            (l[0] - 3.0).abs() < 1e-14 && (l[1] - 1.0).abs() < 1e-14,
+            "{l:?}"
+        );
         assert!((v[0].abs() - 0.5f64.sqrt()).abs() < 1e-14 && (v[0] - v[2]).abs() < 1e-14);
         // diag(3, 1) rows [[3, 0], [0, 1], [0, 0]]: singular values 3, 1, condition 3.
         let d = [3.0, 0.0, 0.0, 1.0, 0.0, 0.0];

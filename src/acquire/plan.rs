@@ -170,14 +170,22 @@ pub struct Plan {
 }
 
 /// The cell centres of the fit mask valid in every material `idx` of `coll`.
-pub fn cell_candidates(coll: &Collection, idx: &[usize], fit: &FitParams) -> Result<Vec<Candidate>, AcquireError> {
+pub fn cell_candidates(
+    coll: &Collection,
+    idx: &[usize],
+    fit: &FitParams,
+) -> Result<Vec<Candidate>, AcquireError> {
     let cells = fit_cells(coll, idx, fit)?;
     Ok(cells
         .cells
         .iter()
         .map(|&c| {
             let (wi, wo) = cell_directions(c as usize);
-            Candidate { wi, wo, cell: Some(c) }
+            Candidate {
+                wi,
+                wo,
+                cell: Some(c),
+            }
         })
         .collect())
 }
@@ -236,7 +244,16 @@ impl Dense {
         all.extend_from_slice(targets);
         let cells = fit_cells(coll, &all, fit)?;
         let g = [0, 1, 2].map(|c| {
-            channel_gram(backend, coll, basis, targets, &cells, c, fit.gram, &|_, _| {})
+            channel_gram(
+                backend,
+                coll,
+                basis,
+                targets,
+                &cells,
+                c,
+                fit.gram,
+                &|_, _| {},
+            )
         });
         let [a, b, c] = g;
         Ok(Self {
@@ -433,7 +450,9 @@ pub fn plan(
                 argmin(&scores)
             }
             Criterion::Error => {
-                let d = dense.as_ref().expect("targets are given for the error criterion");
+                let d = dense
+                    .as_ref()
+                    .expect("targets are given for the error criterion");
                 let nt = targets.len();
                 let ys = |k: usize| -> Vec<[f64; 3]> {
                     (0..nt)
@@ -485,12 +504,22 @@ pub fn plan(
         }
     }
     Ok(Plan {
-        basis: basis.iter().map(|&b| coll.materials()[b].name.clone()).collect(),
+        basis: basis
+            .iter()
+            .map(|&b| coll.materials()[b].name.clone())
+            .collect(),
         criterion: p.criterion,
         n: p.n,
-        candidates_per_step: if p.criterion == Criterion::Random { cands.len() } else { per_step },
+        candidates_per_step: if p.criterion == Criterion::Random {
+            cands.len()
+        } else {
+            per_step
+        },
         candidates: cands.len(),
-        samples: chosen.iter().map(|&i| PlannedSample::from(&cands[i])).collect(),
+        samples: chosen
+            .iter()
+            .map(|&i| PlannedSample::from(&cands[i]))
+            .collect(),
         history,
         seed: p.seed,
         chosen: chosen.iter().map(|&i| cands[i]).collect(),
@@ -558,38 +587,37 @@ impl<'a> Screen<'a> {
                 })
             })
             .collect();
-        let fits = st
-            .x
-            .par_iter()
-            .map(|xt| {
-                [0, 1, 2].map(|c| {
-                    let cols: Vec<usize> = (0..m).filter(|&j| xt[c][j] > 0.0).collect();
-                    let p = cols.len();
-                    let sub: Vec<f64> = cols
-                        .iter()
-                        .flat_map(|&i| cols.iter().map(move |&j| (i, j)))
-                        .map(|(i, j)| grams[c][i * m + j])
-                        .collect();
-                    let (l, v) = sym_eigen(p, &sub);
-                    let top = l.first().copied().unwrap_or(0.0);
-                    let mut inv = vec![0.0; p * p];
-                    for (e, &lam) in l.iter().enumerate() {
-                        if lam > 1e-13 * top && lam > 0.0 {
-                            for r in 0..p {
-                                for s in 0..p {
-                                    inv[r * p + s] += v[r * p + e] * v[s * p + e] / lam;
+        let fits =
+            st.x.par_iter()
+                .map(|xt| {
+                    [0, 1, 2].map(|c| {
+                        let cols: Vec<usize> = (0..m).filter(|&j| xt[c][j] > 0.0).collect();
+                        let p = cols.len();
+                        let sub: Vec<f64> = cols
+                            .iter()
+                            .flat_map(|&i| cols.iter().map(move |&j| (i, j)))
+                            .map(|(i, j)| grams[c][i * m + j])
+                            .collect();
+                        let (l, v) = sym_eigen(p, &sub);
+                        let top = l.first().copied().unwrap_or(0.0);
+                        let mut inv = vec![0.0; p * p];
+                        for (e, &lam) in l.iter().enumerate() {
+                            if lam > 1e-13 * top && lam > 0.0 {
+                                for r in 0..p {
+                                    for s in 0..p {
+                                        inv[r * p + s] += v[r * p + e] * v[s * p + e] / lam;
+                                    }
                                 }
                             }
                         }
-                    }
-                    PassiveFit {
-                        z: cols.iter().map(|&j| xt[c][j]).collect(),
-                        cols,
-                        inv,
-                    }
+                        PassiveFit {
+                            z: cols.iter().map(|&j| xt[c][j]).collect(),
+                            cols,
+                            inv,
+                        }
+                    })
                 })
-            })
-            .collect();
+                .collect();
         Self {
             d,
             g00: [0, 1, 2].map(|c| grams[c][0]),
@@ -654,10 +682,11 @@ pub fn suggest(
         return Ok(String::new());
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let pool: Vec<Candidate> = rand::seq::index::sample(&mut rng, cands.len(), 4000.min(cands.len()))
-        .into_iter()
-        .map(|k| cands[k])
-        .collect();
+    let pool: Vec<Candidate> =
+        rand::seq::index::sample(&mut rng, cands.len(), 4000.min(cands.len()))
+            .into_iter()
+            .map(|k| cands[k])
+            .collect();
     let vals = values_at(coll, basis, &pool)?;
     let mean_row = |k: usize| -> Vec<f64> {
         std::iter::once(FRAC_1_PI)

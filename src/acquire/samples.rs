@@ -59,13 +59,18 @@ pub fn sample_from_degrees(
         if k % 2 == 0 && !(0.0..90.0).contains(&a) {
             return Err(err(
                 name,
-                format!("{a} deg is not above the horizon (a polar angle must lie in [0, 90) degrees)"),
+                format!(
+                    "{a} deg is not above the horizon (a polar angle must lie in [0, 90) degrees)"
+                ),
             ));
         }
     }
     for (c, (&v, name)) in rgb.iter().zip(["r", "g", "b"]).enumerate() {
         if !v.is_finite() || v < 0.0 {
-            return Err(err(name, format!("{v} is not a finite non-negative reflectance")));
+            return Err(err(
+                name,
+                format!("{v} is not a finite non-negative reflectance"),
+            ));
         }
         if let Some(s) = sigma {
             if !s[c].is_finite() || s[c] <= 0.0 {
@@ -149,17 +154,26 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError>
             )
         })?;
     }
-    let sig: Option<[usize; 3]> = match (col("sigma"), col("sigma_r"), col("sigma_g"), col("sigma_b")) {
-        (Some(_), Some(_), _, _) | (Some(_), _, Some(_), _) | (Some(_), _, _, Some(_)) => {
-            return Err(perr(1, Some("sigma"), "give either sigma or sigma_r,sigma_g,sigma_b, not both".into()))
-        }
-        (Some(s), None, None, None) => Some([s; 3]),
-        (None, Some(r), Some(g), Some(b)) => Some([r, g, b]),
-        (None, None, None, None) => None,
-        _ => {
-            return Err(perr(1, Some("sigma_r"), "per-channel sigmas need all three columns sigma_r,sigma_g,sigma_b".into()))
-        }
-    };
+    let sig: Option<[usize; 3]> =
+        match (col("sigma"), col("sigma_r"), col("sigma_g"), col("sigma_b")) {
+            (Some(_), Some(_), _, _) | (Some(_), _, Some(_), _) | (Some(_), _, _, Some(_)) => {
+                return Err(perr(
+                    1,
+                    Some("sigma"),
+                    "give either sigma or sigma_r,sigma_g,sigma_b, not both".into(),
+                ))
+            }
+            (Some(s), None, None, None) => Some([s; 3]),
+            (None, Some(r), Some(g), Some(b)) => Some([r, g, b]),
+            (None, None, None, None) => None,
+            _ => {
+                return Err(perr(
+                    1,
+                    Some("sigma_r"),
+                    "per-channel sigmas need all three columns sigma_r,sigma_g,sigma_b".into(),
+                ))
+            }
+        };
     let mut out = Vec::new();
     for (k, rec) in r.records().enumerate() {
         let line = k + 2;
@@ -200,7 +214,8 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
         column: column.map(str::to_string),
         message,
     };
-    let text = std::str::from_utf8(bytes).map_err(|e| perr(0, None, format!("not UTF-8 text: {e}")))?;
+    let text =
+        std::str::from_utf8(bytes).map_err(|e| perr(0, None, format!("not UTF-8 text: {e}")))?;
     let mut lines = text.lines().enumerate();
     let mut vars: Option<(usize, Vec<String>)> = None;
     for (k, l) in lines.by_ref() {
@@ -216,11 +231,17 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
         }
     }
     let Some((vline, names)) = vars else {
-        return Err(perr(0, None, "no `VARS` line: not an ASTM E1392 file".into()));
+        return Err(perr(
+            0,
+            None,
+            "no `VARS` line: not an ASTM E1392 file".into(),
+        ));
     };
     let find = |alts: &[&str]| names.iter().position(|n| alts.contains(&n.as_str()));
-    let ti = find(&["theta_i"]).ok_or_else(|| perr(vline, Some("theta_i"), "missing variable".into()))?;
-    let pi = find(&["phi_i"]).ok_or_else(|| perr(vline, Some("phi_i"), "missing variable".into()))?;
+    let ti = find(&["theta_i"])
+        .ok_or_else(|| perr(vline, Some("theta_i"), "missing variable".into()))?;
+    let pi =
+        find(&["phi_i"]).ok_or_else(|| perr(vline, Some("phi_i"), "missing variable".into()))?;
     let to = find(&["theta_s", "theta_o", "theta_r"])
         .ok_or_else(|| perr(vline, Some("theta_s"), "missing variable".into()))?;
     let po = find(&["phi_s", "phi_o", "phi_r"])
@@ -228,7 +249,13 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
     let rgb_idx: [usize; 3] = match (find(&["r"]), find(&["g"]), find(&["b"]), find(&["brdf"])) {
         (Some(r), Some(g), Some(b), _) => [r, g, b],
         (_, _, _, Some(v)) => [v; 3],
-        _ => return Err(perr(vline, Some("R"), "missing variables R,G,B (or BRDF)".into())),
+        _ => {
+            return Err(perr(
+                vline,
+                Some("R"),
+                "missing variables R,G,B (or BRDF)".into(),
+            ))
+        }
     };
     let mut out = Vec::new();
     for (k, l) in lines {
@@ -249,7 +276,11 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
         let rad = [num(ti)?, num(pi)?, num(to)?, num(po)?];
         for (a, i) in rad.iter().zip([ti, pi, to, po]) {
             if a.abs() > 4.0 * std::f64::consts::PI {
-                return Err(perr(line, Some(&names[i]), format!("{a} is not an angle in radians (ASTM files give angles in radians)")));
+                return Err(perr(
+                    line,
+                    Some(&names[i]),
+                    format!("{a} is not an angle in radians (ASTM files give angles in radians)"),
+                ));
             }
         }
         let rgb = [num(rgb_idx[0])?, num(rgb_idx[1])?, num(rgb_idx[2])?];
@@ -277,9 +308,13 @@ mod tests {
         assert_eq!(s.len(), 1);
         assert_eq!(s[0].line, 2);
         assert!((s[0].wo[0] + 0.5).abs() < 1e-15 && (s[0].wo[2] - 0.75f64.sqrt()).abs() < 1e-15);
-        let bad = b"theta_i,phi_i,theta_o,phi_o,r,g,b\n0,0,30,0,0.1,0.2,0.3\n0,0,95,0,0.1,0.2,0.3\n";
+        let bad =
+            b"theta_i,phi_i,theta_o,phi_o,r,g,b\n0,0,30,0,0.1,0.2,0.3\n0,0,95,0,0.1,0.2,0.3\n";
         let e = parse_csv(bad, p).unwrap_err().to_string();
-        assert!(e.contains("line 3") && e.contains("theta_o") && e.contains("horizon"), "{e}");
+        assert!(
+            e.contains("line 3") && e.contains("theta_o") && e.contains("horizon"),
+            "{e}"
+        );
         let neg = b"theta_i,phi_i,theta_o,phi_o,r,g,b\n0,0,30,0,0.1,-0.2,0.3\n";
         let e = parse_csv(neg, p).unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("column `g`"), "{e}");
@@ -291,7 +326,10 @@ mod tests {
         assert!(e.contains("line 1") && e.contains("phi_o"), "{e}");
         let nan = b"theta_i,phi_i,theta_o,phi_o,r,g,b\n0,0,30,0,x,0.2,0.3\n";
         let e = parse_csv(nan, p).unwrap_err().to_string();
-        assert!(e.contains("`x` is not a number") && e.contains("column `r`"), "{e}");
+        assert!(
+            e.contains("`x` is not a number") && e.contains("column `r`"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -302,7 +340,9 @@ mod tests {
         assert!((s[0].wo[0] + 0.5).abs() < 1e-12, "{:?}", s[0].wo);
         assert_eq!(s[0].rgb, [0.1, 0.2, 0.3]);
         let bad = b"VARS theta_i,phi_i,theta_s,phi_s,R,G,B\n0,0,1.7,0,0.1,0.2,0.3\n";
-        let e = parse_astm(bad, Path::new("m.astm")).unwrap_err().to_string();
+        let e = parse_astm(bad, Path::new("m.astm"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("theta_s"), "{e}");
     }
 }

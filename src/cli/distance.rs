@@ -16,9 +16,10 @@ use std::path::PathBuf;
 material names, the settings, a fingerprint of the collection and the size and checksum of \
 the .npy; `select --distances d.npy` reads the pair and refuses a mismatched one. A .csv holds \
 the names in its header.\n\n\
---tile I/N computes the I-th of N bands of rows (1-based) into a tile (.npy + sidecar); \
-`brdf-basis merge` assembles the N tiles into the matrix, byte-identical to computing it at \
-once with the same --band-rows.\n\n\
+--tile I/N computes the I-th of N bands of rows (1-based; N up to the number of materials, \
+bands balanced by work) into a tile (.npy + sidecar); `brdf-basis merge` assembles the N \
+tiles into the matrix, byte-identical to computing it at once (with the same --band-rows, \
+which the sidecar records; it changes no value).\n\n\
 Examples:\n  brdf-basis distance --out d.csv\n  brdf-basis distance --out d.npy\n  \
 brdf-basis distance --stride 2 --band-rows 16 --tile 1/2 --out t1.npy\n  \
 brdf-basis distance --stride 2 --band-rows 16 --tile 2/2 --out t2.npy\n  \
@@ -40,8 +41,8 @@ pub struct DistanceArgs {
     /// Compute only band I of N (1-based) into a tile file (.npy + sidecar) for `merge`.
     #[arg(long, value_name = "I/N")]
     pub tile: Option<String>,
-    /// Materials per super-block of the banded computation (a multiple of 4); tiles are
-    /// whole super-block rows, and tiles merge only with tiles of the same value.
+    /// Materials per back-end call of the banded computation (a multiple of 4): bounds the
+    /// memory of a call and changes no value; tiles merge only with tiles of the same value.
     #[arg(long, default_value_t = DEFAULT_BAND_ROWS)]
     pub band_rows: usize,
     /// Output: .npy (float64 N x N, with a .names.json sidecar) or .csv.
@@ -88,7 +89,7 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     p.lobe = a.lobe;
     let p = p.check(&coll)?;
     if let Some((i, n)) = tile {
-        brdf_basis::distance::band::tile_blocks(coll.len(), a.band_rows, i, n)?;
+        brdf_basis::distance::band::tile_rows(coll.len(), i, n)?;
     }
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "distance");

@@ -254,7 +254,10 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 /// samples) and, with `--export`, the whole reconstruction as a MERL `.binary`.
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     use brdf_basis::acquire::{fit, plan, read_samples};
-    let path = a.samples.clone().expect("run_samples is called with --samples");
+    let path = a
+        .samples
+        .clone()
+        .expect("run_samples is called with --samples");
     let mut out_plan = OutputPlan::new(&a.collection);
     out_plan.file(&a.json, "--json")?;
     let stem = path

@@ -1,11 +1,12 @@
 //! Banded computation of a distance matrix: the matrix is cut into square super-blocks of
 //! `band_rows` materials, and each super-block pair `(a, b)`, `a <= b`, is one back-end
 //! call over the lobes of block `a` followed by those of block `b` (only `a`'s for the
-//! diagonal). A pair's value therefore depends only on the two super-blocks it sits in,
-//! never on how many super-block rows are computed together: a tile (`--tile I/N`, a
-//! contiguous range of super-block rows) holds exactly the bytes the whole matrix holds,
-//! on every deterministic back-end. Memory stays bounded by the call size (`2 x band_rows`
-//! lobes) plus the output.
+//! diagonal). Both back-ends sum every pair in one canonical order that depends only on
+//! the two lobes and the cells ([`crate::backend::cpu`]), never on the other rows of the
+//! call, so the band size and the tiling change no value: a tile (`--tile I/N`, any
+//! contiguous range of material rows, for any `N` up to the number of materials) holds
+//! exactly the bytes the whole matrix holds, on every deterministic back-end. Memory stays
+//! bounded by the call size (`2 x band_rows` lobes) plus the output.
 
 use super::{cell_set, lobes, DistanceMatrix, Metric, ValidDistanceParams};
 use crate::backend::{blocks, Backend, PairOp, Progress, BLOCK};
@@ -35,17 +36,19 @@ pub fn super_blocks(n: usize, band_rows: usize) -> usize {
     n.div_ceil(band_rows.max(1))
 }
 
-/// The super-block range of tile `index` (1-based) of `count`: contiguous super-block
-/// rows, balanced by the number of super-block pairs each row computes (row `a` computes
-/// `nb - a` pairs), every tile non-empty.
-pub fn tile_blocks(
-    n: usize,
-    band_rows: usize,
-    index: usize,
-    count: usize,
-) -> Result<Range<usize>, DistanceError> {
-    check_band_rows(band_rows)?;
-    let nb = super_blocks(n, band_rows);
+/// Pairs `(i, j)`, `i < j < n`, in the rows `0..r`: row `i` computes `n - 1 - i`.
+fn pairs_before(n: usize, r: usize) -> u128 {
+    let (n, r) = (n as u128, r as u128);
+    r * (n - 1) - r * r.saturating_sub(1) / 2
+}
+
+/// The material rows of tile `index` (1-based) of `count`, for any `count` up to the
+/// number of materials `n`: contiguous rows, balanced by the number of pairs each row
+/// computes (row `i` computes `n - 1 - i`), every tile at least one row. The rows need
+/// not line up with the super-blocks: a pair's value does not depend on the other rows
+/// of its back-end call (the canonical summation order of [`crate::backend::cpu`]), so
+/// any tiling holds exactly the bytes of the whole matrix.
+pub fn tile_rows(n: usize, index: usize, count: usize) -> Result<Range<usize>, DistanceError> {
     if count == 0 || index == 0 || index > count {
         return Err(DistanceError::UnknownOption {
             what: "tile",
@@ -53,29 +56,37 @@ pub fn tile_blocks(
             expected: "I/N with 1 <= I <= N",
         });
     }
-    if count > nb {
+    if count > n {
         return Err(DistanceError::TooManyTiles {
             count,
-            bands: nb,
             materials: n,
-            band_rows,
         });
     }
-    // Cumulative pair counts: cum[a] = pairs of rows 0..a.
-    let total: usize = (0..nb).map(|a| nb - a).sum();
-    let mut bounds = vec![0usize; count + 1];
-    bounds[count] = nb;
-    let mut cum = 0usize;
-    let mut a = 0usize;
-    for (k, b) in bounds.iter_mut().enumerate().take(count).skip(1) {
-        let target = total * k / count;
-        while a < nb && cum + (nb - a) <= target {
-            cum += nb - a;
-            a += 1;
+    let total = pairs_before(n, n);
+    // Bound k: the first row r whose preceding pairs reach k/count of the total, kept
+    // strictly increasing and leaving one row for every later tile.
+    let bound = |k: usize| -> usize {
+        if k == 0 {
+            return 0;
         }
-        // Keep every tile non-empty on both sides.
-        *b = a.max(k).min(nb - (count - k));
-    }
+        if k == count {
+            return n;
+        }
+        let target = total * k as u128 / count as u128;
+        // pairs_before is increasing in r: binary search the first r with
+        // pairs_before(r) >= target.
+        let (mut lo, mut hi) = (0usize, n);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if pairs_before(n, mid) >= target {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        lo.max(k).min(n - (count - k))
+    };
+    let mut bounds: Vec<usize> = (0..=count).map(bound).collect();
     for k in 1..count {
         if bounds[k] <= bounds[k - 1] {
             bounds[k] = bounds[k - 1] + 1;
@@ -84,14 +95,13 @@ pub fn tile_blocks(
     Ok(bounds[index - 1]..bounds[index])
 }
 
-/// Material rows of super-blocks `blocks`.
-pub fn block_rows(n: usize, band_rows: usize, blocks: Range<usize>) -> Range<usize> {
-    (blocks.start * band_rows).min(n)..(blocks.end * band_rows).min(n)
-}
-
-/// Computes every pair `(i, j)`, `i < j`, with `i` in the super-block rows `rows` and
-/// `j` anywhere after `i`, and hands each value to `sink(i, j, v)`.
-pub fn distance_band(
+/// Computes every pair `(i, j)`, `i < j`, with `i` in the material rows `rows` and `j`
+/// anywhere after `i`, and hands each value to `sink(i, j, v)`. The rows are cut into
+/// chunks of `band_rows` from `rows.start`; each chunk is one diagonal call, then one
+/// call per `band_rows` columns after it (a chunk not a multiple of 4 long is padded with
+/// copies of its first lobe, whose values are dropped). For `rows = 0..N` these are
+/// exactly the super-block calls of the whole matrix.
+pub fn distance_rows(
     backend: &dyn Backend,
     coll: &Collection,
     p: &ValidDistanceParams,
@@ -102,8 +112,7 @@ pub fn distance_band(
 ) -> Result<(), DistanceError> {
     check_band_rows(band_rows)?;
     let n = coll.len();
-    let nb = super_blocks(n, band_rows);
-    let range = |a: usize| a * band_rows..((a + 1) * band_rows).min(n);
+    let rows = rows.start.min(n)..rows.end.min(n);
     match p.metric() {
         Metric::Euclidean => {
             let params: Vec<(f64, f64)> = coll
@@ -116,7 +125,7 @@ pub fn distance_band(
                     }
                 })
                 .collect::<Result<_, _>>()?;
-            for i in block_rows(n, band_rows, rows.clone()) {
+            for i in rows {
                 for j in i + 1..n {
                     sink(
                         i,
@@ -135,46 +144,56 @@ pub fn distance_band(
                 )));
             }
             let all = lobes(coll, p.lobe());
-            let calls: u64 = rows.clone().map(|a| (nb - a) as u64).sum();
+            let chunks: Vec<Range<usize>> = rows
+                .clone()
+                .step_by(band_rows)
+                .map(|a| a..(a + band_rows).min(rows.end))
+                .collect();
+            let col_chunks = |ra: &Range<usize>| {
+                (ra.end..n)
+                    .step_by(band_rows)
+                    .map(move |b| b..(b + band_rows).min(n))
+            };
+            let calls: u64 = chunks
+                .iter()
+                .map(|ra| 1 + col_chunks(ra).count() as u64)
+                .sum();
             let per_call = cells.len() as u64;
             let total = calls * per_call;
             let mut done_calls = 0u64;
-            for a in rows {
-                for b in a..nb {
-                    let (ra, rb) = (range(a), range(b));
+            for ra in &chunks {
+                let sub = &all[ra.clone()];
+                let len = sub.len();
+                let base = done_calls * per_call;
+                let pr = |d: u64, _t: u64| progress(base + d, total);
+                let full =
+                    backend.reduce_pairs(sub, &cells, &blocks::all_blocks(len), PairOp::L1, &pr)?;
+                for (r, i) in ra.clone().enumerate() {
+                    for (q, j) in ra.clone().enumerate().skip(r + 1) {
+                        sink(i, j, full[r * len + q]);
+                    }
+                }
+                done_calls += 1;
+                progress(done_calls * per_call, total);
+                // The chunk padded to whole back-end blocks (only a tile's last chunk can
+                // be short), so that the cross blocks do not mix rows and columns.
+                let la = ra.len().div_ceil(BLOCK) * BLOCK;
+                let mut padded = sub.to_vec();
+                padded.resize(la, sub[0].clone());
+                for rb in col_chunks(ra) {
+                    let mut sub = padded.clone();
+                    sub.extend_from_slice(&all[rb.clone()]);
+                    let len = sub.len();
+                    let (ba, bt) = ((la / BLOCK) as u32, len.div_ceil(BLOCK) as u32);
+                    let cross: Vec<[u32; 2]> = (0..ba)
+                        .flat_map(|x| (ba..bt).map(move |y| [x, y]))
+                        .collect();
                     let base = done_calls * per_call;
                     let pr = |d: u64, _t: u64| progress(base + d, total);
-                    if a == b {
-                        let sub = &all[ra.clone()];
-                        let len = sub.len();
-                        let full = backend.reduce_pairs(
-                            sub,
-                            &cells,
-                            &blocks::all_blocks(len),
-                            PairOp::L1,
-                            &pr,
-                        )?;
-                        for (r, i) in ra.clone().enumerate() {
-                            for (q, j) in ra.clone().enumerate().skip(r + 1) {
-                                sink(i, j, full[r * len + q]);
-                            }
-                        }
-                    } else {
-                        let la = ra.len();
-                        let mut sub = all[ra.clone()].to_vec();
-                        sub.extend_from_slice(&all[rb.clone()]);
-                        let len = sub.len();
-                        // `la` is a multiple of BLOCK (only the last super-block is short,
-                        // and it is never `a` here): cross blocks only.
-                        let (ba, bt) = ((la / BLOCK) as u32, len.div_ceil(BLOCK) as u32);
-                        let cross: Vec<[u32; 2]> = (0..ba)
-                            .flat_map(|x| (ba..bt).map(move |y| [x, y]))
-                            .collect();
-                        let full = backend.reduce_pairs(&sub, &cells, &cross, PairOp::L1, &pr)?;
-                        for (r, i) in ra.clone().enumerate() {
-                            for (q, j) in rb.clone().enumerate() {
-                                sink(i, j, full[r * len + la + q]);
-                            }
+                    let full = backend.reduce_pairs(&sub, &cells, &cross, PairOp::L1, &pr)?;
+                    for (r, i) in ra.clone().enumerate() {
+                        for (q, j) in rb.clone().enumerate() {
+                            sink(i, j, full[r * len + la + q]);
                         }
                     }
                     done_calls += 1;
@@ -199,13 +218,12 @@ pub fn distance_matrix_banded(
         return Err(DistanceError::TooFew(n));
     }
     let mut data = vec![0.0; n * n];
-    let nb = super_blocks(n, band_rows);
-    distance_band(
+    distance_rows(
         backend,
         coll,
         p,
         band_rows,
-        0..nb,
+        0..n,
         progress,
         &mut |i, j, v| {
             data[i * n + j] = v;
@@ -248,17 +266,17 @@ pub fn distance_tile(
     if n < 2 {
         return Err(DistanceError::TooFew(n));
     }
-    let blocks = tile_blocks(n, band_rows, index, count)?;
-    let rows = block_rows(n, band_rows, blocks.clone());
+    check_band_rows(band_rows)?;
+    let rows = tile_rows(n, index, count)?;
     let r0 = rows.start;
     let w = n - r0;
     let mut data = vec![0.0; rows.len() * w];
-    distance_band(
+    distance_rows(
         backend,
         coll,
         p,
         band_rows,
-        blocks,
+        rows.clone(),
         progress,
         &mut |i, j, v| {
             data[(i - r0) * w + (j - r0)] = v;

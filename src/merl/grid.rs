@@ -145,7 +145,13 @@ pub fn bin_measure(i: usize, j: usize, _k: usize) -> f64 {
 /// Whether each cell's directions are both above the horizon (cached, computed once).
 pub fn geometric_validity() -> &'static [bool] {
     static VALID: std::sync::OnceLock<Vec<bool>> = std::sync::OnceLock::new();
-    VALID.get_or_init(|| (0..N_CELLS).map(|c| cell_info(c).valid).collect())
+    VALID.get_or_init(|| {
+        use rayon::prelude::*;
+        (0..N_CELLS)
+            .into_par_iter()
+            .map(|c| cell_info(c).valid)
+            .collect()
+    })
 }
 
 /// Classifies one cell (SPEC 2-3): horizon, 80 deg and 3 deg tests in f64 with a
@@ -313,27 +319,41 @@ impl CellSet {
     /// Cells of `mask` on the grid sub-sampled every `stride` cells on each axis
     /// (`stride = 1`: the full grid), weighted by `weighting`.
     pub fn new(mask: Mask, weighting: Weighting, stride: usize) -> Self {
+        use rayon::prelude::*;
         let stride = stride.max(1);
-        let mut cells = Vec::new();
-        let mut weights = Vec::new();
-        for i in (0..N_TH).step_by(stride) {
-            for j in (0..N_TD).step_by(stride) {
-                for k in (0..N_PD).step_by(stride) {
-                    let idx = flat(i, j, k);
-                    let info = cell_info(idx);
-                    let keep = match mask {
-                        Mask::Evaluation => info.evaluation,
-                        Mask::Valid => info.valid,
-                    };
-                    if keep {
-                        cells.push(idx as u32);
-                        weights.push(match weighting {
-                            Weighting::Uniform => 1.0,
-                            Weighting::SolidAngle => info.measure,
-                        });
+        // One theta_h row of cells per task (each cell's classification is independent),
+        // concatenated in grid order: the same cells and weights as a sequential pass.
+        let rows: Vec<usize> = (0..N_TH).step_by(stride).collect();
+        let parts: Vec<(Vec<u32>, Vec<f64>)> = rows
+            .par_iter()
+            .map(|&i| {
+                let mut cells = Vec::new();
+                let mut weights = Vec::new();
+                for j in (0..N_TD).step_by(stride) {
+                    for k in (0..N_PD).step_by(stride) {
+                        let idx = flat(i, j, k);
+                        let info = cell_info(idx);
+                        let keep = match mask {
+                            Mask::Evaluation => info.evaluation,
+                            Mask::Valid => info.valid,
+                        };
+                        if keep {
+                            cells.push(idx as u32);
+                            weights.push(match weighting {
+                                Weighting::Uniform => 1.0,
+                                Weighting::SolidAngle => info.measure,
+                            });
+                        }
                     }
                 }
-            }
+                (cells, weights)
+            })
+            .collect();
+        let mut cells = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
+        let mut weights = Vec::with_capacity(cells.capacity());
+        for (c, w) in parts {
+            cells.extend(c);
+            weights.extend(w);
         }
         let total: f64 = weights.iter().sum();
         for w in &mut weights {

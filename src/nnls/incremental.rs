@@ -207,6 +207,28 @@ impl ChanState {
         self.q
     }
 
+    /// `w = C_jt - C_jP y_P` of column `j` (its cosine row `row`) for target `t`.
+    #[inline]
+    fn gradient(&self, row: &[f64], t: usize) -> f64 {
+        row[t]
+            - self
+                .passive
+                .iter()
+                .zip(&self.y)
+                .map(|(&k, &y)| row[k] * y)
+                .sum::<f64>()
+    }
+
+    /// Whether adding column `j` leaves the optimum of target `t` as it is (a zero column,
+    /// or step 1 of the module docs: no positive gradient); [`ChanState::q_adding`] then
+    /// returns [`ChanState::q`], bit for bit (the same test on the same numbers).
+    #[inline]
+    pub fn unchanged_adding(&self, g: Cosine<'_>, j: usize, t: usize) -> bool {
+        let row = g.row(j);
+        row[j] == 0.0
+            || self.gradient(row, t) <= KKT_TOL * (self.hmax.max(row[t].abs()) + self.ysum)
+    }
+
     /// Relative residual `q` of target column `t` after adding column `j` to `cols` (the
     /// columns this state was built on). `scratch` is reused between calls.
     pub fn q_adding(
@@ -221,13 +243,7 @@ impl ChanState {
         if row[j] == 0.0 {
             return Ok(self.q); // a zero column never helps
         }
-        let w = row[t]
-            - self
-                .passive
-                .iter()
-                .zip(&self.y)
-                .map(|(&k, &y)| row[k] * y)
-                .sum::<f64>();
+        let w = self.gradient(row, t);
         let hmax = self.hmax.max(row[t].abs());
         if w <= KKT_TOL * (hmax + self.ysum) {
             return Ok(self.q);

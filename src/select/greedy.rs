@@ -1,6 +1,6 @@
 //! Greedy forward selection on `S(B; T)` (SPEC 8).
 
-use super::objective::Objective;
+use super::objective::{Chain, Objective};
 use super::search::argmin;
 use super::search::{Selection, ValidSearchParams};
 use super::SelectionError;
@@ -21,7 +21,46 @@ pub fn greedy(
     Selection::new(obj, "greedy", p, basis, history)
 }
 
+/// The greedy basis: at each step the candidate [`Objective::best_adding`] chooses, which
+/// is exactly `argmin(scores_adding(..))` of the exhaustive sweep
+/// ([`greedy_indices_exhaustive`]) without scoring the candidates that cannot win.
 pub(crate) fn greedy_indices(
+    obj: &Objective,
+    p: &ValidSearchParams,
+    progress: Progress<'_>,
+) -> Result<Vec<usize>, SelectionError> {
+    Ok(greedy_screened(obj, p, progress)?.0)
+}
+
+/// [`greedy_indices`] and the number of exact scores computed per step.
+pub(crate) fn greedy_screened(
+    obj: &Objective,
+    p: &ValidSearchParams,
+    progress: Progress<'_>,
+) -> Result<(Vec<usize>, Vec<usize>), SelectionError> {
+    let mut basis: Vec<usize> = Vec::with_capacity(p.k);
+    let mut evaluated = Vec::with_capacity(p.k);
+    for step in 0..p.k {
+        let cands: Vec<usize> = p
+            .candidates
+            .iter()
+            .copied()
+            .filter(|c| !basis.contains(c))
+            .collect();
+        let mut chain = Chain::new(p.tie_tol);
+        evaluated.push(obj.best_adding(&basis, &p.targets, &cands, &mut chain, 0)?);
+        let Some((best, _)) = chain.best() else {
+            break;
+        };
+        basis.push(cands[best]);
+        progress(step as u64 + 1, p.k as u64);
+    }
+    Ok((basis, evaluated))
+}
+
+/// The exhaustive greedy of SPEC 8: every candidate scored at every step, then
+/// [`argmin`]. The reference of the screened greedy (tests, benches).
+pub(crate) fn greedy_indices_exhaustive(
     obj: &Objective,
     p: &ValidSearchParams,
     progress: Progress<'_>,
@@ -42,4 +81,36 @@ pub(crate) fn greedy_indices(
         progress(step as u64 + 1, p.k as u64);
     }
     Ok(basis)
+}
+
+/// [`greedy`] with the exhaustive sweep of SPEC 8 ([`greedy_indices_exhaustive`]): the
+/// reference that the screened greedy equals (same basis, order and scores).
+#[doc(hidden)]
+pub fn greedy_exhaustive(
+    obj: &Objective,
+    p: &ValidSearchParams,
+    progress: Progress<'_>,
+) -> Result<Selection, SelectionError> {
+    let basis = greedy_indices_exhaustive(obj, p, progress)?;
+    let mut history = Vec::with_capacity(p.k);
+    for i in 1..=basis.len() {
+        history.push(obj.score(&basis[..i], &p.targets)?);
+    }
+    Selection::new(obj, "greedy", p, basis, history)
+}
+
+/// The screened greedy with the number of exact scores computed at each step (for the
+/// benches: how much the screening saves).
+#[doc(hidden)]
+pub fn greedy_with_counts(
+    obj: &Objective,
+    p: &ValidSearchParams,
+    progress: Progress<'_>,
+) -> Result<(Selection, Vec<usize>), SelectionError> {
+    let (basis, evaluated) = greedy_screened(obj, p, progress)?;
+    let mut history = Vec::with_capacity(p.k);
+    for i in 1..=basis.len() {
+        history.push(obj.score(&basis[..i], &p.targets)?);
+    }
+    Ok((Selection::new(obj, "greedy", p, basis, history)?, evaluated))
 }

@@ -28,7 +28,9 @@ use rayon::prelude::*;
 use super::SelectionError;
 
 mod gram;
+pub mod screen;
 use gram::analytic_grams;
+pub use screen::Chain;
 
 /// Parameters of the objective: the fit cells and how the Gram matrices are computed.
 /// Defaults: evaluation mask, uniform weights, full grid (stride 1), automatic Gram
@@ -353,15 +355,8 @@ impl Objective {
         Ok(out)
     }
 
-    /// `S(B + c; T)` for every `c` of `candidates` (`c` not in `basis`), from the states of
-    /// `basis` (the mean excludes `basis` and `c` from the targets; `+inf` when none
-    /// remains, so such a candidate is never chosen).
-    pub fn scores_adding(
-        &self,
-        basis: &[usize],
-        targets: &[usize],
-        candidates: &[usize],
-    ) -> Result<Vec<f64>, SelectionError> {
+    /// The live targets (not in `basis`), their solution states and the basis columns.
+    fn adding(&self, basis: &[usize], targets: &[usize]) -> Result<Adding, SelectionError> {
         let live: Vec<usize> = targets
             .iter()
             .copied()
@@ -371,18 +366,86 @@ impl Objective {
             .par_iter()
             .map(|&t| self.state(basis, t))
             .collect::<Result<_, _>>()?;
-        let cols = basis_cols(basis);
+        Ok(Adding {
+            live,
+            states,
+            cols: basis_cols(basis),
+        })
+    }
+
+    /// `S(B + c; T)` for every `c` of `candidates` (`c` not in `basis`), from the states of
+    /// `basis` (the mean excludes `basis` and `c` from the targets; `+inf` when none
+    /// remains, so such a candidate is never chosen).
+    pub fn scores_adding(
+        &self,
+        basis: &[usize],
+        targets: &[usize],
+        candidates: &[usize],
+    ) -> Result<Vec<f64>, SelectionError> {
+        let a = self.adding(basis, targets)?;
+        self.exact_scores(&a, candidates)
+    }
+
+    /// The candidate of `candidates` (`c` not in `basis`) that the exhaustive sweep
+    /// `argmin(scores_adding(basis, targets, candidates))` chooses, found by offering the
+    /// candidates to `chain` in order as items `offset + index`, with the exact score of
+    /// only those a lower bound does not rule out ([`screen`]). Returns how many exact
+    /// scores were computed. Chaining several calls on one `chain` (with increasing
+    /// offsets) equals one argmin over the concatenated scores.
+    pub fn best_adding(
+        &self,
+        basis: &[usize],
+        targets: &[usize],
+        candidates: &[usize],
+        chain: &mut Chain,
+        offset: usize,
+    ) -> Result<usize, SelectionError> {
+        let a = self.adding(basis, targets)?;
+        let lbs = screen::lower_bounds(self, &a.live, &a.states, &a.cols, candidates);
+        // Blocks of candidates: a block's survivors are scored in parallel against the
+        // threshold at the block's start (the threshold only falls along the chain).
+        const CHAIN_BLOCK: usize = 32;
+        let mut evaluated = 0;
+        let mut start = 0;
+        while start < candidates.len() {
+            // Until the chain has a best, one candidate at a time.
+            let end = if chain.threshold().is_none() {
+                start + 1
+            } else {
+                (start + CHAIN_BLOCK).min(candidates.len())
+            };
+            let thr = chain.threshold();
+            let keep: Vec<usize> = (start..end)
+                .filter(|&k| thr.is_none_or(|t| !(lbs[k] >= t)))
+                .collect();
+            let cands: Vec<usize> = keep.iter().map(|&k| candidates[k]).collect();
+            let scores = self.exact_scores(&a, &cands)?;
+            evaluated += cands.len();
+            for (&k, &s) in keep.iter().zip(&scores) {
+                chain.offer(offset + k, s);
+            }
+            start = end;
+        }
+        Ok(evaluated)
+    }
+
+    /// Exact `S(B + c; T)` of each candidate from the states of the basis.
+    fn exact_scores(&self, a: &Adding, candidates: &[usize]) -> Result<Vec<f64>, SelectionError> {
+        let Adding { live, states, cols } = a;
         // Candidates in blocks, so that each target's state is read once per block and the
         // block's cosine rows stay in cache; each candidate still sums its targets in
         // order, so the result does not depend on the blocking or the threads.
-        const BLOCK: usize = 16;
+        let block = candidates
+            .len()
+            .div_ceil(rayon::current_num_threads())
+            .clamp(1, 16);
         let blocks: Vec<Vec<f64>> = candidates
-            .par_chunks(BLOCK)
+            .par_chunks(block)
             .map(|block| {
                 let mut sums = vec![0.0; block.len()];
                 let mut counts = vec![0usize; block.len()];
                 let mut scratch = Vec::new();
-                for (&t, st) in live.iter().zip(&states) {
+                for (&t, st) in live.iter().zip(states) {
                     for (b, &cand) in block.iter().enumerate() {
                         if t == cand {
                             continue;
@@ -391,7 +454,7 @@ impl Objective {
                         for (c, ch) in st.iter().enumerate() {
                             if ch.is_active() {
                                 let q = ch
-                                    .q_adding(self.view(c), &cols, cand + 1, t + 1, &mut scratch)
+                                    .q_adding(self.view(c), cols, cand + 1, t + 1, &mut scratch)
                                     .map_err(|e| self.solve_error(t, c, e))?;
                                 sums[b] += self.share[t][c] * q;
                             }
@@ -407,6 +470,13 @@ impl Objective {
             .collect::<Result<_, SelectionError>>()?;
         Ok(blocks.concat())
     }
+}
+
+/// The live targets of a basis, their states and the basis columns.
+struct Adding {
+    live: Vec<usize>,
+    states: Vec<[ChanState; 3]>,
+    cols: Vec<usize>,
 }
 
 /// The exact fit of one target by a basis, from the Gram matrices.
