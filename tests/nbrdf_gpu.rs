@@ -10,9 +10,13 @@ use brdf_basis::backend::gpu::neural::{
     PAD_SLOT, REGION_BYTES, SOURCE,
 };
 use brdf_basis::backend::gpu::{kernel_source, GpuContext};
+use brdf_basis::backend::{condensed_index, Backend, Lobe, LobeParams};
+use brdf_basis::brdf::Nbrdf;
 use brdf_basis::merl::grid::{cell_angles, N_CELLS};
+use brdf_basis::merl::{CellSet, GridTables, Mask, Weighting};
 use rayon::prelude::*;
 use std::path::Path;
+use std::sync::Arc;
 
 /// SPEC 9's relative tolerance (values above [`SPEC_FLOOR`]).
 const SPEC_REL: f64 = 5e-4;
@@ -466,4 +470,179 @@ fn nbrdf_gpu_refuses_cells_off_the_grid_and_bad_weights() {
         .tabulate(ctx, &[&w], &[(0, None)], &[0, 1, 2])
         .unwrap();
     assert_eq!(v, [0.0; 3]);
+}
+
+/// A mixed list of lobes: nine neural lobes of six networks (channel means and single
+/// channels, one network's four lobes apart), three analytic lobes and two measured
+/// tables, interleaved.
+fn mixed_lobes(nets: &[(String, Vec<f32>)]) -> Vec<Lobe> {
+    let net = |name: &str| {
+        let w = &nets.iter().find(|n| n.0 == name).expect("material").1;
+        Arc::new(Nbrdf::from_weights(w.clone()).expect("weights"))
+    };
+    let (a, b, c, d, e, f) = (
+        net("alum-bronze"),
+        net("blue-acrylic"),
+        net("chrome"),
+        net("white-paint"),
+        net("gold-metallic-paint2"),
+        net("pink-fabric2"),
+    );
+    let neural = |n: &Arc<Nbrdf>, channel| Lobe::Neural {
+        net: n.clone(),
+        channel,
+    };
+    let analytic = |kd, ks, f0, n| Lobe::Analytic(LobeParams { kd, ks, f0, n });
+    let m1 = common::measured_lobe(&analytic(0.2, 0.5, 0.05, 40.0), None);
+    let m2 = common::measured_lobe(&analytic(0.05, 2.0, 0.9, 800.0), Some(0));
+    vec![
+        neural(&a, None),
+        analytic(0.3, 0.2, 0.04, 15.0),
+        m1,
+        neural(&a, Some(0)),
+        neural(&b, None),
+        analytic(0.0, 1.5, 0.6, 2000.0),
+        neural(&a, Some(1)),
+        neural(&c, Some(1)),
+        m2,
+        neural(&d, None),
+        neural(&a, Some(2)),
+        neural(&e, None),
+        analytic(0.6, 0.0, 0.5, 1.0),
+        neural(&f, Some(2)),
+    ]
+}
+
+/// A lobe's allowed error at a value `v` of its f64 reference: SPEC 9 for neural lobes,
+/// one f32 rounding for the others.
+fn lobe_tol(l: &Lobe, v: f64) -> f64 {
+    match l {
+        Lobe::Neural { .. } => spec_tol(v),
+        _ => v.abs() * f32::EPSILON as f64,
+    }
+}
+
+#[test]
+fn nbrdf_gpu_distances_and_gram_are_within_the_bounds_spec_9_gives() {
+    // Mixed neural, analytic and measured lobes over every second theta_h row of the valid
+    // cells (more than one chunk of the pairwise pass), solid-angle weights (row
+    // scales w and sqrt(w)). Per pair, the bound on |GPU - f64| that the values' SPEC 9
+    // tolerances give (L1: sum w (tol_a + tol_b); dot: sum w (|a| tol_b + |b| tol_a +
+    // tol_a tol_b)) plus f32 summation (1,025 roundings of the sum of |terms| at most: lane
+    // sums of 1,024 cells).
+    let test = "nbrdf_gpu_distances_and_gram_are_within_the_bounds_spec_9_gives";
+    let (Some(nets), Some(gpu)) = (merl100(test), common::gpu(test)) else {
+        return;
+    };
+    let lobes = mixed_lobes(&nets);
+    let n = lobes.len();
+    let cells = CellSet::new(Mask::Valid, Weighting::SolidAngle, 2);
+    let plan = gpu.plan_for(&lobes, cells.len()).expect("plan");
+    assert!(
+        cells.len() > 2 * plan.chunk,
+        "several chunks: {}",
+        plan.chunk
+    );
+    let t = GridTables::new();
+    let f64_rows: Vec<Vec<f64>> = lobes
+        .par_iter()
+        .map(|l| {
+            cells
+                .cells
+                .iter()
+                .map(|&c| l.eval_f64(&t, c as usize))
+                .collect()
+        })
+        .collect();
+    let slack = 1025.0 * f32::EPSILON as f64 / 2.0;
+    let basis = 5;
+    let l1 = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("l1");
+    let gram = gpu.gram(&lobes, &cells, basis, &|_, _| {}).expect("gram");
+    let (mut worst_l1, mut worst_dot) = (0f64, 0f64);
+    for i in 0..n {
+        for j in i..n {
+            let (a, b) = (&f64_rows[i], &f64_rows[j]);
+            let (mut d, mut dot, mut bd, mut bdot, mut mag_d, mut mag_dot) =
+                (0f64, 0f64, 0f64, 0f64, 0f64, 0f64);
+            for (k, &w) in cells.weights.iter().enumerate() {
+                let (x, y) = (a[k], b[k]);
+                let (tx, ty) = (lobe_tol(&lobes[i], x), lobe_tol(&lobes[j], y));
+                d += w * (x - y).abs();
+                dot += w * x * y;
+                bd += w * (tx + ty);
+                bdot += w * (x.abs() * ty + y.abs() * tx + tx * ty);
+                mag_d += w * (x.abs() + y.abs());
+                mag_dot += w * (x * y).abs();
+            }
+            if i < j {
+                let got = l1[condensed_index(n, i, j)];
+                let bound = bd + slack * mag_d;
+                assert!(
+                    (got - d).abs() <= bound,
+                    "L1 {i} {j}: {got} vs {d} (bound {bound})"
+                );
+                worst_l1 = worst_l1.max((got - d).abs() / d);
+            }
+            if i < basis || i == j {
+                let got = gram[i * n + j];
+                let bound = bdot + slack * mag_dot;
+                assert!(
+                    (got - dot).abs() <= bound,
+                    "dot {i} {j}: {got} vs {dot} (bound {bound})"
+                );
+                worst_dot = worst_dot.max((got - dot).abs() / dot);
+            }
+        }
+    }
+    println!("mixed lobes: max relative error of BRDF_it {worst_l1:.3e}, of Gram entries {worst_dot:.3e}");
+    // Same inputs, same outputs.
+    assert_eq!(
+        l1,
+        gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("rerun")
+    );
+    assert_eq!(
+        gram,
+        gpu.gram(&lobes, &cells, basis, &|_, _| {}).expect("rerun")
+    );
+}
+
+#[test]
+fn nbrdf_gpu_backend_tabulate_is_within_spec_9() {
+    // GpuBackend::tabulate on the mixed lobes (neural rows by the kernel, analytic by their
+    // kernel, measured on the host), every 29th cell of the grid, against f64.
+    let test = "nbrdf_gpu_backend_tabulate_is_within_spec_9";
+    let (Some(nets), Some(gpu)) = (merl100(test), common::gpu(test)) else {
+        return;
+    };
+    let lobes = mixed_lobes(&nets);
+    let cells: Vec<u32> = (0..N_CELLS as u32).step_by(29).collect();
+    let got = gpu.tabulate(&lobes, &cells).expect("tabulate");
+    let t = GridTables::new();
+    for (l, lobe) in lobes.iter().enumerate() {
+        let want: Vec<f64> = cells
+            .iter()
+            .map(|&c| lobe.eval_f64(&t, c as usize))
+            .collect();
+        let row = &got[l * cells.len()..(l + 1) * cells.len()];
+        match lobe {
+            Lobe::Neural { .. } => {
+                let (_, _, bad, first) = errors(row, &want);
+                assert_eq!(bad, 0, "lobe {l}: outside SPEC 9 (first {first:?})");
+            }
+            Lobe::Measured { .. } => {
+                for (&g, &w) in row.iter().zip(&want) {
+                    assert_eq!(g, w as f32, "lobe {l}: the table's values");
+                }
+            }
+            Lobe::Analytic(_) => {
+                let rel = common::max_rel(
+                    &row.iter().map(|&v| v as f64).collect::<Vec<_>>(),
+                    &want,
+                    1e-12,
+                );
+                assert!(rel < 1e-5, "lobe {l}: analytic relative error {rel}");
+            }
+        }
+    }
+    assert_eq!(got, gpu.tabulate(&lobes, &cells).expect("rerun"));
 }

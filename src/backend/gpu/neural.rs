@@ -17,8 +17,11 @@
 //! invocation is bounded whatever the number of cells or networks.
 
 use super::{GpuContext, TEX_W};
+use crate::backend::Lobe;
+use crate::brdf::Nbrdf;
 use crate::error::GpuError;
 use crate::merl::grid::{phi_d, theta_d, theta_h, N_PD, N_TD, N_TH};
+use std::sync::Arc;
 
 /// WGSL source of the kernel.
 pub const SOURCE: &str = include_str!("../../../shaders/nbrdf.wgsl");
@@ -99,6 +102,39 @@ pub const MEAN: u32 = 3;
 /// One row of a neural row set: the index of its network among the call's networks and
 /// its channel (`None`: the mean of R, G, B).
 pub type NeuralRow = (usize, Option<usize>);
+
+/// The distinct networks of `lobes` (neural lobes; others are skipped) and one row per
+/// neural lobe, in order: rows of one network (the same `Arc`) share its index.
+pub fn lobe_rows<'a>(lobes: impl Iterator<Item = &'a Lobe>) -> (Vec<Arc<Nbrdf>>, Vec<NeuralRow>) {
+    let mut nets: Vec<Arc<Nbrdf>> = Vec::new();
+    let mut rows = Vec::new();
+    for l in lobes {
+        if let Lobe::Neural { net, channel } = l {
+            let k = nets
+                .iter()
+                .position(|n| Arc::ptr_eq(n, net))
+                .unwrap_or_else(|| {
+                    nets.push(net.clone());
+                    nets.len() - 1
+                });
+            rows.push((k, *channel));
+        }
+    }
+    (nets, rows)
+}
+
+/// Submits `encoder`, turning validation errors into an error (not a panic).
+pub fn submit(ctx: &GpuContext, encoder: wgpu::CommandEncoder) -> Result<(), GpuError> {
+    let scope = ctx.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    ctx.queue.submit(Some(encoder.finish()));
+    match pollster::block_on(scope.pop()) {
+        Some(e) => Err(GpuError::Wgpu {
+            context: "evaluating neural BRDFs".into(),
+            message: e.to_string(),
+        }),
+        None => Ok(()),
+    }
+}
 
 /// The block descriptors of `rows` (`None`: a padding row), four rows per block, each with
 /// the networks of its slots (distinct, in order of first use).

@@ -22,18 +22,21 @@
 //! no row block mixes tables and per-cell values); [`covering_blocks`] maps the caller's
 //! `BLOCK x BLOCK` block pairs onto the register blocks that hold them.
 
+mod neural_rows;
 mod plan;
 mod shape;
 
 pub use plan::{covering_blocks, PairPlan, PlanLimits, RowLayout};
 pub use shape::{kernel_source, KernelShape};
 
+use super::neural::NeuralKernel;
 use super::tabulate::separable_texels;
 use super::{dispatch, GpuContext, PipelineCache};
 use crate::backend::blocks::{add_block, PairOp};
 use crate::backend::{Lobe, LobeParams, Progress};
 use crate::error::GpuError;
 use crate::merl::{CellSet, GridTables};
+use neural_rows::NeuralPass;
 use plan::table_rows;
 
 /// WGSL template of the kernel (see [`kernel_source`]).
@@ -111,6 +114,7 @@ type PipelineKey = (KernelShape, PairOp, bool);
 pub struct PairwiseKernel {
     pipelines: PipelineCache<PipelineKey>,
     texture: std::sync::Mutex<Option<(u32, wgpu::Texture)>>,
+    neural: std::sync::Mutex<Option<std::sync::Arc<NeuralKernel>>>,
 }
 
 impl PairwiseKernel {
@@ -141,6 +145,20 @@ impl PairwiseKernel {
         })
     }
 
+    /// The neural kernel, compiled on first use (on `ctx`, the context of every call).
+    pub fn neural_kernel(
+        &self,
+        ctx: &GpuContext,
+    ) -> Result<std::sync::Arc<NeuralKernel>, GpuError> {
+        let mut slot = self.neural.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(k) = slot.as_ref() {
+            return Ok(k.clone());
+        }
+        let k = std::sync::Arc::new(NeuralKernel::new(ctx)?);
+        *slot = Some(k.clone());
+        Ok(k)
+    }
+
     /// A value texture of at least `height` rows: the cached one when it is as tall, taken
     /// out of the cache so that concurrent calls never share it (see `put_back`).
     fn value_texture(&self, ctx: &GpuContext, height: u32) -> (u32, wgpu::Texture) {
@@ -153,7 +171,10 @@ impl PairwiseKernel {
             let t = ctx.packed_texture(
                 "values",
                 height,
-                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                // Storage: the neural kernel writes its rows in place.
+                wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_DST
+                    | wgpu::TextureUsages::STORAGE_BINDING,
             );
             (height, t)
         })
@@ -198,7 +219,7 @@ impl PairwiseKernel {
         assert_eq!(
             (
                 layout.analytic.len().div_ceil(4),
-                layout.measured.len().div_ceil(4)
+                layout.packed_rows().div_ceil(4)
             ),
             (plan.analytic_blocks, plan.measured_blocks),
             "plan made for other lobes"
@@ -237,6 +258,14 @@ impl PairwiseKernel {
             wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         );
         let info_view = info.create_view(&wgpu::TextureViewDescriptor::default());
+        let neural_kernel = match layout.neural.is_empty() {
+            true => None,
+            false => Some(self.neural_kernel(ctx)?),
+        };
+        let mut neural = match &neural_kernel {
+            Some(k) => NeuralPass::new(ctx, k, lobes, &layout, plan, &texture)?,
+            None => None,
+        };
         let tables = GridTables::new();
         let total = cells.len() as u64;
         let mut done = 0u64;
@@ -261,6 +290,9 @@ impl PairwiseKernel {
             pack_chunk(
                 ctx, &info, &texture, lobes, &layout, plan, op, &tables, cc, cw,
             );
+            if let Some(n) = neural.as_mut() {
+                n.chunk(ctx, op, cc, cw)?;
+            }
             dispatch_groups(ctx, &pass, cc.len(), &mut sums)?;
             done += cc.len() as u64;
             progress(done, total);
