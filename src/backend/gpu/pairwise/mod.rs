@@ -4,12 +4,15 @@
 //! lobes are never stored per cell: their row blocks hold the separable form's tables
 //! (8,100 betas and the alphas, uploaded once), and the kernel tabulates them in registers
 //! at each cell from a per-cell texel `(e, g, w)` the host computes in f64. Measured lobes
-//! are packed per chunk of cells by the host. One dispatch per chunk reduces every
+//! are packed per chunk of cells by the host; neural lobes are evaluated per chunk on the
+//! device by the neural kernel ([`crate::backend::gpu::neural`]), which writes their row
+//! blocks into the value texture before the chunk's reductions. One dispatch per chunk reduces every
 //! requested register block of `4R x 4R` lobe pairs over every run of cells. Per-lane
 //! partial sums (f32 over at most `MAX_RUN_ITERS` cells) are read back and accumulated in
 //! f64 on the host, in the canonical order of [`crate::backend::cpu`] (lane `l` of a run of
 //! 8,192 cells sums cells `l, l + 8, ...`; runs and lanes added in order), so that the
-//! sums equal the CPU back-end's bit for bit wherever the adapter computes f32 `*`, `+`,
+//! sums equal the CPU back-end's bit for bit (neural lobes aside: the two back-ends'
+//! network evaluations agree to SPEC 9's accuracy, not bit for bit) wherever the adapter computes f32 `*`, `+`,
 //! `-` and `abs` as IEEE 754 does and does not contract `a * b + c` into a fused
 //! multiply-add (lavapipe).
 //!
@@ -18,8 +21,8 @@
 //! the fetches, and [`KernelShape::choose`] picks the one that pads the collection least;
 //! on a hardware GPU R = 2 keeps the 64 accumulators in registers.
 //!
-//! Rows are laid out by [`RowLayout`] (analytic lobes first, then measured ones, so that
-//! no row block mixes tables and per-cell values); [`covering_blocks`] maps the caller's
+//! Rows are laid out by [`RowLayout`] (analytic lobes first, then measured tables, then
+//! neural lobes, each kind from a whole texel on, so that no row block mixes kinds); [`covering_blocks`] maps the caller's
 //! `BLOCK x BLOCK` block pairs onto the register blocks that hold them.
 
 mod neural_rows;
@@ -359,7 +362,8 @@ fn pack_chunk(
         t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
     }
     ctx.write_texel_rows(info, 0, &texels);
-    // Measured and neural rows, filled as the CPU back-end fills them (bit for bit).
+    // Measured tables, filled as the CPU back-end fills them (bit for bit); neural rows are
+    // written on the device (NeuralPass).
     let scale: Vec<f64> = cw.iter().map(|&w| op.row_scale(w)).collect();
     let len = cc.len();
     let mut rows = vec![0f32; layout.measured.len() * len];
