@@ -25,6 +25,7 @@ mod kmedoids;
 mod leftovers;
 mod measured;
 mod nbrdf;
+mod nbrdf_gpu;
 mod outputs;
 mod reproduce;
 mod rgl;

@@ -343,7 +343,7 @@ fn lobes_and_cells(coll: &Collection, n: usize, stride: usize) -> (Vec<Lobe>, Ce
 }
 
 #[test]
-fn neural_distances_and_gram_agree_with_the_f64_network_and_gpu_bit_for_bit() {
+fn neural_distances_and_gram_agree_with_the_f64_network_on_both_back_ends() {
     let Some(coll) = merl100("neural_distances_and_gram_agree") else {
         return;
     };
@@ -374,15 +374,22 @@ fn neural_distances_and_gram_agree_with_the_f64_network_and_gpu_bit_for_bit() {
         }
     }
     if let Some(gpu) = common::gpu("neural_distances_and_gram_agree_gpu") {
+        // The GPU's neural kernel (tests/nbrdf_gpu.rs): within SPEC 9 of the f64 network
+        // like the CPU twin, not bit for bit the same values.
         let dg = gpu.pairwise_l1(&lobes, &cells, &|_, _| {}).expect("gpu");
-        assert_eq!(dg, d, "GPU (host-packed neural rows) and CPU differ");
+        let rel = common::max_rel(&dg, &want, 1e-6);
+        assert!(rel < 1e-4, "GPU BRDF_it relative error {rel}");
         let gg = gpu.gram(&lobes, &cells, 10, &|_, _| {}).expect("gpu gram");
-        assert_eq!(gg, g);
+        let rel = common::max_rel(&gg, &g, 1e-12);
+        assert!(rel < 1e-4, "GPU and CPU Gram entries differ by {rel}");
         let all: Vec<u32> = cells.cells.clone();
-        assert_eq!(
-            gpu.tabulate(&lobes, &all).expect("gpu tab"),
-            cpu.tabulate(&lobes, &all).expect("cpu tab")
-        );
+        let tab = gpu.tabulate(&lobes, &all).expect("gpu tab");
+        for (l, lobe) in lobes.iter().enumerate() {
+            for (k, &c) in all.iter().enumerate() {
+                let want = lobe.eval_f64(&t, c as usize);
+                assert!(within_spec(tab[l * all.len() + k] as f64, want), "{l} {c}");
+            }
+        }
     }
 }
 

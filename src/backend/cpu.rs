@@ -32,8 +32,11 @@
 //! network ([`crate::brdf::Nbrdf::eval_cells`]), never stored as a whole table: the
 //! lobes of one network (its three channels, or the mean) share one evaluation per chunk
 //! ([`fill_rows`]). A row value is the chosen channel (or the f64 mean of the three) times
-//! the row scale in f64, rounded once to f32, like a measured row; the GPU back-end packs
-//! the rows [`fill_rows`] gives, so the reductions agree bit for bit.
+//! the row scale in f64, rounded once to f32, like a measured row. The GPU back-end runs
+//! its own f32 kernel of the networks on the device (`backend::gpu::neural`): both are
+//! within SPEC 9 of the f64 network, not bit for bit the same, so reductions over neural
+//! lobes agree between the back-ends to that accuracy (measured and analytic rows still
+//! bit for bit).
 
 use super::blocks::{add_block, PairOp, BLOCK};
 use super::{Backend, Lobe, LobeParams, Progress};
@@ -355,8 +358,8 @@ const NEURAL_RUN: usize = 1024;
 /// given), rounded once to f32: `rows` pairs a lobe with its output row (`cells.len()`
 /// values). The lobes of one network share one evaluation; rayon runs the networks (and
 /// measured rows) in parallel. Analytic lobes are refused (they have their own paths).
-/// The CPU back-end and the GPU back-end's host packing both fill measured and neural
-/// rows with this, so their values agree bit for bit.
+/// The CPU back-end fills measured and neural rows with this, and the GPU back-end's host
+/// packing its measured rows (bit for bit the same values).
 pub fn fill_rows(
     rows: Vec<(&Lobe, &mut [f32])>,
     cells: &[u32],

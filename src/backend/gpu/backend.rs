@@ -1,5 +1,6 @@
 //! [`GpuBackend`]: the [`Backend`] trait on a wgpu device.
 
+use super::neural::lobe_rows;
 use super::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits, RowLayout};
 use super::tabulate::TabulateKernel;
 use super::GpuContext;
@@ -61,6 +62,22 @@ impl GpuBackend {
     }
 }
 
+impl GpuBackend {
+    /// The pairwise plan for `lobes` over `cells` cells: [`Self::plan`] with the packed
+    /// rows of their [`RowLayout`] (measured tables, then neural rows from a whole texel
+    /// on).
+    pub fn plan_for(&self, lobes: &[Lobe], cells: usize) -> Result<PairPlan, GpuError> {
+        let layout = RowLayout::new(lobes);
+        PairPlan::new(
+            layout.analytic.len(),
+            layout.packed_rows(),
+            cells,
+            &PlanLimits::of(&self.ctx),
+            KernelShape::choose(layout.n_rows, self.ctx.is_software()),
+        )
+    }
+}
+
 impl Backend for GpuBackend {
     fn name(&self) -> String {
         format!(
@@ -88,13 +105,27 @@ impl Backend for GpuBackend {
         for (r, (i, _)) in analytic.iter().enumerate() {
             out[i * n..(i + 1) * n].copy_from_slice(&vals[r * n..(r + 1) * n]);
         }
-        // Measured and neural rows on the host (neural: the CPU back-end's f32 twin, per
-        // run of cells, never more than one run's network outputs at once).
+        // Neural rows by the neural kernel, every network once per row block.
+        let neural: Vec<usize> = (0..lobes.len())
+            .filter(|&i| matches!(lobes[i], Lobe::Neural { .. }))
+            .collect();
+        if !neural.is_empty() {
+            let (nets, rows) = lobe_rows(neural.iter().map(|&i| &lobes[i]));
+            let weights: Vec<&[f32]> = nets.iter().map(|w| w.weights()).collect();
+            let vals = self
+                .pair
+                .neural_kernel(&self.ctx)?
+                .tabulate(&self.ctx, &weights, &rows, cells)?;
+            for (r, &i) in neural.iter().enumerate() {
+                out[i * n..(i + 1) * n].copy_from_slice(&vals[r * n..(r + 1) * n]);
+            }
+        }
+        // Measured rows on the host, per run of cells.
         const RUN: usize = 1 << 14;
         let mut runs: Vec<Vec<(&Lobe, &mut [f32])>> =
             (0..n.div_ceil(RUN)).map(|_| Vec::new()).collect();
         for (row, l) in out.chunks_mut(n.max(1)).zip(lobes) {
-            if !l.is_analytic() {
+            if let Lobe::Measured { .. } = l {
                 for (run, part) in runs.iter_mut().zip(row.chunks_mut(RUN)) {
                     run.push((l, part));
                 }
@@ -117,8 +148,7 @@ impl Backend for GpuBackend {
         op: PairOp,
         progress: Progress<'_>,
     ) -> Result<Vec<f64>, BackendError> {
-        let n_measured = lobes.iter().filter(|l| !l.is_analytic()).count();
-        let plan = self.plan(lobes.len(), n_measured, cells.len())?;
+        let plan = self.plan_for(lobes, cells.len())?;
         Ok(self
             .pair
             .run(&self.ctx, lobes, cells, blocks, op, &plan, progress)?)

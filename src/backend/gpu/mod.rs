@@ -4,6 +4,8 @@
 
 pub mod backend;
 #[doc(hidden)]
+pub mod neural;
+#[doc(hidden)]
 pub mod pairwise;
 #[doc(hidden)]
 pub mod pgd;

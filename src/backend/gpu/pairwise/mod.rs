@@ -4,12 +4,15 @@
 //! lobes are never stored per cell: their row blocks hold the separable form's tables
 //! (8,100 betas and the alphas, uploaded once), and the kernel tabulates them in registers
 //! at each cell from a per-cell texel `(e, g, w)` the host computes in f64. Measured lobes
-//! are packed per chunk of cells by the host. One dispatch per chunk reduces every
+//! are packed per chunk of cells by the host; neural lobes are evaluated per chunk on the
+//! device by the neural kernel ([`crate::backend::gpu::neural`]), which writes their row
+//! blocks into the value texture before the chunk's reductions. One dispatch per chunk reduces every
 //! requested register block of `4R x 4R` lobe pairs over every run of cells. Per-lane
 //! partial sums (f32 over at most `MAX_RUN_ITERS` cells) are read back and accumulated in
 //! f64 on the host, in the canonical order of [`crate::backend::cpu`] (lane `l` of a run of
 //! 8,192 cells sums cells `l, l + 8, ...`; runs and lanes added in order), so that the
-//! sums equal the CPU back-end's bit for bit wherever the adapter computes f32 `*`, `+`,
+//! sums equal the CPU back-end's bit for bit (neural lobes aside: the two back-ends'
+//! network evaluations agree to SPEC 9's accuracy, not bit for bit) wherever the adapter computes f32 `*`, `+`,
 //! `-` and `abs` as IEEE 754 does and does not contract `a * b + c` into a fused
 //! multiply-add (lavapipe).
 //!
@@ -18,22 +21,25 @@
 //! the fetches, and [`KernelShape::choose`] picks the one that pads the collection least;
 //! on a hardware GPU R = 2 keeps the 64 accumulators in registers.
 //!
-//! Rows are laid out by [`RowLayout`] (analytic lobes first, then measured ones, so that
-//! no row block mixes tables and per-cell values); [`covering_blocks`] maps the caller's
+//! Rows are laid out by [`RowLayout`] (analytic lobes first, then measured tables, then
+//! neural lobes, each kind from a whole texel on, so that no row block mixes kinds); [`covering_blocks`] maps the caller's
 //! `BLOCK x BLOCK` block pairs onto the register blocks that hold them.
 
+mod neural_rows;
 mod plan;
 mod shape;
 
 pub use plan::{covering_blocks, PairPlan, PlanLimits, RowLayout};
 pub use shape::{kernel_source, KernelShape};
 
+use super::neural::NeuralKernel;
 use super::tabulate::separable_texels;
 use super::{dispatch, GpuContext, PipelineCache};
 use crate::backend::blocks::{add_block, PairOp};
 use crate::backend::{Lobe, LobeParams, Progress};
 use crate::error::GpuError;
 use crate::merl::{CellSet, GridTables};
+use neural_rows::NeuralPass;
 use plan::table_rows;
 
 /// WGSL template of the kernel (see [`kernel_source`]).
@@ -111,6 +117,7 @@ type PipelineKey = (KernelShape, PairOp, bool);
 pub struct PairwiseKernel {
     pipelines: PipelineCache<PipelineKey>,
     texture: std::sync::Mutex<Option<(u32, wgpu::Texture)>>,
+    neural: std::sync::Mutex<Option<std::sync::Arc<NeuralKernel>>>,
 }
 
 impl PairwiseKernel {
@@ -141,6 +148,20 @@ impl PairwiseKernel {
         })
     }
 
+    /// The neural kernel, compiled on first use (on `ctx`, the context of every call).
+    pub fn neural_kernel(
+        &self,
+        ctx: &GpuContext,
+    ) -> Result<std::sync::Arc<NeuralKernel>, GpuError> {
+        let mut slot = self.neural.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(k) = slot.as_ref() {
+            return Ok(k.clone());
+        }
+        let k = std::sync::Arc::new(NeuralKernel::new(ctx)?);
+        *slot = Some(k.clone());
+        Ok(k)
+    }
+
     /// A value texture of at least `height` rows: the cached one when it is as tall, taken
     /// out of the cache so that concurrent calls never share it (see `put_back`).
     fn value_texture(&self, ctx: &GpuContext, height: u32) -> (u32, wgpu::Texture) {
@@ -153,7 +174,10 @@ impl PairwiseKernel {
             let t = ctx.packed_texture(
                 "values",
                 height,
-                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                // Storage: the neural kernel writes its rows in place.
+                wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_DST
+                    | wgpu::TextureUsages::STORAGE_BINDING,
             );
             (height, t)
         })
@@ -198,7 +222,7 @@ impl PairwiseKernel {
         assert_eq!(
             (
                 layout.analytic.len().div_ceil(4),
-                layout.measured.len().div_ceil(4)
+                layout.packed_rows().div_ceil(4)
             ),
             (plan.analytic_blocks, plan.measured_blocks),
             "plan made for other lobes"
@@ -237,6 +261,14 @@ impl PairwiseKernel {
             wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         );
         let info_view = info.create_view(&wgpu::TextureViewDescriptor::default());
+        let neural_kernel = match layout.neural.is_empty() {
+            true => None,
+            false => Some(self.neural_kernel(ctx)?),
+        };
+        let mut neural = match &neural_kernel {
+            Some(k) => NeuralPass::new(ctx, k, lobes, &layout, plan, &texture)?,
+            None => None,
+        };
         let tables = GridTables::new();
         let total = cells.len() as u64;
         let mut done = 0u64;
@@ -261,6 +293,9 @@ impl PairwiseKernel {
             pack_chunk(
                 ctx, &info, &texture, lobes, &layout, plan, op, &tables, cc, cw,
             );
+            if let Some(n) = neural.as_mut() {
+                n.chunk(ctx, op, cc, cw)?;
+            }
             dispatch_groups(ctx, &pass, cc.len(), &mut sums)?;
             done += cc.len() as u64;
             progress(done, total);
@@ -327,7 +362,8 @@ fn pack_chunk(
         t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
     }
     ctx.write_texel_rows(info, 0, &texels);
-    // Measured and neural rows, filled as the CPU back-end fills them (bit for bit).
+    // Measured tables, filled as the CPU back-end fills them (bit for bit); neural rows are
+    // written on the device (NeuralPass).
     let scale: Vec<f64> = cw.iter().map(|&w| op.row_scale(w)).collect();
     let len = cc.len();
     let mut rows = vec![0f32; layout.measured.len() * len];

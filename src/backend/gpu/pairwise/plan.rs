@@ -31,19 +31,23 @@ impl PlanLimits {
 }
 
 /// Where each lobe sits in the value texture: analytic lobes first (tabulated in
-/// registers from their tables), padded to a whole texel, then measured lobes (packed per
-/// cell by the host), so
-/// that no texel mixes the two.
+/// registers from their tables), padded to a whole texel, then measured tables (packed per
+/// cell by the host), then neural lobes from a whole texel on (written per chunk by the
+/// neural kernel on the device), so that no texel mixes two kinds.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RowLayout {
     /// Packed row of each lobe.
     pub row: Vec<usize>,
     /// Analytic lobes, in order.
     pub analytic: Vec<usize>,
-    /// Measured lobes, in order; they start at row `measured_start`.
+    /// Measured tables, in order; they start at row `measured_start`.
     pub measured: Vec<usize>,
+    /// Neural lobes, in order; they start at row `neural_start`.
+    pub neural: Vec<usize>,
     /// First measured row (a multiple of 4).
     pub measured_start: usize,
+    /// First neural row (a multiple of 4, after the measured rows).
+    pub neural_start: usize,
     /// Rows in use.
     pub n_rows: usize,
 }
@@ -51,9 +55,15 @@ pub struct RowLayout {
 impl RowLayout {
     /// The layout of `lobes`.
     pub fn new(lobes: &[Lobe]) -> Self {
-        let (measured, analytic): (Vec<usize>, Vec<usize>) =
-            (0..lobes.len()).partition(|&i| !lobes[i].is_analytic());
+        let kind = |i: &usize| match lobes[*i] {
+            Lobe::Analytic(_) => 0,
+            Lobe::Measured { .. } => 1,
+            Lobe::Neural { .. } => 2,
+        };
+        let of = |k: i32| -> Vec<usize> { (0..lobes.len()).filter(|i| kind(i) == k).collect() };
+        let (analytic, measured, neural) = (of(0), of(1), of(2));
         let measured_start = analytic.len().div_ceil(4) * 4;
+        let neural_start = measured_start + measured.len().div_ceil(4) * 4;
         let mut row = vec![0; lobes.len()];
         for (k, &i) in analytic.iter().enumerate() {
             row[i] = k;
@@ -61,18 +71,34 @@ impl RowLayout {
         for (k, &i) in measured.iter().enumerate() {
             row[i] = measured_start + k;
         }
+        for (k, &i) in neural.iter().enumerate() {
+            row[i] = neural_start + k;
+        }
+        let n_rows = if neural.is_empty() {
+            Self::rows_for(analytic.len(), measured.len())
+        } else {
+            neural_start + neural.len()
+        };
         Self {
             row,
-            n_rows: Self::rows_for(analytic.len(), measured.len()),
+            n_rows,
             analytic,
             measured,
+            neural,
             measured_start,
+            neural_start,
         }
     }
 
     /// Rows of `n_analytic` analytic then `n_measured` measured lobes.
     pub fn rows_for(n_analytic: usize, n_measured: usize) -> usize {
         n_analytic.div_ceil(4) * 4 + n_measured
+    }
+
+    /// Packed rows after the analytic ones (measured, the padding to the neural rows'
+    /// first texel, neural): the `n_measured` of [`PairPlan::new`].
+    pub fn packed_rows(&self) -> usize {
+        self.n_rows - self.measured_start
     }
 }
 
@@ -236,6 +262,13 @@ mod tests {
                     f0: 0.5,
                     n: 10.0,
                 }),
+                'n' => Lobe::Neural {
+                    net: Arc::new(
+                        crate::brdf::Nbrdf::from_weights(vec![0.0; crate::brdf::NBRDF_WEIGHTS])
+                            .expect("weights"),
+                    ),
+                    channel: None,
+                },
                 _ => Lobe::Measured {
                     table: Arc::new(MerlTable { rgb: Vec::new() }),
                     channel: None,
@@ -253,6 +286,22 @@ mod tests {
         assert_eq!(l.row, [0, 4, 1, 2, 5]);
         assert_eq!(l.n_rows, 6);
         assert_eq!(RowLayout::rows_for(3, 2), 6);
+        assert_eq!(l.packed_rows(), 2);
+    }
+
+    #[test]
+    fn neural_rows_start_on_a_texel_after_the_measured_ones() {
+        // a n m a n m m m m n: analytic 0, 3 | measured 2, 5, 6, 7, 8 | neural 1, 4, 9.
+        let l = RowLayout::new(&lobes("anmanmmmmn"));
+        assert_eq!(l.analytic, [0, 3]);
+        assert_eq!(l.measured, [2, 5, 6, 7, 8]);
+        assert_eq!(l.neural, [1, 4, 9]);
+        assert_eq!((l.measured_start, l.neural_start, l.n_rows), (4, 12, 15));
+        assert_eq!(l.row, [0, 12, 4, 1, 13, 5, 6, 7, 8, 14]);
+        assert_eq!(l.packed_rows(), 11);
+        // Neural lobes only: they start at row 0.
+        let l = RowLayout::new(&lobes("nn"));
+        assert_eq!((l.measured_start, l.neural_start, l.n_rows), (0, 0, 2));
     }
 
     #[test]
