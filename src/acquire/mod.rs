@@ -8,7 +8,7 @@
 //!   on the samples instead of the grid; the crate's Lawson-Hanson solver), its warnings
 //!   (fewer samples than columns, a rank-deficient or ill-conditioned sampled design) and
 //!   the score of a reconstruction on the whole fit mask.
-//! * [`plan`]: where to measure: `error` (greedy on the mean training score), `condition`
+//! * [`plan`](mod@plan): where to measure: `error` (greedy on the mean training score), `condition`
 //!   (greedy on the condition number of the sampled design) and `random`.
 //! * [`cv`]: acquisition cross-validation (folds of SPEC 8; basis and plan chosen on the
 //!   training materials, held-out materials measured at the plan and scored).
