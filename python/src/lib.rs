@@ -629,6 +629,87 @@ fn fit_json<'py>(
     Ok(text + "\n")
 }
 
+/// Plans where to measure a new material (SPEC 10), as `brdf-basis plan --json` on the
+/// evaluation-mask cell centres: returns the JSON text.
+#[pyfunction]
+#[pyo3(signature = (collection, basis, n, *, criterion = "error", targets = None, candidates_per_step = 10_000, shortlist = 32, seed = 1, backend = "auto", progress = None))]
+#[allow(clippy::too_many_arguments)]
+fn plan_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    basis: Vec<String>,
+    n: usize,
+    criterion: &str,
+    targets: Option<Vec<String>>,
+    candidates_per_step: usize,
+    shortlist: usize,
+    seed: u64,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let basis = indices(&coll, Some(basis))?.unwrap_or_default();
+    let targets = match indices(&coll, targets)? {
+        Some(t) => t,
+        None => (0..coll.len()).filter(|i| !basis.contains(i)).collect(),
+    };
+    let p = bb::acquire::PlanParams {
+        n,
+        criterion: parse(criterion)?,
+        candidates_per_step,
+        shortlist,
+        seed,
+        fit: bb::fit::FitParams::default(),
+    };
+    let backend = open_backend(backend)?;
+    let plan = run_long(py, progress, "plan", |_| {
+        let all: Vec<usize> = basis.iter().chain(&targets).copied().collect();
+        let cands = bb::acquire::plan::cell_candidates(&coll, &all, &p.fit)?;
+        Ok(bb::plan_samples(
+            backend.as_ref(),
+            &coll,
+            &basis,
+            &targets,
+            &cands,
+            &p,
+        )?)
+    })?;
+    let text = serde_json::to_string_pretty(&plan).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}
+
+/// Fits a new material from samples (SPEC 10): `angles` (n, 4) in degrees
+/// `theta_i, phi_i, theta_o, phi_o`, `rgb` (n, 3), optional `sigma` (n, 3). Returns
+/// `(coefficients (1 + k, 3), residual (3), mae, relative_residual, rank, condition)`.
+#[pyfunction]
+#[pyo3(signature = (collection, basis, angles, rgb, sigma = None))]
+#[allow(clippy::type_complexity)]
+fn fit_samples<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    basis: Vec<String>,
+    angles: Vec<[f64; 4]>,
+    rgb: Vec<[f64; 3]>,
+    sigma: Option<Vec<[f64; 3]>>,
+) -> PyResult<(Bound<'py, PyAny>, [f64; 3], f64, f64, usize, f64)> {
+    let coll = coll_of(collection);
+    let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
+    let f = bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref())
+        .map_err(lib_err)?;
+    let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
+    let coefficients = numpy::PyArray1::from_vec(py, flat)
+        .reshape([f.coefficients.len(), 3])?
+        .into_any();
+    Ok((
+        coefficients,
+        f.residual,
+        f.mae,
+        f.relative_residual,
+        f.determination.rank,
+        f.determination.condition,
+    ))
+}
+
 /// K-fold cross-validation as `brdf-basis cv`: returns the `--json` text.
 #[pyfunction]
 #[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, backend = "auto", progress = None))]
@@ -936,6 +1017,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(distance_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(select_json, m)?)?;
     m.add_function(wrap_pyfunction!(fit_json, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_json, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_samples, m)?)?;
     m.add_function(wrap_pyfunction!(cross_validate_json, m)?)?;
     m.add_function(wrap_pyfunction!(nnls, m)?)?;
     m.add_function(wrap_pyfunction!(silhouette, m)?)?;
