@@ -50,7 +50,7 @@ impl Draw for RhoVsN<'_> {
         if text {
             b.caption(
                 format!(
-                    "Held-out mean rho from n samples ({method}, k = {})",
+                    "Held-out mean rho from n noise-free samples ({method}, k = {})",
                     self.cv.k
                 ),
                 (FONT, 18),
@@ -59,7 +59,12 @@ impl Draw for RhoVsN<'_> {
             .y_label_area_size(70);
         }
         let mut chart = b
-            .build_cartesian_2d(0.0..nmax * 1.05, (lo / 1.5..hi * 1.5).log_scale())
+            // Headroom above the data (a third of the plot's height on the log axis) holds
+            // the legend (upper left), so that it never covers a line.
+            .build_cartesian_2d(
+                0.0..nmax * 1.05,
+                (lo / 1.5..hi * 1.5 * (hi / lo).max(10.0).powf(0.5)).log_scale(),
+            )
             .map_err(|e| e2s(&e))?;
         if text {
             chart
@@ -67,6 +72,7 @@ impl Draw for RhoVsN<'_> {
                 .x_desc("samples n")
                 .y_desc("mean rho (log)")
                 .y_label_formatter(&|v| format!("{v:.0e}"))
+                .x_label_formatter(&|v| format!("{v:.0}"))
                 .label_style((FONT, 12))
                 .draw()
                 .map_err(|e| e2s(&e))?;
@@ -106,6 +112,7 @@ impl Draw for RhoVsN<'_> {
             });
             chart
                 .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
                 .border_style(BLACK)
                 .background_style(WHITE.mix(0.9))
                 .label_font((FONT, 12))
