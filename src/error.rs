@@ -126,7 +126,7 @@ pub enum CollectionError {
     #[error(transparent)]
     Rgl(#[from] RglError),
     /// A directory given as a collection holds no material file.
-    #[error("{path}: a directory with no material in it (a collection is an analytic .csv file, a MERL .binary file, an RGL-EPFL .bsdf file, or a directory of .binary and .bsdf files and neural BRDF sets NAME_fc1.npy ... NAME_b3.npy)")]
+    #[error("{path}: a directory with no MERL .binary file, RGL-EPFL .bsdf file or neural BRDF set in it (a collection is an analytic .csv file, a MERL .binary file, an RGL-EPFL .bsdf file, or a directory of .binary and .bsdf files and neural BRDF sets NAME_fc1.npy ... NAME_b3.npy)")]
     EmptyDir {
         /// The directory.
         path: PathBuf,

@@ -8,6 +8,7 @@
 //! order (greedy), the earliest (position, candidate) pair (swap) or the earliest
 //! individual (GA).
 
+pub(crate) use super::objective::argmin;
 use super::objective::Objective;
 use super::SelectionError;
 
@@ -255,19 +256,6 @@ impl Selection {
             candidates: p.candidates.len(),
         })
     }
-}
-
-/// Index of the lowest score, a later one winning only by more than `tie_tol` relative.
-pub(crate) fn argmin(scores: &[f64], tie_tol: f64) -> Option<usize> {
-    let mut best: Option<usize> = None;
-    for (i, &s) in scores.iter().enumerate() {
-        match best {
-            None => best = Some(i),
-            Some(b) if s < scores[b] - tie_tol * scores[b].abs() - 1e-300 => best = Some(i),
-            _ => {}
-        }
-    }
-    best
 }
 
 #[cfg(test)]

@@ -507,3 +507,16 @@ fn basis_cols(basis: &[usize]) -> Vec<usize> {
         .chain(basis.iter().map(|&b| b + 1))
         .collect()
 }
+
+/// Index of the lowest score, a later one winning only by more than `tie_tol` relative.
+pub(crate) fn argmin(scores: &[f64], tie_tol: f64) -> Option<usize> {
+    let mut best: Option<usize> = None;
+    for (i, &s) in scores.iter().enumerate() {
+        match best {
+            None => best = Some(i),
+            Some(b) if s < scores[b] - tie_tol * scores[b].abs() - 1e-300 => best = Some(i),
+            _ => {}
+        }
+    }
+    best
+}

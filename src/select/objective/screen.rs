@@ -249,8 +249,8 @@ mod tests {
     use super::*;
     use crate::backend::cpu::CpuBackend;
     use crate::collection::Collection;
+    use crate::select::objective::argmin;
     use crate::select::objective::ObjectiveParams;
-    use crate::select::search::argmin;
 
     #[test]
     fn the_chain_is_the_argmin_of_the_search() {
