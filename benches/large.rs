@@ -3,8 +3,8 @@
 //! disk). Each stage runs as a child process so that its peak RSS (VmHWM) is its own:
 //!
 //! * `distance`: the banded BRDF_it matrix (CPU back-end), written as `.npy` + sidecar;
-//! * `kmedoids`: the saved matrix loaded (`select --distances` path), k-medoids for
-//!   k = 5..20, one seeded run each (the library default algorithm);
+//! * `kmedoids`: the saved matrix loaded (`select --distances` path: memory-mapped),
+//!   k-medoids for k = 5..20, one seeded run each (the library default algorithm);
 //! * `gcuk`: the saved matrix loaded, one GCUK run (default parameters);
 //! * `greedy`: error-driven greedy selection (SPEC 8) at k = 20 (Gram + screened greedy;
 //!   at N <= 1,000 also the exhaustive greedy, and whether both chose the same basis);
@@ -14,13 +14,15 @@
 //! `cargo bench --bench large` runs N = 1000, 3000, 10000. Environment: `BENCH_N=1000,3000`
 //! (sizes), `BENCH_STAGES=distance,kmedoids` (stages), `BENCH_STRIDE=2` (grid stride of the
 //! distance stage; default 1 at N <= 1,000, 2 above: the full-grid cost scales as
-//! `stride^3`), `BENCH_SEED` (collection seed, default 2016).
+//! `stride^3`), `BENCH_SEED` (collection seed, default 2016), `BENCH_LOAD=read` (the
+//! kmedoids and gcuk stages read the saved matrix into memory instead of memory-mapping
+//! it as `select --distances` does).
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::cluster::{GcukParams, KMedoidsParams};
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::distance::{distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS};
-use brdf_basis::io::saved::{load_saved_matrix, write_npy_with_sidecar};
+use brdf_basis::io::saved::write_npy_with_sidecar;
 use brdf_basis::io::sidecar::MatrixSettings;
 use brdf_basis::select::empirical::{empirical, EmpiricalParams};
 use rand::{Rng, SeedableRng};
@@ -56,6 +58,38 @@ fn peak_rss_mb() -> f64 {
                 .and_then(|v| v.parse::<f64>().ok())
         })
         .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+/// The saved matrix as `select --distances` loads it: memory-mapped (the default), or
+/// read into memory with `BENCH_LOAD=read`; and which it was.
+fn load_for_clustering(path: &Path) -> (brdf_basis::distance::DistanceMatrix, &'static str) {
+    use brdf_basis::io::saved::{load_saved_matrix_with, MatrixLoad};
+    let how = match std::env::var("BENCH_LOAD").as_deref() {
+        Ok("read") => MatrixLoad::Read,
+        _ => MatrixLoad::Map,
+    };
+    let d = load_saved_matrix_with(path, how).expect("load").matrix;
+    let label = if d.is_mapped() { "mapped" } else { "read" };
+    (d, label)
+}
+
+/// `RssAnon` and `RssFile` now (the matrix still loaded): mapped file pages count in the
+/// resident set but are reclaimable, anonymous memory is not.
+fn rss_split() -> String {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |name: &str| {
+        status
+            .lines()
+            .find(|l| l.starts_with(name))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|v| v.parse::<f64>().ok())
+            .map_or(f64::NAN, |kb| kb / 1024.0)
+    };
+    format!(
+        "RssAnon {:.0} MB, RssFile {:.0} MB",
+        field("RssAnon:"),
+        field("RssFile:")
+    )
 }
 
 fn env_list(name: &str, default: &str) -> Vec<String> {
@@ -190,9 +224,7 @@ fn child(stage: &str, n: usize, dir: &Path) {
             )
         }
         "kmedoids" => {
-            let d = load_saved_matrix(&matrix_path(dir, n))
-                .expect("load")
-                .matrix;
+            let (d, how) = load_for_clustering(&matrix_path(dir, n));
             let load = t.elapsed().as_secs_f64();
             let mut losses = Vec::new();
             for k in 5..=20 {
@@ -200,18 +232,18 @@ fn child(stage: &str, n: usize, dir: &Path) {
                 losses.push(format!("{:.4}", km.loss));
             }
             format!(
-                "load {load:.1} s; k = 5..20 one run each; loss {}",
+                "{how}, load {load:.1} s, {}; k = 5..20 one run each; loss {}",
+                rss_split(),
                 losses.join(" ")
             )
         }
         "gcuk" => {
-            let d = load_saved_matrix(&matrix_path(dir, n))
-                .expect("load")
-                .matrix;
+            let (d, how) = load_for_clustering(&matrix_path(dir, n));
             let load = t.elapsed().as_secs_f64();
             let g = GcukParams::default().seed(1).fit(&d).expect("gcuk");
             format!(
-                "load {load:.1} s; k = {} DB {:.4}",
+                "{how}, load {load:.1} s, {}; k = {} DB {:.4}",
+                rss_split(),
                 g.medoids.len(),
                 g.db_index
             )

@@ -275,3 +275,163 @@ fn names_that_do_not_match_are_refused() {
     let (e, msg) = load_err(&npy);
     assert!(matches!(e, MatrixFileError::Names { .. }), "{msg}");
 }
+
+/// A random `n x n` Euclidean matrix (points in the unit cube; exactly symmetric) saved as
+/// `.npy` + sidecar at `path`.
+fn save_random(path: &Path, n: usize, seed: u64) -> brdf_basis::distance::DistanceMatrix {
+    use brdf_basis::distance::{DistanceMatrix, DistanceParams, DEFAULT_BAND_ROWS};
+    use brdf_basis::io::saved::write_npy_with_sidecar;
+    use brdf_basis::io::sidecar::MatrixSettings;
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let pts: Vec<[f64; 3]> = (0..n)
+        .map(|_| [rng.random(), rng.random(), rng.random()])
+        .collect();
+    let mut data = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            let d2: f64 = (0..3).map(|c| (pts[i][c] - pts[j][c]).powi(2)).sum();
+            data[i * n + j] = d2.sqrt();
+        }
+    }
+    let names = (0..n).map(|i| format!("m{i:04}")).collect();
+    let m = DistanceMatrix::from_full(names, data).expect("matrix");
+    let coll = brdf_basis::collection::Collection::embedded_default();
+    let p = DistanceParams::default().check(&coll).expect("params");
+    write_npy_with_sidecar(
+        path,
+        &m,
+        &MatrixSettings::of(&p, DEFAULT_BAND_ROWS),
+        "random",
+    )
+    .expect("write");
+    m
+}
+
+/// `select --distances` reads a `.npy` in place (memory-mapped): the same values as read
+/// into memory, and k-medoids (both algorithms), GCUK and every validity index give the
+/// same medoids, labels, losses and indices, bit for bit.
+#[test]
+fn mapped_matrix_clusters_bit_for_bit_like_the_loaded_one() {
+    use brdf_basis::cluster::{GcukParams, KMedoidsAlgorithm, KMedoidsParams};
+    use brdf_basis::io::saved::{load_saved_matrix_with, MatrixLoad};
+    use brdf_basis::select::runs::{gcuk_runs, kmedoids_runs, named_runs};
+    let dir = tmp();
+    let npy = dir.path().join("r.npy");
+    let m = save_random(&npy, 240, 7);
+    let before = std::fs::read(&npy).expect("bytes");
+    let mapped = load_saved_matrix_with(&npy, MatrixLoad::Map).expect("map");
+    let read = load_saved_matrix_with(&npy, MatrixLoad::Read).expect("read");
+    assert!(cfg!(not(unix)) || mapped.matrix.is_mapped());
+    assert!(!read.matrix.is_mapped());
+    assert_eq!(mapped.sidecar, read.sidecar);
+    let bits = |d: &brdf_basis::distance::DistanceMatrix| -> Vec<u64> {
+        d.as_full().iter().map(|v| v.to_bits()).collect()
+    };
+    assert_eq!(bits(&mapped.matrix), bits(&read.matrix));
+    assert_eq!(bits(&mapped.matrix), bits(&m));
+    assert_eq!(mapped.matrix.names(), read.matrix.names());
+    // `{:?}` of f64 is exact (shortest round-trip form), so equal text = equal bits.
+    for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+        for k in [2, 5, 9] {
+            let p = KMedoidsParams::new(k).algorithm(algorithm).seed(3).restarts(2);
+            let a = p.fit(&mapped.matrix).expect("mapped");
+            let b = p.fit(&read.matrix).expect("read");
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "{algorithm} k {k}");
+        }
+    }
+    let g = GcukParams::default().k_range(2, 8).generations(15).seed(5);
+    let a = g.fit(&mapped.matrix).expect("gcuk mapped");
+    let b = g.fit(&read.matrix).expect("gcuk read");
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    // The select path: runs, then every validity index of each run.
+    let quiet = |_: u64, _: u64| {};
+    let runs = |d| {
+        let mut r = kmedoids_runs(d, &[3, 6], 2, 11, KMedoidsAlgorithm::FasterPam, &quiet)
+            .expect("kmedoids runs");
+        let gp = g.check().expect("gcuk params");
+        r.extend(gcuk_runs(d, &gp, 2, 11, &quiet).expect("gcuk runs"));
+        format!("{:?}", named_runs(d, &r).expect("named"))
+    };
+    assert_eq!(runs(&mapped.matrix), runs(&read.matrix));
+    drop(mapped);
+    assert_eq!(std::fs::read(&npy).expect("bytes"), before, "the file is unchanged");
+}
+
+/// A mapped matrix with pairs that differ within the tolerance holds their means, as the
+/// loaded one does, and the file on disk keeps its bytes (the mapping is private).
+#[test]
+fn mapped_matrix_within_tolerance_is_made_symmetric_without_touching_the_file() {
+    use brdf_basis::io::npy::{npy_header, read_npy_2d};
+    use brdf_basis::io::saved::{load_saved_matrix_with, MatrixLoad};
+    let dir = tmp();
+    let npy = dir.path().join("r.npy");
+    let m = save_random(&npy, 20, 9);
+    // Nudge D[2][5] by a relative 1e-12 and write the pair with a matching sidecar.
+    let n = 20;
+    let mut data = m.as_full().to_vec();
+    data[2 * n + 5] *= 1.0 + 1e-12;
+    let mut bytes = npy_header(n, n);
+    for v in &data {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    let side = read_sidecar(&npy).expect("sidecar");
+    std::fs::write(&npy, &bytes).expect("npy");
+    let digest = read_npy_2d(&npy).expect("read").digest;
+    let side = brdf_basis::io::sidecar::MatrixSidecar::new(
+        side.names.clone(),
+        side.settings,
+        side.collection_fingerprint.clone(),
+        n,
+        None,
+        digest,
+    );
+    let mut set = brdf_basis::atomic::OutputSet::new();
+    brdf_basis::io::sidecar::stage_sidecar(&mut set, &npy, &side).expect("stage");
+    set.commit().expect("sidecar");
+    let mapped = load_saved_matrix_with(&npy, MatrixLoad::Map).expect("map");
+    let read = load_saved_matrix_with(&npy, MatrixLoad::Read).expect("read");
+    assert!(cfg!(not(unix)) || mapped.matrix.is_mapped());
+    assert_eq!(mapped.matrix.as_full(), read.matrix.as_full());
+    let (a, b) = (mapped.matrix.as_full()[2 * n + 5], mapped.matrix.as_full()[5 * n + 2]);
+    assert_eq!(a.to_bits(), b.to_bits());
+    assert_eq!(a, 0.5 * (data[2 * n + 5] + data[5 * n + 2]));
+    assert_eq!(std::fs::read(&npy).expect("bytes"), bytes);
+}
+
+/// Truncated, extended, rewritten and lying `.npy` files are refused the same way whether
+/// mapped or read: the same error, naming the file.
+#[test]
+fn damaged_npy_is_refused_alike_mapped_or_read() {
+    use brdf_basis::io::saved::{load_saved_matrix_with, MatrixLoad};
+    let dir = tmp();
+    let npy = dir.path().join("r.npy");
+    save_random(&npy, 12, 1);
+    let good = std::fs::read(&npy).expect("bytes");
+    let header_len = good.len() - 8 * 144;
+    let mut cases: Vec<(&str, Vec<u8>)> = vec![
+        ("truncated by 12 bytes", good[..good.len() - 12].to_vec()),
+        ("truncated to the header", good[..header_len].to_vec()),
+        ("header cut", good[..20].to_vec()),
+        ("empty", Vec::new()),
+        ("one stray byte more", [&good[..], &[0u8]].concat()),
+        ("one value more", [&good[..], &[0u8; 8]].concat()),
+    ];
+    let mut flipped = good.clone();
+    flipped[header_len + 8 * 13 + 7] ^= 0x80;
+    cases.push(("a sign bit flipped", flipped));
+    let mut lying = good.clone();
+    let text = String::from_utf8_lossy(&lying[10..header_len]).replace("(12, 12)", "(12, 11)");
+    lying[10..header_len].copy_from_slice(text.as_bytes());
+    cases.push(("a header that lies about the shape", lying));
+    let mut nan = good.clone();
+    nan[header_len + 8..header_len + 16].copy_from_slice(&f64::NAN.to_le_bytes());
+    cases.push(("NaN (checksum first)", nan));
+    for (what, bytes) in cases {
+        std::fs::write(&npy, &bytes).expect("write");
+        let a = load_saved_matrix_with(&npy, MatrixLoad::Map).expect_err(what);
+        let b = load_saved_matrix_with(&npy, MatrixLoad::Read).expect_err(what);
+        assert_eq!(a.to_string(), b.to_string(), "{what}");
+        assert!(a.to_string().contains("r.npy"), "{what}: {a}");
+    }
+}

@@ -16,11 +16,62 @@ pub trait Distances {
     }
 }
 
+/// Values that live outside the matrix, in an owner it shares (a memory-mapped file,
+/// [`crate::io::mmap`]).
+///
+/// # Safety
+///
+/// [`values`](SharedValues::values) must return the same slice (address and length) on
+/// every call, valid for as long as the owner lives: the matrix reads it through a copy
+/// of that address, not through the owner.
+pub(crate) unsafe trait SharedValues: Send + Sync + std::fmt::Debug {
+    /// The values, row-major.
+    fn values(&self) -> &[f64];
+}
+
+/// Where a matrix's values are: its own vector, or a shared owner's stable slice.
+#[derive(Clone, Debug)]
+enum Values {
+    Owned(Vec<f64>),
+    Shared {
+        // Kept alive for `ptr..ptr + len` (SharedValues' contract).
+        _owner: std::sync::Arc<dyn SharedValues>,
+        ptr: *const f64,
+        len: usize,
+    },
+}
+
+// SAFETY: the shared slice is read-only and its owner is Send + Sync.
+unsafe impl Send for Values {}
+// SAFETY: as above; nothing mutates the values through `&Values`.
+unsafe impl Sync for Values {}
+
+impl Values {
+    #[inline]
+    fn as_slice(&self) -> &[f64] {
+        match self {
+            Values::Owned(v) => v,
+            // SAFETY: `ptr..ptr + len` is the owner's stable slice, alive while `_owner`
+            // is (SharedValues' contract), and never written through.
+            Values::Shared { ptr, len, .. } => unsafe { std::slice::from_raw_parts(*ptr, *len) },
+        }
+    }
+}
+
 /// A full, symmetric, zero-diagonal distance matrix over named materials (row-major).
-#[derive(Clone, Debug, PartialEq)]
+/// Its values are its own, or, for a saved matrix read with
+/// [`load_saved_matrix`](crate::io::saved::load_saved_matrix), read in place from the
+/// memory-mapped file ([`is_mapped`](Self::is_mapped)); either way they read the same.
+#[derive(Clone, Debug)]
 pub struct DistanceMatrix {
     names: Vec<String>,
-    data: Vec<f64>,
+    data: Values,
+}
+
+impl PartialEq for DistanceMatrix {
+    fn eq(&self, other: &Self) -> bool {
+        self.names == other.names && self.as_full() == other.as_full()
+    }
 }
 
 impl DistanceMatrix {
@@ -36,7 +87,10 @@ impl DistanceMatrix {
             });
         }
         match check_entries(n, &data, 0.0) {
-            Ok(()) => Ok(Self { names, data }),
+            Ok(()) => Ok(Self {
+                names,
+                data: Values::Owned(data),
+            }),
             Err(e) => {
                 let (row, col) = (names[e.row].clone(), names[e.col].clone());
                 Err(match e.fault {
@@ -54,7 +108,35 @@ impl DistanceMatrix {
     /// A matrix from data already checked by [`check_entries`] with tolerance 0.
     pub(crate) fn from_checked(names: Vec<String>, data: Vec<f64>) -> Self {
         debug_assert_eq!(data.len(), names.len() * names.len());
-        Self { names, data }
+        Self {
+            names,
+            data: Values::Owned(data),
+        }
+    }
+
+    /// A matrix whose values, already checked by [`check_entries`] with tolerance 0, stay
+    /// in `owner` (a memory-mapped file) and are read in place.
+    pub(crate) fn from_checked_shared(
+        names: Vec<String>,
+        owner: std::sync::Arc<dyn SharedValues>,
+    ) -> Self {
+        let v = owner.values();
+        let (ptr, len) = (v.as_ptr(), v.len());
+        assert_eq!(len, names.len() * names.len(), "shared matrix values");
+        Self {
+            names,
+            data: Values::Shared {
+                _owner: owner,
+                ptr,
+                len,
+            },
+        }
+    }
+
+    /// Whether the values are read in place from a memory-mapped file rather than held in
+    /// memory of the matrix's own.
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.data, Values::Shared { .. })
     }
 
     /// Builds a matrix from the condensed upper triangle (row-major over `i < j`, the
@@ -86,17 +168,19 @@ impl DistanceMatrix {
     }
 
     /// The full row-major `N x N` data.
+    #[inline]
     pub fn as_full(&self) -> &[f64] {
-        &self.data
+        self.data.as_slice()
     }
 
     /// The condensed upper triangle (row-major over `i < j`).
     pub fn condensed(&self) -> Vec<f64> {
         let n = self.names.len();
+        let data = self.as_full();
         let mut out = Vec::with_capacity(n * n.saturating_sub(1) / 2);
         for i in 0..n {
             for j in i + 1..n {
-                out.push(self.data[i * n + j]);
+                out.push(data[i * n + j]);
             }
         }
         out
@@ -105,20 +189,21 @@ impl DistanceMatrix {
     /// Row `i` of the matrix.
     pub fn row(&self, i: usize) -> &[f64] {
         let n = self.names.len();
-        &self.data[i * n..(i + 1) * n]
+        &self.as_full()[i * n..(i + 1) * n]
     }
 
     /// A sub-matrix over the given item indices (in the given order).
     pub fn subset(&self, idx: &[usize]) -> Self {
         let n = self.names.len();
         let names = idx.iter().map(|&i| self.names[i].clone()).collect();
+        let full = self.as_full();
         let mut data = Vec::with_capacity(idx.len() * idx.len());
         for &i in idx {
             for &j in idx {
-                data.push(self.data[i * n + j]);
+                data.push(full[i * n + j]);
             }
         }
-        Self { names, data }
+        Self::from_checked(names, data)
     }
 }
 
@@ -219,7 +304,8 @@ impl Distances for DistanceMatrix {
     fn len(&self) -> usize {
         self.names.len()
     }
+    #[inline]
     fn dist(&self, i: usize, j: usize) -> f64 {
-        self.data[i * self.names.len() + j]
+        self.as_full()[i * self.names.len() + j]
     }
 }

@@ -199,26 +199,7 @@ pub fn scan_npy_2d(
     let mut f = std::io::BufReader::with_capacity(1 << 20, file);
     let mut hash = Hasher::new();
     let h = read_header(&mut f, path, &mut hash)?;
-    let count = h
-        .rows
-        .checked_mul(h.cols)
-        .filter(|c| c.checked_mul(8).is_some())
-        .ok_or_else(|| bad(format!("shape ({}, {}) is too large", h.rows, h.cols)))?;
-    let expected = h.data_offset + 8 * count as u64;
-    if file_len != expected {
-        let found = file_len.saturating_sub(h.data_offset);
-        return Err(bad(format!(
-            "the file has {file_len} bytes, but a ({}, {}) float64 array needs {expected} ({} bytes of header and {count} values of 8 bytes); it holds {found} bytes of data{}",
-            h.rows,
-            h.cols,
-            h.data_offset,
-            if found % 8 == 0 {
-                format!(" ({} values)", found / 8)
-            } else {
-                format!(" ({} values and {} stray bytes)", found / 8, found % 8)
-            }
-        )));
-    }
+    let (count, expected) = check_file_len(path, &h, file_len)?;
     let mut buf = vec![0u8; 1 << 16];
     let mut vals = Vec::with_capacity(buf.len() / 8);
     let mut done = 0usize;
@@ -253,6 +234,94 @@ pub fn scan_npy_2d(
             xxh3: hash.finish(),
         },
     ))
+}
+
+/// The number of values of the array `h` describes and the file size it needs; refuses a
+/// file of `file_len` bytes that is shorter or longer, with the sizes expected and found.
+fn check_file_len(
+    path: &Path,
+    h: &NpyHeader,
+    file_len: u64,
+) -> Result<(usize, u64), MatrixFileError> {
+    let bad = |message: String| MatrixFileError::Format {
+        path: path.to_path_buf(),
+        message,
+    };
+    let count = h
+        .rows
+        .checked_mul(h.cols)
+        .filter(|c| c.checked_mul(8).is_some())
+        .ok_or_else(|| bad(format!("shape ({}, {}) is too large", h.rows, h.cols)))?;
+    let expected = (8 * count as u64)
+        .checked_add(h.data_offset)
+        .ok_or_else(|| bad(format!("shape ({}, {}) is too large", h.rows, h.cols)))?;
+    if file_len != expected {
+        let found = file_len.saturating_sub(h.data_offset);
+        return Err(bad(format!(
+            "the file has {file_len} bytes, but a ({}, {}) float64 array needs {expected} ({} bytes of header and {count} values of 8 bytes); it holds {found} bytes of data{}",
+            h.rows,
+            h.cols,
+            h.data_offset,
+            if found % 8 == 0 {
+                format!(" ({} values)", found / 8)
+            } else {
+                format!(" ({} values and {} stray bytes)", found / 8, found % 8)
+            }
+        )));
+    }
+    Ok((count, expected))
+}
+
+/// A 2-D float64 array of a `.npy` read in place from a memory map of the file
+/// ([`super::mmap`]).
+#[derive(Debug)]
+pub struct MappedNpy2d {
+    /// Rows.
+    pub rows: usize,
+    /// Columns.
+    pub cols: usize,
+    /// The row-major values, `rows * cols` of them, in the mapped file.
+    pub values: super::mmap::MappedF64,
+    /// Size and checksum of the file.
+    pub digest: NpyDigest,
+}
+
+/// [`read_npy_2d`] without reading the values into memory: maps the file, checks its
+/// header and size exactly as [`read_npy_2d`] does (the same errors), hashes it through
+/// the mapping, and returns the values in place. `Ok(None)` when the file cannot be read
+/// in place (no `mmap` on this platform, the kernel refused the map, an empty file, data
+/// not aligned for `f64`, a big-endian machine): read it with [`read_npy_2d`] instead.
+pub fn map_npy_2d(path: &Path) -> Result<Option<MappedNpy2d>, MatrixFileError> {
+    let io = |source| MatrixFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let file_len = file.metadata().map_err(io)?.len();
+    let Ok(map) = super::mmap::MappedFile::map(&file, file_len) else {
+        return Ok(None);
+    };
+    drop(file);
+    let mut hash = Hasher::new();
+    let mut head = map.bytes();
+    let h = read_header(&mut head, path, &mut hash)?;
+    let (count, _) = check_file_len(path, &h, map.bytes().len() as u64)?;
+    let offset = usize::try_from(h.data_offset).expect("the header lies in the mapping");
+    let values = match super::mmap::MappedF64::new(map, offset, count) {
+        Ok(v) => v,
+        Err(_) => return Ok(None),
+    };
+    // The header's bytes are hashed; the values' bytes follow them to the end.
+    hash.write(values.bytes());
+    Ok(Some(MappedNpy2d {
+        rows: h.rows,
+        cols: h.cols,
+        values,
+        digest: NpyDigest {
+            bytes: file_len,
+            xxh3: hash.finish(),
+        },
+    }))
 }
 
 /// Random access to the values of a 2-D float64 `.npy` (header already checked).

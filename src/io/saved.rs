@@ -1,7 +1,8 @@
 //! Saved distance matrices: writing a matrix as `.npy` + sidecar, a tile, or CSV, and
 //! loading one back with every check ([`load_saved_matrix`]).
 
-use super::npy::{read_npy_2d, stage_npy_2d, write_npy_2d};
+use super::mmap::MappedF64;
+use super::npy::{map_npy_2d, read_npy_2d, stage_npy_2d, write_npy_2d};
 use super::sidecar::{
     read_sidecar, sidecar_path, stage_sidecar, MatrixSettings, MatrixSidecar, TileInfo,
 };
@@ -232,10 +233,25 @@ pub fn write_csv(path: &Path, m: &DistanceMatrix) -> Result<(), OutputError> {
 /// A saved matrix read back: the validated matrix and, for a `.npy`, its sidecar.
 #[derive(Clone, Debug)]
 pub struct SavedMatrix {
-    /// The matrix.
+    /// The matrix (for a `.npy`, read in place from the mapped file where possible:
+    /// [`DistanceMatrix::is_mapped`]).
     pub matrix: DistanceMatrix,
     /// The sidecar (`None` for a CSV).
     pub sidecar: Option<MatrixSidecar>,
+}
+
+/// How [`load_saved_matrix_with`] holds the values of a `.npy` matrix (a CSV is always
+/// parsed into memory).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MatrixLoad {
+    /// Read in place from a read-only memory map of the file ([`super::mmap`]): the
+    /// matrix needs no memory of its own beyond the pages the kernel caches (file-backed,
+    /// reclaimable). Falls back to [`MatrixLoad::Read`] where the file cannot be mapped
+    /// (see [`map_npy_2d`]).
+    #[default]
+    Map,
+    /// Read into memory of the matrix's own.
+    Read,
 }
 
 /// Relative tolerance of the symmetry check of a loaded matrix:
@@ -248,34 +264,59 @@ pub const SYMMETRY_TOL: f64 = 1e-9;
 /// `material,<names...>`, one row per material). Checks that it is square, finite,
 /// non-negative, zero on the diagonal, symmetric within [`SYMMETRY_TOL`], with unique
 /// names matching its size; every error names the file and the offending row and column.
+/// A `.npy` is memory-mapped and read in place ([`MatrixLoad::Map`]).
 pub fn load_saved_matrix(path: &Path) -> Result<SavedMatrix, MatrixFileError> {
+    load_saved_matrix_with(path, MatrixLoad::Map)
+}
+
+/// [`load_saved_matrix`] with the values of a `.npy` held as `how` says; the checks,
+/// errors and values are the same either way.
+pub fn load_saved_matrix_with(
+    path: &Path,
+    how: MatrixLoad,
+) -> Result<SavedMatrix, MatrixFileError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
-    let (names, data, sidecar) = match ext.as_str() {
+    match ext.as_str() {
         "npy" => {
-            let (names, data, side) = load_npy(path)?;
-            (names, data, Some(side))
+            let (names, data, side) = load_npy(path, how)?;
+            let matrix = match data {
+                NpyValues::Read(data) => validate_matrix(path, names, data)?,
+                NpyValues::Mapped(values) => validate_mapped(path, names, values)?,
+            };
+            Ok(SavedMatrix {
+                matrix,
+                sidecar: Some(side),
+            })
         }
         "csv" => {
             let (names, data) = read_csv_matrix(path)?;
-            (names, data, None)
-        }
-        _ => {
-            return Err(MatrixFileError::Format {
-                path: path.to_path_buf(),
-                message: "a saved matrix must end in .npy (with its .names.json sidecar) or .csv"
-                    .into(),
+            Ok(SavedMatrix {
+                matrix: validate_matrix(path, names, data)?,
+                sidecar: None,
             })
         }
-    };
-    let matrix = validate_matrix(path, names, data)?;
-    Ok(SavedMatrix { matrix, sidecar })
+        _ => Err(MatrixFileError::Format {
+            path: path.to_path_buf(),
+            message: "a saved matrix must end in .npy (with its .names.json sidecar) or .csv"
+                .into(),
+        }),
+    }
 }
 
-fn load_npy(path: &Path) -> Result<(Vec<String>, Vec<f64>, MatrixSidecar), MatrixFileError> {
+/// The values of a `.npy` matrix: read into memory, or in place in the mapped file.
+enum NpyValues {
+    Read(Vec<f64>),
+    Mapped(MappedF64),
+}
+
+fn load_npy(
+    path: &Path,
+    how: MatrixLoad,
+) -> Result<(Vec<String>, NpyValues, MatrixSidecar), MatrixFileError> {
     let side = read_sidecar(path)?;
     if side.tile.is_some() {
         return Err(MatrixFileError::Format {
@@ -283,11 +324,21 @@ fn load_npy(path: &Path) -> Result<(Vec<String>, Vec<f64>, MatrixSidecar), Matri
             message: "this is a tile of a matrix, not a whole matrix: assemble the tiles with `brdf-basis merge TILE... --out FILE.npy` first".into(),
         });
     }
-    let npy = read_npy_2d(path)?;
-    if npy.rows != npy.cols {
+    let mapped = match how {
+        MatrixLoad::Map => map_npy_2d(path)?,
+        MatrixLoad::Read => None,
+    };
+    let (rows, cols, digest, data) = match mapped {
+        Some(m) => (m.rows, m.cols, m.digest, NpyValues::Mapped(m.values)),
+        None => {
+            let npy = read_npy_2d(path)?;
+            (npy.rows, npy.cols, npy.digest, NpyValues::Read(npy.data))
+        }
+    };
+    if rows != cols {
         return Err(MatrixFileError::NotSquare {
             path: path.to_path_buf(),
-            message: format!("shape ({}, {})", npy.rows, npy.cols),
+            message: format!("shape ({rows}, {cols})"),
         });
     }
     let mismatch = |what: String| MatrixFileError::Mismatch {
@@ -295,22 +346,22 @@ fn load_npy(path: &Path) -> Result<(Vec<String>, Vec<f64>, MatrixSidecar), Matri
         sidecar: sidecar_path(path),
         what,
     };
-    if !side.describes(npy.digest) {
+    if !side.describes(digest) {
         return Err(mismatch(format!(
             "file has {} bytes, checksum {}; the sidecar records {} bytes, checksum {}",
-            npy.digest.bytes,
-            crate::hash::hex(npy.digest.xxh3),
+            digest.bytes,
+            crate::hash::hex(digest.xxh3),
             side.npy_bytes,
             side.npy_xxh3
         )));
     }
-    if side.n != npy.rows {
+    if side.n != rows {
         return Err(mismatch(format!(
-            "matrix is {} x {}, the sidecar says N = {}",
-            npy.rows, npy.rows, side.n
+            "matrix is {rows} x {rows}, the sidecar says N = {}",
+            side.n
         )));
     }
-    Ok((side.names.clone(), npy.data, side))
+    Ok((side.names.clone(), data, side))
 }
 
 fn read_csv_matrix(path: &Path) -> Result<(Vec<String>, Vec<f64>), MatrixFileError> {
@@ -418,6 +469,39 @@ pub fn validate_matrix(
     names: Vec<String>,
     mut data: Vec<f64>,
 ) -> Result<DistanceMatrix, MatrixFileError> {
+    check_values(path, &names, &data)?;
+    symmetrize(names.len(), &mut data);
+    Ok(DistanceMatrix::from_checked(names, data))
+}
+
+/// [`validate_matrix`] on values read in place: they stay in the mapped file, and only
+/// when a pair within the tolerance differs are the pages holding such pairs copied
+/// (privately: the file is not changed) to hold their mean.
+fn validate_mapped(
+    path: &Path,
+    names: Vec<String>,
+    mut values: MappedF64,
+) -> Result<DistanceMatrix, MatrixFileError> {
+    let n = names.len();
+    check_values(path, &names, values.values())?;
+    let data = values.values();
+    let exact = (0..n).all(|i| (i + 1..n).all(|j| data[i * n + j] == data[j * n + i]));
+    if !exact {
+        values
+            .with_writable(|data| symmetrize(n, data))
+            .map_err(|source| MatrixFileError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+    }
+    Ok(DistanceMatrix::from_checked_shared(
+        names,
+        std::sync::Arc::new(values),
+    ))
+}
+
+/// The checks of [`validate_matrix`], without changing anything.
+fn check_values(path: &Path, names: &[String], data: &[f64]) -> Result<(), MatrixFileError> {
     let n = names.len();
     let names_err = |message: String| MatrixFileError::Names {
         path: path.to_path_buf(),
@@ -430,9 +514,13 @@ pub fn validate_matrix(
             data.len()
         )));
     }
-    check_matrix_names(&names).map_err(names_err)?;
-    check_entries(n, &data, SYMMETRY_TOL)
-        .map_err(|e| MatrixFileError::entry(path, &names, e, SYMMETRY_TOL))?;
+    check_matrix_names(names).map_err(names_err)?;
+    check_entries(n, data, SYMMETRY_TOL)
+        .map_err(|e| MatrixFileError::entry(path, names, e, SYMMETRY_TOL))
+}
+
+/// Replaces every pair `D_ij != D_ji` by its mean.
+fn symmetrize(n: usize, data: &mut [f64]) {
     for i in 0..n {
         for j in i + 1..n {
             let (a, b) = (data[i * n + j], data[j * n + i]);
@@ -443,5 +531,4 @@ pub fn validate_matrix(
             }
         }
     }
-    Ok(DistanceMatrix::from_checked(names, data))
 }

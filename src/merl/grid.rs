@@ -58,8 +58,15 @@ pub fn cell_angles(idx: usize) -> (f64, f64, f64) {
 
 /// Incoming and outgoing directions of half/difference angles (phi_h = 0), SPEC 2.
 pub fn directions(th: f64, td: f64, pd: f64) -> ([f64; 3], [f64; 3]) {
-    let d = [td.sin() * pd.cos(), td.sin() * pd.sin(), td.cos()];
-    let (s, c) = th.sin_cos();
+    let (sh, ch) = th.sin_cos();
+    directions_of(sh, ch, td.sin(), td.cos(), pd.sin(), pd.cos())
+}
+
+/// [`directions`] from the sines and cosines of its angles (the same arithmetic, so the
+/// same bits when they are the same values).
+#[inline]
+fn directions_of(s: f64, c: f64, sd: f64, cd: f64, sp: f64, cp: f64) -> ([f64; 3], [f64; 3]) {
+    let d = [sd * cp, sd * sp, cd];
     // wi = R_y(theta_h) d
     let wi = [c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]];
     let h = [s, 0.0, c];
@@ -144,13 +151,81 @@ pub fn bin_measure(i: usize, j: usize, _k: usize) -> f64 {
 
 /// Whether each cell's directions are both above the horizon (cached, computed once).
 pub fn geometric_validity() -> &'static [bool] {
-    static VALID: std::sync::OnceLock<Vec<bool>> = std::sync::OnceLock::new();
-    VALID.get_or_init(|| {
+    &classes().valid
+}
+
+/// Whether each cell is in the evaluation mask of SPEC 3 (cached, computed once).
+pub fn evaluation_mask() -> &'static [bool] {
+    &classes().evaluation
+}
+
+/// Every cell's membership of the two masks, by flat index: [`cell_info`]'s `valid` and
+/// `evaluation`, computed once per process.
+struct Classes {
+    valid: Vec<bool>,
+    evaluation: Vec<bool>,
+}
+
+/// Distance from a threshold within which an angle test falls back to `acos` itself.
+/// `acos` is accurate to an ulp or so; away from the thresholds the cosine decides the
+/// test the same way (acos is decreasing), and 1e-12 is far beyond its rounding.
+const COS_BAND: f64 = 1e-12;
+
+fn classes() -> &'static Classes {
+    static CLASSES: std::sync::OnceLock<Classes> = std::sync::OnceLock::new();
+    CLASSES.get_or_init(|| {
         use rayon::prelude::*;
-        (0..N_CELLS)
+        // The sines and cosines of every axis's angles, computed as `directions` computes
+        // them: the directions below are bit for bit those of `cell_info`.
+        let h: Vec<(f64, f64)> = (0..N_TH).map(|i| theta_h(i).sin_cos()).collect();
+        let d: Vec<(f64, f64)> = (0..N_TD)
+            .map(|j| (theta_d(j).sin(), theta_d(j).cos()))
+            .collect();
+        let p: Vec<(f64, f64)> = (0..N_PD)
+            .map(|k| (phi_d(k).sin(), phi_d(k).cos()))
+            .collect();
+        let lim = 80f64.to_radians() + ANGLE_TOL;
+        let retro_lim = 3f64.to_radians() - ANGLE_TOL;
+        let (cos_lim, cos_retro) = (lim.cos(), retro_lim.cos());
+        // `acos(x) <= lim` (resp. `< retro_lim`) as `cell_info` decides it: by the cosine
+        // where it is clearly on one side, by `acos` itself near the threshold.
+        let within = |x: f64| {
+            if x > cos_lim + COS_BAND {
+                true
+            } else if x < cos_lim - COS_BAND {
+                false
+            } else {
+                x.clamp(-1.0, 1.0).acos() <= lim
+            }
+        };
+        let retro = |x: f64| {
+            if x > cos_retro + COS_BAND {
+                true
+            } else if x < cos_retro - COS_BAND {
+                false
+            } else {
+                x.clamp(-1.0, 1.0).acos() < retro_lim
+            }
+        };
+        let rows: Vec<Vec<(bool, bool)>> = (0..N_TH)
             .into_par_iter()
-            .map(|c| cell_info(c).valid)
-            .collect()
+            .map(|i| {
+                let (sh, ch) = h[i];
+                let mut out = Vec::with_capacity(N_TD * N_PD);
+                for &(sd, cd) in &d {
+                    for &(sp, cp) in &p {
+                        let (wi, wo) = directions_of(sh, ch, sd, cd, sp, cp);
+                        let valid = wi[2] > 0.0 && wo[2] > 0.0;
+                        let cos_io = (wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2]).clamp(-1.0, 1.0);
+                        let evaluation = valid && within(wi[2]) && within(wo[2]) && !retro(cos_io);
+                        out.push((valid, evaluation));
+                    }
+                }
+                out
+            })
+            .collect();
+        let (valid, evaluation) = rows.into_iter().flatten().unzip();
+        Classes { valid, evaluation }
     })
 }
 
@@ -321,8 +396,14 @@ impl CellSet {
     pub fn new(mask: Mask, weighting: Weighting, stride: usize) -> Self {
         use rayon::prelude::*;
         let stride = stride.max(1);
-        // One theta_h row of cells per task (each cell's classification is independent),
-        // concatenated in grid order: the same cells and weights as a sequential pass.
+        // One theta_h row of cells per task, concatenated in grid order: the same cells
+        // and weights as a sequential pass.
+        // Membership from the cached classification of every cell (`cell_info`'s, bit
+        // for bit); the solid-angle weight depends on (i, j) only (`bin_measure`).
+        let member = match mask {
+            Mask::Evaluation => evaluation_mask(),
+            Mask::Valid => geometric_validity(),
+        };
         let rows: Vec<usize> = (0..N_TH).step_by(stride).collect();
         let parts: Vec<(Vec<u32>, Vec<f64>)> = rows
             .par_iter()
@@ -330,19 +411,15 @@ impl CellSet {
                 let mut cells = Vec::new();
                 let mut weights = Vec::new();
                 for j in (0..N_TD).step_by(stride) {
+                    let w = match weighting {
+                        Weighting::Uniform => 1.0,
+                        Weighting::SolidAngle => bin_measure(i, j, 0),
+                    };
                     for k in (0..N_PD).step_by(stride) {
                         let idx = flat(i, j, k);
-                        let info = cell_info(idx);
-                        let keep = match mask {
-                            Mask::Evaluation => info.evaluation,
-                            Mask::Valid => info.valid,
-                        };
-                        if keep {
+                        if member[idx] {
                             cells.push(idx as u32);
-                            weights.push(match weighting {
-                                Weighting::Uniform => 1.0,
-                                Weighting::SolidAngle => info.measure,
-                            });
+                            weights.push(w);
                         }
                     }
                 }
@@ -501,5 +578,71 @@ mod spelling_tests {
         }
         assert_eq!(Mask::value_variants().len(), Mask::ALL.len());
         assert_eq!(Weighting::value_variants().len(), Weighting::ALL.len());
+    }
+}
+
+#[cfg(test)]
+mod cell_set_tests {
+    use super::*;
+
+    /// The cell set as it was built before the classification was cached: `cell_info` of
+    /// every cell, in grid order, its `measure` as the solid-angle weight.
+    fn reference(mask: Mask, weighting: Weighting, stride: usize) -> (Vec<u32>, Vec<f64>) {
+        let mut cells = Vec::new();
+        let mut weights = Vec::new();
+        for i in (0..N_TH).step_by(stride) {
+            for j in (0..N_TD).step_by(stride) {
+                for k in (0..N_PD).step_by(stride) {
+                    let idx = flat(i, j, k);
+                    let info = cell_info(idx);
+                    let keep = match mask {
+                        Mask::Evaluation => info.evaluation,
+                        Mask::Valid => info.valid,
+                    };
+                    if keep {
+                        cells.push(idx as u32);
+                        weights.push(match weighting {
+                            Weighting::Uniform => 1.0,
+                            Weighting::SolidAngle => info.measure,
+                        });
+                    }
+                }
+            }
+        }
+        let total: f64 = weights.iter().sum();
+        for w in &mut weights {
+            *w /= total;
+        }
+        (cells, weights)
+    }
+
+    #[test]
+    fn cached_classification_is_cell_info_for_every_cell() {
+        let (valid, evaluation) = (geometric_validity(), evaluation_mask());
+        let mut near = 0;
+        for c in 0..N_CELLS {
+            let info = cell_info(c);
+            assert_eq!(valid[c], info.valid, "valid, cell {c}");
+            assert_eq!(evaluation[c], info.evaluation, "evaluation, cell {c}");
+            near += usize::from(info.valid != info.evaluation);
+        }
+        // Both masks are exercised: cells in one and not the other exist.
+        assert!(near > 0 && evaluation.iter().any(|&e| e));
+    }
+
+    #[test]
+    fn cell_sets_are_the_cell_info_ones_bit_for_bit() {
+        for mask in Mask::ALL {
+            for weighting in Weighting::ALL {
+                for stride in [1, 2, 3, 4, 7, 45] {
+                    let cs = CellSet::new(mask, weighting, stride);
+                    let (cells, weights) = reference(mask, weighting, stride);
+                    let what = format!("{mask} {weighting} stride {stride}");
+                    assert_eq!(cs.cells, cells, "{what}");
+                    let bits = |w: &[f64]| w.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&cs.weights), bits(&weights), "{what}");
+                }
+            }
+        }
     }
 }
