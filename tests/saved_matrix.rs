@@ -334,7 +334,10 @@ fn mapped_matrix_clusters_bit_for_bit_like_the_loaded_one() {
     // `{:?}` of f64 is exact (shortest round-trip form), so equal text = equal bits.
     for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
         for k in [2, 5, 9] {
-            let p = KMedoidsParams::new(k).algorithm(algorithm).seed(3).restarts(2);
+            let p = KMedoidsParams::new(k)
+                .algorithm(algorithm)
+                .seed(3)
+                .restarts(2);
             let a = p.fit(&mapped.matrix).expect("mapped");
             let b = p.fit(&read.matrix).expect("read");
             assert_eq!(format!("{a:?}"), format!("{b:?}"), "{algorithm} k {k}");
@@ -355,7 +358,11 @@ fn mapped_matrix_clusters_bit_for_bit_like_the_loaded_one() {
     };
     assert_eq!(runs(&mapped.matrix), runs(&read.matrix));
     drop(mapped);
-    assert_eq!(std::fs::read(&npy).expect("bytes"), before, "the file is unchanged");
+    assert_eq!(
+        std::fs::read(&npy).expect("bytes"),
+        before,
+        "the file is unchanged"
+    );
 }
 
 /// A mapped matrix with pairs that differ within the tolerance holds their means, as the
@@ -393,7 +400,10 @@ fn mapped_matrix_within_tolerance_is_made_symmetric_without_touching_the_file() 
     let read = load_saved_matrix_with(&npy, MatrixLoad::Read).expect("read");
     assert!(cfg!(not(unix)) || mapped.matrix.is_mapped());
     assert_eq!(mapped.matrix.as_full(), read.matrix.as_full());
-    let (a, b) = (mapped.matrix.as_full()[2 * n + 5], mapped.matrix.as_full()[5 * n + 2]);
+    let (a, b) = (
+        mapped.matrix.as_full()[2 * n + 5],
+        mapped.matrix.as_full()[5 * n + 2],
+    );
     assert_eq!(a.to_bits(), b.to_bits());
     assert_eq!(a, 0.5 * (data[2 * n + 5] + data[5 * n + 2]));
     assert_eq!(std::fs::read(&npy).expect("bytes"), bytes);

@@ -216,7 +216,8 @@ fn classes() -> &'static Classes {
                     for &(sp, cp) in &p {
                         let (wi, wo) = directions_of(sh, ch, sd, cd, sp, cp);
                         let valid = wi[2] > 0.0 && wo[2] > 0.0;
-                        let cos_io = (wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2]).clamp(-1.0, 1.0);
+                        let cos_io =
+                            (wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2]).clamp(-1.0, 1.0);
                         let evaluation = valid && within(wi[2]) && within(wo[2]) && !retro(cos_io);
                         out.push((valid, evaluation));
                     }
