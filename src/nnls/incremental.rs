@@ -207,6 +207,12 @@ impl ChanState {
         self.q
     }
 
+    /// The passive columns, their coefficients and the scale `(max |h|, sum y)` of the KKT
+    /// test of [`ChanState::unchanged_adding`] (for the same test on many columns at once).
+    pub fn kkt_parts(&self) -> (&[usize], &[f64], f64, f64) {
+        (&self.passive, &self.y, self.hmax, self.ysum)
+    }
+
     /// `w = C_jt - C_jP y_P` of column `j` (its cosine row `row`) for target `t`.
     #[inline]
     fn gradient(&self, row: &[f64], t: usize) -> f64 {

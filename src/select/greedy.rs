@@ -1,6 +1,6 @@
 //! Greedy forward selection on `S(B; T)` (SPEC 8).
 
-use super::objective::{Chain, Objective};
+use super::objective::Objective;
 use super::search::argmin;
 use super::search::{Selection, ValidSearchParams};
 use super::SelectionError;
@@ -13,15 +13,11 @@ pub fn greedy(
     p: &ValidSearchParams,
     progress: Progress<'_>,
 ) -> Result<Selection, SelectionError> {
-    let basis = greedy_indices(obj, p, progress)?;
-    let mut history = Vec::with_capacity(p.k);
-    for i in 1..=basis.len() {
-        history.push(obj.score(&basis[..i], &p.targets)?);
-    }
+    let (basis, _, history) = greedy_screened(obj, p, progress)?;
     Selection::new(obj, "greedy", p, basis, history)
 }
 
-/// The greedy basis: at each step the candidate [`Objective::best_adding`] chooses, which
+/// The greedy basis: at each step the candidate [`Objective::best_of_groups`] chooses, which
 /// is exactly `argmin(scores_adding(..))` of the exhaustive sweep
 /// ([`greedy_indices_exhaustive`]) without scoring the candidates that cannot win.
 pub(crate) fn greedy_indices(
@@ -32,14 +28,17 @@ pub(crate) fn greedy_indices(
     Ok(greedy_screened(obj, p, progress)?.0)
 }
 
-/// [`greedy_indices`] and the number of exact scores computed per step.
+/// [`greedy_indices`], the number of exact scores computed per step and the history
+/// `S(B_i; T)`, `i = 1..=k` (as [`Objective::score`] computes it, bit for bit: from the
+/// states of each step's basis).
 pub(crate) fn greedy_screened(
     obj: &Objective,
     p: &ValidSearchParams,
     progress: Progress<'_>,
-) -> Result<(Vec<usize>, Vec<usize>), SelectionError> {
+) -> Result<(Vec<usize>, Vec<usize>, Vec<f64>), SelectionError> {
     let mut basis: Vec<usize> = Vec::with_capacity(p.k);
     let mut evaluated = Vec::with_capacity(p.k);
+    let mut history = Vec::with_capacity(p.k);
     for step in 0..p.k {
         let cands: Vec<usize> = p
             .candidates
@@ -47,15 +46,24 @@ pub(crate) fn greedy_screened(
             .copied()
             .filter(|c| !basis.contains(c))
             .collect();
-        let mut chain = Chain::new(p.tie_tol);
-        evaluated.push(obj.best_adding(&basis, &p.targets, &cands, &mut chain, 0)?);
-        let Some((best, _)) = chain.best() else {
+        let r = obj.best_of_groups(&[(basis.as_slice(), cands.as_slice())], &p.targets, p.tie_tol)?;
+        if step > 0 {
+            history.push(match r.scores[0] {
+                Some(s) => s,
+                None => obj.score(&basis, &p.targets)?,
+            });
+        }
+        evaluated.push(r.evaluated);
+        let Some((best, _)) = r.best else {
             break;
         };
         basis.push(cands[best]);
         progress(step as u64 + 1, p.k as u64);
     }
-    Ok((basis, evaluated))
+    while history.len() < basis.len() {
+        history.push(obj.score(&basis[..history.len() + 1], &p.targets)?);
+    }
+    Ok((basis, evaluated, history))
 }
 
 /// The exhaustive greedy of SPEC 8: every candidate scored at every step, then
@@ -107,10 +115,6 @@ pub fn greedy_with_counts(
     p: &ValidSearchParams,
     progress: Progress<'_>,
 ) -> Result<(Selection, Vec<usize>), SelectionError> {
-    let (basis, evaluated) = greedy_screened(obj, p, progress)?;
-    let mut history = Vec::with_capacity(p.k);
-    for i in 1..=basis.len() {
-        history.push(obj.score(&basis[..i], &p.targets)?);
-    }
+    let (basis, evaluated, history) = greedy_screened(obj, p, progress)?;
     Ok((Selection::new(obj, "greedy", p, basis, history)?, evaluated))
 }

@@ -1,7 +1,7 @@
 //! Swap refinement of a basis on `S(B; T)` (SPEC 8).
 
 use super::greedy::greedy_indices;
-use super::objective::{Chain, Objective};
+use super::objective::Objective;
 use super::search::{Selection, ValidSearchParams};
 use super::SelectionError;
 use crate::backend::Progress;
@@ -22,37 +22,34 @@ pub fn swap(
     let mut history = vec![current];
     for _ in 0..p.max_swaps {
         // Every (position, candidate) pair: states of B - b, then every candidate added,
-        // offered in (position, candidate) order to one argmin chain (the exhaustive
-        // argmin over all pairs, without scoring the pairs that cannot win).
-        let mut chain = Chain::new(p.tie_tol);
-        let mut per_pos: Vec<Vec<usize>> = Vec::with_capacity(basis.len());
-        let mut offset = 0;
+        // in (position, candidate) order, the exhaustive argmin over all pairs (without
+        // scoring the pairs that cannot win).
+        let cands: Vec<usize> = p
+            .candidates
+            .iter()
+            .copied()
+            .filter(|c| !basis.contains(c))
+            .collect();
+        let rests: Vec<Vec<usize>> = (0..basis.len())
+            .map(|pos| {
+                let mut rest = basis.clone();
+                rest.remove(pos);
+                rest
+            })
+            .collect();
+        let groups: Vec<(&[usize], &[usize])> =
+            rests.iter().map(|r| (r.as_slice(), cands.as_slice())).collect();
+        let r = obj.best_of_groups(&groups, &p.targets, p.tie_tol)?;
         for pos in 0..basis.len() {
-            let mut rest = basis.clone();
-            rest.remove(pos);
-            let cands: Vec<usize> = p
-                .candidates
-                .iter()
-                .copied()
-                .filter(|c| !basis.contains(c))
-                .collect();
-            obj.best_adding(&rest, &p.targets, &cands, &mut chain, offset)?;
-            offset += cands.len();
-            per_pos.push(cands);
             progress(pos as u64 + 1, basis.len() as u64);
         }
-        let Some((best, best_score)) = chain.best() else {
+        let Some((best, best_score)) = r.best else {
             break;
         };
         if best_score >= current - p.swap_tol * current.abs() || current <= 0.0 {
             break;
         }
-        let (mut pos, mut idx) = (0, best);
-        while idx >= per_pos[pos].len() {
-            idx -= per_pos[pos].len();
-            pos += 1;
-        }
-        basis[pos] = per_pos[pos][idx];
+        basis[best / cands.len()] = cands[best % cands.len()];
         let fresh = obj.score(&basis, &p.targets)?;
         // The incremental score and the fresh one agree to rounding; never record a rise.
         current = fresh.min(current);

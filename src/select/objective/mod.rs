@@ -386,59 +386,50 @@ impl Objective {
         self.exact_scores(&a, candidates)
     }
 
-    /// The candidate of `candidates` (`c` not in `basis`) that the exhaustive sweep
-    /// `argmin(scores_adding(basis, targets, candidates))` chooses, found by offering the
-    /// candidates to `chain` in order as items `offset + index`, with the exact score of
-    /// only those a lower bound does not rule out ([`screen`]). Returns how many exact
-    /// scores were computed. Chaining several calls on one `chain` (with increasing
-    /// offsets) equals one argmin over the concatenated scores.
-    pub fn best_adding(
+    /// The choice of the exhaustive sweep over several groups (a basis and candidates not
+    /// in it): the [`argmin`] with tie tolerance `tol` of the concatenated
+    /// `scores_adding(group.basis, targets, group.candidates)`, as `(flat index, score)`,
+    /// found without the exact score of the candidates that provably cannot change it
+    /// ([`screen::best_first`]). Also the number of exact scores computed and, per group,
+    /// `S(basis; targets)` from the states of the basis (`None` when no target is left),
+    /// equal to [`Objective::score`] bit for bit.
+    pub(crate) fn best_of_groups(
         &self,
-        basis: &[usize],
+        groups: &[(&[usize], &[usize])],
         targets: &[usize],
-        candidates: &[usize],
-        chain: &mut Chain,
-        offset: usize,
-    ) -> Result<usize, SelectionError> {
-        let a = self.adding(basis, targets)?;
-        let bounds = screen::lower_bounds(self, &a.live, &a.states, &a.cols, candidates);
-        // Blocks of candidates: a block's candidates are screened (in parallel) against
-        // the threshold at the block's start (it only falls along the chain), the
-        // survivors scored exactly and offered in order.
-        const CHAIN_BLOCK: usize = 32;
-        let mut evaluated = 0;
-        let mut start = 0;
-        while start < candidates.len() {
-            // Until the chain has a best, one candidate at a time.
-            let end = if chain.threshold().is_none() {
-                start + 1
-            } else {
-                (start + CHAIN_BLOCK).min(candidates.len())
-            };
-            let thr = chain.threshold();
-            // Per candidate: None (ruled out) or its exact score.
-            let scored: Vec<(usize, Option<f64>)> = (start..end)
-                .into_par_iter()
-                .map(|k| match &bounds[k] {
-                    None => {
-                        let s = self.exact_scores(&a, &candidates[k..k + 1])?;
-                        Ok((k, Some(s[0])))
-                    }
-                    Some(b) => Ok((
-                        k,
-                        screen::refine(self, &a.live, &a.states, &a.cols, candidates[k], b, thr)?,
-                    )),
-                })
-                .collect::<Result<_, SelectionError>>()?;
-            for (k, s) in scored {
-                if let Some(s) = s {
-                    evaluated += 1;
-                    chain.offer(offset + k, s);
-                }
-            }
-            start = end;
+        tol: f64,
+    ) -> Result<GroupsBest, SelectionError> {
+        let addings: Vec<Adding> = groups
+            .iter()
+            .map(|&(basis, _)| self.adding(basis, targets))
+            .collect::<Result<_, _>>()?;
+        let scores = addings.iter().map(|a| self.score_of(a)).collect();
+        let (best, evaluated) = screen::best_first(self, &addings, groups, tol)?;
+        Ok(GroupsBest {
+            best,
+            evaluated,
+            scores,
+        })
+    }
+
+    /// `S(B; T)` from the states of `B` ([`Objective::score`]'s sum, bit for bit).
+    fn score_of(&self, a: &Adding) -> Option<f64> {
+        if a.live.is_empty() {
+            return None;
         }
-        Ok(evaluated)
+        let rhos: Vec<f64> = a
+            .live
+            .iter()
+            .zip(&a.states)
+            .map(|(&t, st)| {
+                let mut rho = 0.0;
+                for c in (0..3).filter(|&c| self.share[t][c] > 0.0) {
+                    rho += self.share[t][c] * st[c].q();
+                }
+                rho
+            })
+            .collect();
+        Some(rhos.iter().sum::<f64>() / a.live.len() as f64)
     }
 
     /// Exact `S(B + c; T)` of each candidate from the states of the basis.
@@ -482,6 +473,17 @@ impl Objective {
             .collect::<Result<_, SelectionError>>()?;
         Ok(blocks.concat())
     }
+}
+
+/// The outcome of [`Objective::best_of_groups`].
+#[derive(Clone, Debug)]
+pub(crate) struct GroupsBest {
+    /// The winner over the concatenated groups (flat index) and its exact score.
+    pub best: Option<(usize, f64)>,
+    /// Exact scores computed.
+    pub evaluated: usize,
+    /// Per group: `S(basis; targets)` (`None`: no target left).
+    pub scores: Vec<Option<f64>>,
 }
 
 /// The live targets of a basis, their states and the basis columns.
