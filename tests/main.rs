@@ -24,6 +24,7 @@ mod integrity;
 mod kmedoids;
 mod leftovers;
 mod measured;
+mod merl100_f64;
 mod nbrdf;
 mod nbrdf_gpu;
 mod outputs;

@@ -216,6 +216,24 @@ impl CpuBackend {
         }
     }
 
+    /// The three channels of a network at `cells` in f64, on the calling thread and past
+    /// the cache: the values [`Self::values_f64`] gives each channel's lobe (the f32 twin,
+    /// clamped), from one run of the network. For passes that tabulate a block of cells
+    /// at a time (the cross-validation's and the evaluation's grid MAE).
+    pub fn neural_values_f64(&self, net: &Nbrdf, cells: &[u32]) -> [Vec<f64>; 3] {
+        let mut out = [
+            vec![0f32; cells.len()],
+            vec![0f32; cells.len()],
+            vec![0f32; cells.len()],
+        ];
+        {
+            let [r, g, b] = &mut out;
+            let mut rows = [(Some(0), &mut r[..]), (Some(1), &mut g[..]), (Some(2), &mut b[..])];
+            neural_rows(net, cells, None, &mut rows);
+        }
+        out.map(|v| v.into_iter().map(f64::from).collect())
+    }
+
     /// Tabulates one lobe over `cells` into `out`, each value times `scale[c]` if given.
     pub fn tabulate_into(
         &self,

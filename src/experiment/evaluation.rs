@@ -9,7 +9,10 @@ use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::fit::file::{FitFile, FitTarget};
-use crate::fit::{fit, FitParams};
+use crate::backend::cpu::CpuBackend;
+use crate::fit::{channel_gram, fit, fit_cells, solve_channel, FitError, FitParams, GramMode, Solver, TargetFit};
+use crate::merl::CellSet;
+use crate::select::cv::evaluate::{cell_sums, MaeJob};
 use crate::stats::{mean, median};
 use rayon::prelude::*;
 use std::collections::{BTreeSet, HashMap};
@@ -174,6 +177,182 @@ pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
         .unwrap_or(targets[0])
 }
 
+/// [`fit`] of `targets` by every basis (collection indices), the same fits to the bit.
+/// When `fit` would compute its grid errors cell by cell (some material of the fit not
+/// analytic, exact solver), the coefficients come from `fit`'s Gram quantities and solver
+/// per basis, and the grid errors of every basis's fits from one pass over the cells for
+/// all of them ([`cell_sums`]: each material tabulated once per block of cells, not once per
+/// basis and channel); bases whose fits share no cell set get one pass per cell set.
+fn fit_all(
+    backend: &dyn Backend,
+    coll: &Collection,
+    bases: &[Vec<usize>],
+    targets: &[usize],
+    p: &FitParams,
+) -> Result<Vec<Vec<TargetFit>>, ExperimentError> {
+    let analytic = |i: &usize| coll.materials()[*i].analytic().is_some();
+    let mut out: Vec<Option<Vec<TargetFit>>> = vec![None; bases.len()];
+    // Per basis fitted here: its cells and its fits without grid errors.
+    let mut pending: Vec<Pending> = Vec::new();
+    for (bi, basis) in bases.iter().enumerate() {
+        let by_moments = p.gram == GramMode::Auto
+            && basis.iter().chain(targets).all(analytic);
+        let duplicate = (0..basis.len()).any(|i| basis[..i].contains(&basis[i]));
+        if by_moments || p.solver != Solver::Exact || basis.is_empty() || targets.is_empty() || duplicate {
+            out[bi] = Some(fit(backend, coll, basis, targets, p, &|_, _| {})?);
+            continue;
+        }
+        let mut all: Vec<usize> = basis.clone();
+        all.extend_from_slice(targets);
+        let cells = fit_cells(coll, &all, p)?;
+        if cells.cells.is_empty() {
+            return Err(FitError::NoCells {
+                mask: p.mask,
+                stride: p.stride,
+            }
+            .into());
+        }
+        let m = basis.len() + 1;
+        let fits: Vec<TargetFit> = targets
+            .iter()
+            .map(|&t| TargetFit {
+                material: coll.materials()[t].name.clone(),
+                coefficients: vec![[0.0; 3]; m],
+                residual: [0.0; 3],
+                mae: 0.0,
+                relative_residual: 0.0,
+                relative_mae: 0.0,
+                kkt: [0.0; 3],
+                iterations: [0; 3],
+            })
+            .collect();
+        let norms = vec![[0.0; 3]; targets.len()];
+        pending.push((bi, cells, fits, norms));
+    }
+    // One pass per distinct cell set.
+    let mut done = vec![false; pending.len()];
+    let cpu = CpuBackend::new();
+    for first in 0..pending.len() {
+        if done[first] {
+            continue;
+        }
+        let group: Vec<usize> = (first..pending.len())
+            .filter(|&i| {
+                let (a, b) = (&pending[i].1, &pending[first].1);
+                !done[i] && a.cells == b.cells && a.weights == b.weights
+            })
+            .collect();
+        union_fits(backend, coll, bases, targets, p, &mut pending, &group)?;
+        let jobs: Vec<MaeJob<'_>> = group
+            .iter()
+            .flat_map(|&i| {
+                let basis = &bases[pending[i].0];
+                targets
+                    .iter()
+                    .zip(&pending[i].2)
+                    .map(move |(&t, f)| MaeJob {
+                        basis,
+                        target: t,
+                        coef: &f.coefficients,
+                    })
+            })
+            .collect();
+        let sums = cell_sums::<true>(&cpu, coll, &pending[first].1, &jobs);
+        drop(jobs);
+        let mut sums = sums.into_iter();
+        for &i in &group {
+            done[i] = true;
+            let (_, _, fits, norms) = &mut pending[i];
+            for (f, norm) in fits.iter_mut().zip(norms.iter()) {
+                let e = sums.next().expect("one sum per job");
+                // `fit`'s arithmetic, channel by channel.
+                let (mut target_norm, mut target_l1) = (0.0, 0.0);
+                for c in 0..3 {
+                    target_norm += norm[c];
+                    target_l1 += e[c].target;
+                    f.residual[c] = e[c].squared.sqrt();
+                    f.mae += e[c].absolute / 3.0;
+                }
+                let sq: f64 = f.residual.iter().map(|r| r * r).sum();
+                f.relative_residual = if target_norm > 0.0 { sq / target_norm } else { 0.0 };
+                f.relative_mae = if target_l1 > 0.0 { 3.0 * f.mae / target_l1 } else { 0.0 };
+            }
+        }
+    }
+    for (bi, _, fits, _) in pending {
+        out[bi] = Some(fits);
+    }
+    Ok(out.into_iter().map(|f| f.expect("every basis fitted")).collect())
+}
+
+/// A basis fitted by [`fit_all`]'s shared passes: its index, cells, fits and per target
+/// the squared norm of each channel.
+type Pending = (usize, CellSet, Vec<TargetFit>, Vec<[f64; 3]>);
+
+/// The coefficients of the fits of the bases `group` of `pending` (one cell set): per
+/// channel one Gram pass of the back-end over the Lambertian column, the union of their
+/// materials and the targets, from which each basis's [`channel_gram`] quantities are read
+/// (a pair's sum depends only on its two rows and the cells: the canonical order of
+/// `backend::cpu`), then `fit`'s solver.
+fn union_fits(
+    backend: &dyn Backend,
+    coll: &Collection,
+    bases: &[Vec<usize>],
+    targets: &[usize],
+    p: &FitParams,
+    pending: &mut [Pending],
+    group: &[usize],
+) -> Result<(), ExperimentError> {
+    let mut union: Vec<usize> = Vec::new();
+    for &i in group {
+        for &b in &bases[pending[i].0] {
+            if !union.contains(&b) {
+                union.push(b);
+            }
+        }
+    }
+    let pos = |b: usize| 1 + union.iter().position(|&u| u == b).expect("in the union");
+    let cells = pending[group[0]].1.clone();
+    for c in 0..3 {
+        let full = channel_gram(backend, coll, &union, targets, &cells, c, p.gram, &|_, _| {})?;
+        let mu = union.len() + 1;
+        for &i in group {
+            let (bi, _, fits, norms) = &mut pending[i];
+            let basis = &bases[*bi];
+            let cols: Vec<usize> = std::iter::once(0).chain(basis.iter().map(|&b| pos(b))).collect();
+            let m = cols.len();
+            let mut g = vec![0.0; m * m];
+            for (a, &ca) in cols.iter().enumerate() {
+                for (b, &cb) in cols.iter().enumerate() {
+                    g[a * m + b] = full.gram[ca * mu + cb];
+                }
+            }
+            if let Some(e) = g.iter().position(|v| !v.is_finite()) {
+                let k = (e / m).max(1) - 1;
+                return Err(FitError::NonFinite {
+                    material: coll.materials()[basis[k]].name.clone(),
+                    channel: c,
+                }
+                .into());
+            }
+            let hs: Vec<f64> = (0..targets.len())
+                .flat_map(|t| cols.iter().map(move |&ca| (t, ca)))
+                .map(|(t, ca)| full.h[t * mu + ca])
+                .collect();
+            let sols = solve_channel(backend, m, &g, &hs, &full.bb, p.solver)?;
+            for (((f, s), n), &bb) in fits.iter_mut().zip(&sols).zip(norms.iter_mut()).zip(&full.bb) {
+                n[c] = bb;
+                for (k, &a) in s.x.iter().enumerate() {
+                    f.coefficients[k][c] = a;
+                }
+                f.kkt[c] = s.max_kkt_violation;
+                f.iterations[c] = s.iterations;
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Fits `targets` by every basis, renders fits and originals, and the showcase.
 pub fn evaluate(
     backend: &dyn Backend,
@@ -208,18 +387,22 @@ pub fn evaluate(
     let lambert = render_sphere(&s.small, &|_, _| [std::f64::consts::FRAC_1_PI; 3])?;
     let originals: Vec<&Image> = targets.iter().map(|t| &renders[t]).collect();
     let show_orig = render_sphere(&s.big, &material_brdf(&coll.materials()[showcase].data))?;
-    let mut fits = Vec::new();
+    let indices: Vec<Vec<usize>> = bases
+        .iter()
+        .map(|b| b.materials.iter().map(|n| coll.index_of(n)).collect())
+        .collect::<Result<_, _>>()?;
+    let mut fits: Vec<Option<Vec<TargetFit>>> = fit_all(backend, coll, &indices, targets, &s.fit)?
+        .into_iter()
+        .map(Some)
+        .collect();
+    let mut files = Vec::new();
     let mut errors = Vec::new();
     let mut approximations = Vec::new();
     let total = bases.len() as u64;
     for (bi, b) in bases.iter().enumerate() {
         progress(bi as u64, total);
-        let basis: Vec<usize> = b
-            .materials
-            .iter()
-            .map(|n| coll.index_of(n))
-            .collect::<Result<_, _>>()?;
-        let f = fit(backend, coll, &basis, targets, &s.fit, &|_, _| {})?;
+        let basis = indices[bi].clone();
+        let f = fits[bi].take().expect("one fit per basis");
         let file = FitFile::new(coll, &basis, &f, &s.fit);
         let image_error: Vec<f64> = f
             .par_iter()
@@ -258,12 +441,12 @@ pub fn evaluate(
             mae,
             image_error,
         });
-        fits.push(file);
+        files.push(file);
     }
     progress(total, total);
     Ok(Evaluation {
         targets: targets.iter().map(|&t| coll.names()[t].clone()).collect(),
-        fits,
+        fits: files,
         errors,
         showcase: Showcase {
             material: coll.names()[showcase].clone(),

@@ -7,11 +7,13 @@ use super::super::SelectionError;
 use super::{CvMethodResult, CvTest, HeldOut};
 use crate::backend::cpu::CpuBackend;
 use crate::backend::Lobe;
-use crate::collection::Collection;
+use crate::collection::{Collection, MaterialData};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
-use crate::eval::shade::{combination_brdf, material_brdf};
-use crate::fit::{cell_errors, channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
+use crate::eval::shade::{material_brdf, BrdfFn};
+use std::collections::HashMap;
+use std::sync::Mutex;
+use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
 use crate::stats::{mean, median, StatsError};
@@ -19,9 +21,9 @@ use crate::stats::{mean, median, StatsError};
 /// What the held-out materials are evaluated with: the objective, the grid MAE and renders
 /// of every material (SPEC 7: light (45, 45)).
 pub(crate) struct Evaluator<'a> {
-    coll: &'a Collection,
     obj: &'a Objective,
     grid: GridEval<'a>,
+    pixels: PixelBrdfs,
     rp: RenderParams,
     display: DisplayParams,
     originals: Vec<Image>,
@@ -42,66 +44,179 @@ impl<'a> Evaluator<'a> {
             .map(|t| render_sphere(&rp, &material_brdf(&coll.materials()[t].data)))
             .collect::<Result<_, _>>()?;
         Ok(Self {
-            coll,
             obj,
             grid: GridEval::new(coll, fp),
+            pixels: PixelBrdfs::new(coll, &rp)?,
             rp,
             display: DisplayParams::default(),
             originals,
         })
     }
 
-    /// The held-out material `t` of fold `f` fitted by `basis`.
-    fn held_out(&self, basis: &[usize], f: usize, t: usize) -> Result<HeldOut, SelectionError> {
+    /// The held-out material `t` of fold `f` fitted by `basis`, its MAE left at 0 (see
+    /// [`Self::methods`]), and the fit's coefficients.
+    fn held_out(
+        &self,
+        basis: &[usize],
+        f: usize,
+        t: usize,
+    ) -> Result<(HeldOut, Vec<[f64; 3]>), SelectionError> {
         let fit = self.obj.fit(basis, t)?;
-        let img = render_sphere(
-            &self.rp,
-            &combination_brdf(self.coll, basis, &fit.coefficients),
-        )?;
-        Ok(HeldOut {
-            material: self.obj.names()[t].clone(),
-            fold: f,
-            rho: fit.rho,
-            mae: self.grid.mae(basis, t, &fit.coefficients),
-            image_error: normalized_image_error(&self.originals[t], &img, &self.display)?,
+        let img = render_sphere(&self.rp, &self.pixels.combination(basis, &fit.coefficients))?;
+        Ok((
+            HeldOut {
+                material: self.obj.names()[t].clone(),
+                fold: f,
+                rho: fit.rho,
+                mae: 0.0,
+                image_error: normalized_image_error(&self.originals[t], &img, &self.display)?,
+            },
+            fit.coefficients,
+        ))
+    }
+
+    /// Every method at every k (`bases[m][k][f]`: the basis of method `methods[m]` at
+    /// `ks[k]` in fold `f`): every held-out material of every fold, with means and
+    /// medians; results in method order, then k order. The grid MAE of all the fold's
+    /// fits (every method, every k, every held-out material) comes from one pass over the
+    /// grid per fold ([`GridEval::maes`]).
+    pub fn methods(
+        &self,
+        methods: &[&str],
+        ks: &[usize],
+        folds: &[Vec<usize>],
+        bases: &[Vec<Vec<Vec<usize>>>],
+    ) -> Result<Vec<CvMethodResult>, SelectionError> {
+        let mut held: Vec<Vec<Vec<HeldOut>>> = vec![vec![Vec::new(); ks.len()]; methods.len()];
+        for (f, fold) in folds.iter().enumerate() {
+            let runs: Vec<(usize, usize, usize)> = (0..methods.len())
+                .flat_map(|m| (0..ks.len()).flat_map(move |k| fold.iter().map(move |&t| (m, k, t))))
+                .collect();
+            let fits: Vec<(HeldOut, Vec<[f64; 3]>)> = runs
+                .par_iter()
+                .map(|&(m, k, t)| self.held_out(&bases[m][k][f], f, t))
+                .collect::<Result<_, _>>()?;
+            let jobs: Vec<MaeJob<'_>> = runs
+                .iter()
+                .zip(&fits)
+                .map(|(&(m, k, t), (_, coef))| MaeJob {
+                    basis: &bases[m][k][f],
+                    target: t,
+                    coef,
+                })
+                .collect();
+            let maes = self.grid.maes(&jobs);
+            for ((&(m, k, _), (mut h, _)), mae) in runs.iter().zip(fits).zip(maes) {
+                h.mae = mae;
+                held[m][k].push(h);
+            }
+        }
+        let names = self.obj.names();
+        let mut out = Vec::new();
+        for (m, per_k) in held.into_iter().enumerate() {
+            for (k, held_out) in per_k.into_iter().enumerate() {
+                let col = |g: fn(&HeldOut) -> f64| held_out.iter().map(g).collect::<Vec<f64>>();
+                let (rho, mae, img) = (col(|h| h.rho), col(|h| h.mae), col(|h| h.image_error));
+                out.push(CvMethodResult {
+                    method: methods[m].into(),
+                    k: ks[k],
+                    fold_bases: bases[m][k]
+                        .iter()
+                        .map(|b| b.iter().map(|&i| names[i].clone()).collect())
+                        .collect(),
+                    mean_rho: mean(&rho),
+                    median_rho: median(&rho),
+                    mean_mae: mean(&mae),
+                    median_mae: median(&mae),
+                    mean_image_error: mean(&img),
+                    median_image_error: median(&img),
+                    held_out,
+                });
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Every material's BRDF at the direction pairs of one render's lit pixels (the renders
+/// of the fits share them: one light, one view), so that a fit's render costs a
+/// multiply-add per basis material and pixel, not an evaluation of every basis material (a
+/// neural network each) per pixel and held-out material. The values are those of
+/// `material_brdf` at the same pairs, and [`Self::combination`] sums them as
+/// `combination_brdf` does: the renders are the same to the bit.
+struct PixelBrdfs {
+    /// Direction pair (bits of `wi`, `wo`) to its row of `values`.
+    index: HashMap<[u64; 6], usize>,
+    /// Per pair, every material's RGB.
+    values: Vec<Vec<[f64; 3]>>,
+    /// Every material's BRDF (pairs not seen when the table was built).
+    brdfs: Vec<BrdfFn>,
+}
+
+fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
+    [wi[0], wi[1], wi[2], wo[0], wo[1], wo[2]].map(f64::to_bits)
+}
+
+impl PixelBrdfs {
+    fn new(coll: &Collection, rp: &RenderParams) -> Result<Self, SelectionError> {
+        let pairs = Mutex::new(Vec::new());
+        render_sphere(rp, &|wi, wo| {
+            if wi[2] > 0.0 && wo[2] > 0.0 {
+                pairs
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .push((wi, wo));
+            }
+            [0.0; 3]
+        })?;
+        let mut index = HashMap::new();
+        let mut unique = Vec::new();
+        for (wi, wo) in pairs.into_inner().unwrap_or_else(|p| p.into_inner()) {
+            index.entry(pair_key(wi, wo)).or_insert_with(|| {
+                unique.push((wi, wo));
+                unique.len() - 1
+            });
+        }
+        let brdfs: Vec<BrdfFn> = coll
+            .materials()
+            .iter()
+            .map(|m| material_brdf(&m.data))
+            .collect();
+        let values = unique
+            .par_iter()
+            .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
+            .collect();
+        Ok(Self {
+            index,
+            values,
+            brdfs,
         })
     }
 
-    /// One method at one k: every held-out material of every fold (`bases[f]` the fold's
-    /// basis), with means and medians.
-    pub fn method(
-        &self,
-        method: &str,
-        k: usize,
-        folds: &[Vec<usize>],
-        bases: &[Vec<usize>],
-    ) -> Result<CvMethodResult, SelectionError> {
-        let names = self.obj.names();
-        let mut held_out = Vec::with_capacity(self.coll.len());
-        for (f, (fold, basis)) in folds.iter().zip(bases).enumerate() {
-            let rows: Vec<HeldOut> = fold
-                .par_iter()
-                .map(|&t| self.held_out(basis, f, t))
-                .collect::<Result<_, _>>()?;
-            held_out.extend(rows);
+    /// `combination_brdf(coll, basis, coefficients)` from the table.
+    fn combination<'s>(
+        &'s self,
+        basis: &'s [usize],
+        coefficients: &'s [[f64; 3]],
+    ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 's {
+        let a0 = coefficients[0];
+        move |wi, wo| {
+            if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                return [0.0; 3];
+            }
+            let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
+            let mut v = [0, 1, 2].map(|c| a0[c] * std::f64::consts::FRAC_1_PI);
+            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
+                let x = match row {
+                    Some(r) => r[b],
+                    None => self.brdfs[b](wi, wo),
+                };
+                for c in 0..3 {
+                    v[c] += a[c] * x[c];
+                }
+            }
+            v
         }
-        let col = |g: fn(&HeldOut) -> f64| held_out.iter().map(g).collect::<Vec<f64>>();
-        let (rho, mae, img) = (col(|h| h.rho), col(|h| h.mae), col(|h| h.image_error));
-        Ok(CvMethodResult {
-            method: method.into(),
-            k,
-            fold_bases: bases
-                .iter()
-                .map(|b| b.iter().map(|&i| names[i].clone()).collect())
-                .collect(),
-            mean_rho: mean(&rho),
-            median_rho: median(&rho),
-            mean_mae: mean(&mae),
-            median_mae: median(&mae),
-            mean_image_error: mean(&img),
-            median_image_error: median(&img),
-            held_out,
-        })
     }
 }
 
@@ -149,9 +264,25 @@ pub(crate) fn paired_tests(
     Ok(tests)
 }
 
+/// One fitted combination whose grid MAE is wanted: `target` fitted by `basis` (collection
+/// indices) with `coef` (Lambertian first, then basis order; one `[r, g, b]` per column).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct MaeJob<'j> {
+    /// Basis materials.
+    pub basis: &'j [usize],
+    /// Target material.
+    pub target: usize,
+    /// Coefficients.
+    pub coef: &'j [[f64; 3]],
+}
+
+/// Cells tabulated at once by [`GridEval::maes`]: the lobes of every material a batch needs
+/// (three channels each) over one block stay small (100 materials: 37 MiB).
+const MAE_BLOCK: usize = 1 << 14;
+
 /// MAE of fitted combinations on the grid (SPEC 5) over the objective's cells: one
 /// multiply-add per cell from separable tables when every material is analytic, else the
-/// f64 values of every column.
+/// f64 values of every column, cell by cell.
 pub(crate) struct GridEval<'a> {
     coll: &'a Collection,
     cells: CellSet,
@@ -186,48 +317,152 @@ impl<'a> GridEval<'a> {
 
     /// Weighted mean of |fit - target| over the cells, averaged over channels.
     pub(crate) fn mae(&self, basis: &[usize], t: usize, coef: &[[f64; 3]]) -> f64 {
-        let cols: Vec<Option<usize>> = std::iter::once(None)
-            .chain(basis.iter().map(|&b| Some(b)))
-            .collect();
+        self.maes(&[MaeJob {
+            basis,
+            target: t,
+            coef,
+        }])[0]
+    }
+
+    /// The MAE of every job (job order). Analytic collections: from the separable cell
+    /// moments, job by job. Otherwise one pass over the cells for all jobs at once: block
+    /// after block of [`MAE_BLOCK`] cells, every material the jobs need (their targets and
+    /// the basis materials with a non-zero coefficient) is tabulated once per block, all
+    /// three channels together (a network runs once per cell), and each job adds the
+    /// block's cells to its running sums in cell order. The sums are those of
+    /// `fit::cell_errors` term by term, in the same order, so every MAE is the same to the
+    /// bit as a pass over all cells per job.
+    pub(crate) fn maes(&self, jobs: &[MaeJob<'_>]) -> Vec<f64> {
+        if let Some(mom) = &self.moments {
+            return jobs
+                .par_iter()
+                .map(|j| self.analytic_mae(mom, j))
+                .collect();
+        }
+        cell_sums::<false>(&self.cpu, self.coll, &self.cells, jobs)
+            .iter()
+            .map(|s| s.iter().fold(0.0, |mae, e| mae + e.absolute / 3.0))
+            .collect()
+    }
+
+    /// [`Self::mae`] from the separable cell moments (every material analytic).
+    fn analytic_mae(&self, mom: &CellMoments, j: &MaeJob<'_>) -> f64 {
+        let sep = |l: Lobe| match l {
+            Lobe::Analytic(p) => SeparableLobe::new(&self.tables, &p),
+            Lobe::Measured { .. } | Lobe::Neural { .. } => {
+                unreachable!("moments exist only when every material is analytic")
+            }
+        };
         let mut mae = 0.0;
         for c in 0..3 {
-            let x: Vec<f64> = coef.iter().map(|a| a[c]).collect();
-            let sep = |l: Lobe| match l {
-                Lobe::Analytic(p) => Some(SeparableLobe::new(&self.tables, &p)),
-                Lobe::Measured { .. } | Lobe::Neural { .. } => None,
-            };
-            let analytic = self.moments.as_ref().and_then(|mom| {
-                let lobes: Vec<SeparableLobe> = cols
-                    .iter()
-                    .map(|&i| sep(self.lobe(i, c)))
-                    .collect::<Option<_>>()?;
-                let refs: Vec<&SeparableLobe> = lobes.iter().collect();
-                let target = sep(self.lobe(Some(t), c))?;
-                Some(
-                    mom.errors(&SeparableLobe::combination(&refs, &x), &target)
-                        .absolute,
-                )
-            });
-            mae += match analytic {
-                Some(ab) => ab,
-                None => {
-                    // The fits' cell-by-cell sum, on the columns with a non-zero
-                    // coefficient (the others add exact zeros).
-                    let cells = &self.cells.cells;
-                    let (vals, xs): (Vec<Vec<f64>>, Vec<f64>) = cols
-                        .iter()
-                        .zip(&x)
-                        .filter(|(_, &a)| a != 0.0)
-                        .map(|(&i, &a)| (self.cpu.values_f64(&self.lobe(i, c), cells), a))
-                        .unzip();
-                    let refs: Vec<&[f64]> = vals.iter().map(Vec::as_slice).collect();
-                    let b = self.cpu.values_f64(&self.lobe(Some(t), c), cells);
-                    cell_errors(&refs, &xs, &b, &self.cells.weights).mae
-                }
-            } / 3.0;
+            let x: Vec<f64> = j.coef.iter().map(|a| a[c]).collect();
+            let lobes: Vec<SeparableLobe> = std::iter::once(None)
+                .chain(j.basis.iter().map(|&b| Some(b)))
+                .map(|i| sep(self.lobe(i, c)))
+                .collect();
+            let refs: Vec<&SeparableLobe> = lobes.iter().collect();
+            let target = sep(self.lobe(Some(j.target), c));
+            mae += mom
+                .errors(&SeparableLobe::combination(&refs, &x), &target)
+                .absolute
+                / 3.0;
         }
         mae
     }
+}
+
+/// Sums of one channel of one job over the cells (`fit::cell_errors`'s): `sum w r^2`,
+/// `sum w |r|` and `sum w |b|`.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct CellSums {
+    /// `sum_s w_s r_s^2`.
+    pub squared: f64,
+    /// `sum_s w_s |r_s|`.
+    pub absolute: f64,
+    /// `sum_s w_s |b_s|`.
+    pub target: f64,
+}
+
+/// The three channels of material `m` at `cells`, in f64: the values
+/// [`CpuBackend::values_f64`] gives each channel's lobe (a network runs once for all three,
+/// past the back-end's cache).
+fn material_values(cpu: &CpuBackend, coll: &Collection, m: usize, cells: &[u32]) -> [Vec<f64>; 3] {
+    match &coll.materials()[m].data {
+        MaterialData::Neural(net) => cpu.neural_values_f64(net, cells),
+        d => [0, 1, 2].map(|c| cpu.values_f64(&channel_lobe(d, c), cells)),
+    }
+}
+
+/// The grid sums of every job's fit, per channel, over `cells`, cell by cell in f64, in one
+/// pass for all jobs: block after block of [`MAE_BLOCK`] cells, every material the jobs
+/// need (their targets and basis materials) is tabulated once per block, all three channels
+/// together (a network runs once per cell), and each job adds the block's cells to its
+/// running sums in cell order. The sums are `fit::cell_errors`'s term by term, in the same
+/// order, so every sum is the same to the bit as a pass over all cells per job (the old
+/// per-target passes). `ALL`: every column of the fit enters the combination and all three
+/// sums are formed (the fits' errors, `fit::fit`); else only the columns with a non-zero
+/// coefficient (the others add exact zeros: the same bits) and only `absolute` (the
+/// cross-validation's MAE).
+pub(crate) fn cell_sums<const ALL: bool>(
+    cpu: &CpuBackend,
+    coll: &Collection,
+    cells: &CellSet,
+    jobs: &[MaeJob<'_>],
+) -> Vec<[CellSums; 3]> {
+    let mut slot: Vec<Option<usize>> = vec![None; coll.len()];
+    let mut needed = Vec::new();
+    let mut need = |m: usize| {
+        if slot[m].is_none() {
+            slot[m] = Some(needed.len());
+            needed.push(m);
+        }
+    };
+    for j in jobs {
+        need(j.target);
+        for (k, &b) in j.basis.iter().enumerate() {
+            if ALL || j.coef[k + 1].iter().any(|&a| a != 0.0) {
+                need(b);
+            }
+        }
+    }
+    let mut sums = vec![[CellSums::default(); 3]; jobs.len()];
+    for (block, w) in cells
+        .cells
+        .chunks(MAE_BLOCK)
+        .zip(cells.weights.chunks(MAE_BLOCK))
+    {
+        let lambert = cpu.values_f64(&LAMBERTIAN, block);
+        let values: Vec<[Vec<f64>; 3]> = needed
+            .par_iter()
+            .map(|&m| material_values(cpu, coll, m, block))
+            .collect();
+        sums.par_iter_mut().zip(jobs).for_each(|(sum, j)| {
+            for (c, e) in sum.iter_mut().enumerate() {
+                // Lambertian first, then basis order, as `cell_errors` is given them.
+                let (cols, xs): (Vec<&[f64]>, Vec<f64>) = std::iter::once(&lambert[..])
+                    .chain(j.basis.iter().map(|&b| match slot[b] {
+                        Some(s) => &values[s][c][..],
+                        None => &[][..],
+                    }))
+                    .zip(j.coef.iter().map(|a| a[c]))
+                    .filter(|&(_, a)| ALL || a != 0.0)
+                    .unzip();
+                let b = &values[slot[j.target].expect("targets have slots")][c];
+                for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
+                    let fitv: f64 = cols.iter().zip(&xs).map(|(col, &a)| a * col[i]).sum();
+                    let r = fitv - bv;
+                    if ALL {
+                        e.squared += w * r * r;
+                    }
+                    e.absolute += w * r.abs();
+                    if ALL {
+                        e.target += w * bv.abs();
+                    }
+                }
+            }
+        });
+    }
+    sums
 }
 
 #[cfg(test)]

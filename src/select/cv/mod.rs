@@ -167,12 +167,8 @@ pub fn cross_validate_with(
     let folds = make_folds(n, p.folds, p.seed);
     let bases = folds::fold_bases(obj, dist, &folds, vp, progress)?;
     let eval = evaluate::Evaluator::new(coll, obj, &p.objective.fit_params(), p.render_size)?;
-    let mut results = Vec::new();
-    for (mi, &m) in p.methods.iter().enumerate() {
-        for (ki, &k) in p.ks.iter().enumerate() {
-            results.push(eval.method(m.name(), k, &folds, &bases[mi][ki])?);
-        }
-    }
+    let methods: Vec<&str> = p.methods.iter().map(|m| m.name()).collect();
+    let results = eval.methods(&methods, &p.ks, &folds, &bases)?;
     let tests = evaluate::paired_tests(&p.ks, &results)?;
     let names = coll.names();
     Ok(CvResult {
