@@ -259,3 +259,109 @@ fn plans_are_deterministic_nested_and_error_plans_lower_the_score() {
         }
     }
 }
+
+/// The `nielsen` baseline on a real (analytic) collection: a training material is in the
+/// span of the PCA, so with as many samples as the centred observations' rank and no ridge
+/// it is reconstructed exactly on every cell; the published ridge (eta = 40) stays close;
+/// the plan through `plan` is deterministic and nested.
+#[test]
+fn nielsen_reconstructs_a_training_material_and_plans_nested() {
+    use brdf_basis::acquire::nielsen::{NielsenModel, ETA};
+    let c = coll();
+    let fp = FitParams {
+        stride: 4,
+        ..FitParams::default()
+    };
+    let cands = cell_candidates(&c, &[0, 1, 2, 3], &fp).unwrap();
+    let cells: Vec<u32> = cands.iter().map(|x| x.cell.unwrap()).collect();
+    let train = [0, 1, 2];
+    let model = NielsenModel::train(&c, &train, &cells, 20).unwrap();
+    // 9 observations, centred: rank at most 8.
+    assert!(model.k <= 8 && model.k >= 3, "{}", model.k);
+    let plan_ = model.plan(model.k, 0, 5);
+    assert_eq!(plan_.len(), model.k);
+    let be = CpuBackend::new();
+    let vals: Vec<Vec<f64>> = (0..3)
+        .map(|ch| {
+            be.values_f64(
+                &brdf_basis::fit::channel_lobe(&c.materials()[1].data, ch),
+                &cells,
+            )
+        })
+        .collect();
+    let mut worst = 0.0f64;
+    let mut worst_ridge = 0.0f64;
+    for ch in 0..3 {
+        let y: Vec<f64> = plan_.iter().map(|&j| vals[ch][j]).collect();
+        let exact = model.coefficients(&plan_, &y, 0.0);
+        let ridge = model.coefficients(&plan_, &y, ETA);
+        for (j, &v) in vals[ch].iter().enumerate() {
+            let rel = |x: f64| (x - v).abs() / v.max(1e-3);
+            worst = worst.max(rel(model.value(j, &exact)));
+            worst_ridge = worst_ridge.max(rel(model.value(j, &ridge)));
+        }
+    }
+    assert!(worst < 1e-6, "exact reconstruction off by {worst}");
+    assert!(worst_ridge.is_finite(), "{worst_ridge}");
+    // Through `plan`: deterministic, nested, on the candidates.
+    let p = PlanParams {
+        n: 5,
+        criterion: Criterion::Nielsen,
+        seed: 3,
+        ..PlanParams::default()
+    };
+    let a = plan(&be, &c, &[0], &[1, 2], &cands, &p).unwrap();
+    assert_eq!(a, plan(&be, &c, &[0], &[1, 2], &cands, &p).unwrap());
+    let short = plan(&be, &c, &[0], &[1, 2], &cands, &PlanParams { n: 2, ..p.clone() }).unwrap();
+    assert_eq!(short.samples[..], a.samples[..2]);
+    assert_eq!(a.candidates_per_step, 500);
+    assert!(a.history.iter().all(|h| h.is_finite() && *h >= 1.0), "{:?}", a.history);
+}
+
+/// `cv --acquisition` runs the baseline beside our plans: one row per plan, n and noise,
+/// every held-out material scored (rho, MAE, image error), plans nested, a showcase with
+/// the dense fit and one render per n, and the table names the baseline.
+#[test]
+fn acquisition_cv_runs_the_nielsen_baseline() {
+    use brdf_basis::acquire::{acquisition_cv, AcqCvParams};
+    let csv = format!(
+        "{CSV}m5,0.3,0.3,0.1,0.4,0.3,0.2,0.3,60\nm6,0.01,0.2,0.3,0.7,0.7,0.7,0.05,800\nm7,0.25,0.05,0.2,0.1,0.2,0.3,0.6,30\nm8,0.15,0.15,0.15,0.6,0.5,0.4,0.9,200\n"
+    );
+    let c = parse_csv(csv.as_bytes(), Path::new("t8.csv")).unwrap();
+    let p = AcqCvParams {
+        k: 2,
+        plans: vec![Criterion::Condition, Criterion::Nielsen],
+        ns: vec![3, 6],
+        noises: vec![0.0, 0.02],
+        folds: 2,
+        candidates_per_step: 300,
+        render_size: 16,
+        objective: brdf_basis::select::ObjectiveParams::default().stride(6),
+        ..AcqCvParams::default()
+    };
+    let r = acquisition_cv(&CpuBackend::new(), &c, &p).unwrap();
+    assert_eq!(r.results.len(), 2 * 2 * 2);
+    for x in &r.results {
+        assert_eq!(x.held_out.len(), 8);
+        assert!(x.held_out.iter().all(|h| h.rho.is_finite()
+            && h.rho >= 0.0
+            && h.mae.is_finite()
+            && h.image_error.is_finite()
+            && h.dense_image_error.is_finite()));
+        assert!(x.fold_plans.iter().all(|f| f.len() == x.n));
+    }
+    let get = |n: usize, noise: f64| {
+        r.results
+            .iter()
+            .find(|x| x.plan == Criterion::Nielsen && x.n == n && x.noise == noise)
+            .unwrap()
+    };
+    assert_eq!(get(3, 0.0).fold_plans[0][..], get(6, 0.0).fold_plans[0][..3]);
+    assert_ne!(get(6, 0.0).mean_rho, get(6, 0.02).mean_rho, "noise changes the measurements");
+    let md = r.markdown();
+    assert!(md.contains("| nielsen | 6 |") && md.contains("dense fit (the limit)"), "{md}");
+    let sh = r.showcase.as_ref().expect("showcase");
+    assert_eq!(sh.plan, Criterion::Condition);
+    assert_eq!(sh.tiles.len(), 3, "dense fit, n = 3, n = 6");
+    assert_eq!(acquisition_cv(&CpuBackend::new(), &c, &p).unwrap(), r);
+}

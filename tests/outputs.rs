@@ -257,6 +257,44 @@ const CMDS: &[Cmd] = &[
         )),
     },
     Cmd {
+        name: "plan",
+        args: &[
+            "plan",
+            "{IN}",
+            "--basis",
+            "m1,m2",
+            "-n",
+            "3",
+            "--criterion",
+            "condition",
+            "--candidates-per-step",
+            "50",
+            "--out",
+            "{OUT}",
+        ],
+        ext: "csv",
+        flag: "--out",
+        dup: Some((
+            &[
+                "plan",
+                "{IN}",
+                "--basis",
+                "m1,m2",
+                "-n",
+                "3",
+                "--criterion",
+                "condition",
+                "--candidates-per-step",
+                "50",
+                "--out",
+                "{OUT}",
+                "--json",
+                "{OUT}",
+            ],
+            ["--out", "--json"],
+        )),
+    },
+    Cmd {
         name: "plot",
         args: &["plot", "{IN}", "--material", "m1", "--out", "{OUT}"],
         ext: "svg",
@@ -821,4 +859,53 @@ fn count_files(dir: &Path) -> usize {
             }
         })
         .sum()
+}
+
+/// `plan` replaces a regular file it wrote before (atomically: nothing else appears in the
+/// directory), and its CSV is the samples-file header plus one row per sample.
+#[test]
+fn plan_replaces_its_earlier_output_and_leaves_nothing_else() {
+    let work = tmp();
+    std::fs::write(work.path().join("c.csv"), CSV).expect("write");
+    let args: Vec<String> = [
+        "plan",
+        "c.csv",
+        "--basis",
+        "m1,m2",
+        "-n",
+        "3",
+        "--criterion",
+        "condition",
+        "--candidates-per-step",
+        "50",
+        "--out",
+        "p.csv",
+        "--json",
+        "p.json",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let o = run_in(work.path(), &args);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let first = std::fs::read_to_string(work.path().join("p.csv")).expect("csv");
+    assert!(first.starts_with("theta_i,phi_i,theta_o,phi_o\n"), "{first}");
+    assert_eq!(first.lines().count(), 4, "{first}");
+    let o = run_in(work.path(), &args);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert_eq!(
+        std::fs::read_to_string(work.path().join("p.csv")).expect("csv"),
+        first
+    );
+    let names: Vec<String> = snapshot(work.path())
+        .into_iter()
+        .map(|(p, _)| p.display().to_string())
+        .collect();
+    assert_eq!(names, ["c.csv", "p.csv", "p.json"], "{names:?}");
+    // The peer baseline is cv --acquisition's, not plan's (SPEC-cli lists three criteria).
+    let mut bad = args.clone();
+    bad[7] = "nielsen".into();
+    let o = run_in(work.path(), &bad);
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("cv --acquisition"), "{}", text(&o.stderr));
 }

@@ -79,6 +79,8 @@ __all__ = [
     "nnls",
     "plan",
     "fit_samples",
+    "acquisition_cv",
+    "AcquisitionCv",
     "render",
     "select",
     "silhouette",
@@ -324,6 +326,50 @@ def plan(collection: Collection, basis: Sequence[str], n: int, **options) -> Pla
     text = _native.plan_json(collection, list(basis), n, **options)
     d = _json.loads(text)
     return Plan(**{k: d[k] for k in Plan.__dataclass_fields__ if k != "_json"}, _json=text)
+
+
+@dataclass(frozen=True)
+class AcquisitionCv:
+    """Acquisition cross-validation (SPEC 10): what ``brdf-basis cv --acquisition --json``
+    writes. ``results`` is a list of dicts, one per method, plan, n and noise (``plan``,
+    ``n``, ``noise``, ``mean_rho``, ``median_rho``, ``mean_dense_rho``, ``ratio``,
+    ``mean_mae``, ``median_mae``, ``mean_image_error``, ``median_image_error``,
+    ``held_out``, ``fold_plans``, ...)."""
+
+    folds: list
+    seed: int
+    select: dict
+    k: int
+    candidates_per_step: int
+    results: list
+    collection_fingerprint: str
+    _json: str = field(repr=False, default="")
+
+    def result(self, plan: str, n: int, noise: float = 0.0, method: Optional[str] = None) -> dict:
+        """The result of one plan, n and noise (first method unless ``method``)."""
+        for r in self.results:
+            if r["plan"] == plan and r["n"] == n and r["noise"] == noise and (method is None or r["method"] == method):
+                return r
+        raise KeyError((plan, n, noise, method))
+
+    def to_json(self) -> str:
+        """The JSON text, as ``brdf-basis cv --acquisition --json`` writes it."""
+        return self._json
+
+
+def acquisition_cv(collection: Collection, **options) -> AcquisitionCv:
+    """Acquisition cross-validation, as ``brdf-basis cv --acquisition``: per fold a basis
+    chosen on the training materials, plans on them, held-out materials measured at the
+    plans (with relative noise) and reconstructed.
+
+    Options: ``methods`` (list), ``k``, ``plans`` (list of ``error``, ``condition``,
+    ``random``, ``nielsen``), ``ns`` (list), ``noises`` (list), ``folds``,
+    ``candidates_per_step``, ``shortlist``, ``render_size``, ``mask``, ``weighting``,
+    ``stride``, ``seed``, ``backend``, ``progress``.
+    """
+    text = _native.acquisition_cv_json(collection, **options)
+    d = _json.loads(text)
+    return AcquisitionCv(**{k: d[k] for k in AcquisitionCv.__dataclass_fields__ if k != "_json"}, _json=text)
 
 
 @dataclass(frozen=True)

@@ -772,6 +772,70 @@ fn cross_validate_json<'py>(
     Ok(text + "\n")
 }
 
+/// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition`: returns the
+/// `--json` text.
+#[pyfunction]
+#[pyo3(signature = (collection, *, methods = None, k = 12, plans = None, ns = None, noises = None, folds = 5, candidates_per_step = 10_000, shortlist = 32, render_size = 64, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+#[allow(clippy::too_many_arguments)]
+fn acquisition_cv_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    methods: Option<Vec<String>>,
+    k: usize,
+    plans: Option<Vec<String>>,
+    ns: Option<Vec<usize>>,
+    noises: Option<Vec<f64>>,
+    folds: usize,
+    candidates_per_step: usize,
+    shortlist: usize,
+    render_size: u32,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    seed: u64,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let d = bb::AcqCvParams::default();
+    let methods = match methods {
+        None => d.methods.clone(),
+        Some(v) => v
+            .iter()
+            .map(|m| parse::<bb::CvMethod>(m.trim()))
+            .collect::<PyResult<_>>()?,
+    };
+    let plans = match plans {
+        None => d.plans.clone(),
+        Some(v) => v
+            .iter()
+            .map(|m| parse::<bb::Criterion>(m.trim()))
+            .collect::<PyResult<_>>()?,
+    };
+    let p = bb::AcqCvParams {
+        methods,
+        k,
+        plans,
+        ns: ns.unwrap_or_else(|| d.ns.clone()),
+        noises: noises.unwrap_or_else(|| d.noises.clone()),
+        folds,
+        seed,
+        candidates_per_step,
+        shortlist,
+        render_size,
+        objective: bb::ObjectiveParams::default()
+            .mask(parse(mask)?)
+            .weighting(parse(weighting)?)
+            .stride(stride),
+    };
+    let backend = open_backend(backend)?;
+    let res = run_long(py, progress, "cv --acquisition", |_| {
+        Ok(bb::acquisition_cv(backend.as_ref(), &coll, &p)?)
+    })?;
+    let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}
+
 // ---------------------------------------------------------------------------------------
 // Solvers, clustering and statistics on arrays
 // ---------------------------------------------------------------------------------------
@@ -1019,6 +1083,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_json, m)?)?;
     m.add_function(wrap_pyfunction!(plan_json, m)?)?;
     m.add_function(wrap_pyfunction!(fit_samples, m)?)?;
+    m.add_function(wrap_pyfunction!(acquisition_cv_json, m)?)?;
     m.add_function(wrap_pyfunction!(cross_validate_json, m)?)?;
     m.add_function(wrap_pyfunction!(nnls, m)?)?;
     m.add_function(wrap_pyfunction!(silhouette, m)?)?;

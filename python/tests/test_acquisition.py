@@ -73,3 +73,29 @@ def test_the_docstring_examples_run():
 
     r = doctest.testmod(bb, optionflags=doctest.ELLIPSIS)
     assert r.attempted > 10 and r.failed == 0, r
+
+
+def test_acquisition_cv_returns_the_json_content_and_runs_the_nielsen_baseline(tmp_path):
+    c = bb.Collection.default()
+    opts = dict(k=3, plans=["condition", "nielsen"], ns=[3, 6], noises=[0.0], folds=2,
+                stride=6, candidates_per_step=200, render_size=32, backend="cpu")
+    r = bb.acquisition_cv(c, **opts)
+    assert isinstance(r, bb.AcquisitionCv)
+    assert r.k == 3 and r.select["k"] == 3 and len(r.folds) == 2
+    assert sorted({x["plan"] for x in r.results}) == ["condition", "nielsen"]
+    assert len(r.results) == 2 * 2
+    for x in r.results:
+        rho = [h["rho"] for h in x["held_out"]]
+        assert len(rho) == sum(len(f) for f in r.folds)
+        assert x["mean_rho"] == pytest.approx(np.mean(rho))
+        assert x["median_image_error"] == pytest.approx(np.median([h["image_error"] for h in x["held_out"]]))
+        assert all(np.isfinite(rho)) and min(rho) >= 0
+        assert [len(p) for p in x["fold_plans"]] == [x["n"]] * 2
+    # Nested plans: the 3-sample plan of a fold is the first 3 of its 6-sample plan.
+    n3, n6 = r.result("nielsen", 3), r.result("nielsen", 6)
+    assert n3["fold_plans"][0] == n6["fold_plans"][0][:3]
+    assert json.loads(r.to_json())["results"] == r.results
+    # Deterministic for a seed.
+    assert bb.acquisition_cv(c, **opts).results == r.results
+    with pytest.raises(ValueError):
+        bb.acquisition_cv(c, plans=["no-such-plan"])

@@ -9,6 +9,7 @@
 //! is its limit.
 
 use super::fit::solve_rows;
+use super::nielsen::{nielsen_per_step, NielsenModel, ETA};
 use super::plan::{
     cell_candidates, plan, values_at, Candidate, Criterion, Dense, PlanParams, PlannedSample,
 };
@@ -17,7 +18,9 @@ use crate::backend::Backend;
 use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceParams};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
-use crate::eval::render::{render_sphere, RenderParams};
+use crate::backend::cpu::CpuBackend;
+use crate::eval::render::{render_sphere, Image, RenderParams};
+use crate::fit::{channel_lobe, fit_cells};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::nnls::{lawson_hanson, GramProblem};
 use crate::select::cv::evaluate::GridEval;
@@ -89,6 +92,10 @@ pub struct AcqHeldOut {
     pub mae: f64,
     /// Normalised image error of the reconstruction's render.
     pub image_error: f64,
+    /// Grid MAE of the dense fit.
+    pub dense_mae: f64,
+    /// Image error of the dense fit's render.
+    pub dense_image_error: f64,
 }
 
 /// One (method, plan, n, noise).
@@ -122,6 +129,12 @@ pub struct AcqResult {
     pub median_mae: f64,
     /// Mean image error.
     pub mean_image_error: f64,
+    /// Median image error.
+    pub median_image_error: f64,
+    /// Mean MAE of the dense fits.
+    pub mean_dense_mae: f64,
+    /// Mean image error of the dense fits.
+    pub mean_dense_image_error: f64,
 }
 
 /// The selection of the fold bases.
@@ -150,6 +163,31 @@ pub struct AcqCv {
     pub results: Vec<AcqResult>,
     /// Collection fingerprint.
     pub collection_fingerprint: String,
+    /// Renders of one held-out material (not written to the JSON).
+    #[serde(skip)]
+    pub showcase: Option<AcqShowcase>,
+}
+
+/// Renders of one showcase held-out material: the material, the dense fit of its fold's
+/// basis and its reconstructions from each n of one plan (first method, first plan, the
+/// noise-free level when there is one). The material is the one of median rho at the
+/// largest n by that plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AcqShowcase {
+    /// Material.
+    pub material: String,
+    /// Its fold.
+    pub fold: usize,
+    /// Selection method of the basis.
+    pub method: String,
+    /// The plan of the reconstructions.
+    pub plan: Criterion,
+    /// Relative noise of the measurements.
+    pub noise: f64,
+    /// Render of the material.
+    pub original: Image,
+    /// `(label, render, image error, rho)`: the dense fit, then n = each sample count.
+    pub tiles: Vec<(String, Image, f64, f64)>,
 }
 
 /// Held-out rows and fold plans of one (plan, n, noise), accumulated over folds.
@@ -223,6 +261,8 @@ pub fn acquisition_cv(
     let names = coll.names();
     let all: Vec<usize> = (0..n).collect();
     let cands = cell_candidates(coll, &all, &fp)?;
+    let cellset = fit_cells(coll, &all, &fp)?;
+    let mut show_chosen: Vec<Vec<Candidate>> = vec![Vec::new(); folds.len()];
     let mut results = Vec::new();
     for (mi, m) in p.methods.iter().enumerate() {
         // rows[plan][n][noise] accumulated over folds.
@@ -237,8 +277,10 @@ pub fn acquisition_cv(
                 .collect();
             let dense = Dense::new(backend, coll, basis, held, &fp)?;
             let mm = basis.len() + 1;
-            let dense_rho: Vec<f64> = (0..held.len())
-                .map(|t| {
+            // The dense fit of each held-out material (the limit): rho, MAE, image error.
+            let dense_fit: Vec<(f64, f64, f64)> = (0..held.len())
+                .into_par_iter()
+                .map(|t| -> Result<(f64, f64, f64), AcquireError> {
                     let x = [0, 1, 2].map(|c| {
                         let g = &dense.g[c];
                         GramProblem::new(mm, &g.gram, &g.h[t * mm..(t + 1) * mm], g.bb[t])
@@ -248,20 +290,77 @@ pub fn acquisition_cv(
                             .map(|s| s.x)
                     });
                     let [a, b, c] = x;
-                    Ok(dense.rho(t, &[a?, b?, c?]))
+                    let x = [a?, b?, c?];
+                    let coef: Vec<[f64; 3]> =
+                        (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
+                    let img = render_sphere(&rp, &combination_brdf(coll, basis, &coef))
+                        .map_err(|e| AcquireError::Render(e.to_string()))?;
+                    let ie = normalized_image_error(&originals[held[t]], &img, &display)
+                        .map_err(|e| AcquireError::Render(e.to_string()))?;
+                    Ok((dense.rho(t, &x), grid.mae(basis, held[t], &coef), ie))
                 })
-                .collect::<Result<_, crate::nnls::NnlsError>>()?;
+                .collect::<Result<_, _>>()?;
+            let dense_rho: Vec<f64> = dense_fit.iter().map(|d| d.0).collect();
+            let seed_f = p.seed.wrapping_add(1000 * f as u64);
             for (pi, &crit) in p.plans.iter().enumerate() {
+                if crit == Criterion::Nielsen {
+                    // The peer baseline: its own model of every training material of the
+                    // fold (no basis), plan and reconstruction.
+                    let train_all: Vec<usize> =
+                        (0..n).filter(|i| held.binary_search(i).is_err()).collect();
+                    let model = NielsenModel::train(coll, &train_all, &cellset.cells, nmax)?;
+                    let chosen =
+                        model.plan(nmax, nielsen_per_step(p.candidates_per_step), seed_f);
+                    let samples: Vec<PlannedSample> = chosen
+                        .iter()
+                        .map(|&j| PlannedSample::from(&cands[j]))
+                        .collect();
+                    let nf = NielsenFold {
+                        coll,
+                        model: &model,
+                        chosen: &chosen,
+                        weights: &cellset.weights,
+                        rp: &rp,
+                        display: &display,
+                    };
+                    let per: Vec<Vec<Vec<(f64, f64, f64)>>> = held
+                        .par_iter()
+                        .map(|&ti| nielsen_rows(&nf, p, ti, &originals[ti]))
+                        .collect::<Result<_, _>>()?;
+                    for (ni, &ns) in p.ns.iter().enumerate() {
+                        for si in 0..p.noises.len() {
+                            let rows = held.iter().enumerate().map(|(t, &ti)| {
+                                let (rho, mae, image_error) = per[t][ni][si];
+                                AcqHeldOut {
+                                    material: names[ti].clone(),
+                                    fold: f,
+                                    rho,
+                                    dense_rho: dense_rho[t],
+                                    mae,
+                                    image_error,
+                                    dense_mae: dense_fit[t].1,
+                                    dense_image_error: dense_fit[t].2,
+                                }
+                            });
+                            acc[pi][ni][si].0.extend(rows);
+                            acc[pi][ni][si].1.push(samples[..ns.min(samples.len())].to_vec());
+                        }
+                    }
+                    continue;
+                }
                 let pp = PlanParams {
                     n: nmax,
                     criterion: crit,
                     candidates_per_step: p.candidates_per_step,
                     shortlist: p.shortlist,
-                    seed: p.seed.wrapping_add(1000 * f as u64),
+                    seed: seed_f,
                     fit: fp.clone(),
                 };
                 let pl = plan(backend, coll, basis, &train, &cands, &pp)?;
                 let chosen: Vec<Candidate> = pl.chosen.clone();
+                if mi == 0 && pi == 0 {
+                    show_chosen[f] = chosen.clone();
+                }
                 let mut mats = basis.clone();
                 mats.extend_from_slice(held);
                 let vals = values_at(coll, &mats, &chosen)?;
@@ -271,17 +370,9 @@ pub fn acquisition_cv(
                         .iter()
                         .enumerate()
                         .map(|(t, &ti)| {
-                            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
-                                p.seed ^ ((ti as u64 + 1) << 20) ^ ((si as u64 + 1) << 8),
-                            );
-                            let mut y: [Vec<f64>; 3] = Default::default();
-                            for s in 0..nmax {
-                                for (c, yc) in y.iter_mut().enumerate() {
-                                    let z = standard_normal(&mut rng);
-                                    yc.push(vals[c][basis.len() + t][s] * (1.0 + sigma * z));
-                                }
-                            }
-                            y
+                            measure(p.seed, ti, si, sigma, nmax, |c, s| {
+                                vals[c][basis.len() + t][s]
+                            })
                         })
                         .collect();
                     for (ni, &ns) in p.ns.iter().enumerate() {
@@ -289,15 +380,7 @@ pub fn acquisition_cv(
                             .par_iter()
                             .enumerate()
                             .map(|(t, &ti)| -> Result<AcqHeldOut, AcquireError> {
-                                let mut x: [Vec<f64>; 3] = Default::default();
-                                for c in 0..3 {
-                                    let mut r = Vec::with_capacity(ns * mm);
-                                    for s in 0..ns {
-                                        r.push(FRAC_1_PI);
-                                        r.extend((0..basis.len()).map(|b| vals[c][b][s]));
-                                    }
-                                    x[c] = solve_rows(mm, &r, &ys[t][c][..ns], &vec![1.0; ns])?.x;
-                                }
+                                let x = sample_coefficients(basis.len(), &vals, &ys[t], ns)?;
                                 let coef: Vec<[f64; 3]> =
                                     (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
                                 let img = render_sphere(&rp, &combination_brdf(coll, basis, &coef))
@@ -314,6 +397,8 @@ pub fn acquisition_cv(
                                         &display,
                                     )
                                     .map_err(|e| AcquireError::Render(e.to_string()))?,
+                                    dense_mae: dense_fit[t].1,
+                                    dense_image_error: dense_fit[t].2,
                                 })
                             })
                             .collect::<Result<_, _>>()?;
@@ -349,13 +434,31 @@ pub fn acquisition_cv(
                         mean_mae: mean(&mae),
                         median_mae: median(&mae),
                         mean_image_error: mean(&img),
+                        median_image_error: median(&img),
+                        mean_dense_mae: mean(&col(|h| h.dense_mae)),
+                        mean_dense_image_error: mean(&col(|h| h.dense_image_error)),
                         held_out,
                     });
                 }
             }
         }
     }
+    let show = Showcase {
+        backend,
+        coll,
+        p,
+        folds: &folds,
+        bases: &bases[0][0],
+        chosen: &show_chosen,
+        cellset: &cellset,
+        cands: &cands,
+        rp: &rp,
+        display: &display,
+        originals: &originals,
+    };
+    let showcase = show.build(&results)?;
     Ok(AcqCv {
+        showcase,
         folds: folds
             .iter()
             .map(|f| f.iter().map(|&i| names[i].clone()).collect())
@@ -377,6 +480,224 @@ pub fn acquisition_cv(
     })
 }
 
+/// Noisy measurements `f (1 + sigma N(0, 1))` of held-out material `ti` (collection index)
+/// at `nmax` samples, `f(c, s)` its noise-free value: one draw per sample and channel,
+/// seeded per material and noise level (the same draws for every plan).
+fn measure(
+    seed: u64,
+    ti: usize,
+    si: usize,
+    sigma: f64,
+    nmax: usize,
+    f: impl Fn(usize, usize) -> f64,
+) -> [Vec<f64>; 3] {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+        seed ^ ((ti as u64 + 1) << 20) ^ ((si as u64 + 1) << 8),
+    );
+    let mut y: [Vec<f64>; 3] = Default::default();
+    for s in 0..nmax {
+        for (c, yc) in y.iter_mut().enumerate() {
+            let z = standard_normal(&mut rng);
+            yc.push(f(c, s) * (1.0 + sigma * z));
+        }
+    }
+    y
+}
+
+/// Per-channel sample fit (Lambertian + basis, SPEC 10) of the first `ns` samples:
+/// `vals[c][b][s]` the basis values, `y[c]` the measurements.
+fn sample_coefficients(
+    nb: usize,
+    vals: &[Vec<Vec<f64>>; 3],
+    y: &[Vec<f64>; 3],
+    ns: usize,
+) -> Result<[Vec<f64>; 3], AcquireError> {
+    let mm = nb + 1;
+    let mut x: [Vec<f64>; 3] = Default::default();
+    for c in 0..3 {
+        let mut r = Vec::with_capacity(ns * mm);
+        for s in 0..ns {
+            r.push(FRAC_1_PI);
+            r.extend((0..nb).map(|b| vals[c][b][s]));
+        }
+        x[c] = solve_rows(mm, &r, &y[c][..ns], &vec![1.0; ns])?.x;
+    }
+    Ok(x)
+}
+
+/// What the `nielsen` rows of one fold share.
+struct NielsenFold<'a> {
+    coll: &'a Collection,
+    model: &'a NielsenModel,
+    chosen: &'a [usize],
+    weights: &'a [f64],
+    rp: &'a RenderParams,
+    display: &'a DisplayParams,
+}
+
+/// Held-out material `ti` reconstructed by the `nielsen` baseline from its first n samples,
+/// per n and noise level (`[n][noise]`): rho and MAE on every model cell (the fit mask),
+/// image error of the render.
+fn nielsen_rows(
+    nf: &NielsenFold<'_>,
+    p: &AcqCvParams,
+    ti: usize,
+    original: &Image,
+) -> Result<Vec<Vec<(f64, f64, f64)>>, AcquireError> {
+    let cpu = CpuBackend::new();
+    let data = &nf.coll.materials()[ti].data;
+    let tv: Vec<Vec<f64>> = (0..3)
+        .map(|c| cpu.values_f64(&channel_lobe(data, c), &nf.model.cells))
+        .collect();
+    let e: f64 = tv
+        .iter()
+        .map(|t| t.iter().zip(nf.weights).map(|(v, w)| w * v * v).sum::<f64>())
+        .sum();
+    let nmax = nf.chosen.len();
+    let mut out = vec![Vec::with_capacity(p.noises.len()); p.ns.len()];
+    for (si, &sigma) in p.noises.iter().enumerate() {
+        let y = measure(p.seed, ti, si, sigma, nmax, |c, s| tv[c][nf.chosen[s]]);
+        for (ni, &ns) in p.ns.iter().enumerate() {
+            let ns = ns.min(nmax);
+            let coef: [Vec<f64>; 3] =
+                [0, 1, 2].map(|c| nf.model.coefficients(&nf.chosen[..ns], &y[c][..ns], ETA));
+            let (mut sq, mut ab) = (0.0, 0.0);
+            for c in 0..3 {
+                for (j, (&t, &w)) in tv[c].iter().zip(nf.weights).enumerate() {
+                    let r = nf.model.value(j, &coef[c]) - t;
+                    sq += w * r * r;
+                    ab += w * r.abs();
+                }
+            }
+            let img = render_sphere(nf.rp, &nf.model.brdf(&coef))
+                .map_err(|e| AcquireError::Render(e.to_string()))?;
+            let ie = normalized_image_error(original, &img, nf.display)
+                .map_err(|e| AcquireError::Render(e.to_string()))?;
+            out[ni].push((if e > 0.0 { sq / e } else { 0.0 }, ab / 3.0, ie));
+        }
+    }
+    Ok(out)
+}
+
+/// What the showcase renders need.
+struct Showcase<'a> {
+    backend: &'a dyn Backend,
+    coll: &'a Collection,
+    p: &'a AcqCvParams,
+    folds: &'a [Vec<usize>],
+    bases: &'a [Vec<usize>],
+    chosen: &'a [Vec<Candidate>],
+    cellset: &'a crate::merl::grid::CellSet,
+    cands: &'a [Candidate],
+    rp: &'a RenderParams,
+    display: &'a DisplayParams,
+    originals: &'a [Image],
+}
+
+impl Showcase<'_> {
+    /// The showcase of [`AcqShowcase`] (none without results).
+    fn build(&self, results: &[AcqResult]) -> Result<Option<AcqShowcase>, AcquireError> {
+        let (p, coll) = (self.p, self.coll);
+        let (Some(&crit), Some(m)) = (p.plans.first(), p.methods.first()) else {
+            return Ok(None);
+        };
+        let si = p.noises.iter().position(|&s| s == 0.0).unwrap_or(0);
+        let Some(&sigma) = p.noises.get(si) else {
+            return Ok(None);
+        };
+        let mut ns: Vec<usize> = p.ns.clone();
+        ns.sort_unstable();
+        ns.dedup();
+        let nmax = ns.last().copied().unwrap_or(0);
+        let find = |n: usize| {
+            results
+                .iter()
+                .find(|r| r.method == m.name() && r.plan == crit && r.n == n && r.noise == sigma)
+        };
+        let Some(last) = find(nmax) else {
+            return Ok(None);
+        };
+        let mut order: Vec<&AcqHeldOut> = last.held_out.iter().collect();
+        order.sort_by(|a, b| a.rho.total_cmp(&b.rho).then(a.material.cmp(&b.material)));
+        let Some(h) = order.get(order.len() / 2) else {
+            return Ok(None);
+        };
+        let names = coll.names();
+        let Some(ti) = names.iter().position(|x| *x == h.material) else {
+            return Ok(None);
+        };
+        let f = h.fold;
+        let basis = &self.bases[f];
+        let render = |b: &(dyn Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync)| {
+            let img =
+                render_sphere(self.rp, b).map_err(|e| AcquireError::Render(e.to_string()))?;
+            let ie = normalized_image_error(&self.originals[ti], &img, self.display)
+                .map_err(|e| AcquireError::Render(e.to_string()))?;
+            Ok::<_, AcquireError>((img, ie))
+        };
+        // The dense fit of the fold's basis.
+        let fp = p.objective.fit_params();
+        let dense = Dense::new(self.backend, coll, basis, &[ti], &fp)?;
+        let mm = basis.len() + 1;
+        let x = [0, 1, 2].map(|c| {
+            let g = &dense.g[c];
+            GramProblem::new(mm, &g.gram, &g.h[..mm], g.bb[0])
+                .and_then(|pr| lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default()))
+                .map(|s| s.x)
+        });
+        let [a, b, c] = x;
+        let x = [a?, b?, c?];
+        let coef: Vec<[f64; 3]> = (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
+        let (img, ie) = render(&combination_brdf(coll, basis, &coef))?;
+        let mut tiles = vec![("dense fit".to_string(), img, ie, dense.rho(0, &x))];
+        let rho_at = |n: usize| {
+            find(n)
+                .and_then(|r| r.held_out.iter().find(|x| x.material == h.material))
+                .map_or(f64::NAN, |x| x.rho)
+        };
+        if crit == Criterion::Nielsen {
+            let held = &self.folds[f];
+            let train_all: Vec<usize> = (0..coll.len())
+                .filter(|i| held.binary_search(i).is_err())
+                .collect();
+            let model = NielsenModel::train(coll, &train_all, &self.cellset.cells, nmax)?;
+            let seed_f = p.seed.wrapping_add(1000 * f as u64);
+            let chosen = model.plan(nmax, nielsen_per_step(p.candidates_per_step), seed_f);
+            let at: Vec<Candidate> = chosen.iter().map(|&j| self.cands[j]).collect();
+            let vals = values_at(coll, &[ti], &at)?;
+            let y = measure(p.seed, ti, si, sigma, chosen.len(), |c, s| vals[c][0][s]);
+            for &n in &ns {
+                let k = n.min(chosen.len());
+                let coef = [0, 1, 2].map(|c| model.coefficients(&chosen[..k], &y[c][..k], ETA));
+                let (img, ie) = render(&model.brdf(&coef))?;
+                tiles.push((format!("n = {n}"), img, ie, rho_at(n)));
+            }
+        } else {
+            let chosen = &self.chosen[f];
+            let mut mats = basis.clone();
+            mats.push(ti);
+            let vals = values_at(coll, &mats, chosen)?;
+            let nb = basis.len();
+            let y = measure(p.seed, ti, si, sigma, chosen.len(), |c, s| vals[c][nb][s]);
+            for &n in &ns {
+                let x = sample_coefficients(nb, &vals, &y, n.min(chosen.len()))?;
+                let coef: Vec<[f64; 3]> = (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
+                let (img, ie) = render(&combination_brdf(coll, basis, &coef))?;
+                tiles.push((format!("n = {n}"), img, ie, rho_at(n)));
+            }
+        }
+        Ok(Some(AcqShowcase {
+            material: h.material.clone(),
+            fold: f,
+            method: m.name().to_string(),
+            plan: crit,
+            noise: sigma,
+            original: self.originals[ti].clone(),
+            tiles,
+        }))
+    }
+}
+
 /// A standard normal draw (Box-Muller on two uniform draws in (0, 1]).
 fn standard_normal(rng: &mut rand_chacha::ChaCha8Rng) -> f64 {
     let u1 = 1.0 - rand::Rng::random::<f64>(rng);
@@ -385,26 +706,55 @@ fn standard_normal(rng: &mut rand_chacha::ChaCha8Rng) -> f64 {
 }
 
 impl AcqCv {
-    /// The results as a Markdown table: one row per method, plan, n and noise.
+    /// The results as a Markdown table: one row per method, plan, n and noise (mean and
+    /// median over the held-out materials), and per method the dense fit's row.
     pub fn markdown(&self) -> String {
         use crate::stats::num;
         let mut s = String::from(
-            "| method | plan | n | noise | mean rho | median rho | dense rho | ratio | mean MAE | image error |\n|---|---|---|---|---|---|---|---|---|---|\n",
+            "| method | plan | n | noise | mean rho | median rho | dense rho | ratio | mean MAE | median MAE | mean image error | median image error |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         );
+        let mut methods: Vec<&str> = Vec::new();
         for r in &self.results {
-            s.push_str(&format!(
-                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-                r.method,
-                r.plan.as_str(),
-                r.n,
-                num(r.noise),
-                num(r.mean_rho),
-                num(r.median_rho),
-                num(r.mean_dense_rho),
-                num(r.ratio),
-                num(r.mean_mae),
-                num(r.mean_image_error)
-            ));
+            if !methods.contains(&r.method.as_str()) {
+                methods.push(&r.method);
+            }
+        }
+        for m in methods {
+            if let Some(r) = self.results.iter().find(|r| r.method == m) {
+                let col = |g: fn(&AcqHeldOut) -> f64| r.held_out.iter().map(g).collect::<Vec<_>>();
+                let (rho, mae, img) = (
+                    col(|h| h.dense_rho),
+                    col(|h| h.dense_mae),
+                    col(|h| h.dense_image_error),
+                );
+                s.push_str(&format!(
+                    "| {m} | dense fit (the limit) | all | 0 | {} | {} | {} | 1 | {} | {} | {} | {} |\n",
+                    num(mean(&rho)),
+                    num(median(&rho)),
+                    num(mean(&rho)),
+                    num(mean(&mae)),
+                    num(median(&mae)),
+                    num(mean(&img)),
+                    num(median(&img))
+                ));
+            }
+            for r in self.results.iter().filter(|r| r.method == m) {
+                s.push_str(&format!(
+                    "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                    r.method,
+                    r.plan.as_str(),
+                    r.n,
+                    num(r.noise),
+                    num(r.mean_rho),
+                    num(r.median_rho),
+                    num(r.mean_dense_rho),
+                    num(r.ratio),
+                    num(r.mean_mae),
+                    num(r.median_mae),
+                    num(r.mean_image_error),
+                    num(r.median_image_error)
+                ));
+            }
         }
         s
     }

@@ -1,7 +1,11 @@
 //! The acquisition figure: held-out mean rho against the number of samples, one line per
-//! plan (noise-free), log scale, with the dense fit's mean rho as a dashed limit.
+//! plan (noise-free), log scale, with the dense fit's mean rho as a dashed limit; below it,
+//! when the cross-validation has a showcase, a row of renders: the showcase held-out
+//! material, its dense fit and its reconstructions from each n (caption: which material,
+//! fold, basis and plan).
 
-use super::cv::AcqCv;
+use super::cv::{AcqCv, AcqShowcase};
+use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
 use crate::plot::{figure, series_colour, Draw, Figure, PlotError};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -123,7 +127,193 @@ impl Draw for RhoVsN<'_> {
     }
 }
 
-/// The figure `acquisition-rho` (SVG and PNG).
+/// Render tiles' size in pixels.
+const TILE: u32 = 128;
+/// Height of the rho chart.
+const CHART_H: u32 = 440;
+/// Height of the render row (labels, tile, caption).
+const ROW_H: u32 = 60 + TILE + 56;
+const WIDTH: u32 = 860;
+
+/// `img` resized to `TILE` wide: integer pixel replication up, 2 x 2 box filtering down.
+fn to_tile(img: &Rgb8Image) -> Rgb8Image {
+    let mut cur = img.clone();
+    while cur.width > TILE && cur.height >= 2 {
+        let (w, h) = (cur.width / 2, cur.height / 2);
+        let mut data = Vec::with_capacity(3 * (w * h) as usize);
+        for y in 0..h {
+            for x in 0..w {
+                for c in 0..3 {
+                    let at = |dx: u32, dy: u32| {
+                        cur.data[(3 * ((2 * y + dy) * cur.width + 2 * x + dx) + c) as usize] as u32
+                    };
+                    data.push(((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1) + 2) / 4) as u8);
+                }
+            }
+        }
+        cur = Rgb8Image {
+            width: w,
+            height: h,
+            data,
+        };
+    }
+    let f = (TILE / cur.width.max(1)).max(1);
+    if f == 1 {
+        return cur;
+    }
+    let (w, h) = (cur.width * f, cur.height * f);
+    let mut data = Vec::with_capacity(3 * (w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (3 * ((y / f) * cur.width + x / f)) as usize;
+            data.extend_from_slice(&cur.data[i..i + 3]);
+        }
+    }
+    Rgb8Image {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
+/// The render row of a showcase.
+struct Renders {
+    tiles: Vec<(String, String, Rgb8Image)>,
+    caption: [String; 2],
+}
+
+impl Renders {
+    fn new(s: &AcqShowcase, k: usize) -> Result<Self, String> {
+        let d = DisplayParams::default();
+        let disp = |i: &crate::eval::render::Image| {
+            display_image(i, &d)
+                .map(|x| to_tile(&x))
+                .map_err(|e| e.to_string())
+        };
+        let mut tiles = vec![(
+            "target".to_string(),
+            crate::plot::legend::short_name(&s.material, 20),
+            disp(&s.original)?,
+        )];
+        for (label, img, ie, rho) in &s.tiles {
+            tiles.push((
+                label.clone(),
+                format!(
+                    "rho {}, img {}",
+                    crate::stats::num(*rho),
+                    crate::stats::num(*ie)
+                ),
+                disp(img)?,
+            ));
+        }
+        let noise = if s.noise == 0.0 {
+            "noise-free".to_string()
+        } else {
+            format!("{}% noise", s.noise * 100.0)
+        };
+        Ok(Self {
+            tiles,
+            caption: [
+                format!(
+                    "Held-out `{}` (fold {}, the median rho at the largest n by the {} plan), {noise}; light (45, 45) deg.",
+                    crate::plot::legend::short_name(&s.material, 40),
+                    s.fold + 1,
+                    s.plan.as_str(),
+                ),
+                format!(
+                    "Dense fit and reconstructions from the plan's first n samples by its fold's {} k = {k} basis{}.",
+                    s.method,
+                    if s.plan == super::Criterion::Nielsen {
+                        " (nielsen: its own PCA and ridge)"
+                    } else {
+                        ""
+                    }
+                ),
+            ],
+        })
+    }
+
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        text: bool,
+    ) -> Result<(), String> {
+        let e2s = |e: &dyn std::fmt::Display| e.to_string();
+        let n = self.tiles.len() as u32;
+        let pad = (WIDTH.saturating_sub(n * TILE) / (n + 1)).max(4);
+        for (i, (label, sub, img)) in self.tiles.iter().enumerate() {
+            let x = (pad + i as u32 * (TILE + pad)) as i32;
+            let y = 44i32;
+            if text {
+                root.draw(&Text::new(label.clone(), (x, 8), (FONT, 14).into_font()))
+                    .map_err(|e| e2s(&e))?;
+                root.draw(&Text::new(sub.clone(), (x, 26), (FONT, 11).into_font()))
+                    .map_err(|e| e2s(&e))?;
+            }
+            for (k, p) in img.data.chunks_exact(3).enumerate() {
+                let (px, py) = ((k as u32 % img.width) as i32, (k as u32 / img.width) as i32);
+                root.draw_pixel((x + px, y + py), &RGBColor(p[0], p[1], p[2]))
+                    .map_err(|e| e2s(&e))?;
+            }
+        }
+        if text {
+            for (l, c) in self.caption.iter().enumerate() {
+                root.draw(&Text::new(
+                    c.clone(),
+                    (pad as i32, 44 + TILE as i32 + 10 + 18 * l as i32),
+                    (FONT, 12).into_font(),
+                ))
+                .map_err(|e| e2s(&e))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The chart above the render row.
+struct WithRenders<'a> {
+    chart: RhoVsN<'a>,
+    renders: Option<Renders>,
+}
+
+impl Draw for WithRenders<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        text: bool,
+    ) -> Result<(), String> {
+        match &self.renders {
+            None => self.chart.draw(root, text),
+            Some(r) => {
+                let (top, bottom) = root.split_vertically(CHART_H);
+                self.chart.draw(&top, text)?;
+                r.draw(&bottom, text)
+            }
+        }
+    }
+}
+
+/// The figure `acquisition-rho` (SVG and PNG): the chart, and the render row when `cv` has
+/// a showcase.
 pub fn rho_vs_n(cv: &AcqCv) -> Result<Figure, PlotError> {
-    figure("acquisition-rho", (720, 480), &RhoVsN { cv })
+    let renders = match &cv.showcase {
+        Some(s) => Some(Renders::new(s, cv.k).map_err(|message| PlotError::Draw {
+            stem: "acquisition-rho".into(),
+            message,
+        })?),
+        None => None,
+    };
+    let size = if renders.is_some() {
+        (WIDTH, CHART_H + ROW_H)
+    } else {
+        (720, 480)
+    };
+    figure(
+        "acquisition-rho",
+        size,
+        &WithRenders {
+            chart: RhoVsN { cv },
+            renders,
+        },
+    )
 }

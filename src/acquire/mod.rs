@@ -19,6 +19,7 @@ pub mod eval;
 pub mod figure;
 pub mod fit;
 pub mod linalg;
+pub mod nielsen;
 pub mod plan;
 pub mod samples;
 

@@ -60,6 +60,8 @@ pub enum Criterion {
     Condition,
     /// Uniform random candidates.
     Random,
+    /// The peer baseline of Nielsen et al. 2015 (its own PCA; [`super::nielsen`]).
+    Nielsen,
 }
 
 impl Criterion {
@@ -69,6 +71,7 @@ impl Criterion {
             Criterion::Error => "error",
             Criterion::Condition => "condition",
             Criterion::Random => "random",
+            Criterion::Nielsen => "nielsen",
         }
     }
 }
@@ -76,13 +79,13 @@ impl Criterion {
 impl std::str::FromStr for Criterion {
     type Err = AcquireError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        [Criterion::Error, Criterion::Condition, Criterion::Random]
+        [Criterion::Error, Criterion::Condition, Criterion::Random, Criterion::Nielsen]
             .into_iter()
             .find(|c| c.as_str() == s)
             .ok_or_else(|| AcquireError::InvalidParam {
                 name: "criterion",
                 value: s.into(),
-                expected: "one of error, condition, random",
+                expected: "one of error, condition, random, nielsen",
             })
     }
 }
@@ -455,6 +458,9 @@ pub fn plan(
             expected: "training materials outside the basis for the error criterion",
         });
     }
+    if p.criterion == Criterion::Nielsen {
+        return super::nielsen::plan_criterion(coll, basis, targets, cands, p);
+    }
     let dense = if targets.is_empty() {
         None
     } else {
@@ -529,7 +535,7 @@ pub fn plan(
             r
         };
         let best_k = match p.criterion {
-            Criterion::Random => 0,
+            Criterion::Random | Criterion::Nielsen => 0,
             Criterion::Condition => {
                 let n0 = cond_rows.len() / m;
                 let score = |k: usize| -> f64 {

@@ -52,7 +52,9 @@ pub struct CvArgs {
     /// plans by --plans, held-out materials reconstructed from -n samples.
     #[arg(long)]
     pub acquisition: bool,
-    /// --acquisition: plan criteria, comma-separated (error, condition, random).
+    /// --acquisition: plan criteria, comma-separated (error, condition, random, nielsen:
+    /// the peer baseline of Nielsen et al. 2015 with its own PCA, plan and ridge
+    /// reconstruction, at most 500 candidates per step).
     #[arg(long, value_delimiter = ',', default_value = "error,condition,random")]
     pub plans: Vec<brdf_basis::acquire::Criterion>,
     /// --acquisition: sample counts, comma-separated.
@@ -69,7 +71,8 @@ pub struct CvArgs {
     #[arg(long, default_value_t = 32)]
     pub shortlist: usize,
     /// --acquisition: also write the figure (held-out mean rho against n, one line per
-    /// plan, log scale) as this PNG.
+    /// plan, log scale; below it the renders of one held-out material: target, dense fit,
+    /// reconstructions from each n by the first plan) as this PNG.
     #[arg(long)]
     pub figure: Option<PathBuf>,
 }

@@ -22,7 +22,9 @@ pub struct PlanArgs {
     #[arg(short = 'n', default_value_t = 20)]
     pub n: usize,
     /// error (greedy on the mean training score), condition (greedy on the condition
-    /// number of the sampled design) or random.
+    /// number of the sampled design) or random. (`nielsen`, the peer baseline, has its own
+    /// reconstructor, which `fit --samples` does not run: `cv --acquisition --plans nielsen`
+    /// compares it.)
     #[arg(long, value_enum, default_value_t = Criterion::Error)]
     pub criterion: Criterion,
     /// Training materials, comma-separated [default: every material outside the basis].
@@ -49,6 +51,11 @@ pub struct PlanArgs {
 
 /// Plans the samples.
 pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
+    if a.criterion == Criterion::Nielsen {
+        anyhow::bail!(
+            "--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random (SPEC-cli), and `cv --acquisition --plans nielsen` compares the baseline"
+        );
+    }
     let mut op = OutputPlan::new(&a.collection);
     op.file(&a.out, "--out")?;
     if let Some(j) = &a.json {

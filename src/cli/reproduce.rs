@@ -9,7 +9,7 @@ use brdf_basis::atomic::OutputPlan;
 use brdf_basis::eval::image_error::DisplayParams;
 use brdf_basis::experiment::bases::read_paper_bases;
 use brdf_basis::experiment::layout;
-use brdf_basis::experiment::report::ReportContext;
+use brdf_basis::experiment::report::{AcquisitionReport, ReportContext};
 use brdf_basis::experiment::{run as run_experiment, ExperimentParams, Stage, StageTiming};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -64,6 +64,11 @@ pub struct ReproduceArgs {
     /// Leave out the bases chosen by fitting error (greedy, swap).
     #[arg(long)]
     pub no_selection: bool,
+    /// Leave out the acquisition cross-validation (SPEC 10; otherwise run with
+    /// --cv-folds folds, greedy bases, plans error, condition, random and nielsen, n = 5,
+    /// 10, 20, noise 0 and 2%).
+    #[arg(long)]
+    pub no_acquisition: bool,
 }
 
 /// Runs everything.
@@ -100,7 +105,7 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     brdf_basis::plot::font()?; // an unusable BRDF_BASIS_FONT is refused before any work
     let mut out = plan.into_set()?;
     let root = out.tree_root(&a.out)?;
-    let written = run_into(g, &coll, &params, &root)?;
+    let written = run_into(g, &coll, &params, &root, !a.no_acquisition)?;
     out.commit()?;
     for f in &written {
         println!("wrote {}", a.out.join(f).display());
@@ -121,6 +126,7 @@ fn run_into(
     coll: &brdf_basis::collection::Collection,
     params: &brdf_basis::experiment::ValidExperimentParams,
     root: &Path,
+    acquisition: bool,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let backend = super::backend(g)?;
     let bars = StageBars::new(g);
@@ -128,6 +134,13 @@ fn run_into(
         bars.update(s, d, t)
     })?;
     bars.finish();
+    let t_acq = Instant::now();
+    let acq = if acquisition {
+        Some(run_acquisition(g, backend.as_ref(), coll, params.params())?)
+    } else {
+        None
+    };
+    let acq_seconds = t_acq.elapsed().as_secs_f64();
 
     let t_files = Instant::now();
     let scale = brdf_basis::plot::showcase::common_scale(
@@ -136,6 +149,17 @@ fn run_into(
     )?;
     let mut written = layout::write_files(&e, root, scale)?;
     let mut ctx = ReportContext::default();
+    if let Some(a) = acq {
+        ctx.timings.push(StageTiming {
+            stage: "acquisition".into(),
+            seconds: acq_seconds,
+        });
+        if a.skipped.is_none() {
+            brdf_basis::io::json::write_json(&root.join(layout::ACQUISITION), &a.cv)?;
+            written.push(PathBuf::from(layout::ACQUISITION));
+        }
+        ctx.acquisition = Some(a);
+    }
     ctx.timings.push(StageTiming {
         stage: "files".into(),
         seconds: t_files.elapsed().as_secs_f64(),
@@ -144,6 +168,12 @@ fn run_into(
     let figures = root.join(layout::FIGURES);
     std::fs::create_dir(&figures).with_context(|| format!("{}", figures.display()))?;
     super::plot::write_report_figures(&e, &figures, &mut ctx)?;
+    if let Some(a) = ctx.acquisition.as_ref().filter(|a| a.skipped.is_none()) {
+        let fig = brdf_basis::acquire::figure::rho_vs_n(&a.cv)?;
+        super::plot::write_figure(&figures, &fig)?;
+        ctx.figures
+            .push((fig.stem.clone(), format!("figures/{}.png", fig.stem)));
+    }
     for (stem, _) in &ctx.figures {
         for ext in ["svg", "png"] {
             written.push(Path::new(layout::FIGURES).join(format!("{stem}.{ext}")));
@@ -155,6 +185,86 @@ fn run_into(
     });
     written.extend(layout::write_summary_and_report(&e, &ctx, root)?);
     Ok(written)
+}
+
+/// The acquisition cross-validation of the report (SPEC 10), with settings kept modest:
+/// `--cv-folds` folds, greedy bases of k = 12 (fewer when the training folds are small),
+/// plans error, condition, random and nielsen, n = 5, 10, 20, noise 0 and 2%, the run's
+/// grid stride, renders of at most 64 px; on collections of more than 40 materials 2,000
+/// candidates per plan step (10,000 otherwise), a grid stride of at least 2 and noise 0
+/// only.
+fn run_acquisition(
+    g: &Global,
+    backend: &dyn brdf_basis::backend::Backend,
+    coll: &brdf_basis::collection::Collection,
+    p: &ExperimentParams,
+) -> anyhow::Result<AcquisitionReport> {
+    use brdf_basis::acquire::{acquisition_cv, AcqCvParams, Criterion};
+    let n = coll.len();
+    let skip = |why: String| AcquisitionReport {
+        cv: brdf_basis::acquire::AcqCv {
+            folds: vec![],
+            seed: g.seed,
+            select: brdf_basis::acquire::cv::AcqSelect {
+                method: String::new(),
+                k: 0,
+            },
+            k: 0,
+            candidates_per_step: 0,
+            results: vec![],
+            collection_fingerprint: coll.fingerprint(),
+            showcase: None,
+        },
+        settings: String::new(),
+        skipped: Some(why),
+    };
+    if p.cv_folds < 2 {
+        return Ok(skip("no cross-validation folds (--cv-folds 0)".into()));
+    }
+    let train = n - n.div_ceil(p.cv_folds);
+    let k = 12.min(train.saturating_sub(1));
+    if k == 0 {
+        return Ok(skip(format!(
+            "{n} materials in {} folds leave no training material outside a basis",
+            p.cv_folds
+        )));
+    }
+    // Big collections: fewer candidates per step, every other cell on each axis, no
+    // noisy repeat (the noise-free table is the comparison).
+    let big = n > 40;
+    let per_step = if big { 2_000 } else { 10_000 };
+    let stride = if big { p.stride.max(2) } else { p.stride };
+    let ap = AcqCvParams {
+        k,
+        plans: vec![
+            Criterion::Error,
+            Criterion::Condition,
+            Criterion::Random,
+            Criterion::Nielsen,
+        ],
+        folds: p.cv_folds,
+        seed: g.seed,
+        candidates_per_step: per_step,
+        render_size: p.render_size.min(64),
+        objective: brdf_basis::select::ObjectiveParams::default().stride(stride),
+        noises: if big { vec![0.0] } else { vec![0.0, 0.02] },
+        ..AcqCvParams::default()
+    };
+    let settings = format!(
+        "{} folds, greedy k = {k}, plans error, condition, random, nielsen; n = {}; noise {}; {} candidates per plan step (nielsen: 500, as published); grid stride {}; {} px renders",
+        ap.folds,
+        ap.ns.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(", "),
+        ap.noises.iter().map(|v| format!("{}%", v * 100.0)).collect::<Vec<_>>().join(", "),
+        per_step,
+        stride,
+        ap.render_size
+    );
+    let cv = acquisition_cv(backend, coll, &ap)?;
+    Ok(AcquisitionReport {
+        cv,
+        settings,
+        skipped: None,
+    })
 }
 
 /// One progress bar per stage.

@@ -42,6 +42,9 @@ pub const REPORT: &str = "report.md";
 pub const SUMMARY: &str = "summary.json";
 /// The directory of the figures.
 pub const FIGURES: &str = "figures";
+/// The acquisition cross-validation (`reproduce`'s "Acquisition" section).
+pub const ACQUISITION: &str = "acquisition.json";
+
 /// The directory of the showcase renders.
 pub const RENDERS: &str = "renders";
 
@@ -60,6 +63,7 @@ pub fn is_output(name: &str) -> bool {
             | "summary.json"
             | "selection.json"
             | "cv.json"
+            | "acquisition.json"
             | "renders"
             | "figures"
     ) || (name.starts_with("fit-") && name.ends_with(".json"))

@@ -19,6 +19,19 @@ pub struct ReportContext {
     pub notes: Vec<String>,
     /// Extra stage timings.
     pub timings: Vec<StageTiming>,
+    /// The acquisition cross-validation run beside the experiment (SPEC 10), if any.
+    pub acquisition: Option<AcquisitionReport>,
+}
+
+/// The acquisition cross-validation of the report's "Acquisition" section.
+#[derive(Clone, Debug)]
+pub struct AcquisitionReport {
+    /// The cross-validation (`acquisition.json`).
+    pub cv: crate::acquire::AcqCv,
+    /// Its settings, in words (folds, k, plans, n, noise, candidates per step, stride).
+    pub settings: String,
+    /// Why it was not run, instead of a result.
+    pub skipped: Option<String>,
 }
 
 impl ReportContext {
@@ -47,6 +60,7 @@ pub const SECTIONS: &[Section] = &[
     bases,
     fits,
     cross_validation,
+    acquisition,
     lobes,
     claims,
     timings,
@@ -287,6 +301,45 @@ fn cross_validation(e: &Experiment, _: &ReportContext, s: &mut String) {
     let _ = writeln!(s, "The fits above score every basis on the materials outside all bases, and the error-driven bases (greedy, swap) were chosen on those very materials. Here each method chooses its basis from the training folds only (clustering on the BRDF_it matrix restricted to them, empirical on its own leave-one-out) and every held-out material is fitted by it. rho: relative residual of the fit (SPEC 8); `cv.json` has every fold's bases and every held-out value.\n");
     s.push_str(&cv.markdown());
     s.push('\n');
+}
+
+fn acquisition(_: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let Some(a) = &ctx.acquisition else {
+        return;
+    };
+    let _ = writeln!(s, "\n## Acquisition (SPEC 10)\n");
+    if let Some(why) = &a.skipped {
+        let _ = writeln!(s, "Not run: {why}.\n");
+        return;
+    }
+    let _ = writeln!(s, "A new material from a few measured samples: per fold a basis chosen on the training materials, plans chosen on them, each held-out material measured at the plan's first n samples (simulated, `f (1 + noise N(0, 1))`), fitted from them by NNLS (error, condition, random) and scored on the whole evaluation mask against its own values: rho (relative residual), MAE and the image error of its render. `nielsen` is the peer baseline (Nielsen, Jensen & Ramamoorthi 2015: log-mapped cosine-weighted PCA of every training material's channels, condition-number plan with local moves, ridge reconstruction with eta = 40), with its own reconstructor; its `dense rho` column is our basis's, for reference. Settings: {}. `acquisition.json` has every fold's basis, plan and held-out value.\n", a.settings);
+    s.push_str(&a.cv.markdown());
+    s.push('\n');
+    // Ours against the baseline, noise-free, at each n.
+    let first = a.cv.results.first().map(|r| r.method.clone()).unwrap_or_default();
+    let at = |plan: crate::acquire::Criterion, n: usize| {
+        a.cv
+            .results
+            .iter()
+            .find(|r| r.method == first && r.plan == plan && r.n == n && r.noise == 0.0)
+    };
+    let mut ns: Vec<usize> = a.cv.results.iter().map(|r| r.n).collect();
+    ns.sort_unstable();
+    ns.dedup();
+    for n in ns {
+        if let (Some(e), Some(b)) = (
+            at(crate::acquire::Criterion::Error, n),
+            at(crate::acquire::Criterion::Nielsen, n),
+        ) {
+            let word = |ours: f64, theirs: f64| if ours < theirs { "beats" } else { "does not beat" };
+            let _ = writeln!(s, "* n = {n}, noise-free: the error plan {} nielsen on mean rho ({} vs {}) and {} it on mean image error ({} vs {}).", word(e.mean_rho, b.mean_rho), num(e.mean_rho), num(b.mean_rho), word(e.mean_image_error, b.mean_image_error), num(e.mean_image_error), num(b.mean_image_error));
+        }
+    }
+    let caption = match &a.cv.showcase {
+        Some(sh) => format!("Acquisition: held-out mean rho against n (noise-free, log scale; dashed: the dense fit); below, held-out `{}` (fold {}, median rho at the largest n by the {} plan): target, dense fit and reconstructions from n samples", sh.material, sh.fold + 1, sh.plan.as_str()),
+        None => "Acquisition: held-out mean rho against n (noise-free, log scale; dashed: the dense fit)".into(),
+    };
+    ctx.figure(s, "acquisition-rho", &caption);
 }
 
 fn lobes(e: &Experiment, ctx: &ReportContext, s: &mut String) {
