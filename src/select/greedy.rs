@@ -28,6 +28,9 @@ pub(crate) fn greedy_indices(
     Ok(greedy_screened(obj, p, progress)?.0)
 }
 
+/// The basis, the exact scores computed per step and the history of [`greedy_screened`].
+type Screened = (Vec<usize>, Vec<usize>, Vec<f64>);
+
 /// [`greedy_indices`], the number of exact scores computed per step and the history
 /// `S(B_i; T)`, `i = 1..=k` (as [`Objective::score`] computes it, bit for bit: from the
 /// states of each step's basis).
@@ -35,7 +38,7 @@ pub(crate) fn greedy_screened(
     obj: &Objective,
     p: &ValidSearchParams,
     progress: Progress<'_>,
-) -> Result<(Vec<usize>, Vec<usize>, Vec<f64>), SelectionError> {
+) -> Result<Screened, SelectionError> {
     let mut basis: Vec<usize> = Vec::with_capacity(p.k);
     let mut evaluated = Vec::with_capacity(p.k);
     let mut history = Vec::with_capacity(p.k);

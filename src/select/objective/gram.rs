@@ -263,7 +263,9 @@ mod tests {
                         let (a, b) = (g[i * m + j], want[i * m + j]);
                         let scale = (g[i * m + i] * g[j * m + j]).sqrt();
                         worst = worst.max((a - b).abs() / scale);
-                        assert_eq!(g[i * m + j], g[j * m + i], "symmetric ({i}, {j})");
+                        // Symmetric to rounding (the cosine matrix averages both halves).
+                        let asym = (g[i * m + j] - g[j * m + i]).abs() / scale;
+                        assert!(asym <= 1e-14, "({i}, {j}) asymmetric by {asym:e}");
                     }
                 }
                 assert!(
