@@ -291,11 +291,11 @@ fn nielsen_reconstructs_a_training_material_and_plans_nested() {
         .collect();
     let mut worst = 0.0f64;
     let mut worst_ridge = 0.0f64;
-    for ch in 0..3 {
-        let y: Vec<f64> = plan_.iter().map(|&j| vals[ch][j]).collect();
+    for v_ch in &vals {
+        let y: Vec<f64> = plan_.iter().map(|&j| v_ch[j]).collect();
         let exact = model.coefficients(&plan_, &y, 0.0);
         let ridge = model.coefficients(&plan_, &y, ETA);
-        for (j, &v) in vals[ch].iter().enumerate() {
+        for (j, &v) in v_ch.iter().enumerate() {
             let rel = |x: f64| (x - v).abs() / v.max(1e-3);
             worst = worst.max(rel(model.value(j, &exact)));
             worst_ridge = worst_ridge.max(rel(model.value(j, &ridge)));

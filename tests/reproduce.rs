@@ -125,6 +125,7 @@ fn reproduce_report_matches_its_files_and_figures() {
         "fig4b-image-error",
         "fig5-showcase",
         "lobes-showcase",
+        "acquisition-rho",
     ] {
         assert!(
             report.contains(&format!("](figures/{stem}.png)")),
@@ -141,6 +142,22 @@ fn reproduce_report_matches_its_files_and_figures() {
         assert!(svg.contains("<svg") && svg.len() > 2000, "{stem}.svg");
     }
     assert!(report.contains("## The paper's claims") && report.contains("## Timings"));
+    // Acquisition: the table of acquisition.json, the baseline beside our plans, and the
+    // settings said.
+    let acq: brdf_basis::acquire::AcqCv = read(&out.join("acquisition.json"));
+    assert!(report.contains("## Acquisition (SPEC 10)") && report.contains("grid stride 6"));
+    assert!(acq.results.iter().any(|r| r.plan == brdf_basis::acquire::Criterion::Nielsen));
+    for r in &acq.results {
+        let row = format!(
+            "| {} | {} | {} | {} | {} |",
+            r.method,
+            r.plan.as_str(),
+            r.n,
+            brdf_basis::stats::num(r.noise),
+            brdf_basis::stats::num(r.mean_rho)
+        );
+        assert!(report.contains(&row), "missing {row}");
+    }
     // A second run into the same directory is refused; --force clears it.
     let o = quick(&out).output().expect("run");
     assert!(!o.status.success());

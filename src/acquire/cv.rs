@@ -506,6 +506,7 @@ fn measure(
 
 /// Per-channel sample fit (Lambertian + basis, SPEC 10) of the first `ns` samples:
 /// `vals[c][b][s]` the basis values, `y[c]` the measurements.
+#[allow(clippy::needless_range_loop)]
 fn sample_coefficients(
     nb: usize,
     vals: &[Vec<Vec<f64>>; 3],
@@ -525,6 +526,9 @@ fn sample_coefficients(
     Ok(x)
 }
 
+/// `(rho, MAE, image error)` of one reconstruction.
+type Scores = (f64, f64, f64);
+
 /// What the `nielsen` rows of one fold share.
 struct NielsenFold<'a> {
     coll: &'a Collection,
@@ -543,7 +547,7 @@ fn nielsen_rows(
     p: &AcqCvParams,
     ti: usize,
     original: &Image,
-) -> Result<Vec<Vec<(f64, f64, f64)>>, AcquireError> {
+) -> Result<Vec<Vec<Scores>>, AcquireError> {
     let cpu = CpuBackend::new();
     let data = &nf.coll.materials()[ti].data;
     let tv: Vec<Vec<f64>> = (0..3)
