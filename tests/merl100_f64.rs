@@ -5,6 +5,8 @@
 //! with the Lambertian column; `rho` and `S` as SPEC 8 defines them. Nothing here calls the
 //! library except through the command line.
 
+#![allow(clippy::needless_range_loop)]
+
 use crate::common;
 use rayon::prelude::*;
 use std::f64::consts::PI;
