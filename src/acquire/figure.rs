@@ -48,6 +48,13 @@ impl Draw for RhoVsN<'_> {
         if !lo.is_finite() {
             return Ok(());
         }
+        // The axis spans at most OFF_SCALE times the dense limit: an ill-posed plan's mean
+        // (random plans reach 1e28) would otherwise flatten every other line onto the
+        // limit. Larger means sit on the top edge as open triangles with their value.
+        let dense = rows.iter().map(|r| r.mean_dense_rho).next().unwrap_or(lo);
+        let cap = if dense > 0.0 { dense * OFF_SCALE } else { hi };
+        let hi = hi.min(cap);
+        let lo = lo.min(hi);
         let nmax = rows.iter().map(|r| r.n).max().unwrap_or(1) as f64;
         let mut b = ChartBuilder::on(root);
         b.margin(12);
@@ -82,11 +89,12 @@ impl Draw for RhoVsN<'_> {
                 .map_err(|e| e2s(&e))?;
         }
         for (i, plan) in plans.iter().enumerate() {
-            let pts: Vec<(f64, f64)> = rows
+            let raw: Vec<(f64, f64)> = rows
                 .iter()
                 .filter(|r| r.plan.as_str() == *plan)
                 .map(|r| (r.n as f64, r.mean_rho))
                 .collect();
+            let pts: Vec<(f64, f64)> = raw.iter().map(|&(x, y)| (x, y.min(cap))).collect();
             let c = series_colour(i);
             let s = chart
                 .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
@@ -97,10 +105,27 @@ impl Draw for RhoVsN<'_> {
                 });
             }
             chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled())))
+                .draw_series(
+                    raw.iter()
+                        .filter(|p| p.1 <= cap)
+                        .map(|&p| Circle::new(p, 3, c.filled())),
+                )
                 .map_err(|e| e2s(&e))?;
+            for &(x, y) in raw.iter().filter(|p| p.1 > cap) {
+                chart
+                    .draw_series(std::iter::once(TriangleMarker::new((x, cap), 6, c)))
+                    .map_err(|e| e2s(&e))?;
+                if text {
+                    chart
+                        .draw_series(std::iter::once(Text::new(
+                            format!("{y:.1e}"),
+                            (x + 0.2, cap * 1.8),
+                            (FONT, 11).into_font().color(&c),
+                        )))
+                        .map_err(|e| e2s(&e))?;
+                }
+            }
         }
-        let dense = rows.iter().map(|r| r.mean_dense_rho).next().unwrap_or(lo);
         let grey = RGBColor(90, 90, 90);
         let s = chart
             .draw_series(DashedLineSeries::new(
@@ -126,6 +151,10 @@ impl Draw for RhoVsN<'_> {
         Ok(())
     }
 }
+
+/// The rho axis ends at this multiple of the dense fit's mean rho (larger means are
+/// marked off scale on the top edge).
+const OFF_SCALE: f64 = 1e3;
 
 /// Render tiles' size in pixels.
 const TILE: u32 = 128;

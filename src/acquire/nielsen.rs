@@ -416,22 +416,52 @@ impl NielsenModel {
             .map(|&i| i as usize)
     }
 
+    /// The model cell nearest to every MERL cell (breadth-first over the grid's six index
+    /// neighbours, no wrap; ties to the first reached): renders read the reconstruction at
+    /// cells the model does not hold (outside the evaluation mask, or between the cells of
+    /// a strided grid) from their nearest model cell, never as 0.
+    fn nearest_model_cells(&self) -> Vec<u32> {
+        let mut near = self.index.clone();
+        let mut queue: std::collections::VecDeque<usize> =
+            self.cells.iter().map(|&c| c as usize).collect();
+        while let Some(cell) = queue.pop_front() {
+            let (a, b, c) = unflat(cell);
+            let m = near[cell];
+            let dims = [(a, N_TH), (b, N_TD), (c, N_PD)];
+            for (d, &(v, len)) in dims.iter().enumerate() {
+                for nv in [v.checked_sub(1), Some(v + 1).filter(|&x| x < len)]
+                    .into_iter()
+                    .flatten()
+                {
+                    let mut idx = [a, b, c];
+                    idx[d] = nv;
+                    let f = flat(idx[0], idx[1], idx[2]);
+                    if near[f] == u32::MAX {
+                        near[f] = m;
+                        queue.push_back(f);
+                    }
+                }
+            }
+        }
+        near
+    }
+
     /// The reconstruction (per-channel coefficients) as a BRDF for renders: the value of
-    /// the MERL cell a direction pair falls in; a pair outside the model's cells (beyond
-    /// 80 degrees) reads the cell of its directions lowered to 80 degrees, else 0.
+    /// the model cell nearest to the MERL cell a direction pair falls in (the model holds
+    /// the evaluation-mask cells of its grid stride only; see
+    /// [`Self::nearest_model_cells`]); 0 below the horizon.
     pub fn brdf<'a>(
         &'a self,
         coef: &'a [Vec<f64>; 3],
     ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 'a {
+        let near = self.nearest_model_cells();
         move |wi, wo| {
             if wi[2] <= 0.0 || wo[2] <= 0.0 {
                 return [0.0; 3];
             }
-            let at = |wi, wo| self.index_of(lookup(wi, wo) as u32);
-            let j = at(wi, wo).or_else(|| at(lower(wi), lower(wo)));
-            match j {
-                Some(j) => [0, 1, 2].map(|c| self.value(j, &coef[c])),
-                None => [0.0; 3],
+            match near[lookup(wi, wo)] {
+                u32::MAX => [0.0; 3],
+                j => [0, 1, 2].map(|c| self.value(j as usize, &coef[c])),
             }
         }
     }
@@ -499,19 +529,6 @@ pub fn nielsen_per_step(requested: usize) -> usize {
     } else {
         requested.min(CANDIDATES_PER_STEP)
     }
-}
-
-/// A unit direction lowered to at most 79.9 degrees from the normal (same azimuth).
-fn lower(d: [f64; 3]) -> [f64; 3] {
-    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-    let z = d[2] / l;
-    let zmin = 79.9f64.to_radians().cos();
-    if z >= zmin {
-        return d;
-    }
-    let h = (d[0] * d[0] + d[1] * d[1]).sqrt().max(f64::MIN_POSITIVE);
-    let s = (1.0 - zmin * zmin).sqrt();
-    [d[0] / h * s, d[1] / h * s, zmin]
 }
 
 /// Solves the symmetric positive definite `a x = b` in place (`b` becomes `x`) by Cholesky.
