@@ -449,7 +449,7 @@ impl NielsenModel {
     /// The reconstruction (per-channel coefficients) as a BRDF for renders: the value of
     /// the model cell nearest to the MERL cell a direction pair falls in (the model holds
     /// the evaluation-mask cells of its grid stride only; see
-    /// [`Self::nearest_model_cells`]); 0 below the horizon.
+    /// `nearest_model_cells`); 0 below the horizon.
     pub fn brdf<'a>(
         &'a self,
         coef: &'a [Vec<f64>; 3],
@@ -467,7 +467,7 @@ impl NielsenModel {
     }
 }
 
-/// [`super::plan`] with the `nielsen` criterion: the model trained on `basis` and
+/// [`super::plan()`] with the `nielsen` criterion: the model trained on `basis` and
 /// `targets` together (the peer has no basis: every training material is an observation)
 /// over `cands` (cell centres only), keeping `p.n` components, and its plan of `p.n`
 /// samples with [`CANDIDATES_PER_STEP`] candidates per step (`p.candidates_per_step` when

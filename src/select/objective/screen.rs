@@ -380,7 +380,7 @@ pub(super) fn refine(
     Ok(Some(total / bound.count as f64))
 }
 
-/// Largest tie tolerance for which [`best_first`] orders the exact scores by their bounds
+/// Largest tie tolerance for which `best_first` orders the exact scores by their bounds
 /// (its cutoffs assume a small tolerance); above it, candidates go in collection order.
 pub const BEST_FIRST_TOL_MAX: f64 = 1e-6;
 
