@@ -15,8 +15,6 @@
 
 pub mod cv;
 pub mod eval;
-#[cfg(feature = "plot")]
-pub mod figure;
 pub mod fit;
 pub mod linalg;
 pub mod nielsen;

@@ -185,32 +185,40 @@ impl NielsenModel {
             }
             x
         };
-        // Pass 1: medians, means and the Gram matrix of the centred observations.
-        let gram = med
-            .par_chunks_mut(BLOCK)
-            .zip(mean.par_chunks_mut(BLOCK))
-            .zip(cells.par_chunks(BLOCK).zip(w.par_chunks(BLOCK)))
-            .zip(norm2.par_chunks_mut(BLOCK))
-            .map(|(((md, mu), (block, wb)), n2)| {
-                let x = centred(block, wb, md, mu, true);
-                for (j, v) in n2.iter_mut().enumerate() {
-                    *v = x.iter().map(|xo| xo[j] * xo[j]).sum();
-                }
-                let mut g = vec![0.0; nobs * nobs];
-                for a in 0..nobs {
-                    for b in 0..=a {
-                        g[a * nobs + b] = dot(&x[a], &x[b]);
+        // Pass 1: medians, means and the Gram matrix of the centred observations. The
+        // blocks' Gram matrices are added in block order (groups of GROUP blocks run in
+        // parallel, then summed sequentially): the same bits on every run and back-end,
+        // whatever rayon's splitting.
+        const GROUP: usize = 16;
+        let mut gram = vec![0.0; nobs * nobs];
+        let blocks: Vec<_> = med
+            .chunks_mut(BLOCK)
+            .zip(mean.chunks_mut(BLOCK))
+            .zip(cells.chunks(BLOCK).zip(w.chunks(BLOCK)))
+            .zip(norm2.chunks_mut(BLOCK))
+            .collect();
+        let mut blocks = blocks;
+        for group in blocks.chunks_mut(GROUP) {
+            let parts: Vec<Vec<f64>> = group
+                .par_iter_mut()
+                .map(|(((md, mu), (block, wb)), n2)| {
+                    let x = centred(block, wb, md, mu, true);
+                    for (j, v) in n2.iter_mut().enumerate() {
+                        *v = x.iter().map(|xo| xo[j] * xo[j]).sum();
                     }
-                }
-                g
-            })
-            .reduce(
-                || vec![0.0; nobs * nobs],
-                |mut a, b| {
-                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
+                    let mut g = vec![0.0; nobs * nobs];
+                    for a in 0..nobs {
+                        for b in 0..=a {
+                            g[a * nobs + b] = dot(&x[a], &x[b]);
+                        }
+                    }
+                    g
+                })
+                .collect();
+            for g in parts {
+                gram.iter_mut().zip(&g).for_each(|(x, y)| *x += y);
+            }
+        }
         let mut gram = gram;
         for a in 0..nobs {
             for b in 0..a {

@@ -197,7 +197,7 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
         out.stage(m, |w| w.write_all(md.as_bytes()))?;
     }
     if let Some(f) = &a.figure {
-        let fig = brdf_basis::acquire::figure::rho_vs_n(&res)?;
+        let fig = brdf_basis::plot::acquisition::rho_vs_n(&res)?;
         let bytes =
             brdf_basis::io::image::rgb8_png_bytes(f, fig.png.width, fig.png.height, &fig.png.data)?;
         out.stage(f, |w| w.write_all(&bytes))?;

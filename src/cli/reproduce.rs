@@ -169,7 +169,7 @@ fn run_into(
     std::fs::create_dir(&figures).with_context(|| format!("{}", figures.display()))?;
     super::plot::write_report_figures(&e, &figures, &mut ctx)?;
     if let Some(a) = ctx.acquisition.as_ref().filter(|a| a.skipped.is_none()) {
-        let fig = brdf_basis::acquire::figure::rho_vs_n(&a.cv)?;
+        let fig = brdf_basis::plot::acquisition::rho_vs_n(&a.cv)?;
         super::plot::write_figure(&figures, &fig)?;
         ctx.figures
             .push((fig.stem.clone(), format!("figures/{}.png", fig.stem)));

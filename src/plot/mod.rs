@@ -12,6 +12,7 @@
 //!
 //! [`report::report_figures`] builds the whole figure set of `reproduce`'s report.
 
+pub mod acquisition;
 pub mod charts;
 pub mod heatmap;
 pub mod legend;

@@ -558,31 +558,6 @@ mod tests {
     }
 
     #[test]
-    fn best_first_keeps_the_ties_of_the_exhaustive_greedy() {
-        use crate::select::greedy::{greedy_exhaustive, greedy_with_counts};
-        use crate::select::SearchParams;
-        // Exact copies (other names, same parameters) tie with their originals: the chain
-        // must still choose the earliest, as the exhaustive sweep does.
-        let src = crate::collection::DEFAULT_COLLECTION_CSV;
-        let mut csv = src.trim_end().to_string();
-        csv.push('\n');
-        for row in src.lines().skip(1).step_by(3) {
-            let (name, rest) = row.split_once(',').expect("row");
-            csv.push_str(&format!("copy-{name},{rest}\n"));
-        }
-        let coll = crate::collection::parse_csv(csv.as_bytes(), std::path::Path::new("<test>"))
-            .expect("collection");
-        let p = ObjectiveParams::default().stride(3).check().expect("p");
-        let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
-        for k in [6, 15] {
-            let sp = SearchParams::new(k).check(obj.names()).expect("sp");
-            let exact = greedy_exhaustive(&obj, &sp, &|_, _| {}).expect("exhaustive");
-            let (fast, _) = greedy_with_counts(&obj, &sp, &|_, _| {}).expect("screened");
-            assert_eq!(fast, exact, "k {k}");
-        }
-    }
-
-    #[test]
     fn the_bounds_never_exceed_the_exact_scores() {
         let coll = Collection::embedded_default();
         let p = ObjectiveParams::default().stride(2).check().expect("p");

@@ -4,9 +4,9 @@
 //! material, its dense fit and its reconstructions from each n (caption: which material,
 //! fold, basis and plan).
 
-use super::cv::{AcqCv, AcqShowcase};
+use crate::acquire::cv::{AcqCv, AcqShowcase};
 use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
-use crate::plot::{figure, series_colour, Draw, Figure, PlotError};
+use super::{figure, series_colour, Draw, Figure, PlotError};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -252,7 +252,7 @@ impl Renders {
                 format!(
                     "Dense fit and reconstructions from the plan's first n samples by its fold's {} k = {k} basis{}.",
                     s.method,
-                    if s.plan == super::Criterion::Nielsen {
+                    if s.plan == crate::acquire::Criterion::Nielsen {
                         " (nielsen: its own PCA and ridge)"
                     } else {
                         ""
