@@ -191,13 +191,12 @@ impl NielsenModel {
         // whatever rayon's splitting.
         const GROUP: usize = 16;
         let mut gram = vec![0.0; nobs * nobs];
-        let blocks: Vec<_> = med
+        let mut blocks: Vec<_> = med
             .chunks_mut(BLOCK)
             .zip(mean.chunks_mut(BLOCK))
             .zip(cells.chunks(BLOCK).zip(w.chunks(BLOCK)))
             .zip(norm2.chunks_mut(BLOCK))
             .collect();
-        let mut blocks = blocks;
         for group in blocks.chunks_mut(GROUP) {
             let parts: Vec<Vec<f64>> = group
                 .par_iter_mut()
@@ -219,7 +218,6 @@ impl NielsenModel {
                 gram.iter_mut().zip(&g).for_each(|(x, y)| *x += y);
             }
         }
-        let mut gram = gram;
         for a in 0..nobs {
             for b in 0..a {
                 gram[b * nobs + a] = gram[a * nobs + b];
