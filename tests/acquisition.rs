@@ -312,10 +312,22 @@ fn nielsen_reconstructs_a_training_material_and_plans_nested() {
     };
     let a = plan(&be, &c, &[0], &[1, 2], &cands, &p).unwrap();
     assert_eq!(a, plan(&be, &c, &[0], &[1, 2], &cands, &p).unwrap());
-    let short = plan(&be, &c, &[0], &[1, 2], &cands, &PlanParams { n: 2, ..p.clone() }).unwrap();
+    let short = plan(
+        &be,
+        &c,
+        &[0],
+        &[1, 2],
+        &cands,
+        &PlanParams { n: 2, ..p.clone() },
+    )
+    .unwrap();
     assert_eq!(short.samples[..], a.samples[..2]);
     assert_eq!(a.candidates_per_step, 500);
-    assert!(a.history.iter().all(|h| h.is_finite() && *h >= 1.0), "{:?}", a.history);
+    assert!(
+        a.history.iter().all(|h| h.is_finite() && *h >= 1.0),
+        "{:?}",
+        a.history
+    );
 }
 
 /// `cv --acquisition` runs the baseline beside our plans: one row per plan, n and noise,
@@ -356,10 +368,20 @@ fn acquisition_cv_runs_the_nielsen_baseline() {
             .find(|x| x.plan == Criterion::Nielsen && x.n == n && x.noise == noise)
             .unwrap()
     };
-    assert_eq!(get(3, 0.0).fold_plans[0][..], get(6, 0.0).fold_plans[0][..3]);
-    assert_ne!(get(6, 0.0).mean_rho, get(6, 0.02).mean_rho, "noise changes the measurements");
+    assert_eq!(
+        get(3, 0.0).fold_plans[0][..],
+        get(6, 0.0).fold_plans[0][..3]
+    );
+    assert_ne!(
+        get(6, 0.0).mean_rho,
+        get(6, 0.02).mean_rho,
+        "noise changes the measurements"
+    );
     let md = r.markdown();
-    assert!(md.contains("| nielsen | 6 |") && md.contains("dense fit (the limit)"), "{md}");
+    assert!(
+        md.contains("| nielsen | 6 |") && md.contains("dense fit (the limit)"),
+        "{md}"
+    );
     let sh = r.showcase.as_ref().expect("showcase");
     assert_eq!(sh.plan, Criterion::Condition);
     assert_eq!(sh.tiles.len(), 3, "dense fit, n = 3, n = 6");

@@ -49,7 +49,12 @@ fn read_npy(path: &Path) -> (Vec<usize>, Vec<f32>) {
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect();
-    assert_eq!(data.len(), shape.iter().product::<usize>(), "{}", path.display());
+    assert_eq!(
+        data.len(),
+        shape.iter().product::<usize>(),
+        "{}",
+        path.display()
+    );
     (shape, data)
 }
 
@@ -294,7 +299,11 @@ impl Problem {
     /// Lawson-Hanson active set (any `m`): the optimum value.
     fn lawson_hanson(&self) -> f64 {
         let m = self.m;
-        let scale = self.h.iter().fold(0.0f64, |a, &v| a.max(v.abs())).max(1e-300);
+        let scale = self
+            .h
+            .iter()
+            .fold(0.0f64, |a, &v| a.max(v.abs()))
+            .max(1e-300);
         let mut x = vec![0.0; m];
         let mut passive: Vec<usize> = Vec::new();
         for _ in 0..(3 * m + 10) {
@@ -339,7 +348,9 @@ impl Problem {
 /// rho(t; basis) of SPEC 8 from the Gram matrices (collection indices; 0-based materials,
 /// Gram index + 1), by `solve`.
 fn rho(g: &[Vec<f64>; 3], n: usize, basis: &[usize], t: usize, solve: fn(&Problem) -> f64) -> f64 {
-    let cols: Vec<usize> = std::iter::once(0).chain(basis.iter().map(|&b| b + 1)).collect();
+    let cols: Vec<usize> = std::iter::once(0)
+        .chain(basis.iter().map(|&b| b + 1))
+        .collect();
     let (mut num, mut den) = (0.0, 0.0);
     for gc in g {
         let p = Problem::new(gc, n + 1, &cols, t + 1);
@@ -398,7 +409,11 @@ fn own_f64_network_reproduces_the_check_values_and_the_mask_count() {
         rows += 1;
     }
     assert_eq!(rows, 25);
-    assert_eq!(mask_features(1).len(), 894_396, "SPEC 2's evaluation-mask count");
+    assert_eq!(
+        mask_features(1).len(),
+        894_396,
+        "SPEC 2's evaluation-mask count"
+    );
 }
 
 /// Materials of the CI subset: every fifth of the 100, sorted by name.
@@ -442,7 +457,11 @@ fn cv_held_out_rho_on_merl100_matches_an_f64_recomputation() {
         .arg(&json)
         .output()
         .expect("cv runs");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let cv: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("cv JSON");
     assert_eq!(cv["mask"], "evaluation");
@@ -453,7 +472,10 @@ fn cv_held_out_rho_on_merl100_matches_an_f64_recomputation() {
     let n = names.len();
     let index = |s: &serde_json::Value| {
         let s = s.as_str().expect("name");
-        names.iter().position(|m| m == s).unwrap_or_else(|| panic!("{s}"))
+        names
+            .iter()
+            .position(|m| m == s)
+            .unwrap_or_else(|| panic!("{s}"))
     };
     let (eps, mut checked, mut worst) = (5e-4, 0, 0.0f64);
     let results = cv["results"].as_array().expect("results");
@@ -512,7 +534,11 @@ fn merl100_greedy_k12_in_sample_against_f64() {
         .arg(&json)
         .output()
         .expect("select runs");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let sel: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("select JSON");
     let ours: Vec<usize> = sel["basis"]
@@ -546,10 +572,11 @@ fn merl100_greedy_k12_in_sample_against_f64() {
                 }
             })
             .collect();
-        let (best, s) = scores
-            .iter()
-            .enumerate()
-            .fold((0, f64::INFINITY), |a, (i, &s)| if s < a.1 { (i, s) } else { a });
+        let (best, s) =
+            scores.iter().enumerate().fold(
+                (0, f64::INFINITY),
+                |a, (i, &s)| if s < a.1 { (i, s) } else { a },
+            );
         let mut sorted = scores.clone();
         sorted.sort_by(f64::total_cmp);
         eprintln!(
@@ -574,8 +601,18 @@ fn merl100_greedy_k12_in_sample_against_f64() {
         );
     }
     let s_ours = score(&g, n, &ours);
-    eprintln!("k = 12: ours f64 S = {s_ours:.7}, reported {}", sel["score"]);
+    eprintln!(
+        "k = 12: ours f64 S = {s_ours:.7}, reported {}",
+        sel["score"]
+    );
     let reported = sel["score"].as_f64().unwrap();
-    assert!((s_ours - reported).abs() <= 1e-3 * s_ours, "{s_ours} vs {reported}");
-    assert!(s_ours <= mine_scores[11] * (1.0 + 1e-3), "{s_ours} vs {}", mine_scores[11]);
+    assert!(
+        (s_ours - reported).abs() <= 1e-3 * s_ours,
+        "{s_ours} vs {reported}"
+    );
+    assert!(
+        s_ours <= mine_scores[11] * (1.0 + 1e-3),
+        "{s_ours} vs {}",
+        mine_scores[11]
+    );
 }

@@ -889,7 +889,10 @@ fn plan_replaces_its_earlier_output_and_leaves_nothing_else() {
     let o = run_in(work.path(), &args);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let first = std::fs::read_to_string(work.path().join("p.csv")).expect("csv");
-    assert!(first.starts_with("theta_i,phi_i,theta_o,phi_o\n"), "{first}");
+    assert!(
+        first.starts_with("theta_i,phi_i,theta_o,phi_o\n"),
+        "{first}"
+    );
     assert_eq!(first.lines().count(), 4, "{first}");
     let o = run_in(work.path(), &args);
     assert!(o.status.success(), "{}", text(&o.stderr));
@@ -907,5 +910,9 @@ fn plan_replaces_its_earlier_output_and_leaves_nothing_else() {
     bad[7] = "nielsen".into();
     let o = run_in(work.path(), &bad);
     assert!(!o.status.success());
-    assert!(text(&o.stderr).contains("cv --acquisition"), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("cv --acquisition"),
+        "{}",
+        text(&o.stderr)
+    );
 }

@@ -146,7 +146,10 @@ fn reproduce_report_matches_its_files_and_figures() {
     // settings said.
     let acq: brdf_basis::acquire::AcqCv = read(&out.join("acquisition.json"));
     assert!(report.contains("## Acquisition (SPEC 10)") && report.contains("grid stride 6"));
-    assert!(acq.results.iter().any(|r| r.plan == brdf_basis::acquire::Criterion::Nielsen));
+    assert!(acq
+        .results
+        .iter()
+        .any(|r| r.plan == brdf_basis::acquire::Criterion::Nielsen));
     for r in &acq.results {
         let row = format!(
             "| {} | {} | {} | {} | {} |",

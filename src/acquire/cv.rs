@@ -14,14 +14,14 @@ use super::plan::{
     cell_candidates, plan, values_at, Candidate, Criterion, Dense, PlanParams, PlannedSample,
 };
 use super::AcquireError;
+use crate::backend::cpu::CpuBackend;
 use crate::backend::Backend;
 use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceParams};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
-use crate::backend::cpu::CpuBackend;
 use crate::eval::render::{render_sphere, Image, RenderParams};
-use crate::fit::{channel_lobe, fit_cells};
 use crate::eval::shade::{combination_brdf, material_brdf};
+use crate::fit::{channel_lobe, fit_cells};
 use crate::nnls::{lawson_hanson, GramProblem};
 use crate::select::cv::evaluate::GridEval;
 use crate::select::cv::folds::fold_bases;
@@ -309,8 +309,7 @@ pub fn acquisition_cv(
                     let train_all: Vec<usize> =
                         (0..n).filter(|i| held.binary_search(i).is_err()).collect();
                     let model = NielsenModel::train(coll, &train_all, &cellset.cells, nmax)?;
-                    let chosen =
-                        model.plan(nmax, nielsen_per_step(p.candidates_per_step), seed_f);
+                    let chosen = model.plan(nmax, nielsen_per_step(p.candidates_per_step), seed_f);
                     let samples: Vec<PlannedSample> = chosen
                         .iter()
                         .map(|&j| PlannedSample::from(&cands[j]))
@@ -343,7 +342,9 @@ pub fn acquisition_cv(
                                 }
                             });
                             acc[pi][ni][si].0.extend(rows);
-                            acc[pi][ni][si].1.push(samples[..ns.min(samples.len())].to_vec());
+                            acc[pi][ni][si]
+                                .1
+                                .push(samples[..ns.min(samples.len())].to_vec());
                         }
                     }
                     continue;
@@ -555,7 +556,12 @@ fn nielsen_rows(
         .collect();
     let e: f64 = tv
         .iter()
-        .map(|t| t.iter().zip(nf.weights).map(|(v, w)| w * v * v).sum::<f64>())
+        .map(|t| {
+            t.iter()
+                .zip(nf.weights)
+                .map(|(v, w)| w * v * v)
+                .sum::<f64>()
+        })
         .sum();
     let nmax = nf.chosen.len();
     let mut out = vec![Vec::with_capacity(p.noises.len()); p.ns.len()];
@@ -633,8 +639,7 @@ impl Showcase<'_> {
         let f = h.fold;
         let basis = &self.bases[f];
         let render = |b: &(dyn Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync)| {
-            let img =
-                render_sphere(self.rp, b).map_err(|e| AcquireError::Render(e.to_string()))?;
+            let img = render_sphere(self.rp, b).map_err(|e| AcquireError::Render(e.to_string()))?;
             let ie = normalized_image_error(&self.originals[ti], &img, self.display)
                 .map_err(|e| AcquireError::Render(e.to_string()))?;
             Ok::<_, AcquireError>((img, ie))

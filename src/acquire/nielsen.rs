@@ -168,7 +168,11 @@ impl NielsenModel {
                     for o in 0..nobs {
                         col[o] = v[o][j] * wb[j];
                     }
-                    md[j] = if nobs > 0 { median_in_place(&mut col) } else { 0.0 };
+                    md[j] = if nobs > 0 {
+                        median_in_place(&mut col)
+                    } else {
+                        0.0
+                    };
                 }
                 let mut s = 0.0;
                 for o in 0..nobs {
@@ -578,7 +582,10 @@ mod tests {
     fn mapping_round_trips() {
         for &(f, w, m) in &[(0.3, 0.5, 0.1), (12.0, 0.01, 0.4), (0.0, 1.0, 0.0)] {
             let x = map_value(f, w, m);
-            assert!((unmap_value(x, w, m) - f).abs() < 1e-12 * f.max(1.0), "{f} {w} {m}");
+            assert!(
+                (unmap_value(x, w, m) - f).abs() < 1e-12 * f.max(1.0),
+                "{f} {w} {m}"
+            );
         }
         // The median itself maps to 0.
         assert!(map_value(0.2 / 0.5, 0.5, 0.2).abs() < 1e-15);
@@ -600,7 +607,9 @@ mod tests {
     /// (eta = 0), and nearly so with the published ridge when the components are large.
     #[test]
     fn a_material_in_the_span_is_reconstructed_exactly() {
-        let cells: Vec<u32> = (0..400).map(|i| flat(10 + i % 20, 5 + i / 20, 7) as u32).collect();
+        let cells: Vec<u32> = (0..400)
+            .map(|i| flat(10 + i % 20, 5 + i / 20, 7) as u32)
+            .collect();
         let pat = |p: usize, c: u32| -> f64 {
             let (a, b, _) = unflat(c as usize);
             if p == 0 {
@@ -625,7 +634,11 @@ mod tests {
                 .collect()
         };
         let model = NielsenModel::from_values(coeffs.len(), &cells, 5, &values);
-        assert_eq!(model.k, 2, "two patterns, rank 2: {:?}", model.singular_values);
+        assert_eq!(
+            model.k, 2,
+            "two patterns, rank 2: {:?}",
+            model.singular_values
+        );
         let target = [0.8, -1.1];
         let plan = model.plan(2, 0, 3);
         assert_eq!(plan.len(), 2);
@@ -635,7 +648,10 @@ mod tests {
         for (j, &c) in cells.iter().enumerate() {
             let want = mat(target, c);
             let got = model.value(j, &coef);
-            assert!((got - want).abs() < 1e-9 * want.max(1.0), "cell {c}: {got} vs {want}");
+            assert!(
+                (got - want).abs() < 1e-9 * want.max(1.0),
+                "cell {c}: {got} vs {want}"
+            );
         }
         // Training observations are in the span too: each is reconstructed from the plan.
         let y: Vec<f64> = plan.iter().map(|&j| mat(coeffs[4], cells[j])).collect();

@@ -79,14 +79,19 @@ impl Criterion {
 impl std::str::FromStr for Criterion {
     type Err = AcquireError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        [Criterion::Error, Criterion::Condition, Criterion::Random, Criterion::Nielsen]
-            .into_iter()
-            .find(|c| c.as_str() == s)
-            .ok_or_else(|| AcquireError::InvalidParam {
-                name: "criterion",
-                value: s.into(),
-                expected: "one of error, condition, random, nielsen",
-            })
+        [
+            Criterion::Error,
+            Criterion::Condition,
+            Criterion::Random,
+            Criterion::Nielsen,
+        ]
+        .into_iter()
+        .find(|c| c.as_str() == s)
+        .ok_or_else(|| AcquireError::InvalidParam {
+            name: "criterion",
+            value: s.into(),
+            expected: "one of error, condition, random, nielsen",
+        })
     }
 }
 
@@ -511,8 +516,9 @@ pub fn plan(
                 };
                 pick.sort_unstable();
                 if p.criterion == Criterion::Error && p.shortlist > 0 {
-                    explore = rand::seq::index::sample(&mut srng, pick.len(), EXPLORE.min(pick.len()))
-                        .into_vec();
+                    explore =
+                        rand::seq::index::sample(&mut srng, pick.len(), EXPLORE.min(pick.len()))
+                            .into_vec();
                 }
                 pick
             }

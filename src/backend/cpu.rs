@@ -228,7 +228,11 @@ impl CpuBackend {
         ];
         {
             let [r, g, b] = &mut out;
-            let mut rows = [(Some(0), &mut r[..]), (Some(1), &mut g[..]), (Some(2), &mut b[..])];
+            let mut rows = [
+                (Some(0), &mut r[..]),
+                (Some(1), &mut g[..]),
+                (Some(2), &mut b[..]),
+            ];
             neural_rows(net, cells, None, &mut rows);
         }
         out.map(|v| v.into_iter().map(f64::from).collect())

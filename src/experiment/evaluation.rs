@@ -3,14 +3,16 @@
 
 use super::bases::Basis;
 use super::ExperimentError;
+use crate::backend::cpu::CpuBackend;
 use crate::backend::Backend;
 use crate::collection::Collection;
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::fit::file::{FitFile, FitTarget};
-use crate::backend::cpu::CpuBackend;
-use crate::fit::{channel_gram, fit, fit_cells, solve_channel, FitError, FitParams, GramMode, Solver, TargetFit};
+use crate::fit::{
+    channel_gram, fit, fit_cells, solve_channel, FitError, FitParams, GramMode, Solver, TargetFit,
+};
 use crate::merl::CellSet;
 use crate::select::cv::evaluate::{cell_sums, MaeJob};
 use crate::stats::{mean, median};
@@ -195,10 +197,14 @@ fn fit_all(
     // Per basis fitted here: its cells and its fits without grid errors.
     let mut pending: Vec<Pending> = Vec::new();
     for (bi, basis) in bases.iter().enumerate() {
-        let by_moments = p.gram == GramMode::Auto
-            && basis.iter().chain(targets).all(analytic);
+        let by_moments = p.gram == GramMode::Auto && basis.iter().chain(targets).all(analytic);
         let duplicate = (0..basis.len()).any(|i| basis[..i].contains(&basis[i]));
-        if by_moments || p.solver != Solver::Exact || basis.is_empty() || targets.is_empty() || duplicate {
+        if by_moments
+            || p.solver != Solver::Exact
+            || basis.is_empty()
+            || targets.is_empty()
+            || duplicate
+        {
             out[bi] = Some(fit(backend, coll, basis, targets, p, &|_, _| {})?);
             continue;
         }
@@ -274,15 +280,26 @@ fn fit_all(
                     f.mae += e[c].absolute / 3.0;
                 }
                 let sq: f64 = f.residual.iter().map(|r| r * r).sum();
-                f.relative_residual = if target_norm > 0.0 { sq / target_norm } else { 0.0 };
-                f.relative_mae = if target_l1 > 0.0 { 3.0 * f.mae / target_l1 } else { 0.0 };
+                f.relative_residual = if target_norm > 0.0 {
+                    sq / target_norm
+                } else {
+                    0.0
+                };
+                f.relative_mae = if target_l1 > 0.0 {
+                    3.0 * f.mae / target_l1
+                } else {
+                    0.0
+                };
             }
         }
     }
     for (bi, _, fits, _) in pending {
         out[bi] = Some(fits);
     }
-    Ok(out.into_iter().map(|f| f.expect("every basis fitted")).collect())
+    Ok(out
+        .into_iter()
+        .map(|f| f.expect("every basis fitted"))
+        .collect())
 }
 
 /// A basis fitted by [`fit_all`]'s shared passes: its index, cells, fits and per target
@@ -314,12 +331,23 @@ fn union_fits(
     let pos = |b: usize| 1 + union.iter().position(|&u| u == b).expect("in the union");
     let cells = pending[group[0]].1.clone();
     for c in 0..3 {
-        let full = channel_gram(backend, coll, &union, targets, &cells, c, p.gram, &|_, _| {})?;
+        let full = channel_gram(
+            backend,
+            coll,
+            &union,
+            targets,
+            &cells,
+            c,
+            p.gram,
+            &|_, _| {},
+        )?;
         let mu = union.len() + 1;
         for &i in group {
             let (bi, _, fits, norms) = &mut pending[i];
             let basis = &bases[*bi];
-            let cols: Vec<usize> = std::iter::once(0).chain(basis.iter().map(|&b| pos(b))).collect();
+            let cols: Vec<usize> = std::iter::once(0)
+                .chain(basis.iter().map(|&b| pos(b)))
+                .collect();
             let m = cols.len();
             let mut g = vec![0.0; m * m];
             for (a, &ca) in cols.iter().enumerate() {
@@ -340,7 +368,12 @@ fn union_fits(
                 .map(|(t, ca)| full.h[t * mu + ca])
                 .collect();
             let sols = solve_channel(backend, m, &g, &hs, &full.bb, p.solver)?;
-            for (((f, s), n), &bb) in fits.iter_mut().zip(&sols).zip(norms.iter_mut()).zip(&full.bb) {
+            for (((f, s), n), &bb) in fits
+                .iter_mut()
+                .zip(&sols)
+                .zip(norms.iter_mut())
+                .zip(&full.bb)
+            {
                 n[c] = bb;
                 for (k, &a) in s.x.iter().enumerate() {
                     f.coefficients[k][c] = a;

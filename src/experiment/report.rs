@@ -316,10 +316,13 @@ fn acquisition(_: &Experiment, ctx: &ReportContext, s: &mut String) {
     s.push_str(&a.cv.markdown());
     s.push('\n');
     // Ours against the baseline, noise-free, at each n.
-    let first = a.cv.results.first().map(|r| r.method.clone()).unwrap_or_default();
+    let first =
+        a.cv.results
+            .first()
+            .map(|r| r.method.clone())
+            .unwrap_or_default();
     let at = |plan: crate::acquire::Criterion, n: usize| {
-        a.cv
-            .results
+        a.cv.results
             .iter()
             .find(|r| r.method == first && r.plan == plan && r.n == n && r.noise == 0.0)
     };
@@ -331,7 +334,13 @@ fn acquisition(_: &Experiment, ctx: &ReportContext, s: &mut String) {
             at(crate::acquire::Criterion::Error, n),
             at(crate::acquire::Criterion::Nielsen, n),
         ) {
-            let word = |ours: f64, theirs: f64| if ours < theirs { "beats" } else { "does not beat" };
+            let word = |ours: f64, theirs: f64| {
+                if ours < theirs {
+                    "beats"
+                } else {
+                    "does not beat"
+                }
+            };
             let _ = writeln!(s, "* n = {n}, noise-free: the error plan {} nielsen on mean rho ({} vs {}) and {} it on mean image error ({} vs {}).", word(e.mean_rho, b.mean_rho), num(e.mean_rho), num(b.mean_rho), word(e.mean_image_error, b.mean_image_error), num(e.mean_image_error), num(b.mean_image_error));
         }
     }

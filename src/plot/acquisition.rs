@@ -4,9 +4,9 @@
 //! material, its dense fit and its reconstructions from each n (caption: which material,
 //! fold, basis and plan).
 
+use super::{figure, series_colour, Draw, Figure, PlotError};
 use crate::acquire::cv::{AcqCv, AcqShowcase};
 use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
-use super::{figure, series_colour, Draw, Figure, PlotError};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 

@@ -49,7 +49,11 @@ pub(crate) fn greedy_screened(
             .copied()
             .filter(|c| !basis.contains(c))
             .collect();
-        let r = obj.best_of_groups(&[(basis.as_slice(), cands.as_slice())], &p.targets, p.tie_tol)?;
+        let r = obj.best_of_groups(
+            &[(basis.as_slice(), cands.as_slice())],
+            &p.targets,
+            p.tie_tol,
+        )?;
         if step > 0 {
             history.push(match r.scores[0] {
                 Some(s) => s,

@@ -37,8 +37,10 @@ pub fn swap(
                 rest
             })
             .collect();
-        let groups: Vec<(&[usize], &[usize])> =
-            rests.iter().map(|r| (r.as_slice(), cands.as_slice())).collect();
+        let groups: Vec<(&[usize], &[usize])> = rests
+            .iter()
+            .map(|r| (r.as_slice(), cands.as_slice()))
+            .collect();
         let r = obj.best_of_groups(&groups, &p.targets, p.tie_tol)?;
         for pos in 0..basis.len() {
             progress(pos as u64 + 1, basis.len() as u64);

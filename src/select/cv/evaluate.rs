@@ -11,12 +11,12 @@ use crate::collection::{Collection, MaterialData};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{material_brdf, BrdfFn};
-use std::collections::HashMap;
-use std::sync::Mutex;
 use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
 use crate::stats::{mean, median, StatsError};
+use std::collections::HashMap;
+use std::sync::Mutex;
 
 /// What the held-out materials are evaluated with: the objective, the grid MAE and renders
 /// of every material (SPEC 7: light (45, 45)).
@@ -334,10 +334,7 @@ impl<'a> GridEval<'a> {
     /// bit as a pass over all cells per job.
     pub(crate) fn maes(&self, jobs: &[MaeJob<'_>]) -> Vec<f64> {
         if let Some(mom) = &self.moments {
-            return jobs
-                .par_iter()
-                .map(|j| self.analytic_mae(mom, j))
-                .collect();
+            return jobs.par_iter().map(|j| self.analytic_mae(mom, j)).collect();
         }
         cell_sums::<false>(&self.cpu, self.coll, &self.cells, jobs)
             .iter()

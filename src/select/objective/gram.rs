@@ -157,37 +157,39 @@ fn cross_upper(z: &[f64], w: &[f64], n: usize, out: &mut [f64], m: usize) {
             wt[e * np + b] = v;
         }
     }
-    out.par_chunks_mut(T * m).enumerate().for_each(|(ta, strip)| {
-        let a0 = ta * T;
-        let za: [&[f64]; T] = std::array::from_fn(|r| {
-            let a = (a0 + r).min(n - 1);
-            &z[a * LEN..(a + 1) * LEN]
+    out.par_chunks_mut(T * m)
+        .enumerate()
+        .for_each(|(ta, strip)| {
+            let a0 = ta * T;
+            let za: [&[f64]; T] = std::array::from_fn(|r| {
+                let a = (a0 + r).min(n - 1);
+                &z[a * LEN..(a + 1) * LEN]
+            });
+            for b0 in (a0..n).step_by(T) {
+                let mut acc = [[0.0f64; T]; T];
+                for e in 0..LEN {
+                    let wb = &wt[e * np + b0..e * np + b0 + T];
+                    for r in 0..T {
+                        let x = za[r][e];
+                        for s in 0..T {
+                            acc[r][s] += x * wb[s];
+                        }
+                    }
+                }
+                for (r, acc_r) in acc.iter().enumerate() {
+                    let a = a0 + r;
+                    if a >= n {
+                        break;
+                    }
+                    for (s, &v) in acc_r.iter().enumerate() {
+                        let b = b0 + s;
+                        if b >= a && b < n {
+                            strip[r * m + b + 1] = v;
+                        }
+                    }
+                }
+            }
         });
-        for b0 in (a0..n).step_by(T) {
-            let mut acc = [[0.0f64; T]; T];
-            for e in 0..LEN {
-                let wb = &wt[e * np + b0..e * np + b0 + T];
-                for r in 0..T {
-                    let x = za[r][e];
-                    for s in 0..T {
-                        acc[r][s] += x * wb[s];
-                    }
-                }
-            }
-            for (r, acc_r) in acc.iter().enumerate() {
-                let a = a0 + r;
-                if a >= n {
-                    break;
-                }
-                for (s, &v) in acc_r.iter().enumerate() {
-                    let b = b0 + s;
-                    if b >= a && b < n {
-                        strip[r * m + b + 1] = v;
-                    }
-                }
-            }
-        }
-    });
 }
 
 /// Copies the strict upper triangle of the `m x m` matrix `g` onto the lower one, in

@@ -243,7 +243,8 @@ pub(super) fn lower_bounds(
     // The dual bound (module docs) needs non-negative cosines among the columns.
     let basis_nonneg: [bool; 3] = std::array::from_fn(|c| {
         let g = obj.view(c);
-        cols.iter().all(|&k| cols.iter().all(|&l| g.at(k, l) >= 0.0))
+        cols.iter()
+            .all(|&k| cols.iter().all(|&l| g.at(k, l) >= 0.0))
     });
     let margin_dual = MARGIN * (1.0 + 2.0 * ((nk + 1) as f64).sqrt());
     let nchunks = nl.div_ceil(CHUNK);
