@@ -35,41 +35,6 @@ fn spec_tol(v: f64) -> f64 {
     }
 }
 
-/// A float32 C-order `.npy` file of the given shape (a parser of its own: this test is
-/// independent of the crate's readers).
-fn read_f32_npy(path: &Path, shape: &[usize]) -> Vec<f32> {
-    let b = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    assert_eq!(&b[..6], b"\x93NUMPY", "{}", path.display());
-    let (hlen, start) = match b[6] {
-        1 => (u16::from_le_bytes([b[8], b[9]]) as usize, 10),
-        _ => (u32::from_le_bytes([b[8], b[9], b[10], b[11]]) as usize, 12),
-    };
-    let header = std::str::from_utf8(&b[start..start + hlen]).expect("ascii header");
-    assert!(
-        header.contains("'descr': '<f4'"),
-        "{}: {header}",
-        path.display()
-    );
-    assert!(header.contains("'fortran_order': False"), "{header}");
-    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
-    let want = if shape.len() == 1 {
-        format!("({},)", dims[0])
-    } else {
-        format!("({})", dims.join(", "))
-    };
-    assert!(
-        header.contains(&want),
-        "{}: {header}, want {want}",
-        path.display()
-    );
-    let data = &b[start + hlen..];
-    let n: usize = shape.iter().product();
-    assert_eq!(data.len(), 4 * n, "{}", path.display());
-    data.chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect()
-}
-
 /// One network's flat weights (675, the layout of `brdf::Nbrdf`) from its six files.
 fn read_net(dir: &Path, name: &str) -> Vec<f32> {
     let parts: [(&str, &[usize]); 6] = [
@@ -82,7 +47,9 @@ fn read_net(dir: &Path, name: &str) -> Vec<f32> {
     ];
     let mut flat = Vec::with_capacity(675);
     for (part, shape) in parts {
-        flat.extend(read_f32_npy(&dir.join(format!("{name}_{part}.npy")), shape));
+        let (s, v) = common::read_f32_npy(&dir.join(format!("{name}_{part}.npy")));
+        assert_eq!(s, shape, "{name}_{part}");
+        flat.extend(v);
     }
     assert_eq!(flat.len(), 675);
     flat

@@ -70,6 +70,19 @@ where
     s.parse::<T>().map_err(lib_err)
 }
 
+/// A list argument parsed item by item with [`parse`] (surrounding spaces ignored), or
+/// `default` when the caller gave none.
+fn parse_list<T>(v: Option<Vec<String>>, default: &[T]) -> PyResult<Vec<T>>
+where
+    T: std::str::FromStr + Clone,
+    T::Err: Into<bb::Error>,
+{
+    match v {
+        None => Ok(default.to_vec()),
+        Some(v) => v.iter().map(|m| parse::<T>(m.trim())).collect(),
+    }
+}
+
 fn backend_choice(s: &str) -> PyResult<bb::BackendChoice> {
     [
         bb::BackendChoice::Auto,
@@ -734,13 +747,7 @@ fn cross_validate_json<'py>(
     let coll = coll_of(collection);
     let d = bb::CvParams::default();
     let g = bb::GaParams::default();
-    let methods = match methods {
-        None => d.methods.clone(),
-        Some(v) => v
-            .iter()
-            .map(|m| parse::<bb::CvMethod>(m.trim()))
-            .collect::<PyResult<_>>()?,
-    };
+    let methods = parse_list(methods, &d.methods)?;
     let p = bb::CvParams {
         methods,
         ks: ks.unwrap_or_else(|| d.ks.clone()),
@@ -798,20 +805,8 @@ fn acquisition_cv_json<'py>(
 ) -> PyResult<String> {
     let coll = coll_of(collection);
     let d = bb::AcqCvParams::default();
-    let methods = match methods {
-        None => d.methods.clone(),
-        Some(v) => v
-            .iter()
-            .map(|m| parse::<bb::CvMethod>(m.trim()))
-            .collect::<PyResult<_>>()?,
-    };
-    let plans = match plans {
-        None => d.plans.clone(),
-        Some(v) => v
-            .iter()
-            .map(|m| parse::<bb::Criterion>(m.trim()))
-            .collect::<PyResult<_>>()?,
-    };
+    let methods = parse_list(methods, &d.methods)?;
+    let plans = parse_list(plans, &d.plans)?;
     let p = bb::AcqCvParams {
         methods,
         k,

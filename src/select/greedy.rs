@@ -43,12 +43,7 @@ pub(crate) fn greedy_screened(
     let mut evaluated = Vec::with_capacity(p.k);
     let mut history = Vec::with_capacity(p.k);
     for step in 0..p.k {
-        let cands: Vec<usize> = p
-            .candidates
-            .iter()
-            .copied()
-            .filter(|c| !basis.contains(c))
-            .collect();
+        let cands = p.candidates_outside(&basis);
         let r = obj.best_of_groups(
             &[(basis.as_slice(), cands.as_slice())],
             &p.targets,
@@ -82,12 +77,7 @@ pub(crate) fn greedy_indices_exhaustive(
 ) -> Result<Vec<usize>, SelectionError> {
     let mut basis: Vec<usize> = Vec::with_capacity(p.k);
     for step in 0..p.k {
-        let cands: Vec<usize> = p
-            .candidates
-            .iter()
-            .copied()
-            .filter(|c| !basis.contains(c))
-            .collect();
+        let cands = p.candidates_outside(&basis);
         let scores = obj.scores_adding(&basis, &p.targets, &cands)?;
         let Some(best) = argmin(&scores, p.tie_tol) else {
             break;

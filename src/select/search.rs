@@ -209,6 +209,17 @@ pub struct ValidSearchParams {
     pub max_swaps: usize,
 }
 
+impl ValidSearchParams {
+    /// The candidates outside `basis`, in increasing order.
+    pub fn candidates_outside(&self, basis: &[usize]) -> Vec<usize> {
+        self.candidates
+            .iter()
+            .copied()
+            .filter(|c| !basis.contains(c))
+            .collect()
+    }
+}
+
 /// A basis chosen by fitting error (the `select` JSON of SPEC-cli).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Selection {

@@ -24,12 +24,7 @@ pub fn swap(
         // Every (position, candidate) pair: states of B - b, then every candidate added,
         // in (position, candidate) order, the exhaustive argmin over all pairs (without
         // scoring the pairs that cannot win).
-        let cands: Vec<usize> = p
-            .candidates
-            .iter()
-            .copied()
-            .filter(|c| !basis.contains(c))
-            .collect();
+        let cands = p.candidates_outside(&basis);
         let rests: Vec<Vec<usize>> = (0..basis.len())
             .map(|pos| {
                 let mut rest = basis.clone();

@@ -45,6 +45,9 @@ pub const TABLE_LEN: usize = 540;
 /// Width in texels of the packed value textures (pairwise and tabulation kernels); keep
 /// in sync with `TEX_W` in `shaders/common.wgsl`.
 pub const TEX_W: usize = 4096;
+
+/// Bytes of the packed texture of one batch of a tabulation ([`GpuContext::pack_chunk`]).
+const PACK_BUDGET: usize = 16 << 20;
 /// Texels of one lobe's separable beta table: one per (theta_h, theta_d) row pair,
 /// 90 x 90 (the alpha texel follows it).
 pub const NIJ: usize = crate::merl::grid::N_TH * crate::merl::grid::N_TD;
@@ -320,6 +323,64 @@ impl GpuContext {
             usage,
             view_formats: &[],
         })
+    }
+
+    /// Texel blocks (four rows each) per batch of a packed tabulation: as many as a 16 MiB
+    /// texture of one [`TEX_W`]-wide texel row per block holds, within the largest texture
+    /// side. The texture and readback buffers are reused chunk after chunk (fresh memory
+    /// costs more in page faults than the kernels).
+    pub(crate) fn pack_max_blocks(&self) -> usize {
+        let max_dim = self.limits.max_texture_dimension_2d as usize;
+        (PACK_BUDGET / (16 * TEX_W)).min(max_dim).max(1)
+    }
+
+    /// Cells per chunk of a packed tabulation of `blocks` texel blocks over `n` cells:
+    /// within the 16 MiB budget, the largest texture side and `cap`, whole texel rows.
+    pub(crate) fn pack_chunk(&self, blocks: usize, n: usize, cap: usize) -> usize {
+        let max_dim = self.limits.max_texture_dimension_2d as usize;
+        ((PACK_BUDGET / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
+            .min(cap)
+            .clamp(TEX_W, n.next_multiple_of(TEX_W))
+    }
+
+    /// Copies the packed `texture` (row `r` of the batch in channel `r % 4` of texel block
+    /// `r / 4`, `chunk` texels a block) into `readback`, submits `enc`, waits, and unpacks
+    /// the batch's `rows` rows into `out[(row0 + r) * n + start..][..len]`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn read_packed_rows(
+        &self,
+        mut enc: wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+        readback: &wgpu::Buffer,
+        chunk: usize,
+        rows: usize,
+        (row0, n, start, len): (usize, usize, usize, usize),
+        out: &mut [f32],
+    ) -> Result<(), GpuError> {
+        let bytes = readback.size();
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some((TEX_W * 16) as u32),
+                    rows_per_image: None,
+                },
+            },
+            texture.size(),
+        );
+        let data = self.submit_and_read(enc, readback, bytes)?;
+        let texels: &[[f32; 4]] = bytemuck::cast_slice(&data[..bytes as usize]);
+        for r in 0..rows {
+            let (b, q) = (r / 4, r % 4);
+            let l = row0 + r;
+            let row = &mut out[l * n + start..l * n + start + len];
+            for (o, t) in row.iter_mut().zip(&texels[b * chunk..]) {
+                *o = t[q];
+            }
+        }
+        Ok(())
     }
 
     /// A bind group over `buffers` bound at 0, 1, 2, ... of group 0 of `pipeline`.

@@ -508,9 +508,7 @@ impl NeuralKernel {
         }
         // Batches of rows and chunks of cells whose texture fits a small budget and the
         // largest texture side.
-        const BUDGET: usize = 16 << 20;
-        let max_dim = ctx.limits.max_texture_dimension_2d as usize;
-        let max_blocks = (BUDGET / (16 * TEX_W)).min(max_dim).max(1);
+        let max_blocks = ctx.pack_max_blocks();
         for (batch, rb) in rows.chunks(4 * max_blocks).enumerate() {
             let mut padded: Vec<Option<NeuralRow>> = rb.iter().map(|&r| Some(r)).collect();
             padded.resize(rb.len().div_ceil(4) * 4, None);
@@ -520,9 +518,7 @@ impl NeuralKernel {
                 * WORKGROUP as usize
                 / TEX_W
                 * TEX_W;
-            let chunk = ((BUDGET / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
-                .min(by_dispatch)
-                .clamp(TEX_W, n.next_multiple_of(TEX_W));
+            let chunk = ctx.pack_chunk(blocks, n, by_dispatch);
             let texture = ctx.packed_texture(
                 "neural rows",
                 (blocks * chunk / TEX_W) as u32,
@@ -530,8 +526,7 @@ impl NeuralKernel {
             );
             let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
             let mut up = NeuralCells::new(ctx, chunk);
-            let bytes = (blocks * chunk * 16) as u64;
-            let readback = ctx.storage("neural tabulated", bytes);
+            let readback = ctx.storage("neural tabulated", (blocks * chunk * 16) as u64);
             for (k, cc) in cells.chunks(chunk).enumerate() {
                 up.write(ctx, cc, None);
                 let mut enc = ctx.encoder();
@@ -541,29 +536,8 @@ impl NeuralKernel {
                     row_stride: chunk,
                 };
                 self.encode_with(ctx, &mut enc, &prepared, &up, target, features);
-                enc.copy_texture_to_buffer(
-                    texture.as_image_copy(),
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: &readback,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: 0,
-                            bytes_per_row: Some((TEX_W * 16) as u32),
-                            rows_per_image: None,
-                        },
-                    },
-                    texture.size(),
-                );
-                let data = ctx.submit_and_read(enc, &readback, bytes)?;
-                let texels: &[[f32; 4]] = bytemuck::cast_slice(&data[..bytes as usize]);
-                let start = k * chunk;
-                for r in 0..rb.len() {
-                    let (b, q) = (r / 4, r % 4);
-                    let l = batch * 4 * max_blocks + r;
-                    let row = &mut out[l * n + start..l * n + start + cc.len()];
-                    for (o, t) in row.iter_mut().zip(&texels[b * chunk..]) {
-                        *o = t[q];
-                    }
-                }
+                let at = (batch * 4 * max_blocks, n, k * chunk, cc.len());
+                ctx.read_packed_rows(enc, &texture, &readback, chunk, rb.len(), at, &mut out)?;
             }
         }
         Ok(out)

@@ -217,53 +217,33 @@ impl TabulateKernel {
         lobes: &[LobeParams],
         cells: &[u32],
     ) -> Result<Vec<f32>, GpuError> {
-        use super::TEX_W;
         let n = cells.len();
         let mut out = vec![0f32; lobes.len() * n];
         if n == 0 || lobes.is_empty() {
             return Ok(out);
         }
-        // Batches of lobes and chunks of cells whose texture fits a small budget (the
-        // texture and readback buffers are reused chunk after chunk: fresh memory costs
-        // more in page faults than the kernel) and the largest texture side.
-        const BUDGET: usize = 16 << 20;
-        let max_dim = ctx.limits.max_texture_dimension_2d as usize;
-        let max_blocks = (BUDGET / (16 * TEX_W)).min(max_dim).max(1);
+        // Batches of lobes and chunks of cells whose texture fits a small budget.
+        let max_blocks = ctx.pack_max_blocks();
         for (batch, lb) in lobes.chunks(4 * max_blocks).enumerate() {
             let mut rows: Vec<Option<LobeParams>> = lb.iter().map(|&l| Some(l)).collect();
             rows.resize(lb.len().div_ceil(4) * 4, None);
             let blocks = rows.len() / 4;
             let prepared = self.prepare_packed(ctx, &rows);
-            let chunk = ((BUDGET / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
-                .clamp(TEX_W, n.next_multiple_of(TEX_W));
+            let chunk = ctx.pack_chunk(blocks, n, usize::MAX);
             let target = PackTarget::new(ctx, blocks, chunk, wgpu::TextureUsages::COPY_SRC);
-            let bytes = (blocks * chunk * 16) as u64;
-            let readback = ctx.storage("tabulated", bytes);
+            let readback = ctx.storage("tabulated", (blocks * chunk * 16) as u64);
             for (k, cc) in cells.chunks(chunk).enumerate() {
-                let mut enc = self.encode_pack(ctx, &prepared, &target, cc);
-                enc.copy_texture_to_buffer(
-                    target.texture.as_image_copy(),
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: &readback,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: 0,
-                            bytes_per_row: Some((TEX_W * 16) as u32),
-                            rows_per_image: None,
-                        },
-                    },
-                    target.texture.size(),
-                );
-                let data = ctx.submit_and_read(enc, &readback, bytes)?;
-                let texels: &[[f32; 4]] = bytemuck::cast_slice(&data[..bytes as usize]);
-                let start = k * chunk;
-                for (r, _) in lb.iter().enumerate() {
-                    let (b, q) = (r / 4, r % 4);
-                    let l = batch * 4 * max_blocks + r;
-                    let row = &mut out[l * n + start..l * n + start + cc.len()];
-                    for (o, t) in row.iter_mut().zip(&texels[b * chunk..]) {
-                        *o = t[q];
-                    }
-                }
+                let enc = self.encode_pack(ctx, &prepared, &target, cc);
+                let at = (batch * 4 * max_blocks, n, k * chunk, cc.len());
+                ctx.read_packed_rows(
+                    enc,
+                    &target.texture,
+                    &readback,
+                    chunk,
+                    lb.len(),
+                    at,
+                    &mut out,
+                )?;
             }
         }
         Ok(out)
