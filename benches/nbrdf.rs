@@ -1,8 +1,7 @@
 //! Neural BRDFs (SPEC 9), in one run, as ratios:
 //!
 //! * tabulating the 100 NBRDF MERL materials (RGB) on the full grid (1,458,000 cells):
-//!   CPU back-end, GPU back-end (lavapipe; today its neural rows are the CPU twin's, packed
-//!   on the host), and a plain numpy evaluation of the same networks
+//!   CPU back-end, GPU back-end (lavapipe: the WGSL network kernel), and a plain numpy evaluation of the same networks
 //!   (`benches/nbrdf_numpy.py`, run with `$BRDF_BASIS_PYTHON`, else `/work/venv/bin/python`,
 //!   else `python3`), whose per-material sums also check the Rust values;
 //! * BRDF_it (full lobe, evaluation mask, uniform weights) and the Gram pass of 12 basis
@@ -104,9 +103,15 @@ fn main() {
     );
     let t_gpu = gpu.as_ref().map(|g| {
         let (t, s) = tabulate_all(g, &nets);
-        assert_eq!(s, sums, "GPU and CPU tabulations differ");
+        // The GPU kernel and the CPU twin agree within SPEC 9, not bit for bit.
+        let worst = s
+            .iter()
+            .zip(&sums)
+            .map(|(a, b)| (a - b).abs() / b.abs().max(1e-30))
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-4, "GPU and CPU per-material sums differ by {worst:.1e}");
         println!(
-            "tabulate, {}: {t:.2} s (neural rows from the host twin)",
+            "tabulate, {}: {t:.2} s (WGSL kernel; per-material sums within {worst:.1e} of the CPU's)",
             g.name()
         );
         t
