@@ -646,6 +646,62 @@ pub fn plan(
     })
 }
 
+/// Seed of restart `r` of [`plan_restarts`]: restart 0 is the plan's own seed.
+pub fn restart_seed(seed: u64, r: usize) -> u64 {
+    seed.wrapping_add((r as u64).wrapping_mul(0xD1B5_4A32_D192_ED03))
+}
+
+/// Seeded restarts of the `error` criterion: `restarts` greedy plans, restart `r` with the
+/// candidate subsets of [`restart_seed`]`(p.seed, r)`, and the one whose exact mean
+/// training score after its last sample is the lowest (ties: the earliest restart). Every
+/// restart is a plan of SPEC 10 (greedy on the noise-free mean training score over its
+/// seeded subsets, nested); the choice among them is made on the training materials only,
+/// as k-medoids' seeded restarts are chosen by their loss (SPEC 6). The result's `seed`
+/// is the chosen restart's, so that [`plan`] with it gives the same plan. Other criteria,
+/// `restarts <= 1` and plans without training materials: [`plan`] itself.
+///
+/// Prefixes: the first n' samples are the chosen restart's n'-plan ([`plan`] with its
+/// seed); `plan_restarts` at a smaller n may choose another restart.
+///
+/// Why: the greedy path is decided by its first samples, chosen while the fits are
+/// underdetermined (fewer samples than columns), where the rank-one screen is blind (a
+/// column entering a passive set) and the winners come from the random exact subset, so
+/// the path depends on the seed. On the Ngan table (5 folds, seed 1, greedy k = 12, full
+/// grid, 10,000 candidates per step) the training mean rho at n = 20 of 4 seeded runs per
+/// fold ranged 1.09 to 1.60 times the training materials' dense fits, and the held-out
+/// ratio followed the training ratio run by run (held-out 1.09 to 1.55); one run gave the
+/// held-out materials 1.24 times their dense fits, the best of 4 restarts by training score
+/// 1.17 (2% noise: 1.34 and 1.20 times the noise-free means for the cross-validation's
+/// draws, 1.25 and 1.16 averaged over 30 draws). With 2,500 candidates per step (4 restarts
+/// then examine as many per step as one run of 10,000), 4 restarts gave 1.19 (noise 1.12),
+/// 5 to 8 restarts 1.18 to 1.19. Each restart costs one plan.
+pub fn plan_restarts(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cands: &[Candidate],
+    p: &PlanParams,
+    restarts: usize,
+) -> Result<Plan, AcquireError> {
+    if restarts <= 1 || p.criterion != Criterion::Error || targets.is_empty() {
+        return plan(backend, coll, basis, targets, cands, p);
+    }
+    let mut best: Option<Plan> = None;
+    for r in 0..restarts {
+        let pr = PlanParams {
+            seed: restart_seed(p.seed, r),
+            ..p.clone()
+        };
+        let pl = plan(backend, coll, basis, targets, cands, &pr)?;
+        let score = |q: &Plan| q.history.last().copied().unwrap_or(f64::INFINITY);
+        if best.as_ref().is_none_or(|b| score(&pl) < score(b)) {
+            best = Some(pl);
+        }
+    }
+    Ok(best.expect("at least two restarts"))
+}
+
 /// Index of the smallest value (ties: the earliest).
 fn argmin(v: &[f64]) -> usize {
     let mut best = 0;
@@ -861,6 +917,72 @@ pub fn plan_csv(p: &Plan) -> String {
 mod tests {
     use super::*;
     use rand::Rng;
+
+    /// Restarts: one restart is [`plan`] itself; more choose the restart of the lowest
+    /// final training score, which [`plan`] with the reported seed reproduces, and whose
+    /// prefixes are that restart's shorter plans.
+    #[test]
+    fn restarts_choose_the_lowest_training_score_and_are_reproducible() {
+        let coll = Collection::embedded_default();
+        let be = CpuBackend::new();
+        let fit = FitParams {
+            stride: 4,
+            ..FitParams::default()
+        };
+        let (basis, targets) = ([0, 1, 2], [3, 4, 5, 6, 7, 8]);
+        let mut all = basis.to_vec();
+        all.extend_from_slice(&targets);
+        let cands = cell_candidates(&coll, &all, &fit).unwrap();
+        let p = PlanParams {
+            n: 6,
+            candidates_per_step: 300,
+            seed: 5,
+            fit,
+            ..PlanParams::default()
+        };
+        let one = plan(&be, &coll, &basis, &targets, &cands, &p).unwrap();
+        assert_eq!(
+            plan_restarts(&be, &coll, &basis, &targets, &cands, &p, 1).unwrap(),
+            one
+        );
+        let best = plan_restarts(&be, &coll, &basis, &targets, &cands, &p, 3).unwrap();
+        let last = |q: &Plan| *q.history.last().unwrap();
+        for r in 0..3 {
+            let q = PlanParams {
+                seed: restart_seed(p.seed, r),
+                ..p.clone()
+            };
+            let pl = plan(&be, &coll, &basis, &targets, &cands, &q).unwrap();
+            assert!(last(&best) <= last(&pl), "restart {r}");
+        }
+        let again = PlanParams {
+            seed: best.seed,
+            ..p.clone()
+        };
+        assert_eq!(
+            plan(&be, &coll, &basis, &targets, &cands, &again).unwrap(),
+            best
+        );
+        let short = plan(
+            &be,
+            &coll,
+            &basis,
+            &targets,
+            &cands,
+            &PlanParams { n: 3, ..again },
+        )
+        .unwrap();
+        assert_eq!(short.samples[..], best.samples[..3]);
+        // Other criteria ignore restarts.
+        let c = PlanParams {
+            criterion: Criterion::Condition,
+            ..p.clone()
+        };
+        assert_eq!(
+            plan_restarts(&be, &coll, &basis, &targets, &cands, &c, 3).unwrap(),
+            plan(&be, &coll, &basis, &targets, &cands, &c).unwrap()
+        );
+    }
 
     /// The incrementally kept sampled Gram form gives bit for bit the fits of the rows
     /// themselves ([`super::super::fit::solve_rows`]), with and without a candidate row.
