@@ -289,7 +289,8 @@ def fit(collection: Collection, basis: Sequence[str], targets: Optional[Sequence
 class Plan:
     """Where to measure (``brdf-basis plan --json``): ``samples`` is a list of dicts with
     ``theta_i, phi_i, theta_o, phi_o`` in degrees, in the order chosen (the first n' of
-    an n-plan are the n'-plan)."""
+    an n-plan are the n'-plan; with ``restarts`` > 1 a separate call at a smaller n may
+    choose another path: measure a prefix)."""
 
     basis: list
     criterion: str
@@ -299,6 +300,7 @@ class Plan:
     samples: list
     history: list
     seed: int
+    restarts: int = 1
     _json: str = field(repr=False, default="")
 
     @property
@@ -317,7 +319,8 @@ def plan(collection: Collection, basis: Sequence[str], n: int, **options) -> Pla
 
     Options: ``criterion`` (``error``, ``condition``, ``random``), ``targets`` (training
     materials; default every material outside ``basis``), ``candidates_per_step``,
-    ``shortlist``, ``seed``, ``backend``, ``progress``.
+    ``shortlist``, ``seed``, ``restarts`` (``error``: seeded greedy paths sharing each
+    step's candidates, the lowest final training score kept), ``backend``, ``progress``.
 
     >>> p = plan(Collection.default(), ["polished-gold", "matte-white-paint"], 3, criterion="condition")
     >>> p.angles.shape

@@ -645,7 +645,7 @@ fn fit_json<'py>(
 /// Plans where to measure a new material (SPEC 10), as `brdf-basis plan --json` on the
 /// evaluation-mask cell centres: returns the JSON text.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, n, *, criterion = "error", targets = None, candidates_per_step = 10_000, shortlist = 32, seed = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, basis, n, *, criterion = "error", targets = None, candidates_per_step = 10_000, shortlist = 32, seed = 1, restarts = 1, backend = "auto", progress = None))]
 #[allow(clippy::too_many_arguments)]
 fn plan_json<'py>(
     py: Python<'py>,
@@ -657,6 +657,7 @@ fn plan_json<'py>(
     candidates_per_step: usize,
     shortlist: usize,
     seed: u64,
+    restarts: usize,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -673,6 +674,7 @@ fn plan_json<'py>(
         shortlist,
         seed,
         fit: bb::fit::FitParams::default(),
+        restarts,
     };
     let backend = open_backend(backend)?;
     let plan = run_long(py, progress, "plan", |_| {
@@ -782,7 +784,7 @@ fn cross_validate_json<'py>(
 /// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition`: returns the
 /// `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, k = 12, plans = None, ns = None, noises = None, folds = 5, candidates_per_step = 10_000, shortlist = 32, render_size = 64, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, k = 12, plans = None, ns = None, noises = None, folds = 5, candidates_per_step = 10_000, shortlist = 32, restarts = 1, render_size = 64, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
 #[allow(clippy::too_many_arguments)]
 fn acquisition_cv_json<'py>(
     py: Python<'py>,
@@ -795,6 +797,7 @@ fn acquisition_cv_json<'py>(
     folds: usize,
     candidates_per_step: usize,
     shortlist: usize,
+    restarts: usize,
     render_size: u32,
     mask: &str,
     weighting: &str,
@@ -817,6 +820,7 @@ fn acquisition_cv_json<'py>(
         seed,
         candidates_per_step,
         shortlist,
+        restarts,
         render_size,
         objective: bb::ObjectiveParams::default()
             .mask(parse(mask)?)

@@ -53,6 +53,9 @@ pub struct AcqCvParams {
     pub candidates_per_step: usize,
     /// Exact shortlist of the error criterion.
     pub shortlist: usize,
+    /// Seeded greedy paths of each error plan sharing the candidates of a step
+    /// ([`super::plan::plan`]; 1: one path).
+    pub restarts: usize,
     /// Render size of the image errors.
     pub render_size: u32,
     /// Fit mask, weighting, stride.
@@ -71,6 +74,7 @@ impl Default for AcqCvParams {
             seed: 1,
             candidates_per_step: 10_000,
             shortlist: 32,
+            restarts: 1,
             render_size: 64,
             objective: ObjectiveParams::default(),
         }
@@ -159,6 +163,9 @@ pub struct AcqCv {
     pub k: usize,
     /// Candidates examined per plan step.
     pub candidates_per_step: usize,
+    /// Greedy paths of each error plan.
+    #[serde(default = "super::plan::one")]
+    pub restarts: usize,
     /// Per method, plan, n and noise.
     pub results: Vec<AcqResult>,
     /// Collection fingerprint.
@@ -354,6 +361,7 @@ pub fn acquisition_cv(
                     criterion: crit,
                     candidates_per_step: p.candidates_per_step,
                     shortlist: p.shortlist,
+                    restarts: p.restarts,
                     seed: seed_f,
                     fit: fp.clone(),
                 };
@@ -476,6 +484,7 @@ pub fn acquisition_cv(
         },
         k: p.k,
         candidates_per_step: p.candidates_per_step,
+        restarts: p.restarts,
         results,
         collection_fingerprint: coll.fingerprint(),
     })

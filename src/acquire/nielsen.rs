@@ -528,6 +528,7 @@ pub fn plan_criterion(
             .collect(),
         history,
         seed: p.seed,
+        restarts: 1,
         chosen: chosen.iter().map(|&j| cands[j]).collect(),
     })
 }

@@ -70,6 +70,10 @@ pub struct CvArgs {
     /// every examined candidate).
     #[arg(long, default_value_t = 32)]
     pub shortlist: usize,
+    /// --acquisition: error plans compare this many seeded greedy paths, each examining
+    /// its share of --candidates-per-step, and keep the lowest final training score.
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=64))]
+    pub restarts: usize,
     /// --acquisition: also write the figure (held-out mean rho against n, one line per
     /// plan, log scale; below it the renders of one held-out material: target, dense fit,
     /// reconstructions from each n by the first plan) as this PNG.
@@ -177,6 +181,7 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
         seed: g.seed,
         candidates_per_step: a.candidates_per_step,
         shortlist: a.shortlist,
+        restarts: a.restarts,
         render_size: a.render_size,
         objective: ObjectiveParams::default()
             .mask(a.grid.mask)

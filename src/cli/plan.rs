@@ -41,6 +41,11 @@ pub struct PlanArgs {
     /// error: screened candidates fitted exactly per step (0: all examined).
     #[arg(long, default_value_t = PlanParams::default().shortlist)]
     pub shortlist: usize,
+    /// error: seeded greedy paths sharing the candidates of each step, the one of the
+    /// lowest final training score kept (the plan's prefixes are its shorter plans; a run
+    /// at a smaller -n may choose another path).
+    #[arg(long, default_value_t = PlanParams::default().restarts, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=64))]
+    pub restarts: usize,
     /// Output CSV: the samples-file header and one row per sample, in the order chosen.
     #[arg(long)]
     pub out: PathBuf,
@@ -100,6 +105,7 @@ pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
         shortlist: a.shortlist,
         seed: g.seed,
         fit,
+        restarts: a.restarts,
     };
     let t0 = std::time::Instant::now();
     let pl = plan(backend.as_ref(), &coll, &basis, &targets, &cands, &p)?;

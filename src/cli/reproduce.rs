@@ -211,6 +211,7 @@ fn run_acquisition(
             },
             k: 0,
             candidates_per_step: 0,
+            restarts: 1,
             results: vec![],
             collection_fingerprint: coll.fingerprint(),
             showcase: None,
