@@ -195,6 +195,10 @@ pub struct AcqShowcase {
 /// Held-out rows and fold plans of one (plan, n, noise), accumulated over folds.
 type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
 
+/// One reconstruction of a fold: plan, n and noise indices, the held-out material's index
+/// in the fold and its coefficients per channel.
+type Rec = (usize, usize, usize, usize, [Vec<f64>; 3]);
+
 /// One fold's basis (names), the samples of the showcase's plan (empty unless it is
 /// the first method's first plan, not nielsen) and its rows per plan, n and noise.
 type FoldRows = (Vec<String>, Vec<Candidate>, Vec<Vec<Vec<Cell>>>);
@@ -312,7 +316,7 @@ pub fn acquisition_cv(
                 // Every reconstruction of the fold by a plan of ours: (plan, n, noise, held-out
                 // index, coefficients per channel); scored together below (one pass over the
                 // grid for every MAE, renders from the pixel table).
-                let mut recs: Vec<(usize, usize, usize, usize, [Vec<f64>; 3])> = Vec::new();
+                let mut recs: Vec<Rec> = Vec::new();
                 let seed_f = p.seed.wrapping_add(1000 * f as u64);
                 for (pi, &crit) in p.plans.iter().enumerate() {
                     if crit == Criterion::Nielsen {
@@ -896,7 +900,7 @@ impl PixelTable {
         .map_err(|e| AcquireError::Render(e.to_string()))?;
         let mut pairs = pairs.into_inner().unwrap_or_else(|p| p.into_inner());
         // Rayon's order of the rows is not fixed; the table's is.
-        pairs.sort_by(|a, b| pair_key(a.0, a.1).cmp(&pair_key(b.0, b.1)));
+        pairs.sort_by_key(|a| pair_key(a.0, a.1));
         let mut index = HashMap::new();
         let mut unique = Vec::new();
         for (wi, wo) in pairs {
