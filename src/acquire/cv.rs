@@ -20,15 +20,16 @@ use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceParams};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
-use crate::eval::shade::{combination_brdf, material_brdf};
-use crate::fit::{channel_lobe, fit_cells};
+use crate::eval::shade::{combination_brdf, material_brdf, BrdfFn};
+use crate::fit::fit_cells;
 use crate::nnls::{lawson_hanson, GramProblem};
-use crate::select::cv::evaluate::GridEval;
+use crate::select::cv::evaluate::{GridEval, MaeJob};
 use crate::select::cv::folds::fold_bases;
 use crate::select::{make_folds, CvMethod, CvParams, Objective, ObjectiveParams};
 use crate::stats::{mean, median};
 use rand::SeedableRng;
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::f64::consts::FRAC_1_PI;
 
 /// Parameters of [`acquisition_cv`]. Defaults: greedy, k = 12, plans error, condition,
@@ -200,6 +201,14 @@ pub struct AcqShowcase {
 /// Held-out rows and fold plans of one (plan, n, noise), accumulated over folds.
 type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
 
+/// One reconstruction of a fold: plan, n and noise indices, the held-out material's index
+/// in the fold and its coefficients per channel.
+type Rec = (usize, usize, usize, usize, [Vec<f64>; 3]);
+
+/// One fold's basis (names), the samples of the showcase's plan (empty unless it is
+/// the first method's first plan, not nielsen) and its rows per plan, n and noise.
+type FoldRows = (Vec<String>, Vec<Candidate>, Vec<Vec<Vec<Cell>>>);
+
 /// Runs the acquisition cross-validation (module docs).
 ///
 /// Over 100 lines: one loop nest (method, fold, plan, noise, n) whose levels share the
@@ -260,9 +269,9 @@ pub fn acquisition_cv(
         .with_size(p.render_size)
         .with_light(45.0, 45.0);
     let display = DisplayParams::default();
+    let pixels = PixelTable::new(coll, &rp)?;
     let originals: Vec<_> = (0..n)
-        .into_par_iter()
-        .map(|t| render_sphere(&rp, &material_brdf(&coll.materials()[t].data)))
+        .map(|t| render_sphere(&rp, &pixels.material(t)))
         .collect::<Result<_, _>>()
         .map_err(|e| AcquireError::Render(e.to_string()))?;
     let names = coll.names();
@@ -276,41 +285,149 @@ pub fn acquisition_cv(
         let mut acc: Vec<Vec<Vec<Cell>>> =
             vec![vec![vec![(Vec::new(), Vec::new()); p.noises.len()]; p.ns.len()]; p.plans.len()];
         let mut fold_bases_named = Vec::new();
-        for (f, held) in folds.iter().enumerate() {
-            let basis = &bases[mi][0][f];
-            fold_bases_named.push(basis.iter().map(|&b| names[b].clone()).collect::<Vec<_>>());
-            let train: Vec<usize> = (0..n)
-                .filter(|i| held.binary_search(i).is_err() && !basis.contains(i))
-                .collect();
-            let dense = Dense::new(backend, coll, basis, held, &fp)?;
-            let mm = basis.len() + 1;
-            // The dense fit of each held-out material (the limit): rho, MAE, image error.
-            let dense_fit: Vec<(f64, f64, f64)> = (0..held.len())
-                .into_par_iter()
-                .map(|t| -> Result<(f64, f64, f64), AcquireError> {
-                    let x = [0, 1, 2].map(|c| {
-                        let g = &dense.g[c];
-                        GramProblem::new(mm, &g.gram, &g.h[t * mm..(t + 1) * mm], g.bb[t])
-                            .and_then(|pr| {
-                                lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default())
+        // Each fold returns its rows, merged in fold order.
+        let per_fold: Vec<FoldRows> = folds
+            .iter()
+            .enumerate()
+            .map(|(f, held)| -> Result<FoldRows, AcquireError> {
+                let mut acc: Vec<Vec<Vec<Cell>>> =
+                    vec![
+                        vec![vec![(Vec::new(), Vec::new()); p.noises.len()]; p.ns.len()];
+                        p.plans.len()
+                    ];
+                let mut show = Vec::new();
+                let basis = &bases[mi][0][f];
+                let named: Vec<String> = basis.iter().map(|&b| names[b].clone()).collect();
+                let train: Vec<usize> = (0..n)
+                    .filter(|i| held.binary_search(i).is_err() && !basis.contains(i))
+                    .collect();
+                let dense = Dense::new(backend, coll, basis, held, &fp)?;
+                let mm = basis.len() + 1;
+                // The dense fit of each held-out material (the limit).
+                let dense_x: Vec<[Vec<f64>; 3]> = (0..held.len())
+                    .into_par_iter()
+                    .map(|t| -> Result<[Vec<f64>; 3], AcquireError> {
+                        let x = [0, 1, 2].map(|c| {
+                            let g = &dense.g[c];
+                            GramProblem::new(mm, &g.gram, &g.h[t * mm..(t + 1) * mm], g.bb[t])
+                                .and_then(|pr| {
+                                    lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default())
+                                })
+                                .map(|s| s.x)
+                        });
+                        let [a, b, c] = x;
+                        Ok([a?, b?, c?])
+                    })
+                    .collect::<Result<_, _>>()?;
+                // Every reconstruction of the fold by a plan of ours: (plan, n, noise, held-out
+                // index, coefficients per channel); scored together below (one pass over the
+                // grid for every MAE, renders from the pixel table).
+                let mut recs: Vec<Rec> = Vec::new();
+                let seed_f = p.seed.wrapping_add(1000 * f as u64);
+                for (pi, &crit) in p.plans.iter().enumerate() {
+                    if crit == Criterion::Nielsen {
+                        continue;
+                    }
+                    let pp = PlanParams {
+                        n: nmax,
+                        criterion: crit,
+                        candidates_per_step: p.candidates_per_step,
+                        shortlist: p.shortlist,
+                        seed: seed_f,
+                        fit: fp.clone(),
+                        restarts: p.restarts,
+                    };
+                    // Condition and random plans need no training materials: without
+                    // them `plan` skips the training-score history the results never use.
+                    let train_of = if crit == Criterion::Error {
+                        &train[..]
+                    } else {
+                        &[]
+                    };
+                    let chosen = plan(backend, coll, basis, train_of, &cands, &pp)?.chosen;
+                    let samples: Vec<PlannedSample> =
+                        chosen.iter().map(PlannedSample::from).collect();
+                    if mi == 0 && pi == 0 {
+                        show = chosen.clone();
+                    }
+                    let mut mats = basis.clone();
+                    mats.extend_from_slice(held);
+                    let vals = values_at(coll, &mats, &chosen)?;
+                    for si in 0..p.noises.len() {
+                        let sigma = p.noises[si];
+                        // Noisy measurements of every held-out material at the nmax samples.
+                        let ys: Vec<[Vec<f64>; 3]> = held
+                            .iter()
+                            .enumerate()
+                            .map(|(t, &ti)| {
+                                measure(p.seed, ti, si, sigma, nmax, |c, s| {
+                                    vals[c][basis.len() + t][s]
+                                })
                             })
-                            .map(|s| s.x)
+                            .collect();
+                        for (ni, &ns) in p.ns.iter().enumerate() {
+                            let xs: Vec<[Vec<f64>; 3]> = (0..held.len())
+                                .into_par_iter()
+                                .map(|t| sample_coefficients(basis.len(), &vals, &ys[t], ns))
+                                .collect::<Result<_, _>>()?;
+                            recs.extend(
+                                xs.into_iter().enumerate().map(|(t, x)| (pi, ni, si, t, x)),
+                            );
+                            acc[pi][ni][si].1.push(samples[..ns].to_vec());
+                        }
+                    }
+                }
+                // Scores: the dense fits first, then every reconstruction.
+                let coefs: Vec<Vec<[f64; 3]>> = dense_x
+                    .iter()
+                    .chain(recs.iter().map(|r| &r.4))
+                    .map(|x| (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect())
+                    .collect();
+                let target = |i: usize| {
+                    held[if i < held.len() {
+                        i
+                    } else {
+                        recs[i - held.len()].3
+                    }]
+                };
+                let jobs: Vec<MaeJob<'_>> = coefs
+                    .iter()
+                    .enumerate()
+                    .map(|(i, coef)| MaeJob {
+                        basis,
+                        target: target(i),
+                        coef,
+                    })
+                    .collect();
+                let maes = grid.maes(&jobs);
+                let ies: Vec<f64> = coefs
+                    .par_iter()
+                    .enumerate()
+                    .map(|(i, coef)| {
+                        pixels
+                            .render_error(&rp, &display, &originals[target(i)], basis, coef)
+                            .map(|r| r.1)
+                    })
+                    .collect::<Result<_, _>>()?;
+                let dense_rho: Vec<f64> =
+                    (0..held.len()).map(|t| dense.rho(t, &dense_x[t])).collect();
+                for (r, (pi, ni, si, t, x)) in recs.iter().enumerate() {
+                    let i = held.len() + r;
+                    acc[*pi][*ni][*si].0.push(AcqHeldOut {
+                        material: names[held[*t]].clone(),
+                        fold: f,
+                        rho: dense.rho(*t, x),
+                        dense_rho: dense_rho[*t],
+                        mae: maes[i],
+                        image_error: ies[i],
+                        dense_mae: maes[*t],
+                        dense_image_error: ies[*t],
                     });
-                    let [a, b, c] = x;
-                    let x = [a?, b?, c?];
-                    let coef: Vec<[f64; 3]> =
-                        (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
-                    let img = render_sphere(&rp, &combination_brdf(coll, basis, &coef))
-                        .map_err(|e| AcquireError::Render(e.to_string()))?;
-                    let ie = normalized_image_error(&originals[held[t]], &img, &display)
-                        .map_err(|e| AcquireError::Render(e.to_string()))?;
-                    Ok((dense.rho(t, &x), grid.mae(basis, held[t], &coef), ie))
-                })
-                .collect::<Result<_, _>>()?;
-            let dense_rho: Vec<f64> = dense_fit.iter().map(|d| d.0).collect();
-            let seed_f = p.seed.wrapping_add(1000 * f as u64);
-            for (pi, &crit) in p.plans.iter().enumerate() {
-                if crit == Criterion::Nielsen {
+                }
+                for (pi, &crit) in p.plans.iter().enumerate() {
+                    if crit != Criterion::Nielsen {
+                        continue;
+                    }
                     // The peer baseline: its own model of every training material of the
                     // fold (no basis), plan and reconstruction.
                     let train_all: Vec<usize> =
@@ -344,8 +461,8 @@ pub fn acquisition_cv(
                                     dense_rho: dense_rho[t],
                                     mae,
                                     image_error,
-                                    dense_mae: dense_fit[t].1,
-                                    dense_image_error: dense_fit[t].2,
+                                    dense_mae: maes[t],
+                                    dense_image_error: ies[t],
                                 }
                             });
                             acc[pi][ni][si].0.extend(rows);
@@ -354,65 +471,20 @@ pub fn acquisition_cv(
                                 .push(samples[..ns.min(samples.len())].to_vec());
                         }
                     }
-                    continue;
                 }
-                let pp = PlanParams {
-                    n: nmax,
-                    criterion: crit,
-                    candidates_per_step: p.candidates_per_step,
-                    shortlist: p.shortlist,
-                    restarts: p.restarts,
-                    seed: seed_f,
-                    fit: fp.clone(),
-                };
-                let pl = plan(backend, coll, basis, &train, &cands, &pp)?;
-                let chosen: Vec<Candidate> = pl.chosen.clone();
-                if mi == 0 && pi == 0 {
-                    show_chosen[f] = chosen.clone();
-                }
-                let mut mats = basis.clone();
-                mats.extend_from_slice(held);
-                let vals = values_at(coll, &mats, &chosen)?;
-                for (si, &sigma) in p.noises.iter().enumerate() {
-                    // Noisy measurements of every held-out material at the nmax samples.
-                    let ys: Vec<[Vec<f64>; 3]> = held
-                        .iter()
-                        .enumerate()
-                        .map(|(t, &ti)| {
-                            measure(p.seed, ti, si, sigma, nmax, |c, s| {
-                                vals[c][basis.len() + t][s]
-                            })
-                        })
-                        .collect();
-                    for (ni, &ns) in p.ns.iter().enumerate() {
-                        let rows: Vec<AcqHeldOut> = held
-                            .par_iter()
-                            .enumerate()
-                            .map(|(t, &ti)| -> Result<AcqHeldOut, AcquireError> {
-                                let x = sample_coefficients(basis.len(), &vals, &ys[t], ns)?;
-                                let coef: Vec<[f64; 3]> =
-                                    (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
-                                let img = render_sphere(&rp, &combination_brdf(coll, basis, &coef))
-                                    .map_err(|e| AcquireError::Render(e.to_string()))?;
-                                Ok(AcqHeldOut {
-                                    material: names[ti].clone(),
-                                    fold: f,
-                                    rho: dense.rho(t, &x),
-                                    dense_rho: dense_rho[t],
-                                    mae: grid.mae(basis, ti, &coef),
-                                    image_error: normalized_image_error(
-                                        &originals[ti],
-                                        &img,
-                                        &display,
-                                    )
-                                    .map_err(|e| AcquireError::Render(e.to_string()))?,
-                                    dense_mae: dense_fit[t].1,
-                                    dense_image_error: dense_fit[t].2,
-                                })
-                            })
-                            .collect::<Result<_, _>>()?;
+                Ok((named, show, acc))
+            })
+            .collect::<Result<_, _>>()?;
+        for (f, (named, show, facc)) in per_fold.into_iter().enumerate() {
+            fold_bases_named.push(named);
+            if mi == 0 && !show.is_empty() {
+                show_chosen[f] = show;
+            }
+            for (pi, per_n) in facc.into_iter().enumerate() {
+                for (ni, per_noise) in per_n.into_iter().enumerate() {
+                    for (si, (rows, plans)) in per_noise.into_iter().enumerate() {
                         acc[pi][ni][si].0.extend(rows);
-                        acc[pi][ni][si].1.push(pl.samples[..ns].to_vec());
+                        acc[pi][ni][si].1.extend(plans);
                     }
                 }
             }
@@ -560,9 +632,7 @@ fn nielsen_rows(
 ) -> Result<Vec<Vec<Scores>>, AcquireError> {
     let cpu = CpuBackend::new();
     let data = &nf.coll.materials()[ti].data;
-    let tv: Vec<Vec<f64>> = (0..3)
-        .map(|c| cpu.values_f64(&channel_lobe(data, c), &nf.model.cells))
-        .collect();
+    let tv = super::nielsen::channel_values(&cpu, data, &nf.model.cells);
     let e: f64 = tv
         .iter()
         .map(|t| {
@@ -713,6 +783,117 @@ impl Showcase<'_> {
             original: self.originals[ti].clone(),
             tiles,
         }))
+    }
+}
+
+/// Every material's BRDF at the direction pairs of the renders' lit pixels (one light, one
+/// view: every render of the cross-validation shares them), so that the render of a
+/// reconstruction costs a multiply-add per basis material and pixel, not a run of every
+/// basis network per pixel. The values are `material_brdf`'s at the same pairs and
+/// [`Self::combination`] sums them as `combination_brdf` does: the renders are the same
+/// to the bit.
+struct PixelTable {
+    /// Direction pair (bits of `wi`, `wo`) to its row of `values`.
+    index: HashMap<[u64; 6], usize>,
+    /// Per pair, every material's RGB.
+    values: Vec<Vec<[f64; 3]>>,
+    /// Every material's BRDF (for pairs not in the table).
+    brdfs: Vec<BrdfFn>,
+}
+
+fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
+    [wi[0], wi[1], wi[2], wo[0], wo[1], wo[2]].map(f64::to_bits)
+}
+
+impl PixelTable {
+    fn new(coll: &Collection, rp: &RenderParams) -> Result<Self, AcquireError> {
+        let pairs = std::sync::Mutex::new(Vec::new());
+        render_sphere(rp, &|wi, wo| {
+            if wi[2] > 0.0 && wo[2] > 0.0 {
+                pairs
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .push((wi, wo));
+            }
+            [0.0; 3]
+        })
+        .map_err(|e| AcquireError::Render(e.to_string()))?;
+        let mut pairs = pairs.into_inner().unwrap_or_else(|p| p.into_inner());
+        // Rayon's order of the rows is not fixed; the table's is.
+        pairs.sort_by_key(|a| pair_key(a.0, a.1));
+        let mut index = HashMap::new();
+        let mut unique = Vec::new();
+        for (wi, wo) in pairs {
+            index.entry(pair_key(wi, wo)).or_insert_with(|| {
+                unique.push((wi, wo));
+                unique.len() - 1
+            });
+        }
+        let brdfs: Vec<BrdfFn> = coll
+            .materials()
+            .iter()
+            .map(|m| material_brdf(&m.data))
+            .collect();
+        let values = unique
+            .par_iter()
+            .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
+            .collect();
+        Ok(Self {
+            index,
+            values,
+            brdfs,
+        })
+    }
+
+    /// Material `m`'s render: `render_sphere` of `material_brdf`, from the table.
+    fn material(&self, m: usize) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + '_ {
+        move |wi, wo| match self.index.get(&pair_key(wi, wo)) {
+            Some(&r) => self.values[r][m],
+            None => self.brdfs[m](wi, wo),
+        }
+    }
+
+    /// `combination_brdf(coll, basis, coefficients)` from the table.
+    fn combination<'s>(
+        &'s self,
+        basis: &'s [usize],
+        coefficients: &'s [[f64; 3]],
+    ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 's {
+        let a0 = coefficients[0];
+        move |wi, wo| {
+            if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                return [0.0; 3];
+            }
+            let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
+            let mut v = [0, 1, 2].map(|c| a0[c] * FRAC_1_PI);
+            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
+                let x = match row {
+                    Some(r) => r[b],
+                    None => self.brdfs[b](wi, wo),
+                };
+                for c in 0..3 {
+                    v[c] += a[c] * x[c];
+                }
+            }
+            v
+        }
+    }
+
+    /// The render of `combination_brdf(coll, basis, coef)` and its image error against
+    /// `original`.
+    fn render_error(
+        &self,
+        rp: &RenderParams,
+        display: &DisplayParams,
+        original: &Image,
+        basis: &[usize],
+        coef: &[[f64; 3]],
+    ) -> Result<(Image, f64), AcquireError> {
+        let img = render_sphere(rp, &self.combination(basis, coef))
+            .map_err(|e| AcquireError::Render(e.to_string()))?;
+        let ie = normalized_image_error(original, &img, display)
+            .map_err(|e| AcquireError::Render(e.to_string()))?;
+        Ok((img, ie))
     }
 }
 

@@ -30,7 +30,7 @@
 use super::linalg::{condition_number, sym_eigen};
 use super::AcquireError;
 use crate::backend::cpu::CpuBackend;
-use crate::collection::Collection;
+use crate::collection::{Collection, MaterialData};
 use crate::fit::channel_lobe;
 use crate::merl::grid::{cell_directions, flat, lookup, unflat, N_CELLS, N_PD, N_TD, N_TH};
 use rand::SeedableRng;
@@ -88,6 +88,19 @@ pub struct NielsenModel {
     q: Vec<f64>,
     /// Singular values of the centred mapped observations, decreasing (all of them).
     pub singular_values: Vec<f64>,
+    /// The model cell nearest to every MERL cell (`nearest_model_cells`), built on the
+    /// first render and shared by every later one.
+    near: std::sync::OnceLock<Vec<u32>>,
+}
+
+/// The three channels of a material at `cells` in f64: each channel's lobe tabulated by
+/// [`CpuBackend::values_f64`], a network run once for all three
+/// ([`CpuBackend::neural_values_f64`], the same values).
+pub fn channel_values(cpu: &CpuBackend, m: &MaterialData, cells: &[u32]) -> [Vec<f64>; 3] {
+    match m {
+        MaterialData::Neural(net) => cpu.neural_values_f64(net, cells),
+        d => [0, 1, 2].map(|c| cpu.values_f64(&channel_lobe(d, c), cells)),
+    }
 }
 
 /// Median of `v` (mean of the two middle values for an even count); `v` is reordered.
@@ -116,6 +129,27 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     acc[0] + acc[1] + acc[2] + acc[3] + tail
 }
 
+/// [`dot`] of four rows `a` with one `b` at once, `b` read once for the four: each sum is
+/// formed term by term and accumulator by accumulator as [`dot`] forms it (the same bits).
+fn dot4(a: [&[f64]; 4], b: &[f64]) -> [f64; 4] {
+    let n = b.len() / 4 * 4;
+    let mut acc = [[0.0f64; 4]; 4];
+    let rows = a.map(|r| &r[..n]);
+    for (i, y) in b[..n].chunks_exact(4).enumerate() {
+        let o = 4 * i;
+        for (r, x) in rows.iter().enumerate() {
+            let x = &x[o..o + 4];
+            for l in 0..4 {
+                acc[r][l] += x[l] * y[l];
+            }
+        }
+    }
+    [0, 1, 2, 3].map(|r| {
+        let tail: f64 = a[r][n..].iter().zip(&b[n..]).map(|(x, y)| x * y).sum();
+        acc[r][0] + acc[r][1] + acc[r][2] + acc[r][3] + tail
+    })
+}
+
 impl NielsenModel {
     /// Trains on `train` (collection indices; each channel is one observation) over
     /// `cells` (valid in every training material), keeping `k` components (at most the
@@ -134,14 +168,13 @@ impl NielsenModel {
             });
         }
         let cpu = CpuBackend::new();
-        let lobes: Vec<_> = train
-            .iter()
-            .flat_map(|&m| (0..3).map(move |c| channel_lobe(&coll.materials()[m].data, c)))
-            .collect();
         let values = |block: &[u32]| -> Vec<Vec<f64>> {
-            lobes.iter().map(|l| cpu.values_f64(l, block)).collect()
+            train
+                .iter()
+                .flat_map(|&m| channel_values(&cpu, &coll.materials()[m].data, block))
+                .collect()
         };
-        Ok(Self::from_values(lobes.len(), cells, k, &values))
+        Ok(Self::from_values(3 * train.len(), cells, k, &values))
     }
 
     /// Trains on `nobs` observations given by `values(block)`: the value of each
@@ -209,8 +242,21 @@ impl NielsenModel {
                     for (j, v) in n2.iter_mut().enumerate() {
                         *v = x.iter().map(|xo| xo[j] * xo[j]).sum();
                     }
+                    // The lower triangle, four rows at a time.
                     let mut g = vec![0.0; nobs * nobs];
-                    for a in 0..nobs {
+                    let quads = nobs / 4 * 4;
+                    for a0 in (0..quads).step_by(4) {
+                        let rows = [&x[a0][..], &x[a0 + 1], &x[a0 + 2], &x[a0 + 3]];
+                        for b in 0..a0 + 4 {
+                            let d = dot4(rows, &x[b]);
+                            for (r, v) in d.into_iter().enumerate() {
+                                if b <= a0 + r {
+                                    g[(a0 + r) * nobs + b] = v;
+                                }
+                            }
+                        }
+                    }
+                    for a in quads..nobs {
                         for b in 0..=a {
                             g[a * nobs + b] = dot(&x[a], &x[b]);
                         }
@@ -262,6 +308,7 @@ impl NielsenModel {
             k,
             q,
             singular_values: lam.iter().map(|l| l.max(0.0).sqrt()).collect(),
+            near: std::sync::OnceLock::new(),
         }
     }
 
@@ -464,7 +511,7 @@ impl NielsenModel {
         &'a self,
         coef: &'a [Vec<f64>; 3],
     ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 'a {
-        let near = self.nearest_model_cells();
+        let near = self.near.get_or_init(|| self.nearest_model_cells());
         move |wi, wo| {
             if wi[2] <= 0.0 || wo[2] <= 0.0 {
                 return [0.0; 3];
@@ -593,6 +640,21 @@ mod tests {
         assert_eq!(median_in_place(&mut [3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median_in_place(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
         assert!((cos_map(flat(0, 0, 0) as u32) - 1.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn dot4_is_dot_to_the_bit() {
+        let v: Vec<Vec<f64>> = (0..5)
+            .map(|r| {
+                (0..23)
+                    .map(|i| ((i * 7 + r * 3) as f64 * 0.37).sin())
+                    .collect()
+            })
+            .collect();
+        let d = dot4([&v[0], &v[1], &v[2], &v[3]], &v[4]);
+        for r in 0..4 {
+            assert_eq!(d[r].to_bits(), dot(&v[r], &v[4]).to_bits());
+        }
     }
 
     #[test]

@@ -41,7 +41,7 @@ use super::samples::Sample;
 use super::AcquireError;
 use crate::backend::cpu::CpuBackend;
 use crate::backend::Backend;
-use crate::collection::Collection;
+use crate::collection::{Collection, MaterialData};
 use crate::fit::{channel_gram, channel_lobe, fit_cells, ChannelGram, FitParams};
 use crate::merl::grid::cell_directions;
 use crate::nnls::lawson_hanson;
@@ -229,11 +229,19 @@ pub(crate) fn values_at(
     let mut out: [Vec<Vec<f64>>; 3] = Default::default();
     if let Some(cells) = cands.iter().map(|c| c.cell).collect::<Option<Vec<u32>>>() {
         let cpu = CpuBackend::new();
-        for (c, o) in out.iter_mut().enumerate() {
-            *o = mats
-                .par_iter()
-                .map(|&m| cpu.values_f64(&channel_lobe(&coll.materials()[m].data, c), &cells))
-                .collect();
+        // A network runs once for its three channels (and past the back-end's cache of
+        // whole lobes, which candidate subsets would only fill): the same values.
+        let per: Vec<[Vec<f64>; 3]> = mats
+            .par_iter()
+            .map(|&m| match &coll.materials()[m].data {
+                MaterialData::Neural(net) => cpu.neural_values_f64(net, &cells),
+                data => std::array::from_fn(|c| cpu.values_f64(&channel_lobe(data, c), &cells)),
+            })
+            .collect();
+        for v in per {
+            for (o, vc) in out.iter_mut().zip(v) {
+                o.push(vc);
+            }
         }
         return Ok(out);
     }

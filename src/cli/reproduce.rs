@@ -49,7 +49,8 @@ pub struct ReproduceArgs {
     #[arg(long, default_value_t = ExperimentParams::default().render_size)]
     pub render_size: u32,
     /// Material shown in full-size renders, heatmaps and lobe plots (default: alum-bronze
-    /// when it is evaluated, else the first evaluated material).
+    /// when it is evaluated, else a moderately glossy analytic target with a visible body,
+    /// else the target whose render shows most body and highlight).
     #[arg(long)]
     pub showcase: Option<String>,
     /// The paper's bases, CSV with columns basis,material: fitted on the same targets.

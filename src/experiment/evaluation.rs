@@ -143,14 +143,18 @@ pub const SHOWCASE_MIN_DIFFUSE: f64 = 0.05;
 /// lost in the body (Ngan's teflon: 0.45).
 pub const SHOWCASE_MIN_CONTRAST: f64 = 3.0;
 
+/// Render size of the renders [`default_showcase`] judges measured materials by.
+pub const SHOWCASE_PROBE_SIZE: u32 = 64;
+
 /// The default showcase among `targets` (collection indices, not empty):
 /// [`PAPER_SHOWCASE`] when it is a target; else a moderately glossy material whose
 /// render shows its lobe on a visible body: among the analytic targets with a specular
 /// lobe (mean `s > 0`), a body (mean diffuse albedo `>=` [`SHOWCASE_MIN_DIFFUSE`]) and a
 /// highlight that stands out (contrast `>=` [`SHOWCASE_MIN_CONTRAST`]), the one whose
 /// exponent is nearest [`SHOWCASE_EXPONENT`] on a log scale (ties: the first); without
-/// such a target, the analytic target with a lobe nearest that exponent; else the first
-/// target (measured collections).
+/// such a target, the analytic target with a lobe nearest that exponent; else (measured,
+/// neural and RGL collections) the target whose render shows most, by
+/// [`visible_showcase`].
 pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
     if let Some(&t) = targets.iter().find(|&&t| coll.names()[t] == PAPER_SHOWCASE) {
         return t;
@@ -176,7 +180,52 @@ pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
     };
     nearest(true)
         .or_else(|| nearest(false))
-        .unwrap_or(targets[0])
+        .unwrap_or_else(|| visible_showcase(coll, targets))
+}
+
+/// The target (of `targets`, not empty) whose display-mapped render ([`SHOWCASE_PROBE_SIZE`]
+/// px, light (45, 45), the default display mapping) shows both a body and a highlight on
+/// it: the largest `min(body, peak - body)`, `body` the median and `peak` the largest
+/// display value (mean over RGB) of the lit sphere pixels (ties, and renders that fail:
+/// the first). A near-black material (small body) and a matte one (no peak above its body)
+/// both score low.
+pub fn visible_showcase(coll: &Collection, targets: &[usize]) -> usize {
+    let rp = RenderParams::default()
+        .with_size(SHOWCASE_PROBE_SIZE)
+        .with_light(45.0, 45.0);
+    let display = DisplayParams::default();
+    // The lit pixels: those a white Lambertian sphere shows.
+    let lit: Vec<bool> = match render_sphere(&rp, &|_, _| [1.0; 3]) {
+        Ok(img) => img.data.chunks_exact(3).map(|p| p[0] > 0.0).collect(),
+        Err(_) => return targets[0],
+    };
+    let score = |t: usize| -> f64 {
+        let Ok(img) = render_sphere(&rp, &material_brdf(&coll.materials()[t].data)) else {
+            return f64::NEG_INFINITY;
+        };
+        let mut v: Vec<f64> = img
+            .data
+            .chunks_exact(3)
+            .zip(&lit)
+            .filter(|(_, &l)| l)
+            .map(|(p, _)| p.iter().map(|&x| display.map(f64::from(x))).sum::<f64>() / 3.0)
+            .collect();
+        if v.is_empty() {
+            return f64::NEG_INFINITY;
+        }
+        v.sort_by(f64::total_cmp);
+        let body = v[v.len() / 2];
+        let peak = v[v.len() - 1];
+        body.min(peak - body)
+    };
+    let scores: Vec<f64> = targets.par_iter().map(|&t| score(t)).collect();
+    let mut best = 0;
+    for i in 1..targets.len() {
+        if scores[i] > scores[best] {
+            best = i;
+        }
+    }
+    targets[best]
 }
 
 /// [`fit`] of `targets` by every basis (collection indices), the same fits to the bit.
@@ -522,8 +571,21 @@ mod tests {
         assert_eq!(default_showcase(&c, &[5, 0, 1, 2, 3]), idx("glossy"));
         // No target with a body: the lobe nearest the exponent.
         assert_eq!(default_showcase(&c, &[7, 0]), idx("dot"));
-        // No lobe at all: the first target.
+        // No lobe at all: the render that shows most (the only target).
         assert_eq!(default_showcase(&c, &[3]), idx("matte"));
+    }
+
+    #[test]
+    fn a_measured_showcase_has_a_body_and_a_highlight() {
+        let c = analytic(
+            "black,0.005,0.005,0.005,0.01,0.01,0.01,0.04,100\n\
+             matte,0.5,0.5,0.5,0,0,0,0.5,1\n\
+             glossy,0.3,0.3,0.3,1,1,1,0.5,100\n",
+        );
+        let idx = |n: &str| c.index_of(n).unwrap();
+        assert_eq!(visible_showcase(&c, &[0, 1, 2]), idx("glossy"));
+        assert_eq!(visible_showcase(&c, &[0, 1]), idx("matte"));
+        assert_eq!(visible_showcase(&c, &[0]), idx("black"));
     }
 
     #[test]

@@ -287,7 +287,7 @@ fn fits(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         "fig4b-image-error",
         "Fig. 4b: normalised image error per material, in the order of Fig. 4a (the MAE of the first basis)",
     );
-    ctx.figure(s, "fig5-showcase", &format!("Fig. 5: {} (top: target and each basis's approximation; bottom: per-pixel error heatmaps on a common scale; `renders/` has each heatmap with its colour bar)", ev.showcase.material));
+    ctx.figure(s, "fig5-showcase", &format!("Fig. 5: {} (top: target and each basis's approximation; bottom: per-pixel error heatmaps on a common scale; `renders/` has each heatmap with its colour bar). The showcase, unless `--showcase` names one: the paper's alum-bronze when it is a target; else the analytic target with a visible body and highlight whose exponent is nearest 100; else (measured collections) the target whose display-mapped render shows most body and highlight, the largest min(median, peak - median) over the lit sphere", ev.showcase.material));
 }
 
 fn cross_validation(e: &Experiment, _: &ReportContext, s: &mut String) {

@@ -315,15 +315,6 @@ impl<'a> GridEval<'a> {
         }
     }
 
-    /// Weighted mean of |fit - target| over the cells, averaged over channels.
-    pub(crate) fn mae(&self, basis: &[usize], t: usize, coef: &[[f64; 3]]) -> f64 {
-        self.maes(&[MaeJob {
-            basis,
-            target: t,
-            coef,
-        }])[0]
-    }
-
     /// The MAE of every job (job order). Analytic collections: from the separable cell
     /// moments, job by job. Otherwise one pass over the cells for all jobs at once: block
     /// after block of [`MAE_BLOCK`] cells, every material the jobs need (their targets and
