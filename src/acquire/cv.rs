@@ -20,7 +20,7 @@ use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceParams};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
-use crate::eval::shade::{combination_brdf, material_brdf, BrdfFn};
+use crate::eval::shade::{combination_brdf, PixelBrdfs};
 use crate::fit::fit_cells;
 use crate::nnls::{lawson_hanson, GramProblem};
 use crate::select::cv::evaluate::{GridEval, MaeJob};
@@ -29,7 +29,6 @@ use crate::select::{make_folds, CvMethod, CvParams, Objective, ObjectiveParams};
 use crate::stats::{mean, median};
 use rand::SeedableRng;
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::f64::consts::FRAC_1_PI;
 
 /// Parameters of [`acquisition_cv`]. Defaults: greedy, k = 12, plans error, condition,
@@ -269,7 +268,7 @@ pub fn acquisition_cv(
         .with_size(p.render_size)
         .with_light(45.0, 45.0);
     let display = DisplayParams::default();
-    let pixels = PixelTable::new(coll, &rp)?;
+    let pixels = PixelBrdfs::new(coll, &rp).map_err(|e| AcquireError::Render(e.to_string()))?;
     let originals: Vec<_> = (0..n)
         .map(|t| render_sphere(&rp, &pixels.material(t)))
         .collect::<Result<_, _>>()
@@ -404,8 +403,7 @@ pub fn acquisition_cv(
                     .par_iter()
                     .enumerate()
                     .map(|(i, coef)| {
-                        pixels
-                            .render_error(&rp, &display, &originals[target(i)], basis, coef)
+                        render_error(&pixels, &rp, &display, &originals[target(i)], basis, coef)
                             .map(|r| r.1)
                     })
                     .collect::<Result<_, _>>()?;
@@ -786,115 +784,21 @@ impl Showcase<'_> {
     }
 }
 
-/// Every material's BRDF at the direction pairs of the renders' lit pixels (one light, one
-/// view: every render of the cross-validation shares them), so that the render of a
-/// reconstruction costs a multiply-add per basis material and pixel, not a run of every
-/// basis network per pixel. The values are `material_brdf`'s at the same pairs and
-/// [`Self::combination`] sums them as `combination_brdf` does: the renders are the same
-/// to the bit.
-struct PixelTable {
-    /// Direction pair (bits of `wi`, `wo`) to its row of `values`.
-    index: HashMap<[u64; 6], usize>,
-    /// Per pair, every material's RGB.
-    values: Vec<Vec<[f64; 3]>>,
-    /// Every material's BRDF (for pairs not in the table).
-    brdfs: Vec<BrdfFn>,
-}
-
-fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
-    [wi[0], wi[1], wi[2], wo[0], wo[1], wo[2]].map(f64::to_bits)
-}
-
-impl PixelTable {
-    fn new(coll: &Collection, rp: &RenderParams) -> Result<Self, AcquireError> {
-        let pairs = std::sync::Mutex::new(Vec::new());
-        render_sphere(rp, &|wi, wo| {
-            if wi[2] > 0.0 && wo[2] > 0.0 {
-                pairs
-                    .lock()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .push((wi, wo));
-            }
-            [0.0; 3]
-        })
+/// The render of `combination_brdf(coll, basis, coef)` from `pixels` and its image error
+/// against `original`.
+fn render_error(
+    pixels: &PixelBrdfs,
+    rp: &RenderParams,
+    display: &DisplayParams,
+    original: &Image,
+    basis: &[usize],
+    coef: &[[f64; 3]],
+) -> Result<(Image, f64), AcquireError> {
+    let img = render_sphere(rp, &pixels.combination(basis, coef))
         .map_err(|e| AcquireError::Render(e.to_string()))?;
-        let mut pairs = pairs.into_inner().unwrap_or_else(|p| p.into_inner());
-        // Rayon's order of the rows is not fixed; the table's is.
-        pairs.sort_by_key(|a| pair_key(a.0, a.1));
-        let mut index = HashMap::new();
-        let mut unique = Vec::new();
-        for (wi, wo) in pairs {
-            index.entry(pair_key(wi, wo)).or_insert_with(|| {
-                unique.push((wi, wo));
-                unique.len() - 1
-            });
-        }
-        let brdfs: Vec<BrdfFn> = coll
-            .materials()
-            .iter()
-            .map(|m| material_brdf(&m.data))
-            .collect();
-        let values = unique
-            .par_iter()
-            .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
-            .collect();
-        Ok(Self {
-            index,
-            values,
-            brdfs,
-        })
-    }
-
-    /// Material `m`'s render: `render_sphere` of `material_brdf`, from the table.
-    fn material(&self, m: usize) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + '_ {
-        move |wi, wo| match self.index.get(&pair_key(wi, wo)) {
-            Some(&r) => self.values[r][m],
-            None => self.brdfs[m](wi, wo),
-        }
-    }
-
-    /// `combination_brdf(coll, basis, coefficients)` from the table.
-    fn combination<'s>(
-        &'s self,
-        basis: &'s [usize],
-        coefficients: &'s [[f64; 3]],
-    ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 's {
-        let a0 = coefficients[0];
-        move |wi, wo| {
-            if wi[2] <= 0.0 || wo[2] <= 0.0 {
-                return [0.0; 3];
-            }
-            let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
-            let mut v = [0, 1, 2].map(|c| a0[c] * FRAC_1_PI);
-            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
-                let x = match row {
-                    Some(r) => r[b],
-                    None => self.brdfs[b](wi, wo),
-                };
-                for c in 0..3 {
-                    v[c] += a[c] * x[c];
-                }
-            }
-            v
-        }
-    }
-
-    /// The render of `combination_brdf(coll, basis, coef)` and its image error against
-    /// `original`.
-    fn render_error(
-        &self,
-        rp: &RenderParams,
-        display: &DisplayParams,
-        original: &Image,
-        basis: &[usize],
-        coef: &[[f64; 3]],
-    ) -> Result<(Image, f64), AcquireError> {
-        let img = render_sphere(rp, &self.combination(basis, coef))
-            .map_err(|e| AcquireError::Render(e.to_string()))?;
-        let ie = normalized_image_error(original, &img, display)
-            .map_err(|e| AcquireError::Render(e.to_string()))?;
-        Ok((img, ie))
-    }
+    let ie = normalized_image_error(original, &img, display)
+        .map_err(|e| AcquireError::Render(e.to_string()))?;
+    Ok((img, ie))
 }
 
 /// A standard normal draw (Box-Muller on two uniform draws in (0, 1]).

@@ -2,6 +2,7 @@
 //! 7), a neural one (its network at the direction pair, SPEC 9), or a fitted combination `a0 / pi + sum_k a_k f_k`.
 
 use crate::collection::{Collection, MaterialData};
+use crate::eval::render::{render_sphere, RenderError, RenderParams};
 use crate::merl::grid::lookup;
 
 /// A BRDF `f(wi, wo) -> RGB` for the renderer.
@@ -63,4 +64,99 @@ pub fn combination_brdf(coll: &Collection, basis: &[usize], coefficients: &[[f64
         }
         v
     })
+}
+
+/// Every material's BRDF at the direction pairs of one render's lit pixels (one light, one
+/// view: the renders of the fits and reconstructions of a collection share them), so that
+/// the render of a combination costs a multiply-add per basis material and pixel, not an
+/// evaluation of every basis material (a neural network each) per pixel. The values are
+/// [`material_brdf`]'s at the same pairs and [`Self::combination`] sums them as
+/// [`combination_brdf`] does: the renders are the same to the bit.
+pub struct PixelBrdfs {
+    /// Direction pair (bits of `wi`, `wo`) to its row of `values`.
+    index: std::collections::HashMap<[u64; 6], usize>,
+    /// Per pair (in the pairs' bit order), every material's RGB.
+    values: Vec<Vec<[f64; 3]>>,
+    /// Every material's BRDF (for pairs not in the table).
+    brdfs: Vec<BrdfFn>,
+}
+
+fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
+    [wi[0], wi[1], wi[2], wo[0], wo[1], wo[2]].map(f64::to_bits)
+}
+
+impl PixelBrdfs {
+    /// The table of `coll`'s materials at the lit pixels of renders with `rp`.
+    pub fn new(coll: &Collection, rp: &RenderParams) -> Result<Self, RenderError> {
+        use rayon::prelude::*;
+        let pairs = std::sync::Mutex::new(Vec::new());
+        render_sphere(rp, &|wi, wo| {
+            if wi[2] > 0.0 && wo[2] > 0.0 {
+                pairs
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .push((wi, wo));
+            }
+            [0.0; 3]
+        })?;
+        let mut pairs = pairs.into_inner().unwrap_or_else(|p| p.into_inner());
+        // Rayon's order of the pixels is not fixed; the table's is.
+        pairs.sort_by_key(|a| pair_key(a.0, a.1));
+        let mut index = std::collections::HashMap::new();
+        let mut unique = Vec::new();
+        for (wi, wo) in pairs {
+            index.entry(pair_key(wi, wo)).or_insert_with(|| {
+                unique.push((wi, wo));
+                unique.len() - 1
+            });
+        }
+        let brdfs: Vec<BrdfFn> = coll
+            .materials()
+            .iter()
+            .map(|m| material_brdf(&m.data))
+            .collect();
+        let values = unique
+            .par_iter()
+            .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
+            .collect();
+        Ok(Self {
+            index,
+            values,
+            brdfs,
+        })
+    }
+
+    /// Material `m`'s [`material_brdf`], from the table.
+    pub fn material(&self, m: usize) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + '_ {
+        move |wi, wo| match self.index.get(&pair_key(wi, wo)) {
+            Some(&r) => self.values[r][m],
+            None => self.brdfs[m](wi, wo),
+        }
+    }
+
+    /// `combination_brdf(coll, basis, coefficients)`, from the table.
+    pub fn combination<'s>(
+        &'s self,
+        basis: &'s [usize],
+        coefficients: &'s [[f64; 3]],
+    ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 's {
+        let a0 = coefficients[0];
+        move |wi, wo| {
+            if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                return [0.0; 3];
+            }
+            let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
+            let mut v = [0, 1, 2].map(|c| a0[c] * std::f64::consts::FRAC_1_PI);
+            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
+                let x = match row {
+                    Some(r) => r[b],
+                    None => self.brdfs[b](wi, wo),
+                };
+                for c in 0..3 {
+                    v[c] += a[c] * x[c];
+                }
+            }
+            v
+        }
+    }
 }

@@ -10,13 +10,11 @@ use crate::backend::Lobe;
 use crate::collection::{Collection, MaterialData};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
-use crate::eval::shade::{material_brdf, BrdfFn};
+use crate::eval::shade::{material_brdf, PixelBrdfs};
 use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
 use crate::stats::{mean, median, StatsError};
-use std::collections::HashMap;
-use std::sync::Mutex;
 
 /// What the held-out materials are evaluated with: the objective, the grid MAE and renders
 /// of every material (SPEC 7: light (45, 45)).
@@ -135,88 +133,6 @@ impl<'a> Evaluator<'a> {
             }
         }
         Ok(out)
-    }
-}
-
-/// Every material's BRDF at the direction pairs of one render's lit pixels (the renders
-/// of the fits share them: one light, one view), so that a fit's render costs a
-/// multiply-add per basis material and pixel, not an evaluation of every basis material (a
-/// neural network each) per pixel and held-out material. The values are those of
-/// `material_brdf` at the same pairs, and [`Self::combination`] sums them as
-/// `combination_brdf` does: the renders are the same to the bit.
-struct PixelBrdfs {
-    /// Direction pair (bits of `wi`, `wo`) to its row of `values`.
-    index: HashMap<[u64; 6], usize>,
-    /// Per pair, every material's RGB.
-    values: Vec<Vec<[f64; 3]>>,
-    /// Every material's BRDF (pairs not seen when the table was built).
-    brdfs: Vec<BrdfFn>,
-}
-
-fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
-    [wi[0], wi[1], wi[2], wo[0], wo[1], wo[2]].map(f64::to_bits)
-}
-
-impl PixelBrdfs {
-    fn new(coll: &Collection, rp: &RenderParams) -> Result<Self, SelectionError> {
-        let pairs = Mutex::new(Vec::new());
-        render_sphere(rp, &|wi, wo| {
-            if wi[2] > 0.0 && wo[2] > 0.0 {
-                pairs
-                    .lock()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .push((wi, wo));
-            }
-            [0.0; 3]
-        })?;
-        let mut index = HashMap::new();
-        let mut unique = Vec::new();
-        for (wi, wo) in pairs.into_inner().unwrap_or_else(|p| p.into_inner()) {
-            index.entry(pair_key(wi, wo)).or_insert_with(|| {
-                unique.push((wi, wo));
-                unique.len() - 1
-            });
-        }
-        let brdfs: Vec<BrdfFn> = coll
-            .materials()
-            .iter()
-            .map(|m| material_brdf(&m.data))
-            .collect();
-        let values = unique
-            .par_iter()
-            .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
-            .collect();
-        Ok(Self {
-            index,
-            values,
-            brdfs,
-        })
-    }
-
-    /// `combination_brdf(coll, basis, coefficients)` from the table.
-    fn combination<'s>(
-        &'s self,
-        basis: &'s [usize],
-        coefficients: &'s [[f64; 3]],
-    ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 's {
-        let a0 = coefficients[0];
-        move |wi, wo| {
-            if wi[2] <= 0.0 || wo[2] <= 0.0 {
-                return [0.0; 3];
-            }
-            let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
-            let mut v = [0, 1, 2].map(|c| a0[c] * std::f64::consts::FRAC_1_PI);
-            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
-                let x = match row {
-                    Some(r) => r[b],
-                    None => self.brdfs[b](wi, wo),
-                };
-                for c in 0..3 {
-                    v[c] += a[c] * x[c];
-                }
-            }
-            v
-        }
     }
 }
 
