@@ -48,6 +48,7 @@ use crate::nnls::lawson_hanson;
 use rand::SeedableRng;
 use rayon::prelude::*;
 use std::f64::consts::FRAC_1_PI;
+use std::sync::atomic::Ordering;
 
 /// A planning criterion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -381,6 +382,38 @@ impl State {
         }
     }
 
+    /// Per channel `c`, the sampled normal equations after adding the candidate row
+    /// `a[c]` with values `y[t][c]` (or with no addition): the full symmetric Gram
+    /// matrix, `h` of every target (concatenated) and `y^T y` per target.
+    fn channel_equations(&self, c: usize, add: Option<Added<'_>>) -> [Vec<f64>; 3] {
+        let m = self.m;
+        let nt = self.x.len();
+        let mut g = self.gl[c].clone();
+        let mut hs: Vec<f64> = self.h[c].concat();
+        let mut bbs = self.bb[c].clone();
+        if let Some((a, yv)) = add {
+            let r = &a[c][..m];
+            for i in 0..m {
+                for j in 0..=i {
+                    g[i * m + j] += r[i] * r[j];
+                }
+            }
+            for t in 0..nt {
+                let yt = yv[t][c];
+                for i in 0..m {
+                    hs[t * m + i] += r[i] * yt;
+                }
+                bbs[t] += yt * yt;
+            }
+        }
+        for i in 0..m {
+            for j in 0..i {
+                g[j * m + i] = g[i * m + j];
+            }
+        }
+        [g, hs, bbs]
+    }
+
     /// Exact fits of every target after adding the candidate row `a[c]` and values
     /// `y[t][c]` (or with no addition): per channel one sampled Gram matrix, updated by the
     /// candidate's row, shared by every target ([`lawson_hanson::solve_batch`]).
@@ -391,29 +424,7 @@ impl State {
             return vec![[0, 1, 2].map(|_| vec![0.0; m]); nt];
         }
         let per_c = [0, 1, 2].map(|c| {
-            let mut g = self.gl[c].clone();
-            let mut hs: Vec<f64> = self.h[c].concat();
-            let mut bbs = self.bb[c].clone();
-            if let Some((a, yv)) = add {
-                let r = &a[c][..m];
-                for i in 0..m {
-                    for j in 0..=i {
-                        g[i * m + j] += r[i] * r[j];
-                    }
-                }
-                for t in 0..nt {
-                    let yt = yv[t][c];
-                    for i in 0..m {
-                        hs[t * m + i] += r[i] * yt;
-                    }
-                    bbs[t] += yt * yt;
-                }
-            }
-            for i in 0..m {
-                for j in 0..i {
-                    g[j * m + i] = g[i * m + j];
-                }
-            }
+            let [g, hs, bbs] = self.channel_equations(c, add);
             crate::nnls::GramBatch::new(m, &g, &hs, &bbs)
                 .and_then(|b| lawson_hanson::solve_batch(&b, &lawson_hanson::LhParams::default()))
                 .map(|v| v.into_iter().map(|s| s.x).collect::<Vec<_>>())
@@ -429,6 +440,38 @@ impl State {
                 ]
             })
             .collect()
+    }
+
+    /// `mean_rho(d, &self.exact(Some(add)))`, bit for bit, or `None` as soon as the mean
+    /// of the targets fitted so far (in target order) exceeds `beat`: the sum of
+    /// non-negative terms never falls as terms are added, so the whole mean would exceed
+    /// it too, and the candidate could neither win against a mean of `beat` nor tie it.
+    fn exact_mean_below(&self, d: &Dense, add: Added<'_>, beat: f64) -> Option<f64> {
+        let m = self.m;
+        let nt = self.x.len();
+        let eqs = [0, 1, 2].map(|c| self.channel_equations(c, Some(add)));
+        let batches = eqs
+            .each_ref()
+            .map(|[g, hs, bbs]| crate::nnls::GramBatch::new(m, g, hs, bbs).ok());
+        let params = lawson_hanson::LhParams::default();
+        let solvers = batches.each_ref().map(|b| {
+            b.as_ref()
+                .and_then(|b| lawson_hanson::PreparedBatch::new(b, &params).ok())
+        });
+        let div = nt.max(1) as f64;
+        let mut sum = 0.0;
+        for t in 0..nt {
+            let x = solvers.each_ref().map(|s| {
+                s.as_ref()
+                    .and_then(|s| s.solve(t))
+                    .map_or_else(|| vec![0.0; m], |s| s.x)
+            });
+            sum += d.rho(t, &x);
+            if sum / div > beat {
+                return None;
+            }
+        }
+        Some(sum / div)
     }
 }
 
@@ -686,20 +729,34 @@ fn plan_path(
                         }
                     }
                 }
-                let exact: Vec<f64> = ranked
-                    .iter()
-                    .map(|&k| {
-                        let a = [row(0, k), row(1, k), row(2, k)];
-                        let y = ys(k);
-                        let xs = st.exact(Some((&a, &y)));
-                        mean_rho(d, &xs)
-                    })
-                    .collect();
+                // Exact means, the screen's best first, then the rest in parallel, each
+                // abandoned once it provably exceeds the lowest mean known
+                // ([`State::exact_mean_below`]): the winner and its ties are always
+                // computed whole, so the choice is that of every exact mean.
+                let exact_of = |k: usize, beat: f64| {
+                    let a = [row(0, k), row(1, k), row(2, k)];
+                    st.exact_mean_below(d, (&a, &ys(k)), beat)
+                };
+                let first = exact_of(ranked[0], f64::INFINITY).expect("no bound to exceed");
+                let low = std::sync::atomic::AtomicU64::new(first.to_bits());
+                let mut exact: Vec<Option<f64>> = vec![Some(first)];
+                exact.extend(
+                    ranked[1..]
+                        .par_iter()
+                        .map(|&k| {
+                            let beat = f64::from_bits(low.load(Ordering::Relaxed));
+                            let e = exact_of(k, beat)?;
+                            // Non-negative floats order as their bits.
+                            low.fetch_min(e.to_bits(), Ordering::Relaxed);
+                            Some(e)
+                        })
+                        .collect::<Vec<_>>(),
+                );
                 let mut best = 0;
                 for i in 1..ranked.len() {
-                    let better = exact[i] < exact[best]
-                        || (exact[i] == exact[best] && ranked[i] < ranked[best]);
-                    if better {
+                    let Some(e) = exact[i] else { continue };
+                    let b = exact[best].expect("the best is computed");
+                    if e < b || (e == b && ranked[i] < ranked[best]) {
                         best = i;
                     }
                 }
@@ -1035,6 +1092,49 @@ mod tests {
         );
         let zero = PlanParams { restarts: 0, ..p };
         assert!(plan(&be, &coll, &basis, &targets, &cands, &zero).is_err());
+    }
+
+    /// The early-abandoning exact mean is the mean of the exact fits bit for bit, keeps a
+    /// tie and abandons whatever exceeds the bound.
+    #[test]
+    fn abandoning_exact_means_equal_the_exact_means() {
+        let coll = Collection::embedded_default();
+        let fit = FitParams {
+            stride: 4,
+            ..FitParams::default()
+        };
+        let (basis, targets) = ([0, 1, 2, 3], [4, 5, 6, 7, 8, 9, 10]);
+        let d = Dense::new(&CpuBackend::new(), &coll, &basis, &targets, &fit).unwrap();
+        let (m, nt) = (basis.len() + 1, targets.len());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let draw = |rng: &mut rand_chacha::ChaCha8Rng| {
+            let mut a = [[0.0f64; 16]; 3];
+            for r in a.iter_mut() {
+                r[0] = FRAC_1_PI;
+                for v in r[1..m].iter_mut() {
+                    *v = rng.random::<f64>() * 2.0;
+                }
+            }
+            let y: Vec<[f64; 3]> = (0..nt)
+                .map(|_| [0, 1, 2].map(|_| rng.random::<f64>()))
+                .collect();
+            (a, y)
+        };
+        let mut st = State::new(m, nt);
+        for _ in 0..7 {
+            for _ in 0..4 {
+                let (a, y) = draw(&mut rng);
+                let want = mean_rho(&d, &st.exact(Some((&a, &y))));
+                assert!(want > 0.0);
+                let got = st.exact_mean_below(&d, (&a, &y), f64::INFINITY);
+                assert_eq!(got.map(f64::to_bits), Some(want.to_bits()));
+                assert_eq!(st.exact_mean_below(&d, (&a, &y), want), Some(want));
+                assert_eq!(st.exact_mean_below(&d, (&a, &y), want * (1.0 - 1e-9)), None);
+            }
+            let (a, y) = draw(&mut rng);
+            st.push(&a, &y);
+            st.x = st.exact(None);
+        }
     }
 
     /// The incrementally kept sampled Gram form gives bit for bit the fits of the rows

@@ -105,13 +105,37 @@ pub fn solve_batch(
     batch: &GramBatch<'_>,
     params: &LhParams,
 ) -> Result<Vec<NnlsSolution>, NnlsError> {
-    params.check()?;
-    let sg = ScaledGram::new(batch.m(), batch.g());
+    let pb = PreparedBatch::new(batch, params)?;
     Ok((0..batch.len())
         .into_par_iter()
-        .filter_map(|t| batch.problem(t))
-        .map(|p| solve_prepared(&sg, &p, params))
+        .filter_map(|t| pb.solve(t))
         .collect())
+}
+
+/// A batch scaled once, its targets solved one at a time: [`PreparedBatch::solve`] of
+/// target `t` is [`solve_batch`]'s entry `t`, bit for bit (for callers that stop early).
+pub(crate) struct PreparedBatch<'a> {
+    batch: &'a GramBatch<'a>,
+    sg: ScaledGram,
+    params: LhParams,
+}
+
+impl<'a> PreparedBatch<'a> {
+    /// Checks the parameters and scales the batch's `G`.
+    pub(crate) fn new(batch: &'a GramBatch<'a>, params: &LhParams) -> Result<Self, NnlsError> {
+        params.check()?;
+        Ok(Self {
+            batch,
+            sg: ScaledGram::new(batch.m(), batch.g()),
+            params: *params,
+        })
+    }
+
+    /// The solution of target `t` (`None` when `t >= len()`).
+    pub(crate) fn solve(&self, t: usize) -> Option<NnlsSolution> {
+        let p = self.batch.problem(t)?;
+        Some(solve_prepared(&self.sg, &p, &self.params))
+    }
 }
 
 fn solve_prepared(sg: &ScaledGram, p: &GramProblem<'_>, params: &LhParams) -> NnlsSolution {

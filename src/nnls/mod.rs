@@ -316,19 +316,7 @@ fn objective_unchecked(m: usize, g: &[f64], h: &[f64], bb: f64, x: &[f64]) -> f6
 }
 
 fn kkt_unchecked(m: usize, g: &[f64], h: &[f64], x: &[f64]) -> f64 {
-    if x.iter().any(|v| !v.is_finite() || *v < 0.0) {
-        return f64::INFINITY;
-    }
-    let sg = ScaledGram::new(m, g);
-    let mut hs = vec![0.0; m];
-    sg.scale_h(h, &mut hs);
-    let y: Vec<f64> = x.iter().zip(&sg.d).map(|(xi, di)| xi * di).collect();
-    let gy: Vec<f64> = sg
-        .gs
-        .chunks_exact(m)
-        .map(|row| row.iter().zip(&y).map(|(a, b)| a * b).sum())
-        .collect();
-    kkt_scaled(&hs, &y, &gy)
+    ScaledGram::new(m, g).kkt(h, x)
 }
 
 /// Scaled KKT violation in scaled variables, given `gy = G~ y` (module docs).
@@ -354,6 +342,10 @@ pub(crate) struct ScaledGram {
     pub(crate) d: Vec<f64>,
     /// `G~ = D^-1 sym(G) D^-1`, row-major, unit diagonal, zero rows/columns for zero columns.
     pub(crate) gs: Vec<f64>,
+    /// Whether `d` and `gs` are still those [`ScaledGram::new`] computed from `G` (a
+    /// solver that zeroes duplicate columns clears it): then [`ScaledGram::finish`] measures
+    /// the KKT violation on them instead of scaling `G` again per target (the same numbers).
+    pub(crate) pristine: bool,
 }
 
 impl ScaledGram {
@@ -361,7 +353,29 @@ impl ScaledGram {
     pub(crate) fn new(m: usize, g: &[f64]) -> Self {
         let mut gs = g[..m * m].to_vec();
         let d = incremental::cosine_in_place(m, &mut gs);
-        Self { m, d, gs }
+        Self {
+            m,
+            d,
+            gs,
+            pristine: true,
+        }
+    }
+
+    /// The scaled KKT violation of `x >= 0` for `h` (module docs; `inf` for a negative or
+    /// non-finite `x`), on this scaling of `G`.
+    fn kkt(&self, h: &[f64], x: &[f64]) -> f64 {
+        if x.iter().any(|v| !v.is_finite() || *v < 0.0) {
+            return f64::INFINITY;
+        }
+        let mut hs = vec![0.0; self.m];
+        self.scale_h(h, &mut hs);
+        let y: Vec<f64> = x.iter().zip(&self.d).map(|(xi, di)| xi * di).collect();
+        let gy: Vec<f64> = self
+            .gs
+            .chunks_exact(self.m)
+            .map(|row| row.iter().zip(&y).map(|(a, b)| a * b).sum())
+            .collect();
+        kkt_scaled(&hs, &y, &gy)
     }
 
     /// `h~ = D^-1 h` (0 for zero columns) into `out`.
@@ -379,7 +393,12 @@ impl ScaledGram {
             .map(|(&yi, &di)| if di > 0.0 && yi > 0.0 { yi / di } else { 0.0 })
             .collect();
         let objective = objective_unchecked(self.m, p.g, p.h, p.bb, &x);
-        let max_kkt_violation = kkt_unchecked(self.m, p.g, p.h, &x);
+        // `p.g` is the `G` this scaling was made from (one per solve or batch).
+        let max_kkt_violation = if self.pristine {
+            self.kkt(p.h, &x)
+        } else {
+            kkt_unchecked(self.m, p.g, p.h, &x)
+        };
         NnlsSolution {
             x,
             objective,

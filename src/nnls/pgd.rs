@@ -155,6 +155,7 @@ impl Prepared {
                     && 1.0 - sg.gs[i * m + j].powi(2) <= DUPLICATE_TOL
             });
             if dup {
+                sg.pristine = false;
                 sg.d[j] = 0.0;
                 for k in 0..m {
                     sg.gs[j * m + k] = 0.0;
