@@ -1094,6 +1094,27 @@ mod tests {
         assert!(plan(&be, &coll, &basis, &targets, &cands, &zero).is_err());
     }
 
+    /// A seeded sample row per channel (`1/pi`, then `m - 1` basis values from `value`) and
+    /// `nt` targets' RGB values in [0, 1).
+    fn draw_sample(
+        rng: &mut rand_chacha::ChaCha8Rng,
+        m: usize,
+        nt: usize,
+        value: impl Fn(&mut rand_chacha::ChaCha8Rng) -> f64,
+    ) -> ([[f64; 16]; 3], Vec<[f64; 3]>) {
+        let mut a = [[0.0f64; 16]; 3];
+        for r in a.iter_mut() {
+            r[0] = FRAC_1_PI;
+            for v in r[1..m].iter_mut() {
+                *v = value(rng);
+            }
+        }
+        let y: Vec<[f64; 3]> = (0..nt)
+            .map(|_| [0, 1, 2].map(|_| rng.random::<f64>()))
+            .collect();
+        (a, y)
+    }
+
     /// The early-abandoning exact mean is the mean of the exact fits bit for bit, keeps a
     /// tie and abandons whatever exceeds the bound.
     #[test]
@@ -1108,17 +1129,7 @@ mod tests {
         let (m, nt) = (basis.len() + 1, targets.len());
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let draw = |rng: &mut rand_chacha::ChaCha8Rng| {
-            let mut a = [[0.0f64; 16]; 3];
-            for r in a.iter_mut() {
-                r[0] = FRAC_1_PI;
-                for v in r[1..m].iter_mut() {
-                    *v = rng.random::<f64>() * 2.0;
-                }
-            }
-            let y: Vec<[f64; 3]> = (0..nt)
-                .map(|_| [0, 1, 2].map(|_| rng.random::<f64>()))
-                .collect();
-            (a, y)
+            draw_sample(rng, m, nt, |r| r.random::<f64>() * 2.0)
         };
         let mut st = State::new(m, nt);
         for _ in 0..7 {
@@ -1145,17 +1156,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let mut st = State::new(m, nt);
         let draw = |rng: &mut rand_chacha::ChaCha8Rng| {
-            let mut a = [[0.0f64; 16]; 3];
-            for r in a.iter_mut() {
-                r[0] = FRAC_1_PI;
-                for v in r[1..m].iter_mut() {
-                    *v = rng.random::<f64>() * rng.random::<f64>() * 3.0;
-                }
-            }
-            let y: Vec<[f64; 3]> = (0..nt)
-                .map(|_| [0, 1, 2].map(|_| rng.random::<f64>()))
-                .collect();
-            (a, y)
+            draw_sample(rng, m, nt, |r| r.random::<f64>() * r.random::<f64>() * 3.0)
         };
         for n in 1..9 {
             let (a, y) = draw(&mut rng);
