@@ -11,7 +11,8 @@ use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::fit::file::{FitFile, FitTarget};
 use crate::fit::{
-    channel_gram, fit, fit_cells, solve_channel, CollectionGrams, FitError, FitParams, GramMode, Solver, TargetFit,
+    channel_gram, fit, fit_cells, solve_channel, CollectionGrams, FitError, FitParams, GramMode,
+    Solver, TargetFit,
 };
 use crate::merl::CellSet;
 use crate::select::cv::evaluate::{cell_sums, MaeJob};
@@ -298,7 +299,16 @@ fn fit_all(
                 !done[i] && a.cells == b.cells && a.weights == b.weights
             })
             .collect();
-        union_fits(backend, coll, bases, targets, p, shared, &mut pending, &group)?;
+        union_fits(
+            backend,
+            coll,
+            bases,
+            targets,
+            p,
+            shared,
+            &mut pending,
+            &group,
+        )?;
         let jobs: Vec<MaeJob<'_>> = group
             .iter()
             .flat_map(|&i| {
@@ -485,10 +495,11 @@ pub fn evaluate(
         .iter()
         .map(|b| b.materials.iter().map(|n| coll.index_of(n)).collect())
         .collect::<Result<_, _>>()?;
-    let mut fits: Vec<Option<Vec<TargetFit>>> = fit_all(backend, coll, &indices, targets, &s.fit, shared)?
-        .into_iter()
-        .map(Some)
-        .collect();
+    let mut fits: Vec<Option<Vec<TargetFit>>> =
+        fit_all(backend, coll, &indices, targets, &s.fit, shared)?
+            .into_iter()
+            .map(Some)
+            .collect();
     let mut files = Vec::new();
     let mut errors = Vec::new();
     let mut approximations = Vec::new();

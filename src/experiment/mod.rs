@@ -457,9 +457,12 @@ pub fn run(
     // SPEC 8 and the fits (the same cells: evaluation mask, uniform weights, this stride).
     // (No cell at all: no sharing; each stage reports it as before.)
     let shared = if CollectionGrams::needed(coll, fit_params.gram) && coll.len() >= 2 {
-        Some(CollectionGrams::grid(backend, coll, &fit_params, &|d, t| {
-            progress(Stage::Empirical, d, t)
-        })?)
+        Some(CollectionGrams::grid(
+            backend,
+            coll,
+            &fit_params,
+            &|d, t| progress(Stage::Empirical, d, t),
+        )?)
         .filter(|g| !g.cells.cells.is_empty())
     } else {
         None

@@ -395,7 +395,15 @@ pub fn channel_gram(
     );
     let n = lobes.len();
     let full = gram_full(backend, &lobes, cells, m, mode, progress)?;
-    gram_quantities(coll, basis, targets, c, |i, j| full[i * n + j], |a| a, |t| m + t)
+    gram_quantities(
+        coll,
+        basis,
+        targets,
+        c,
+        |i, j| full[i * n + j],
+        |a| a,
+        |t| m + t,
+    )
 }
 
 /// [`ChannelGram`] of `basis` and `targets` (channel `c`) read from a Gram matrix `at(i, j)`
