@@ -351,31 +351,48 @@ pub(crate) fn cell_sums<const ALL: bool>(
             .par_iter()
             .map(|&m| material_values(cpu, coll, m, block))
             .collect();
-        sums.par_iter_mut().zip(jobs).for_each(|(sum, j)| {
-            for (c, e) in sum.iter_mut().enumerate() {
-                // Lambertian first, then basis order, as `cell_errors` is given them.
-                let (cols, xs): (Vec<&[f64]>, Vec<f64>) = std::iter::once(&lambert[..])
-                    .chain(j.basis.iter().map(|&b| match slot[b] {
-                        Some(s) => &values[s][c][..],
-                        None => &[][..],
-                    }))
-                    .zip(j.coef.iter().map(|a| a[c]))
-                    .filter(|&(_, a)| ALL || a != 0.0)
-                    .unzip();
-                let b = &values[slot[j.target].expect("targets have slots")][c];
-                for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
-                    let fitv: f64 = cols.iter().zip(&xs).map(|(col, &a)| a * col[i]).sum();
-                    let r = fitv - bv;
-                    if ALL {
-                        e.squared += w * r * r;
-                    }
-                    e.absolute += w * r.abs();
-                    if ALL {
-                        e.target += w * bv.abs();
+        let len = block.len();
+        sums.par_iter_mut().zip(jobs).for_each_init(
+            || vec![0.0f64; 3 * len],
+            |fit, (sum, j)| {
+                fit.resize(3 * len, 0.0);
+                // The fitted values of every cell, column by column (Lambertian first, then
+                // basis order, as `cell_errors` is given them): per cell the same products
+                // added in the same order as a sum over the columns, so the same bits; the
+                // loops over cells vectorise.
+                for (c, f) in fit.chunks_mut(len).enumerate() {
+                    f.fill(-0.0);
+                    let cols = std::iter::once(&lambert[..])
+                        .chain(j.basis.iter().map(|&b| match slot[b] {
+                            Some(s) => &values[s][c][..],
+                            None => &[][..],
+                        }))
+                        .zip(j.coef.iter().map(|a| a[c]))
+                        .filter(|&(_, a)| ALL || a != 0.0);
+                    for (col, a) in cols {
+                        for (fv, &v) in f.iter_mut().zip(col) {
+                            *fv += a * v;
+                        }
                     }
                 }
-            }
-        });
+                // Then each channel's sums in cell order (the three channels are independent
+                // sums, interleaved here).
+                let b = &values[slot[j.target].expect("targets have slots")];
+                for (i, &w) in w.iter().enumerate() {
+                    for (c, e) in sum.iter_mut().enumerate() {
+                        let bv = b[c][i];
+                        let r = fit[c * len + i] - bv;
+                        if ALL {
+                            e.squared += w * r * r;
+                        }
+                        e.absolute += w * r.abs();
+                        if ALL {
+                            e.target += w * bv.abs();
+                        }
+                    }
+                }
+            },
+        );
     }
     sums
 }
