@@ -334,9 +334,8 @@ mod tests {
             ..Default::default()
         };
         let cells = fit_cells(coll, &all, &fp).expect("stride >= 1");
-        let mut lobes = vec![LAMBERTIAN];
-        lobes.extend(coll.materials().iter().map(|m| channel_lobe(&m.data, c)));
-        let sep = separable_lobes(&lobes).expect("analytic");
+        let lobes = collection_lobes(coll);
+        let sep = separable_lobes(&lobes[c]).expect("analytic");
         let mom = CellMoments::new(&GridTables::new(), &cells);
         (mom.gram(&sep, sep.len()), sep)
     }
