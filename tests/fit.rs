@@ -392,3 +392,92 @@ fn separable_gram_matches_the_grid_pass() {
         }
     }
 }
+
+/// A mixed collection: analytic rows of the embedded default, a measured copy of one, and
+/// seeded neural networks.
+fn mixed_collection(nets: usize) -> Collection {
+    use brdf_basis::brdf::{Nbrdf, NBRDF_WEIGHTS};
+    use brdf_basis::collection::{Material, MaterialData};
+    use rand::Rng;
+    let base = Collection::embedded_default();
+    let mut c = Collection::new();
+    let mut add = |m: Material| c.push(m, Path::new("<test>"), 0).expect("unique names");
+    for i in [0, 7, 19] {
+        add(base.materials()[i].clone());
+    }
+    let mut copy = measured_material(&base.materials()[30]);
+    copy.name = format!("measured-{}", copy.name);
+    add(copy);
+    let mut r = rng(11);
+    for i in 0..nets {
+        let w: Vec<f32> = (0..NBRDF_WEIGHTS)
+            .map(|_| r.random_range(-0.6f32..0.6))
+            .collect();
+        add(Material {
+            name: format!("net-{i}"),
+            data: MaterialData::Neural(std::sync::Arc::new(Nbrdf::from_weights(w).expect("w"))),
+            origin: "seeded".into(),
+        });
+    }
+    c
+}
+
+/// The Gram matrices of a collection from one pass for the three channels
+/// (`CollectionGrams::grid`) equal, bit for bit, one pass per channel of the same back-end
+/// (what the objective, the empirical selection and the fits made before sharing them), and
+/// the fit quantities read from them equal `channel_gram`'s pass over a basis and targets.
+fn shared_grams_equal_per_channel_passes(backend: &dyn Backend) {
+    let c = mixed_collection(6);
+    let n = c.len();
+    let p = FitParams {
+        stride: 5,
+        ..Default::default()
+    };
+    let shared = CollectionGrams::grid(backend, &c, &p, &|_, _| {}).expect("shared pass");
+    assert!(CollectionGrams::needed(&c, p.gram));
+    let all: Vec<usize> = (0..n).collect();
+    let cells = fit_cells(&c, &all, &p).expect("cells");
+    assert!(shared.covers(&cells));
+    let (basis, targets) = ([4usize, 1, 7], [0usize, 2, 3, 5, 6, 8, 9]);
+    for ch in 0..3 {
+        let mut lobes = vec![LAMBERTIAN];
+        lobes.extend(c.materials().iter().map(|m| channel_lobe(&m.data, ch)));
+        let alone = backend
+            .gram(&lobes, &cells, n + 1, &|_, _| {})
+            .expect("pass");
+        assert_eq!(shared.grams[ch].len(), (n + 1) * (n + 1));
+        let same = shared.grams[ch]
+            .iter()
+            .zip(&alone)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(
+            same,
+            "channel {ch}: the shared pass differs from a pass of its own"
+        );
+        let want = channel_gram(
+            backend,
+            &c,
+            &basis,
+            &targets,
+            &cells,
+            ch,
+            GramMode::Auto,
+            &|_, _| {},
+        )
+        .expect("channel gram");
+        let got = shared.channel_gram(&c, &basis, &targets, ch).expect("read");
+        assert_eq!(got, want, "channel {ch}: fit quantities");
+    }
+}
+
+#[test]
+fn shared_grams_equal_per_channel_passes_cpu() {
+    shared_grams_equal_per_channel_passes(&CpuBackend::new());
+}
+
+#[test]
+fn shared_grams_equal_per_channel_passes_gpu() {
+    if let Some(g) = gpu("shared_grams_equal_per_channel_passes_gpu") {
+        shared_grams_equal_per_channel_passes(g);
+    }
+}

@@ -11,7 +11,8 @@ use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::fit::file::{FitFile, FitTarget};
 use crate::fit::{
-    channel_gram, fit, fit_cells, solve_channel, FitError, FitParams, GramMode, Solver, TargetFit,
+    channel_gram, fit, fit_cells, solve_channel, CollectionGrams, FitError, FitParams, GramMode,
+    Solver, TargetFit,
 };
 use crate::merl::CellSet;
 use crate::select::cv::evaluate::{cell_sums, MaeJob};
@@ -240,6 +241,7 @@ fn fit_all(
     bases: &[Vec<usize>],
     targets: &[usize],
     p: &FitParams,
+    shared: Option<&CollectionGrams>,
 ) -> Result<Vec<Vec<TargetFit>>, ExperimentError> {
     let analytic = |i: &usize| coll.materials()[*i].analytic().is_some();
     let mut out: Vec<Option<Vec<TargetFit>>> = vec![None; bases.len()];
@@ -297,7 +299,16 @@ fn fit_all(
                 !done[i] && a.cells == b.cells && a.weights == b.weights
             })
             .collect();
-        union_fits(backend, coll, bases, targets, p, &mut pending, &group)?;
+        union_fits(
+            backend,
+            coll,
+            bases,
+            targets,
+            p,
+            shared,
+            &mut pending,
+            &group,
+        )?;
         let jobs: Vec<MaeJob<'_>> = group
             .iter()
             .flat_map(|&i| {
@@ -359,13 +370,16 @@ type Pending = (usize, CellSet, Vec<TargetFit>, Vec<[f64; 3]>);
 /// channel one Gram pass of the back-end over the Lambertian column, the union of their
 /// materials and the targets, from which each basis's [`channel_gram`] quantities are read
 /// (a pair's sum depends only on its two rows and the cells: the canonical order of
-/// `backend::cpu`), then `fit`'s solver.
+/// `backend::cpu`), or read from `shared` when it covers the same cells (the same numbers),
+/// then `fit`'s solver.
+#[allow(clippy::too_many_arguments)]
 fn union_fits(
     backend: &dyn Backend,
     coll: &Collection,
     bases: &[Vec<usize>],
     targets: &[usize],
     p: &FitParams,
+    shared: Option<&CollectionGrams>,
     pending: &mut [Pending],
     group: &[usize],
 ) -> Result<(), ExperimentError> {
@@ -379,17 +393,21 @@ fn union_fits(
     }
     let pos = |b: usize| 1 + union.iter().position(|&u| u == b).expect("in the union");
     let cells = pending[group[0]].1.clone();
+    let shared = shared.filter(|s| s.covers(&cells));
     for c in 0..3 {
-        let full = channel_gram(
-            backend,
-            coll,
-            &union,
-            targets,
-            &cells,
-            c,
-            p.gram,
-            &|_, _| {},
-        )?;
+        let full = match shared {
+            Some(s) => s.channel_gram(coll, &union, targets, c)?,
+            None => channel_gram(
+                backend,
+                coll,
+                &union,
+                targets,
+                &cells,
+                c,
+                p.gram,
+                &|_, _| {},
+            )?,
+        };
         let mu = union.len() + 1;
         for &i in group {
             let (bi, _, fits, norms) = &mut pending[i];
@@ -435,7 +453,10 @@ fn union_fits(
     Ok(())
 }
 
-/// Fits `targets` by every basis, renders fits and originals, and the showcase.
+/// Fits `targets` by every basis, renders fits and originals, and the showcase. `shared`:
+/// the Gram matrices of the whole collection when the experiment made them (the fits over
+/// the same cells read their Gram quantities there instead of making a pass of their own).
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate(
     backend: &dyn Backend,
     coll: &Collection,
@@ -443,6 +464,7 @@ pub fn evaluate(
     targets: &[usize],
     showcase: usize,
     s: &EvalSettings,
+    shared: Option<&CollectionGrams>,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Evaluation, ExperimentError> {
     // Renders are linear in the BRDF, so every combination's render is the same
@@ -473,10 +495,11 @@ pub fn evaluate(
         .iter()
         .map(|b| b.materials.iter().map(|n| coll.index_of(n)).collect())
         .collect::<Result<_, _>>()?;
-    let mut fits: Vec<Option<Vec<TargetFit>>> = fit_all(backend, coll, &indices, targets, &s.fit)?
-        .into_iter()
-        .map(Some)
-        .collect();
+    let mut fits: Vec<Option<Vec<TargetFit>>> =
+        fit_all(backend, coll, &indices, targets, &s.fit, shared)?
+            .into_iter()
+            .map(Some)
+            .collect();
     let mut files = Vec::new();
     let mut errors = Vec::new();
     let mut approximations = Vec::new();

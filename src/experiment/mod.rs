@@ -31,10 +31,10 @@ use crate::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
 use crate::error::{CollectionError, DistanceError};
 use crate::eval::image_error::DisplayParams;
 use crate::eval::render::{RenderError, RenderParams};
-use crate::fit::{FitError, FitParams};
+use crate::fit::{CollectionGrams, FitError, FitParams};
 use crate::merl::Weighting;
 use crate::select::cv::{cross_validate_with, CvParams, CvResult};
-use crate::select::empirical::{empirical, Empirical, EmpiricalParams};
+use crate::select::empirical::{empirical, empirical_from_grams, Empirical, EmpiricalParams};
 use crate::select::objective::{Objective, ObjectiveParams};
 use crate::select::runs as clustering;
 use crate::select::runs::ClusteringSet;
@@ -448,15 +448,29 @@ pub fn run(
         stride: p.stride,
         ..Default::default()
     };
-    let emp = empirical(
-        backend,
-        coll,
-        &EmpiricalParams {
-            fit: fit_params.clone(),
-            more_than: p.more_than,
-        },
-        &|d, t| progress(Stage::Empirical, d, t),
-    )?;
+    let ep = EmpiricalParams {
+        fit: fit_params.clone(),
+        more_than: p.more_than,
+    };
+    // A measured or neural collection: one grid pass for the Gram matrices of all its
+    // materials in the three channels, shared by the empirical selection, the objective of
+    // SPEC 8 and the fits (the same cells: evaluation mask, uniform weights, this stride).
+    // (No cell at all: no sharing; each stage reports it as before.)
+    let shared = if CollectionGrams::needed(coll, fit_params.gram) && coll.len() >= 2 {
+        Some(CollectionGrams::grid(
+            backend,
+            coll,
+            &fit_params,
+            &|d, t| progress(Stage::Empirical, d, t),
+        )?)
+        .filter(|g| !g.cells.cells.is_empty())
+    } else {
+        None
+    };
+    let emp = match &shared {
+        Some(g) => empirical_from_grams(coll, &ep, &g.grams)?,
+        None => empirical(backend, coll, &ep, &|d, t| progress(Stage::Empirical, d, t))?,
+    };
     lap(Stage::Empirical, &mut timings);
 
     // 3. Clustering.
@@ -493,7 +507,11 @@ pub fn run(
     let need_objective = p.error_driven || p.cv_folds > 0;
     let objective = if need_objective {
         let op = ObjectiveParams::default().stride(p.stride).check()?;
-        Some(Objective::new(backend, coll, &op, &|_, _| {})?)
+        match &shared {
+            // The objective's cells are the fits' (`op.fit_params()` is `fit_params`).
+            Some(g) => Some(Objective::from_grams(coll.names(), g.grams.clone())?),
+            _ => Some(Objective::new(backend, coll, &op, &|_, _| {})?),
+        }
     } else {
         None
     };
@@ -573,6 +591,7 @@ pub fn run(
         &targets,
         showcase,
         &settings,
+        shared.as_ref(),
         &|d, t| progress(Stage::Fits, d, t),
     )?;
     lap(Stage::Fits, &mut timings);

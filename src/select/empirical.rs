@@ -5,7 +5,7 @@
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::{
-    channel_lobe, fit_cells, separable_lobes, FitError, FitParams, GramMode, LAMBERTIAN,
+    collection_lobes, fit_cells, separable_lobes, CollectionGrams, FitError, FitParams,
 };
 use crate::merl::GridTables;
 use crate::nnls::lawson_hanson::{self, LeaveOneOut};
@@ -47,10 +47,10 @@ pub struct Empirical {
     pub counts: Vec<usize>,
 }
 
-/// Runs Algorithm 1 on `coll`: one Gram pass over the grid per channel for all materials,
-/// then one exact rank-deficiency-safe NNLS per target and channel, all sharing the
-/// channel's scaled Gram matrix ([`LeaveOneOut`]). A failed solve is an error naming the
-/// material.
+/// Runs Algorithm 1 on `coll`: the Gram matrices of all materials (closed form for an
+/// analytic collection, else one grid pass of the back-end for the three channels), then
+/// one exact rank-deficiency-safe NNLS per target and channel, all sharing the channel's
+/// scaled Gram matrix ([`LeaveOneOut`]). A failed solve is an error naming the material.
 pub fn empirical(
     backend: &dyn Backend,
     coll: &Collection,
@@ -61,22 +61,36 @@ pub fn empirical(
     if n < 2 {
         return Err(FitError::EmptyBasis);
     }
+    if CollectionGrams::needed(coll, p.fit.gram) {
+        let g = CollectionGrams::grid(backend, coll, &p.fit, progress)?;
+        return empirical_from_grams(coll, p, &g.grams);
+    }
     let all: Vec<usize> = (0..n).collect();
     let cells = fit_cells(coll, &all, &p.fit)?;
+    let mom = CellMoments::new(&GridTables::new(), &cells);
+    let fulls = collection_lobes(coll).map(|lobes| {
+        let sep = separable_lobes(&lobes).expect("every lobe of an analytic collection");
+        separable_gram_all(&mom, &sep)
+    });
+    empirical_from_grams(coll, p, &fulls)
+}
+
+/// Algorithm 1 from the Gram matrices of `coll` per channel (`(N + 1)^2`, the Lambertian
+/// column then every material: [`CollectionGrams`], over the cells of `p.fit`).
+pub fn empirical_from_grams(
+    coll: &Collection,
+    p: &EmpiricalParams,
+    fulls: &[Vec<f64>; 3],
+) -> Result<Empirical, FitError> {
+    let n = coll.len();
+    if n < 2 {
+        return Err(FitError::EmptyBasis);
+    }
     let names = coll.names();
     let mut contributes = vec![vec![false; n]; n];
     let lh = lawson_hanson::LhParams::default();
-    for c in 0..3 {
-        let mut lobes = vec![LAMBERTIAN];
-        lobes.extend(coll.materials().iter().map(|m| channel_lobe(&m.data, c)));
-        let m1 = n + 1;
-        let full = match (p.fit.gram, separable_lobes(&lobes)) {
-            (GramMode::Auto, Some(sep)) => {
-                separable_gram_all(&CellMoments::new(&GridTables::new(), &cells), &sep)
-            }
-            _ => crate::fit::gram_full(backend, &lobes, &cells, m1, p.fit.gram, progress)?,
-        };
-        let rows = leave_one_out_contributors(&full, &names, c, &lh)?;
+    for (c, full) in fulls.iter().enumerate() {
+        let rows = leave_one_out_contributors(full, &names, c, &lh)?;
         for (t, r) in rows.into_iter().enumerate() {
             for (j, u) in r.into_iter().enumerate() {
                 contributes[t][j] |= u;
@@ -320,9 +334,8 @@ mod tests {
             ..Default::default()
         };
         let cells = fit_cells(coll, &all, &fp).expect("stride >= 1");
-        let mut lobes = vec![LAMBERTIAN];
-        lobes.extend(coll.materials().iter().map(|m| channel_lobe(&m.data, c)));
-        let sep = separable_lobes(&lobes).expect("analytic");
+        let lobes = collection_lobes(coll);
+        let sep = separable_lobes(&lobes[c]).expect("analytic");
         let mom = CellMoments::new(&GridTables::new(), &cells);
         (mom.gram(&sep, sep.len()), sep)
     }

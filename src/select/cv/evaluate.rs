@@ -75,9 +75,10 @@ impl<'a> Evaluator<'a> {
 
     /// Every method at every k (`bases[m][k][f]`: the basis of method `methods[m]` at
     /// `ks[k]` in fold `f`): every held-out material of every fold, with means and
-    /// medians; results in method order, then k order. The grid MAE of all the fold's
-    /// fits (every method, every k, every held-out material) comes from one pass over the
-    /// grid per fold ([`GridEval::maes`]).
+    /// medians; results in method order, then k order. The grid MAE of all the fits
+    /// (every fold, method and k, every held-out material) comes from one pass over the
+    /// grid ([`GridEval::maes`]: each material tabulated once per block of cells, however
+    /// many folds it serves in).
     pub fn methods(
         &self,
         methods: &[&str],
@@ -86,28 +87,33 @@ impl<'a> Evaluator<'a> {
         bases: &[Vec<Vec<Vec<usize>>>],
     ) -> Result<Vec<CvMethodResult>, SelectionError> {
         let mut held: Vec<Vec<Vec<HeldOut>>> = vec![vec![Vec::new(); ks.len()]; methods.len()];
-        for (f, fold) in folds.iter().enumerate() {
-            let runs: Vec<(usize, usize, usize)> = (0..methods.len())
-                .flat_map(|m| (0..ks.len()).flat_map(move |k| fold.iter().map(move |&t| (m, k, t))))
-                .collect();
-            let fits: Vec<(HeldOut, Vec<[f64; 3]>)> = runs
-                .par_iter()
-                .map(|&(m, k, t)| self.held_out(&bases[m][k][f], f, t))
-                .collect::<Result<_, _>>()?;
-            let jobs: Vec<MaeJob<'_>> = runs
-                .iter()
-                .zip(&fits)
-                .map(|(&(m, k, t), (_, coef))| MaeJob {
-                    basis: &bases[m][k][f],
-                    target: t,
-                    coef,
+        let runs: Vec<(usize, usize, usize, usize)> = folds
+            .iter()
+            .enumerate()
+            .flat_map(|(f, fold)| {
+                (0..methods.len()).flat_map(move |m| {
+                    (0..ks.len()).flat_map(move |k| fold.iter().map(move |&t| (f, m, k, t)))
                 })
-                .collect();
-            let maes = self.grid.maes(&jobs);
-            for ((&(m, k, _), (mut h, _)), mae) in runs.iter().zip(fits).zip(maes) {
-                h.mae = mae;
-                held[m][k].push(h);
-            }
+            })
+            .collect();
+        let fits: Vec<(HeldOut, Vec<[f64; 3]>)> = runs
+            .par_iter()
+            .map(|&(f, m, k, t)| self.held_out(&bases[m][k][f], f, t))
+            .collect::<Result<_, _>>()?;
+        let jobs: Vec<MaeJob<'_>> = runs
+            .iter()
+            .zip(&fits)
+            .map(|(&(f, m, k, t), (_, coef))| MaeJob {
+                basis: &bases[m][k][f],
+                target: t,
+                coef,
+            })
+            .collect();
+        let maes = self.grid.maes(&jobs);
+        drop(jobs);
+        for ((&(_, m, k, _), (mut h, _)), mae) in runs.iter().zip(fits).zip(maes) {
+            h.mae = mae;
+            held[m][k].push(h);
         }
         let names = self.obj.names();
         let mut out = Vec::new();
@@ -192,9 +198,12 @@ pub(crate) struct MaeJob<'j> {
     pub coef: &'j [[f64; 3]],
 }
 
-/// Cells tabulated at once by [`GridEval::maes`]: the lobes of every material a batch needs
-/// (three channels each) over one block stay small (100 materials: 37 MiB).
+/// Most cells tabulated at once by [`GridEval::maes`] (100 materials: 37 MiB of f64 values
+/// for their three channels).
 const MAE_BLOCK: usize = 1 << 14;
+/// Bytes of tabulated values [`cell_sums`] keeps per block at most (its blocks shrink, down
+/// to 1,024 cells, as the materials it needs grow: the sums do not depend on the blocks).
+const MAE_BLOCK_BYTES: usize = 64 << 20;
 
 /// MAE of fitted combinations on the grid (SPEC 5) over the objective's cells: one
 /// multiply-add per cell from separable tables when every material is analytic, else the
@@ -330,41 +339,60 @@ pub(crate) fn cell_sums<const ALL: bool>(
         }
     }
     let mut sums = vec![[CellSums::default(); 3]; jobs.len()];
+    let per_cell = 3 * std::mem::size_of::<f64>() * needed.len().max(1);
+    let block_cells = (MAE_BLOCK_BYTES / per_cell).clamp(1024, MAE_BLOCK);
     for (block, w) in cells
         .cells
-        .chunks(MAE_BLOCK)
-        .zip(cells.weights.chunks(MAE_BLOCK))
+        .chunks(block_cells)
+        .zip(cells.weights.chunks(block_cells))
     {
         let lambert = cpu.values_f64(&LAMBERTIAN, block);
         let values: Vec<[Vec<f64>; 3]> = needed
             .par_iter()
             .map(|&m| material_values(cpu, coll, m, block))
             .collect();
-        sums.par_iter_mut().zip(jobs).for_each(|(sum, j)| {
-            for (c, e) in sum.iter_mut().enumerate() {
-                // Lambertian first, then basis order, as `cell_errors` is given them.
-                let (cols, xs): (Vec<&[f64]>, Vec<f64>) = std::iter::once(&lambert[..])
-                    .chain(j.basis.iter().map(|&b| match slot[b] {
-                        Some(s) => &values[s][c][..],
-                        None => &[][..],
-                    }))
-                    .zip(j.coef.iter().map(|a| a[c]))
-                    .filter(|&(_, a)| ALL || a != 0.0)
-                    .unzip();
-                let b = &values[slot[j.target].expect("targets have slots")][c];
-                for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
-                    let fitv: f64 = cols.iter().zip(&xs).map(|(col, &a)| a * col[i]).sum();
-                    let r = fitv - bv;
-                    if ALL {
-                        e.squared += w * r * r;
-                    }
-                    e.absolute += w * r.abs();
-                    if ALL {
-                        e.target += w * bv.abs();
+        let len = block.len();
+        sums.par_iter_mut().zip(jobs).for_each_init(
+            || vec![0.0f64; 3 * len],
+            |fit, (sum, j)| {
+                fit.resize(3 * len, 0.0);
+                // The fitted values of every cell, column by column (Lambertian first, then
+                // basis order, as `cell_errors` is given them): per cell the same products
+                // added in the same order as a sum over the columns, so the same bits; the
+                // loops over cells vectorise.
+                for (c, f) in fit.chunks_mut(len).enumerate() {
+                    f.fill(-0.0);
+                    let cols = std::iter::once(&lambert[..])
+                        .chain(j.basis.iter().map(|&b| match slot[b] {
+                            Some(s) => &values[s][c][..],
+                            None => &[][..],
+                        }))
+                        .zip(j.coef.iter().map(|a| a[c]))
+                        .filter(|&(_, a)| ALL || a != 0.0);
+                    for (col, a) in cols {
+                        for (fv, &v) in f.iter_mut().zip(col) {
+                            *fv += a * v;
+                        }
                     }
                 }
-            }
-        });
+                // Then each channel's sums in cell order (the three channels are independent
+                // sums, interleaved here).
+                let b = &values[slot[j.target].expect("targets have slots")];
+                for (i, &w) in w.iter().enumerate() {
+                    for (c, e) in sum.iter_mut().enumerate() {
+                        let bv = b[c][i];
+                        let r = fit[c * len + i] - bv;
+                        if ALL {
+                            e.squared += w * r * r;
+                        }
+                        e.absolute += w * r.abs();
+                        if ALL {
+                            e.target += w * bv.abs();
+                        }
+                    }
+                }
+            },
+        );
     }
     sums
 }

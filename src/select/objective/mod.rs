@@ -19,7 +19,9 @@
 
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
-use crate::fit::{channel_lobe, fit_cells, gram_full, FitParams, GramMode, LAMBERTIAN};
+use crate::fit::{
+    collection_lobes, fit_cells, gram_grid_rgb, CollectionGrams, FitParams, GramMode,
+};
 use crate::merl::{Mask, Weighting};
 use crate::nnls::incremental::{self, ChanState, Cosine};
 use crate::nnls::NnlsError;
@@ -158,16 +160,10 @@ impl Objective {
                 )),
             )));
         }
-        let grams = if p.gram == GramMode::Auto && coll.all_analytic() {
-            analytic_grams(coll, &cells)
+        let grams = if CollectionGrams::needed(coll, p.gram) {
+            gram_grid_rgb(backend, collection_lobes(coll), &cells, n + 1, progress)?
         } else {
-            let mut out: [Vec<f64>; 3] = Default::default();
-            for (c, o) in out.iter_mut().enumerate() {
-                let mut lobes = vec![LAMBERTIAN];
-                lobes.extend(coll.materials().iter().map(|m| channel_lobe(&m.data, c)));
-                *o = gram_full(backend, &lobes, &cells, n + 1, GramMode::Grid, progress)?;
-            }
-            out
+            analytic_grams(coll, &cells)
         };
         Self::from_grams(coll.names(), grams)
     }
