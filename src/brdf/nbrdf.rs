@@ -248,13 +248,15 @@ impl Nbrdf {
         out: [&mut [f32]; 3],
     ) {
         let w: &[f32; NBRDF_WEIGHTS] = self.w[..].try_into().expect("675 weights");
+        let fast = fma_available();
         #[cfg(target_arch = "x86_64")]
         {
-            if fma_available() {
+            if fast {
                 // SAFETY: AVX2 and FMA were detected on this processor.
                 return unsafe { eval_blocks_avx2(w, len, fill, clamp, out) };
             }
         }
+        let _ = fast;
         eval_blocks(w, len, fill, clamp, out, forward::<false>)
     }
 }
