@@ -9,7 +9,12 @@
 //! * peak RSS of BRDF_it over 1,000 distinct networks (the 100, perturbed), every 16th
 //!   cell: rows are evaluated per chunk of cells, never stored whole.
 //!
-//! `cargo bench --bench nbrdf` (needs `../shared/data/real/nbrdf/merl100`).
+//! `cargo bench --bench nbrdf` (needs `../shared/data/real/nbrdf/merl100`). Each timing
+//! prints wall and CPU seconds (this process, all threads) and the load average.
+//! `BRDF_BASIS_NBRDF_CPU_ONLY=1` leaves out the GPU back-end (lavapipe takes minutes on
+//! 2 cores); `BRDF_BASIS_NBRDF_TABULATE_ONLY=1` stops after the tabulation ratios.
+//! The tabulation clock covers the `tabulate` calls only; the per-material checksums are
+//! summed after it stops (numpy's time includes its own sums, about 1% of it).
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::GpuBackend;
@@ -34,6 +39,29 @@ fn peak_rss_mib() -> f64 {
         .map_or(f64::NAN, |kib| kib / 1024.0)
 }
 
+/// CPU seconds of this process so far (user + system, all threads).
+fn cpu_seconds() -> f64 {
+    rusage_seconds(libc::RUSAGE_SELF)
+}
+
+/// CPU seconds (user + system) of `who` (`RUSAGE_SELF`, or `RUSAGE_CHILDREN`: the
+/// children waited for).
+fn rusage_seconds(who: libc::c_int) -> f64 {
+    // SAFETY: getrusage writes the struct it is given.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    unsafe { libc::getrusage(who, &mut u) };
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    t(u.ru_utime) + t(u.ru_stime)
+}
+
+/// The 1-minute load average (`/proc/loadavg`), for reading a timing on a shared machine.
+fn load() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
+        .unwrap_or_else(|| "?".into())
+}
+
 fn python() -> String {
     std::env::var("BRDF_BASIS_PYTHON").unwrap_or_else(|_| {
         if std::path::Path::new("/work/venv/bin/python").exists() {
@@ -45,11 +73,12 @@ fn python() -> String {
 }
 
 /// Tabulates every network's three channels on the full grid, ten materials at a time;
-/// returns the seconds and each material's f64 sum of its RGB values.
-fn tabulate_all(b: &dyn Backend, nets: &[Arc<Nbrdf>]) -> (f64, Vec<f64>) {
+/// returns the wall seconds of the `tabulate` calls, their CPU seconds (this process)
+/// and each material's f64 sum of its RGB values (summed outside the clock).
+fn tabulate_all(b: &dyn Backend, nets: &[Arc<Nbrdf>]) -> (f64, f64, Vec<f64>) {
     let cells: Vec<u32> = (0..N_CELLS as u32).collect();
     let mut sums = Vec::new();
-    let t = Instant::now();
+    let (mut wall, mut cpu) = (0.0, 0.0);
     for batch in nets.chunks(10) {
         let lobes: Vec<Lobe> = batch
             .iter()
@@ -60,12 +89,15 @@ fn tabulate_all(b: &dyn Backend, nets: &[Arc<Nbrdf>]) -> (f64, Vec<f64>) {
                 })
             })
             .collect();
+        let (t, c) = (Instant::now(), cpu_seconds());
         let v = b.tabulate(&lobes, &cells).expect("tabulate");
+        wall += t.elapsed().as_secs_f64();
+        cpu += cpu_seconds() - c;
         for m in v.chunks(3 * N_CELLS) {
             sums.push(m.iter().map(|&x| x as f64).sum());
         }
     }
-    (t.elapsed().as_secs_f64(), sums)
+    (wall, cpu, sums)
 }
 
 fn main() {
@@ -89,20 +121,27 @@ fn main() {
     if std::env::var("BRDF_BASIS_NBRDF_MANY").is_ok_and(|v| v == "1") {
         return many(&coll, &nets);
     }
+    let flag = |k: &str| std::env::var(k).is_ok_and(|v| v == "1");
     let cell_evals = (nets.len() * N_CELLS) as f64;
     let cpu = CpuBackend::new();
-    let gpu = GpuBackend::new().ok();
+    let gpu = if flag("BRDF_BASIS_NBRDF_CPU_ONLY") {
+        None
+    } else {
+        GpuBackend::new().ok()
+    };
 
     // Tabulation.
     let _ = tabulate_all(&cpu, &nets[..2]);
-    let (t_cpu, sums) = tabulate_all(&cpu, &nets);
+    let load_before = load();
+    let (t_cpu, c_cpu, sums) = tabulate_all(&cpu, &nets);
     println!(
-        "tabulate 100 NBRDF x RGB x {N_CELLS} cells, {}: {t_cpu:.2} s ({:.1} M network evaluations/s)",
+        "tabulate 100 NBRDF x RGB x {N_CELLS} cells, {}: {t_cpu:.2} s wall, {c_cpu:.2} s CPU, load {load_before} -> {} ({:.1} M network evaluations/s)",
         cpu.name(),
+        load(),
         cell_evals / t_cpu / 1e6
     );
     let t_gpu = gpu.as_ref().map(|g| {
-        let (t, s) = tabulate_all(g, &nets);
+        let (t, _, s) = tabulate_all(g, &nets);
         // The GPU kernel and the CPU twin agree within SPEC 9, not bit for bit.
         let worst = s
             .iter()
@@ -116,6 +155,8 @@ fn main() {
         );
         t
     });
+    let load_before = load();
+    let children = rusage_seconds(libc::RUSAGE_CHILDREN);
     let out = Command::new(python())
         .arg(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/nbrdf_numpy.py"))
         .arg(&dir)
@@ -137,7 +178,9 @@ fn main() {
                 .find_map(|l| l.strip_prefix("seconds ")?.trim().parse().ok())
                 .expect("seconds");
             println!(
-                "tabulate, numpy (float32 matrix products): {secs:.2} s; per-material sums agree with the CPU back-end to {worst:.1e} relative"
+                "tabulate, numpy (float32 matrix products): {secs:.2} s, load {load_before} -> {} (the python process: {:.2} s CPU, loading included); per-material sums agree with the CPU back-end to {worst:.1e} relative",
+                load(),
+                rusage_seconds(libc::RUSAGE_CHILDREN) - children
             );
             t_numpy = Some(secs);
         }
@@ -155,6 +198,9 @@ fn main() {
         if let Some(g) = t_gpu {
             println!("tabulate ratio: gpu (lavapipe) = {:.1} x numpy", n / g);
         }
+    }
+    if flag("BRDF_BASIS_NBRDF_TABULATE_ONLY") {
+        return;
     }
 
     // BRDF_it and the Gram pass.

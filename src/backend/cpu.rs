@@ -279,6 +279,12 @@ fn neural_rows(
     scale: Option<&[f64]>,
     rows: &mut [(Option<usize>, &mut [f32])],
 ) {
+    // The three channels unscaled (a tabulation): straight into the rows (the same
+    // values: an f32 times 1 in f64 rounds back to itself).
+    if let (None, [(Some(0), r), (Some(1), g), (Some(2), b)]) = (scale, &mut *rows) {
+        net.eval_cells(cells, true, [&mut r[..], &mut g[..], &mut b[..]]);
+        return;
+    }
     let run = NEURAL_RUN.min(cells.len());
     let (mut r, mut g, mut b) = (vec![0f32; run], vec![0f32; run], vec![0f32; run]);
     for (start, cc) in (0..cells.len())

@@ -3,12 +3,18 @@
 //! `a1 = relu(x . fc1 + b1)`, `x = (sin th, 0, cos th, sin td cos pd, sin td sin pd, cos td)`.
 //!
 //! Two evaluations: [`Nbrdf::eval_f64`], the f64 reference, and the fast f32 twin
-//! [`Nbrdf::eval_cells`] that every back-end tabulates with. The twin runs
-//! [`LANES`] cells at once in struct-of-arrays layout (every loop over the lanes is a
-//! fixed-length array loop that LLVM turns into vector code; on x86-64 with AVX2 and FMA,
-//! detected at run time, into 8-wide fused multiply-adds), and computes `exp(z) - 1` as an
-//! accurate `expm1` (a few ulps), so the cancellation of `exp(z) - 1` near `z = 0` costs no
-//! accuracy: SPEC 9 asks 5e-4 relative where the value exceeds 1e-3, 1e-6 absolute below.
+//! [`Nbrdf::eval_cells`] that every back-end tabulates with. The twin runs blocks of 64
+//! cells, [`LANES`] at a time in struct-of-arrays layout, and leaves out the hidden units
+//! that are provably 0 on the whole block (relu: about half of them in the trained
+//! networks), which changes no value: it gives the dense f32 pass bit for bit (see
+//! `forward`). On x86-64 with AVX2 and FMA, detected at run time, the block kernel is
+//! written with intrinsics (`avx2`: twelve chains of 8-wide fused multiply-adds); elsewhere
+//! it is portable code with the same operations. `exp(z) - 1` is an accurate `expm1` (a
+//! few ulps), so the cancellation of `exp(z) - 1` near `z = 0` costs no accuracy: SPEC 9
+//! asks 5e-4 relative where the value exceeds 1e-3, 1e-6 absolute below.
+
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 
 /// Weights of one network (f32): `fc1` 6 x 21, `b1` 21, `fc2` 21 x 21, `b2` 21, `fc3`
 /// 21 x 3, `b3` 3.
@@ -61,10 +67,11 @@ pub fn features(th: f64, td: f64, pd: f64) -> [f32; 5] {
 }
 
 /// [`features`] of every cell of the MERL grid, from per-row tables (the cell centres of
-/// SPEC 2): `(sin th, cos th)` per `i`, the three `d` inputs per `(j, k)`.
+/// SPEC 2): `(sin th, cos th)` per `i`, the three `d` inputs per `(j, k)` (one table each,
+/// so that a run of consecutive cells reads each input as one vector).
 struct GridFeatures {
     h: Vec<[f32; 2]>,
-    d: Vec<[f32; 3]>,
+    d: [Vec<f32>; 3],
 }
 
 fn grid_features() -> &'static GridFeatures {
@@ -77,24 +84,54 @@ fn grid_features() -> &'static GridFeatures {
                 [f[0], f[1]]
             })
             .collect();
-        let d = (0..N_TD * N_PD)
-            .map(|jk| {
-                let f = features(0.0, theta_d(jk / N_PD), phi_d(jk % N_PD));
-                [f[2], f[3], f[4]]
-            })
+        let d: Vec<[f32; 5]> = (0..N_TD * N_PD)
+            .map(|jk| features(0.0, theta_d(jk / N_PD), phi_d(jk % N_PD)))
             .collect();
+        let d = [2, 3, 4].map(|i| d.iter().map(|f| f[i]).collect());
         GridFeatures { h, d }
     })
 }
 
+/// Cells of one theta_h row of the grid.
+const ROW_CELLS: usize = crate::merl::grid::N_TD * crate::merl::grid::N_PD;
+
 /// [`features`] of a flat grid cell (at its centre, SPEC 2).
 #[inline]
 pub fn cell_features(cell: usize) -> [f32; 5] {
-    use crate::merl::grid::{N_PD, N_TD};
     let g = grid_features();
-    let h = g.h[cell / (N_TD * N_PD)];
-    let d = g.d[cell % (N_TD * N_PD)];
-    [h[0], h[1], d[0], d[1], d[2]]
+    let h = g.h[cell / ROW_CELLS];
+    let jk = cell % ROW_CELLS;
+    [h[0], h[1], g.d[0][jk], g.d[1][jk], g.d[2][jk]]
+}
+
+/// The inputs of a block of grid cells (at most [`BLOCK_CELLS`]) into `x`, padded to
+/// `x.len()` vectors with the last cell. A vector of eight consecutive cells of one theta_h
+/// row (the common case: tabulations and masks run in cell order) is read as slices.
+fn fill_cells(cells: &[u32], x: &mut [[V; 5]]) {
+    let g = grid_features();
+    let m = cells.len();
+    for (v, xv) in x.iter_mut().enumerate() {
+        let at = v * LANES;
+        if at + LANES <= m {
+            let (c0, c7) = (cells[at] as usize, cells[at + LANES - 1] as usize);
+            let jk = c0 % ROW_CELLS;
+            if c7 == c0 + LANES - 1 && jk + LANES <= ROW_CELLS {
+                let h = g.h[c0 / ROW_CELLS];
+                xv[0] = [h[0]; LANES];
+                xv[1] = [h[1]; LANES];
+                for (xi, d) in xv[2..].iter_mut().zip(&g.d) {
+                    xi.copy_from_slice(&d[jk..jk + LANES]);
+                }
+                continue;
+            }
+        }
+        for l in 0..LANES {
+            let f = cell_features(cells[(at + l).min(m - 1)] as usize);
+            for (xi, fi) in xv.iter_mut().zip(f) {
+                xi[l] = fi;
+            }
+        }
+    }
 }
 
 impl Nbrdf {
@@ -181,7 +218,7 @@ impl Nbrdf {
     pub fn eval_cells(&self, cells: &[u32], clamp: bool, out: [&mut [f32]; 3]) {
         self.eval_with(
             cells.len(),
-            |n| cell_features(cells[n] as usize),
+            |start, m, x| fill_cells(&cells[start..start + m], x),
             clamp,
             out,
         )
@@ -189,37 +226,89 @@ impl Nbrdf {
 
     /// The f32 twin at given features ([`features`]); as [`Self::eval_cells`].
     pub fn eval_features(&self, feats: &[[f32; 5]], clamp: bool, out: [&mut [f32]; 3]) {
-        self.eval_with(feats.len(), |n| feats[n], clamp, out)
+        let fill = |start: usize, m: usize, x: &mut [[V; 5]]| {
+            for n in 0..x.len() * LANES {
+                let f = feats[start + n.min(m - 1)];
+                for (xi, fi) in x[n / LANES].iter_mut().zip(f) {
+                    xi[n % LANES] = fi;
+                }
+            }
+        };
+        self.eval_with(feats.len(), fill, clamp, out)
     }
 
+    /// Runs the network on blocks of [`BLOCK_CELLS`]: `fill(start, m, x)` writes the
+    /// inputs of cells `start..start + m` into `x` (whole vectors; padding lanes repeat the
+    /// last cell, so that they neither wake a hidden unit nor hide a shared theta_h).
     fn eval_with(
         &self,
         len: usize,
-        feat: impl Fn(usize) -> [f32; 5],
+        fill: impl FnMut(usize, usize, &mut [[V; 5]]),
         clamp: bool,
         out: [&mut [f32]; 3],
     ) {
+        let w: &[f32; NBRDF_WEIGHTS] = self.w[..].try_into().expect("675 weights");
         let fast = fma_available();
-        let [r, g, b] = out;
-        for start in (0..len).step_by(LANES) {
-            let m = (len - start).min(LANES);
-            let mut x = [[0f32; LANES]; 5];
-            for l in 0..m {
-                let f = feat(start + l);
-                for (xi, fi) in x.iter_mut().zip(f) {
-                    xi[l] = fi;
-                }
+        #[cfg(target_arch = "x86_64")]
+        {
+            if fast {
+                // SAFETY: AVX2 and FMA were detected on this processor.
+                return unsafe { eval_blocks_avx2(w, len, fill, clamp, out) };
             }
-            let y = forward_dispatch(&self.w, &x, fast);
-            for (o, yc) in [&mut *r, &mut *g, &mut *b].into_iter().zip(y) {
-                for l in 0..m {
+        }
+        let _ = fast;
+        eval_blocks(w, len, fill, clamp, out, forward::<false>)
+    }
+}
+
+/// The loop of [`Nbrdf::eval_with`] over blocks, with `forward` the network on a block.
+#[inline(always)]
+fn eval_blocks(
+    w: &[f32; NBRDF_WEIGHTS],
+    len: usize,
+    mut fill: impl FnMut(usize, usize, &mut [[V; 5]]),
+    clamp: bool,
+    out: [&mut [f32]; 3],
+    mut forward: impl FnMut(&[f32; NBRDF_WEIGHTS], &[[V; 5]], &mut [[V; 3]], &mut Scratch),
+) {
+    let [r, g, b] = out;
+    let mut out = [&mut r[..len], &mut g[..len], &mut b[..len]];
+    let mut x = [[[0f32; LANES]; 5]; BLOCK_VECS];
+    let mut y = [[[0f32; LANES]; 3]; BLOCK_VECS];
+    let mut scratch = Scratch::default();
+    for start in (0..len).step_by(BLOCK_CELLS) {
+        let m = (len - start).min(BLOCK_CELLS);
+        let nv = m.div_ceil(LANES).next_multiple_of(RV);
+        fill(start, m, &mut x[..nv]);
+        forward(w, &x[..nv], &mut y[..nv], &mut scratch);
+        for (c, o) in out.iter_mut().enumerate() {
+            for (o, yv) in o[start..start + m].chunks_mut(LANES).zip(&y) {
+                for (o, &v) in o.iter_mut().zip(&yv[c]) {
                     // NaN cannot arise from finite weights; `> 0` keeps 0 for it anyway.
-                    let keep = !clamp || yc[l] > 0.0;
-                    o[start + l] = if keep { yc[l] } else { 0.0 };
+                    *o = if !clamp || v > 0.0 { v } else { 0.0 };
                 }
             }
         }
     }
+}
+
+/// [`eval_blocks`] compiled for AVX2 and FMA, with [`avx2::forward`].
+///
+/// # Safety
+/// The processor must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn eval_blocks_avx2(
+    w: &[f32; NBRDF_WEIGHTS],
+    len: usize,
+    fill: impl FnMut(usize, usize, &mut [[V; 5]]),
+    clamp: bool,
+    out: [&mut [f32]; 3],
+) {
+    // SAFETY (of the calls): this function's own contract.
+    eval_blocks(w, len, fill, clamp, out, |w, x, y, s| unsafe {
+        avx2::forward(w, x, y, s)
+    })
 }
 
 fn fma_available() -> bool {
@@ -233,29 +322,6 @@ fn fma_available() -> bool {
     }
 }
 
-#[inline(always)]
-fn forward_dispatch(w: &[f32], x: &[V; 5], fast: bool) -> [V; 3] {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if fast {
-            // SAFETY: AVX2 and FMA were detected on this processor (`fma_available`).
-            return unsafe { forward_avx2(w, x) };
-        }
-    }
-    let _ = fast;
-    forward::<false>(w, x)
-}
-
-/// [`forward`] compiled for AVX2 with fused multiply-adds.
-///
-/// # Safety
-/// The processor must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn forward_avx2(w: &[f32], x: &[V; 5]) -> [V; 3] {
-    forward::<true>(w, x)
-}
-
 /// `a b + c`, fused when `FMA` (only in code compiled with the FMA feature: elsewhere
 /// `mul_add` would be a library call).
 #[inline(always)]
@@ -267,8 +333,7 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
     }
 }
 
-/// `max(v, 0)` in place (a loop, not a closure: closures are not inlined into the AVX2
-/// copy, and their `mul_add`s would become library calls).
+/// `max(v, 0)` in place.
 #[inline(always)]
 fn relu(v: &mut V) {
     for x in v.iter_mut() {
@@ -276,67 +341,219 @@ fn relu(v: &mut V) {
     }
 }
 
-/// Output units of layer 2 accumulated together (7 x 8 lanes: seven independent chains of
-/// fused multiply-adds in registers; 21 = 3 x 7).
-const J_BLOCK: usize = 7;
+/// Hidden activations of a block, kept between blocks (not re-zeroed per block).
+#[derive(Default)]
+#[repr(align(32))]
+struct Scratch {
+    /// Layer 1, per vector and unit.
+    a1: [[V; HIDDEN]; BLOCK_VECS],
+    /// Layer 2, per vector and live unit (in the order of the live list).
+    a2: [[V; HIDDEN + RU]; BLOCK_VECS],
+}
 
-/// The network on [`LANES`] cells at once: inputs `x` (struct of arrays, the five
-/// non-zero inputs), raw outputs `exp(z) - 1` per channel. Plain loops only (no closures),
-/// so that everything inlines into the AVX2 copy.
+/// A layer-2 unit is skipped on a block when its interval bound is below `-PRUNE_MARGIN`
+/// times its magnitude ([`forward`]).
+const PRUNE_MARGIN: f32 = 1e-5;
+
+/// Vectors of [`LANES`] cells whose dead hidden units are skipped together.
+const BLOCK_VECS: usize = 8;
+/// Cells of such a block.
+const BLOCK_CELLS: usize = BLOCK_VECS * LANES;
+/// Vectors of cells per register block (each weight broadcast serves all of them).
+const RV: usize = 4;
+/// Layer-2 output units per register block (`RV` x `RU` accumulator chains).
+const RU: usize = 3;
+
+/// The network on a block of cells (`x.len()` vectors of [`LANES`], a multiple of [`RV`],
+/// at most [`BLOCK_VECS`]; struct of arrays, the five non-zero inputs): raw outputs
+/// `exp(z) - 1` per channel into `y`.
+///
+/// The same f32 operations in the same order as a dense pass (`acc = b`, then
+/// `acc = x_i w_i + acc` for `i` ascending, per unit and lane), minus those that cannot
+/// change a result, so the values are those of the dense pass bit for bit (up to the sign
+/// of an exact zero before the clamp):
+/// * a layer-1 unit that is 0 at every cell of the block (relu) adds `0 x w` (exactly
+///   nothing) to each layer-2 sum: it is left out;
+/// * a layer-2 unit whose pre-activation is provably <= 0 at every cell of the block is
+///   0 after its relu, neither computed nor read by layer 3. The proof: interval bounds
+///   from the block's range `[lo_i, hi_i]` of each layer-1 unit, `ub = b + sum_i
+///   max(w_i lo_i, w_i hi_i) <= -1e-5 (|b| + sum_i |w_i| hi_i)`; the f32 sums (21 roundings
+///   of at most 2^-24 of that magnitude, the bound's own likewise) stay below 0;
+/// * when the block shares theta_h (grid runs), `b1 + x0 w0 + x1 w2` is the same f32
+///   chain at every lane: computed once per unit.
+///
+/// On the 100 MERL networks, a block of 64 grid cells has on average 11.2 live layer-1
+/// units and 9.8 layer-2 units not proven dead (of 21), so layer 2 (441 multiply-adds per
+/// cell dense) costs about a quarter. `avx2::forward` is the same with intrinsics.
 #[inline(always)]
-fn forward<const FMA: bool>(w: &[f32], x: &[V; 5]) -> [V; 3] {
-    let w = &w[..NBRDF_WEIGHTS];
-    // Input rows of fc1 for the five non-zero inputs (row 1 multiplies the zero input).
-    const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
-    let mut a1 = [[0f32; LANES]; HIDDEN];
-    for (j, a) in a1.iter_mut().enumerate() {
-        let mut acc = [w[B1 + j]; LANES];
-        for (xi, &row) in x.iter().zip(&ROWS) {
-            let wv = w[FC1 + row * HIDDEN + j];
-            for l in 0..LANES {
-                acc[l] = madd::<FMA>(xi[l], wv, acc[l]);
-            }
-        }
-        relu(&mut acc);
-        *a = acc;
+fn forward<const FMA: bool>(
+    w: &[f32; NBRDF_WEIGHTS],
+    x: &[[V; 5]],
+    y: &mut [[V; 3]],
+    scratch: &mut Scratch,
+) {
+    let nv = x.len();
+    assert!(nv % RV == 0 && nv <= BLOCK_VECS && y.len() == nv);
+    let Scratch { a1, a2 } = scratch;
+    // Layer 1: a1 = relu(x . fc1 + b1) per vector, and each unit's range over the block.
+    let mut hi = [[0f32; LANES]; HIDDEN];
+    let mut lo = [[f32::MAX; LANES]; HIDDEN];
+    let (h0, h1) = (x[0][0][0], x[0][1][0]);
+    let shared = x.iter().all(|xv| {
+        (0..LANES).all(|l| xv[0][l].to_bits() == h0.to_bits() && xv[1][l].to_bits() == h1.to_bits())
+    });
+    if shared {
+        layer1::<FMA, true>(w, x, a1, &mut hi, &mut lo);
+    } else {
+        layer1::<FMA, false>(w, x, a1, &mut hi, &mut lo);
     }
-    let mut a2 = [[0f32; LANES]; HIDDEN];
-    for jb in (0..HIDDEN).step_by(J_BLOCK) {
-        let mut acc = [[0f32; LANES]; J_BLOCK];
-        for (jj, acc) in acc.iter_mut().enumerate() {
-            *acc = [w[B2 + jb + jj]; LANES];
+    // The live layer-1 units (ascending) and their ranges.
+    let mut live1 = [0usize; HIDDEN];
+    let (mut hi1, mut lo1) = ([0f32; HIDDEN], [0f32; HIDDEN]);
+    let mut n1 = 0;
+    for j in 0..HIDDEN {
+        let h = hi[j].iter().fold(0f32, |m, &v| if v > m { v } else { m });
+        if h > 0.0 {
+            live1[n1] = j;
+            hi1[n1] = h;
+            lo1[n1] = lo[j]
+                .iter()
+                .fold(f32::MAX, |m, &v| if v < m { v } else { m });
+            n1 += 1;
         }
-        for (i, a) in a1.iter().enumerate() {
-            for (jj, acc) in acc.iter_mut().enumerate() {
-                let wv = w[FC2 + i * HIDDEN + jb + jj];
-                for l in 0..LANES {
-                    acc[l] = madd::<FMA>(a[l], wv, acc[l]);
+    }
+    // Layer-2 units not provably dead on the block (ascending), padded to a multiple of
+    // RU by repeating the last (computed twice, read once).
+    let mut ub = [0f32; HIDDEN];
+    let mut mag = [0f32; HIDDEN];
+    for u in 0..HIDDEN {
+        ub[u] = w[B2 + u];
+        mag[u] = w[B2 + u].abs();
+    }
+    for s in 0..n1 {
+        let row = &w[FC2 + live1[s] * HIDDEN..][..HIDDEN];
+        for u in 0..HIDDEN {
+            let (p, q) = (row[u] * hi1[s], row[u] * lo1[s]);
+            ub[u] += p.max(q);
+            mag[u] += p.abs();
+        }
+    }
+    let mut live2 = [0usize; HIDDEN + RU];
+    let mut n2 = 0;
+    for u in 0..HIDDEN {
+        if ub[u] > -PRUNE_MARGIN * mag[u] {
+            live2[n2] = u;
+            n2 += 1;
+        }
+    }
+    let n2_pad = n2.next_multiple_of(RU);
+    for s in n2..n2_pad {
+        live2[s] = live2[n2 - 1];
+    }
+    // Layer 2 on the live units: a2[v][s] for unit live2[s].
+    for g in (0..n2_pad).step_by(RU) {
+        let u: [usize; RU] = std::array::from_fn(|t| live2[g + t]);
+        for v0 in (0..nv).step_by(RV) {
+            let mut acc = [[[0f32; LANES]; RU]; RV];
+            for accv in acc.iter_mut() {
+                for (t, acc) in accv.iter_mut().enumerate() {
+                    *acc = [w[B2 + u[t]]; LANES];
+                }
+            }
+            for &k in &live1[..n1] {
+                let row = &w[FC2 + k * HIDDEN..][..HIDDEN];
+                let wv: [f32; RU] = std::array::from_fn(|t| row[u[t]]);
+                for (r, accv) in acc.iter_mut().enumerate() {
+                    let a = &a1[v0 + r][k];
+                    for (t, acc) in accv.iter_mut().enumerate() {
+                        for l in 0..LANES {
+                            acc[l] = madd::<FMA>(a[l], wv[t], acc[l]);
+                        }
+                    }
+                }
+            }
+            for (r, accv) in acc.iter_mut().enumerate() {
+                for (t, acc) in accv.iter_mut().enumerate() {
+                    relu(acc);
+                    a2[v0 + r][g + t] = *acc;
                 }
             }
         }
-        for (jj, acc) in acc.iter_mut().enumerate() {
-            relu(acc);
-            a2[jb + jj] = *acc;
+    }
+    // Layer 3 on the live layer-2 units, then expm1.
+    for v0 in (0..nv).step_by(RV) {
+        let mut z = [[[0f32; LANES]; 3]; RV];
+        for zv in z.iter_mut() {
+            for (c, z) in zv.iter_mut().enumerate() {
+                *z = [w[B3 + c]; LANES];
+            }
         }
-    }
-    let mut z = [[0f32; LANES]; 3];
-    for (c, z) in z.iter_mut().enumerate() {
-        *z = [w[B3 + c]; LANES];
-    }
-    for (i, a) in a2.iter().enumerate() {
-        for (c, z) in z.iter_mut().enumerate() {
-            let wv = w[FC3 + i * 3 + c];
-            for l in 0..LANES {
-                z[l] = madd::<FMA>(a[l], wv, z[l]);
+        for s in 0..n2 {
+            let wrow = &w[FC3 + live2[s] * 3..][..3];
+            for (r, zv) in z.iter_mut().enumerate() {
+                let a = &a2[v0 + r][s];
+                for (c, z) in zv.iter_mut().enumerate() {
+                    for l in 0..LANES {
+                        z[l] = madd::<FMA>(a[l], wrow[c], z[l]);
+                    }
+                }
+            }
+        }
+        for (r, zv) in z.iter().enumerate() {
+            for (c, z) in zv.iter().enumerate() {
+                for l in 0..LANES {
+                    y[v0 + r][c][l] = expm1f::<FMA>(z[l]);
+                }
             }
         }
     }
-    for zc in z.iter_mut() {
-        for v in zc.iter_mut() {
-            *v = expm1f::<FMA>(*v);
+}
+
+/// Layer 1 of [`forward`]: `a1 = relu(x . fc1 + b1)` per vector of `x`, and each unit's
+/// per-lane maximum and minimum over the vectors into `hi`, `lo`. `SHARED`: every lane of
+/// `x` has the first vector's theta_h inputs, and the chain's first two steps are done once.
+#[inline(always)]
+fn layer1<const FMA: bool, const SHARED: bool>(
+    w: &[f32; NBRDF_WEIGHTS],
+    x: &[[V; 5]],
+    a1: &mut [[V; HIDDEN]; BLOCK_VECS],
+    hi: &mut [V; HIDDEN],
+    lo: &mut [V; HIDDEN],
+) {
+    // Input rows of fc1 for the five non-zero inputs (row 1 multiplies the zero input).
+    const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
+    let (h0, h1) = (x[0][0][0], x[0][1][0]);
+    let mut start = [0f32; HIDDEN];
+    for (j, s) in start.iter_mut().enumerate() {
+        *s = madd::<FMA>(
+            h1,
+            w[FC1 + 2 * HIDDEN + j],
+            madd::<FMA>(h0, w[FC1 + j], w[B1 + j]),
+        );
+    }
+    for (xv, a1v) in x.iter().zip(a1.iter_mut()) {
+        for j in 0..HIDDEN {
+            let mut acc = [if SHARED { start[j] } else { w[B1 + j] }; LANES];
+            for i in if SHARED { 2 } else { 0 }..5 {
+                let wv = w[FC1 + ROWS[i] * HIDDEN + j];
+                for l in 0..LANES {
+                    acc[l] = madd::<FMA>(xv[i][l], wv, acc[l]);
+                }
+            }
+            relu(&mut acc);
+            a1v[j] = acc;
         }
     }
-    z
+    for j in 0..HIDDEN {
+        let (mut h, mut m) = (a1[0][j], a1[0][j]);
+        for a in &a1[1..x.len()] {
+            for l in 0..LANES {
+                h[l] = if a[j][l] > h[l] { a[j][l] } else { h[l] };
+                m[l] = if a[j][l] < m[l] { a[j][l] } else { m[l] };
+            }
+        }
+        (hi[j], lo[j]) = (h, m);
+    }
 }
 
 /// `exp(z) - 1` in f32 to a few ulps, branch-free (vectorises): `z = n ln 2 + r`,
@@ -345,30 +562,39 @@ fn forward<const FMA: bool>(w: &[f32], x: &[V; 5]) -> [V; 3] {
 /// and the sum never cancels. `z` is clamped to [-88, 88] (beyond: -1, or ~2.4e38).
 #[inline(always)]
 pub fn expm1f<const FMA: bool>(z: f32) -> f32 {
-    const LOG2E: f32 = std::f32::consts::LOG2_E;
-    // ln 2 = LN2_HI + LN2_LO, LN2_HI with 9 significant bits (n LN2_HI exact).
-    const LN2_HI: f32 = 0.693_359_4;
-    const LN2_LO: f32 = -2.121_944_4e-4;
-    // 1.5 x 2^23: adding and subtracting it rounds to the nearest integer.
-    const ROUND: f32 = 12_582_912.0;
     let z = z.clamp(-88.0, 88.0);
     let n = (z * LOG2E + ROUND) - ROUND;
     let r = madd::<FMA>(-n, LN2_HI, z);
     let r = madd::<FMA>(-n, LN2_LO, r);
-    let mut p = 1.0 / 5040.0;
-    p = madd::<FMA>(p, r, 1.0 / 720.0);
-    p = madd::<FMA>(p, r, 1.0 / 120.0);
-    p = madd::<FMA>(p, r, 1.0 / 24.0);
-    p = madd::<FMA>(p, r, 1.0 / 6.0);
-    p = madd::<FMA>(p, r, 0.5);
+    let mut p = EXPM1_C[0];
+    for &c in &EXPM1_C[1..] {
+        p = madd::<FMA>(p, r, c);
+    }
     let p = madd::<FMA>(r * r, p, r);
     let s = f32::from_bits(((n as i32 + 127) as u32) << 23);
     madd::<FMA>(s, p, s - 1.0)
 }
 
+const LOG2E: f32 = std::f32::consts::LOG2_E;
+/// ln 2 = LN2_HI + LN2_LO, LN2_HI with 9 significant bits (n LN2_HI exact).
+const LN2_HI: f32 = 0.693_359_4;
+const LN2_LO: f32 = -2.121_944_4e-4;
+/// 1.5 x 2^23: adding and subtracting it rounds to the nearest integer.
+const ROUND: f32 = 12_582_912.0;
+/// Taylor coefficients of `(expm1(r) - r) / r^2`, highest degree first.
+const EXPM1_C: [f32; 6] = [
+    1.0 / 5040.0,
+    1.0 / 720.0,
+    1.0 / 120.0,
+    1.0 / 24.0,
+    1.0 / 6.0,
+    0.5,
+];
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::merl::grid::N_CELLS;
 
     /// A network with seeded pseudo-random weights of about the trained networks' size.
     fn net(seed: u64) -> Nbrdf {
@@ -426,6 +652,93 @@ mod tests {
                         (got - want).abs() <= tol,
                         "seed {seed} cell {c} ch {ch}: {got} vs {want}"
                     );
+                }
+            }
+        }
+    }
+
+    /// The dense f32 pass, cell by cell, in the order [`forward`] documents (`acc = b`,
+    /// then `acc = x_i w_i + acc` for `i` ascending; fused when `fma`): what the pruned
+    /// block kernels must give bit for bit.
+    fn dense(w: &[f32], x: [f32; 5], fma: bool) -> [f32; 3] {
+        let madd = |a: f32, b: f32, c: f32| if fma { a.mul_add(b, c) } else { a * b + c };
+        let xs = [x[0], 0.0, x[1], x[2], x[3], x[4]];
+        let mut a1 = [0f32; HIDDEN];
+        for (j, a) in a1.iter_mut().enumerate() {
+            let mut acc = w[B1 + j];
+            for i in [0, 2, 3, 4, 5] {
+                acc = madd(xs[i], w[FC1 + i * HIDDEN + j], acc);
+            }
+            *a = if acc > 0.0 { acc } else { 0.0 };
+        }
+        let mut a2 = [0f32; HIDDEN];
+        for (j, a) in a2.iter_mut().enumerate() {
+            let mut acc = w[B2 + j];
+            for (i, &v) in a1.iter().enumerate() {
+                acc = madd(v, w[FC2 + i * HIDDEN + j], acc);
+            }
+            *a = if acc > 0.0 { acc } else { 0.0 };
+        }
+        std::array::from_fn(|c| {
+            let mut z = w[B3 + c];
+            for (i, &v) in a2.iter().enumerate() {
+                z = madd(v, w[FC3 + i * 3 + c], z);
+            }
+            if fma {
+                expm1f::<true>(z)
+            } else {
+                expm1f::<false>(z)
+            }
+        })
+    }
+
+    fn rows(r: &mut [Vec<f32>]) -> [&mut [f32]; 3] {
+        let [x, y, z] = r else { unreachable!() };
+        [&mut x[..], &mut y[..], &mut z[..]]
+    }
+
+    /// Networks with many dead units (biases pushed down), so that blocks prune.
+    fn sparse_net(seed: u64) -> Nbrdf {
+        let mut w = net(seed).weights().to_vec();
+        for k in (B1..B1 + HIDDEN).chain(B2..B2 + HIDDEN) {
+            w[k] -= 0.3 + 0.1 * (seed % 4) as f32;
+        }
+        Nbrdf::from_weights(w).expect("finite")
+    }
+
+    #[test]
+    fn pruned_blocks_give_the_dense_pass_bit_for_bit() {
+        // Grid runs (shared theta_h), a row boundary inside a block, scattered cells and
+        // a short tail.
+        let mut cells: Vec<u32> = (0..3000u32).chain(16_150..16_290).collect();
+        cells.extend((0..500u32).map(|k| k * 2903 % N_CELLS as u32));
+        cells.extend(700_001..700_013);
+        let feats: Vec<[f32; 5]> = cells.iter().map(|&c| cell_features(c as usize)).collect();
+        let fma = fma_available();
+        for seed in 0..8 {
+            for n in [net(seed), sparse_net(seed)] {
+                let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
+                let mut got = vec![vec![0f32; cells.len()]; 4 * 3];
+                let (a, rest) = got.split_at_mut(3);
+                let (b, rest) = rest.split_at_mut(3);
+                let (c, d) = rest.split_at_mut(3);
+                n.eval_cells(&cells, false, rows(a));
+                n.eval_features(&feats, false, rows(b));
+                let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
+                eval_blocks(w, cells.len(), fill, false, rows(c), forward::<true>);
+                eval_blocks(w, cells.len(), fill, false, rows(d), forward::<false>);
+                for (k, f) in feats.iter().enumerate() {
+                    let want = [dense(w, *f, fma), dense(w, *f, true), dense(w, *f, false)];
+                    for ch in 0..3 {
+                        let seen = [got[ch][k], got[3 + ch][k], got[6 + ch][k], got[9 + ch][k]];
+                        let expect = [want[0][ch], want[0][ch], want[1][ch], want[2][ch]];
+                        // `==`: an exact zero may carry either sign.
+                        assert!(
+                            seen.iter().zip(&expect).all(|(a, b)| a == b),
+                            "seed {seed} cell {} ch {ch}: {seen:?} vs {expect:?}",
+                            cells[k]
+                        );
+                    }
                 }
             }
         }
