@@ -221,10 +221,14 @@ impl Passive {
             self.l.resize((p + 1) * m, 0.0);
         }
         let mut d2 = sg.gs[j * m + j];
-        for r in 0..p {
-            let dot: f64 = (0..r).map(|c| self.l[r * m + c] * self.l[p * m + c]).sum();
-            let v = (sg.gs[self.passive[r] * m + j] - dot) / self.l[r * m + r];
-            self.l[p * m + r] = v;
+        // Row `p` of `l` is written left to right, each entry from the entries before it.
+        let (above, new) = self.l.split_at_mut(p * m);
+        let new = &mut new[..m];
+        for (r, &pr) in self.passive.iter().enumerate() {
+            let lr = &above[r * m..r * m + m];
+            let dot: f64 = lr[..r].iter().zip(&new[..r]).map(|(a, b)| a * b).sum();
+            let v = (sg.gs[pr * m + j] - dot) / lr[r];
+            new[r] = v;
             d2 -= v * v;
         }
         if d2.is_nan() || d2 <= pivot_tol {
@@ -255,12 +259,16 @@ impl Passive {
     fn chol_solve(l: &[f64], m: usize, z: &mut [f64]) {
         let p = z.len();
         for r in 0..p {
-            let dot: f64 = (0..r).map(|c| l[r * m + c] * z[c]).sum();
-            z[r] = (z[r] - dot) / l[r * m + r];
+            let lr = &l[r * m..r * m + r + 1];
+            let dot: f64 = lr[..r].iter().zip(&z[..r]).map(|(a, b)| a * b).sum();
+            z[r] = (z[r] - dot) / lr[r];
         }
         for r in (0..p).rev() {
-            let dot: f64 = (r + 1..p).map(|c| l[c * m + r] * z[c]).sum();
-            z[r] = (z[r] - dot) / l[r * m + r];
+            // Column `r` of `l` below the diagonal: rows r + 1 .. p.
+            let (head, tail) = z.split_at_mut(r + 1);
+            let col = l[r..].iter().step_by(m).skip(r + 1);
+            let dot: f64 = col.zip(tail.iter()).map(|(a, b)| a * b).sum();
+            head[r] = (head[r] - dot) / l[r * m + r];
         }
     }
 
@@ -272,12 +280,13 @@ impl Passive {
         Self::chol_solve(&self.l, m, z);
         self.r.clear();
         self.r.extend(self.passive.iter().map(|&i| {
+            let row = &sg.gs[i * m..(i + 1) * m];
             hs[i]
                 - self
                     .passive
                     .iter()
                     .zip(z.iter())
-                    .map(|(&k, zk)| sg.gs[i * m + k] * zk)
+                    .map(|(&k, zk)| row[k] * zk)
                     .sum::<f64>()
         }));
         Self::chol_solve(&self.l, m, &mut self.r);
@@ -328,8 +337,8 @@ fn solve_scaled_in(
     }
     let mut outer = 0;
     while outer < cap {
-        for (i, gi) in gy.iter_mut().enumerate() {
-            *gi = set.passive.iter().map(|&k| sg.gs[i * m + k] * y[k]).sum();
+        for (gi, row) in gy.iter_mut().zip(sg.gs.chunks_exact(m)) {
+            *gi = set.passive.iter().map(|&k| row[k] * y[k]).sum();
         }
         let s = hs.iter().fold(0.0f64, |a, v| a.max(v.abs())) + y.iter().sum::<f64>();
         tried.fill(false);
