@@ -344,16 +344,15 @@ impl Dense {
         }
     }
 
-    /// Per target `t`, a lower bound of the sum of the scores of the targets after it,
-    /// whatever their coefficients: `rest[t] = sum_{u > t} FLOOR * rho_u(dense fit)`.
+    /// Per target, a lower bound of its score whatever its coefficients: `FLOOR` times
+    /// the score of its dense fit.
     ///
     /// The dense fit minimises each channel's full-mask residual over non-negative
     /// coefficients, which a fit from samples also is, so no sample fit scores below it
     /// (`rho` is a sum of those residuals over a constant). [`FLOOR`] leaves room for the
     /// rounding of the dense solve and of the Gram form (relative errors around 1e-12 at
-    /// the scores of these fits). Without targets, or when a dense solve fails: zeros (no
-    /// bound).
-    fn rest_floors(&self, nt: usize) -> Vec<f64> {
+    /// the scores of these fits). When a dense solve fails: zeros (no bound).
+    fn floors(&self, nt: usize) -> Vec<f64> {
         let m = self.m;
         let params = lawson_hanson::LhParams::default();
         let fits: Vec<Option<Vec<Vec<f64>>>> = (0..3)
@@ -365,16 +364,42 @@ impl Dense {
                     .ok()
             })
             .collect();
-        let mut rest = vec![0.0; nt];
         let [Some(r), Some(g), Some(b)] = [&fits[0], &fits[1], &fits[2]] else {
-            return rest;
+            return vec![0.0; nt];
         };
+        (0..nt)
+            .map(|t| FLOOR * self.rho_of(t, [&r[t], &g[t], &b[t]]))
+            .collect()
+    }
+}
+
+/// The order in which [`State::exact_mean_below`] fits the targets and, at each position,
+/// a lower bound of the scores of the targets after it.
+struct Bound {
+    order: Vec<usize>,
+    rest: Vec<f64>,
+}
+
+impl Bound {
+    /// `order` with `floors` per target.
+    fn new(order: Vec<usize>, floors: &[f64]) -> Self {
+        let mut rest = vec![0.0; order.len()];
         let mut acc = 0.0;
-        for t in (0..nt).rev() {
-            rest[t] = acc;
-            acc += FLOOR * self.rho_of(t, [&r[t], &g[t], &b[t]]);
+        for (r, &t) in rest.iter_mut().zip(&order).rev() {
+            *r = acc;
+            acc += floors[t];
         }
-        rest
+        Self { order, rest }
+    }
+
+    /// The targets fitted first are those whose current sample fits exceed their floors
+    /// most (`current[t]`: the score of target `t`'s current fit; ties: target order):
+    /// where one more sample moves the score most, so a losing candidate shows soonest.
+    fn by_excess(current: &[f64], floors: &[f64]) -> Self {
+        let mut order: Vec<usize> = (0..current.len()).collect();
+        let excess = |t: usize| current[t] - floors[t];
+        order.sort_by(|&a, &b| excess(b).total_cmp(&excess(a)).then(a.cmp(&b)));
+        Self::new(order, floors)
     }
 }
 
@@ -499,14 +524,15 @@ impl State {
             .collect()
     }
 
-    /// `mean_rho(d, &self.exact(Some(add)))`, bit for bit, or `None` as soon as the sum
-    /// of the scores of the targets fitted so far (in target order) plus `rest[t]`, a
-    /// lower bound of the scores of the targets after the last one fitted, `t`
-    /// ([`Dense::rest_floors`]; zeros: no bound), exceeds `beat` times the target count:
-    /// the sum of non-negative terms never falls as terms are added, so the whole mean
-    /// would exceed `beat` too, and the candidate could neither win against a mean of
-    /// `beat` nor tie it.
-    fn exact_mean_below(&self, d: &Dense, add: Added<'_>, beat: f64, rest: &[f64]) -> Option<f64> {
+    /// `mean_rho(d, &self.exact(Some(add)))`, bit for bit, or `None` once the candidate
+    /// provably cannot have a mean at most `beat`: the targets are fitted in the order of
+    /// `bound`, and the candidate abandoned as soon as the sum of the scores fitted so far
+    /// plus the bound on the others (times `1 - 1e-12`, the rounding of a different
+    /// summation order) exceeds `beat` times the target count. Scores are non-negative,
+    /// so the whole mean would exceed `beat` too, and the candidate could neither win
+    /// against a mean of `beat` nor tie it. A complete candidate's mean is summed in
+    /// target order and compared with `beat` as it is.
+    fn exact_mean_below(&self, d: &Dense, add: Added<'_>, beat: f64, bound: &Bound) -> Option<f64> {
         let m = self.m;
         let nt = self.x.len();
         let eqs = [0, 1, 2].map(|c| self.channel_equations(c, Some(add)));
@@ -519,20 +545,29 @@ impl State {
                 .and_then(|b| lawson_hanson::PreparedBatch::new(b, &params).ok())
         });
         let div = nt.max(1) as f64;
-        let mut sum = 0.0;
         let mut ws = lawson_hanson::Workspace::default();
         let mut x = [[0.0f64; MAX_PLAN_COLUMNS]; 3];
-        for t in 0..nt {
+        let mut rho = vec![0.0; nt];
+        let mut partial = 0.0;
+        for (&t, &rest) in bound.order.iter().zip(&bound.rest) {
             for (xc, s) in x.iter_mut().zip(&solvers) {
                 let xc = &mut xc[..m];
                 if !s.as_ref().is_some_and(|s| s.solve_x(t, &mut ws, xc)) {
                     xc.fill(0.0);
                 }
             }
-            sum += d.rho_of(t, [&x[0][..m], &x[1][..m], &x[2][..m]]);
-            if (sum + rest[t]) / div > beat {
+            rho[t] = d.rho_of(t, [&x[0][..m], &x[1][..m], &x[2][..m]]);
+            partial += rho[t];
+            if (partial + rest) * (1.0 - 1e-12) / div > beat {
                 return None;
             }
+        }
+        let mut sum = 0.0;
+        for r in &rho {
+            sum += r;
+        }
+        if sum / div > beat {
+            return None;
         }
         Some(sum / div)
     }
@@ -704,7 +739,7 @@ fn plan_path(
         Vec::new()
     };
     let mut cond_rows: Vec<f64> = Vec::new();
-    let mut rest: Option<Vec<f64>> = None;
+    let mut floors: Option<Vec<f64>> = None;
     for step in 0..p.n {
         // The candidates examined at this step: a seeded subset of the ones not chosen.
         let mut explore: Vec<usize> = Vec::new();
@@ -779,7 +814,9 @@ fn plan_path(
                         .collect()
                 };
                 let screen = Screen::new(&st, d);
-                let rest = rest.get_or_insert_with(|| d.rest_floors(nt));
+                let floors = floors.get_or_insert_with(|| d.floors(nt));
+                let current: Vec<f64> = (0..nt).map(|t| d.rho(t, &st.x[t])).collect();
+                let bound = Bound::by_excess(&current, floors);
                 let scores: Vec<f64> = (0..sub.len())
                     .into_par_iter()
                     .map(|k| screen.score(&[row(0, k), row(1, k), row(2, k)], &ys(k)))
@@ -801,7 +838,7 @@ fn plan_path(
                 // computed whole, so the choice is that of every exact mean.
                 let exact_of = |k: usize, beat: f64| {
                     let a = [row(0, k), row(1, k), row(2, k)];
-                    st.exact_mean_below(d, (&a, &ys(k)), beat, rest)
+                    st.exact_mean_below(d, (&a, &ys(k)), beat, &bound)
                 };
                 let first = exact_of(ranked[0], f64::INFINITY).expect("no bound to exceed");
                 let low = std::sync::atomic::AtomicU64::new(first.to_bits());
@@ -1187,9 +1224,9 @@ mod tests {
     }
 
     /// The early-abandoning exact mean is the mean of the exact fits bit for bit, keeps a
-    /// tie and abandons whatever exceeds the bound, with and without the dense floors of
-    /// the targets still to fit; those floors are below the scores of every fit (even
-    /// without their margin).
+    /// tie and abandons whatever exceeds the bound, in target order without floors and in
+    /// other orders with the dense floors of the targets still to fit; those floors are
+    /// below the scores of every fit (even without their margin).
     #[test]
     fn abandoning_exact_means_equal_the_exact_means() {
         let coll = Collection::embedded_default();
@@ -1200,8 +1237,8 @@ mod tests {
         let (basis, targets) = ([0, 1, 2, 3], [4, 5, 6, 7, 8, 9, 10]);
         let d = Dense::new(&CpuBackend::new(), &coll, &basis, &targets, &fit).unwrap();
         let (m, nt) = (basis.len() + 1, targets.len());
-        let floors = d.rest_floors(nt);
-        assert!(floors[0] > 0.0 && floors[nt - 1] == 0.0);
+        let floors = d.floors(nt);
+        assert!(floors.iter().all(|&f| f > 0.0));
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let draw = |rng: &mut rand_chacha::ChaCha8Rng| {
             draw_sample(rng, m, nt, |r| r.random::<f64>() * 2.0)
@@ -1214,15 +1251,23 @@ mod tests {
                 let want = mean_rho(&d, &xs);
                 assert!(want > 0.0);
                 for (t, floor) in floors.iter().enumerate() {
-                    let after: f64 = (t + 1..nt).map(|u| d.rho(u, &xs[u])).sum();
-                    assert!(after >= floor / FLOOR * (1.0 - 1e-9), "target {t}");
+                    assert!(
+                        d.rho(t, &xs[t]) >= floor / FLOOR * (1.0 - 1e-9),
+                        "target {t}"
+                    );
                 }
-                for rest in [vec![0.0; nt], floors.clone()] {
-                    let got = st.exact_mean_below(&d, (&a, &y), f64::INFINITY, &rest);
+                let current: Vec<f64> = (0..nt).map(|t| d.rho(t, &st.x[t])).collect();
+                let bounds = [
+                    Bound::new((0..nt).collect(), &vec![0.0; nt]),
+                    Bound::new((0..nt).rev().collect(), &floors),
+                    Bound::by_excess(&current, &floors),
+                ];
+                for b in &bounds {
+                    let got = st.exact_mean_below(&d, (&a, &y), f64::INFINITY, b);
                     assert_eq!(got.map(f64::to_bits), Some(want.to_bits()));
-                    assert_eq!(st.exact_mean_below(&d, (&a, &y), want, &rest), Some(want));
+                    assert_eq!(st.exact_mean_below(&d, (&a, &y), want, b), Some(want));
                     let below = want * (1.0 - 1e-9);
-                    assert_eq!(st.exact_mean_below(&d, (&a, &y), below, &rest), None);
+                    assert_eq!(st.exact_mean_below(&d, (&a, &y), below, b), None);
                 }
             }
             let (a, y) = draw(&mut rng);
