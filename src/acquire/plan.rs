@@ -300,31 +300,113 @@ impl Dense {
     }
 
     /// `sum_s w_s r^2` on the full mask of coefficients `x` (channel `c`, target `t`).
+    ///
+    /// `bb + sum_i x_i ((G x)_i - 2 h_i)` over the non-zero `x_i`, each `(G x)_i` summed
+    /// over the non-zero `x_j` in column order: a zero `x_j` adds a zero product, which
+    /// leaves a non-zero partial sum as it is, so this is the sum over every `j` bit for
+    /// bit, but for the sign of a `(G x)_i` that is exactly zero (then multiplied by
+    /// `x_i` and added to `q`, where it changes nothing unless `q` is zero too).
     pub fn r2(&self, c: usize, t: usize, x: &[f64]) -> f64 {
         let m = self.m;
         let g = &self.g[c];
         let h = &g.h[t * m..(t + 1) * m];
-        let mut q = g.bb[t];
-        for i in 0..m {
-            if x[i] != 0.0 {
-                let gx: f64 = (0..m).map(|j| g.gram[i * m + j] * x[j]).sum();
-                q += x[i] * (gx - 2.0 * h[i]);
+        let mut nz = [0usize; MAX_PLAN_COLUMNS];
+        let mut p = 0;
+        for (j, &xj) in x[..m].iter().enumerate() {
+            if xj != 0.0 {
+                nz[p] = j;
+                p += 1;
             }
+        }
+        let nz = &nz[..p];
+        let mut q = g.bb[t];
+        for &i in nz {
+            let row = &g.gram[i * m..(i + 1) * m];
+            let gx: f64 = nz.iter().map(|&j| row[j] * x[j]).sum();
+            q += x[i] * (gx - 2.0 * h[i]);
         }
         q.max(0.0)
     }
 
     /// rho of target `t` with per-channel coefficients `x[c]`.
     pub fn rho(&self, t: usize, x: &[Vec<f64>; 3]) -> f64 {
+        self.rho_of(t, [&x[0], &x[1], &x[2]])
+    }
+
+    /// [`Dense::rho`] on borrowed coefficients.
+    fn rho_of(&self, t: usize, x: [&[f64]; 3]) -> f64 {
         let e: f64 = (0..3).map(|c| self.g[c].bb[t]).sum();
-        let r: f64 = (0..3).map(|c| self.r2(c, t, &x[c])).sum();
+        let r: f64 = (0..3).map(|c| self.r2(c, t, x[c])).sum();
         if e > 0.0 {
             r / e
         } else {
             0.0
         }
     }
+
+    /// Per target, a lower bound of its score whatever its coefficients: `FLOOR` times
+    /// the score of its dense fit.
+    ///
+    /// The dense fit minimises each channel's full-mask residual over non-negative
+    /// coefficients, which a fit from samples also is, so no sample fit scores below it
+    /// (`rho` is a sum of those residuals over a constant). [`FLOOR`] leaves room for the
+    /// rounding of the dense solve and of the Gram form (relative errors around 1e-12 at
+    /// the scores of these fits). When a dense solve fails: zeros (no bound).
+    fn floors(&self, nt: usize) -> Vec<f64> {
+        let m = self.m;
+        let params = lawson_hanson::LhParams::default();
+        let fits: Vec<Option<Vec<Vec<f64>>>> = (0..3)
+            .map(|c| {
+                let g = &self.g[c];
+                crate::nnls::GramBatch::new(m, &g.gram, &g.h[..nt * m], &g.bb[..nt])
+                    .and_then(|b| lawson_hanson::solve_batch(&b, &params))
+                    .map(|v| v.into_iter().map(|s| s.x).collect())
+                    .ok()
+            })
+            .collect();
+        let [Some(r), Some(g), Some(b)] = [&fits[0], &fits[1], &fits[2]] else {
+            return vec![0.0; nt];
+        };
+        (0..nt)
+            .map(|t| FLOOR * self.rho_of(t, [&r[t], &g[t], &b[t]]))
+            .collect()
+    }
 }
+
+/// The order in which [`State::exact_mean_below`] fits the targets and, at each position,
+/// a lower bound of the scores of the targets after it.
+struct Bound {
+    order: Vec<usize>,
+    rest: Vec<f64>,
+}
+
+impl Bound {
+    /// `order` with `floors` per target.
+    fn new(order: Vec<usize>, floors: &[f64]) -> Self {
+        let mut rest = vec![0.0; order.len()];
+        let mut acc = 0.0;
+        for (r, &t) in rest.iter_mut().zip(&order).rev() {
+            *r = acc;
+            acc += floors[t];
+        }
+        Self { order, rest }
+    }
+
+    /// The targets fitted first are those whose current sample fits exceed their floors
+    /// most (`current[t]`: the score of target `t`'s current fit; ties: target order):
+    /// where one more sample moves the score most, so a losing candidate shows soonest.
+    fn by_excess(current: &[f64], floors: &[f64]) -> Self {
+        let mut order: Vec<usize> = (0..current.len()).collect();
+        let excess = |t: usize| current[t] - floors[t];
+        order.sort_by(|&a, &b| excess(b).total_cmp(&excess(a)).then(a.cmp(&b)));
+        Self::new(order, floors)
+    }
+}
+
+/// Fraction of a target's dense score that bounds its score from samples from below in
+/// [`State::exact_mean_below`] (the bound holds at 1 in exact arithmetic; this is margin
+/// for rounding, about 1e9 times the relative error of the scores).
+const FLOOR: f64 = 0.999;
 
 /// A candidate's rows (per channel, padded to [`MAX_PLAN_COLUMNS`]) and the training
 /// values there (per target, RGB).
@@ -442,11 +524,15 @@ impl State {
             .collect()
     }
 
-    /// `mean_rho(d, &self.exact(Some(add)))`, bit for bit, or `None` as soon as the mean
-    /// of the targets fitted so far (in target order) exceeds `beat`: the sum of
-    /// non-negative terms never falls as terms are added, so the whole mean would exceed
-    /// it too, and the candidate could neither win against a mean of `beat` nor tie it.
-    fn exact_mean_below(&self, d: &Dense, add: Added<'_>, beat: f64) -> Option<f64> {
+    /// `mean_rho(d, &self.exact(Some(add)))`, bit for bit, or `None` once the candidate
+    /// provably cannot have a mean at most `beat`: the targets are fitted in the order of
+    /// `bound`, and the candidate abandoned as soon as the sum of the scores fitted so far
+    /// plus the bound on the others (times `1 - 1e-12`, the rounding of a different
+    /// summation order) exceeds `beat` times the target count. Scores are non-negative,
+    /// so the whole mean would exceed `beat` too, and the candidate could neither win
+    /// against a mean of `beat` nor tie it. A complete candidate's mean is summed in
+    /// target order and compared with `beat` as it is.
+    fn exact_mean_below(&self, d: &Dense, add: Added<'_>, beat: f64, bound: &Bound) -> Option<f64> {
         let m = self.m;
         let nt = self.x.len();
         let eqs = [0, 1, 2].map(|c| self.channel_equations(c, Some(add)));
@@ -459,17 +545,29 @@ impl State {
                 .and_then(|b| lawson_hanson::PreparedBatch::new(b, &params).ok())
         });
         let div = nt.max(1) as f64;
-        let mut sum = 0.0;
-        for t in 0..nt {
-            let x = solvers.each_ref().map(|s| {
-                s.as_ref()
-                    .and_then(|s| s.solve(t))
-                    .map_or_else(|| vec![0.0; m], |s| s.x)
-            });
-            sum += d.rho(t, &x);
-            if sum / div > beat {
+        let mut ws = lawson_hanson::Workspace::default();
+        let mut x = [[0.0f64; MAX_PLAN_COLUMNS]; 3];
+        let mut rho = vec![0.0; nt];
+        let mut partial = 0.0;
+        for (&t, &rest) in bound.order.iter().zip(&bound.rest) {
+            for (xc, s) in x.iter_mut().zip(&solvers) {
+                let xc = &mut xc[..m];
+                if !s.as_ref().is_some_and(|s| s.solve_x(t, &mut ws, xc)) {
+                    xc.fill(0.0);
+                }
+            }
+            rho[t] = d.rho_of(t, [&x[0][..m], &x[1][..m], &x[2][..m]]);
+            partial += rho[t];
+            if (partial + rest) * (1.0 - 1e-12) / div > beat {
                 return None;
             }
+        }
+        let mut sum = 0.0;
+        for r in &rho {
+            sum += r;
+        }
+        if sum / div > beat {
+            return None;
         }
         Some(sum / div)
     }
@@ -641,6 +739,7 @@ fn plan_path(
         Vec::new()
     };
     let mut cond_rows: Vec<f64> = Vec::new();
+    let mut floors: Option<Vec<f64>> = None;
     for step in 0..p.n {
         // The candidates examined at this step: a seeded subset of the ones not chosen.
         let mut explore: Vec<usize> = Vec::new();
@@ -715,6 +814,9 @@ fn plan_path(
                         .collect()
                 };
                 let screen = Screen::new(&st, d);
+                let floors = floors.get_or_insert_with(|| d.floors(nt));
+                let current: Vec<f64> = (0..nt).map(|t| d.rho(t, &st.x[t])).collect();
+                let bound = Bound::by_excess(&current, floors);
                 let scores: Vec<f64> = (0..sub.len())
                     .into_par_iter()
                     .map(|k| screen.score(&[row(0, k), row(1, k), row(2, k)], &ys(k)))
@@ -730,12 +832,13 @@ fn plan_path(
                     }
                 }
                 // Exact means, the screen's best first, then the rest in parallel, each
-                // abandoned once it provably exceeds the lowest mean known
-                // ([`State::exact_mean_below`]): the winner and its ties are always
+                // abandoned once it provably exceeds the lowest mean known: its targets
+                // fitted so far plus the dense floors of the others
+                // ([`State::exact_mean_below`]); the winner and its ties are always
                 // computed whole, so the choice is that of every exact mean.
                 let exact_of = |k: usize, beat: f64| {
                     let a = [row(0, k), row(1, k), row(2, k)];
-                    st.exact_mean_below(d, (&a, &ys(k)), beat)
+                    st.exact_mean_below(d, (&a, &ys(k)), beat, &bound)
                 };
                 let first = exact_of(ranked[0], f64::INFINITY).expect("no bound to exceed");
                 let low = std::sync::atomic::AtomicU64::new(first.to_bits());
@@ -927,13 +1030,18 @@ impl<'a> Screen<'a> {
                     x[0] = ((self.h0[t][c] + a[c][0] * yt[c]) / g).max(0.0);
                 } else {
                     let p = pf.cols.len();
+                    let mut ap = [0.0f64; 16];
+                    for (v, &j) in ap.iter_mut().zip(&pf.cols) {
+                        *v = a[c][j];
+                    }
                     let mut u = [0.0f64; 16];
                     let (mut au, mut az) = (0.0, 0.0);
                     for r_ in 0..p {
-                        let ar = a[c][pf.cols[r_]];
+                        let ar = ap[r_];
                         az += ar * pf.z[r_];
+                        let inv = &pf.inv[r_ * p..(r_ + 1) * p];
                         for s in 0..p {
-                            u[r_] += pf.inv[r_ * p + s] * a[c][pf.cols[s]];
+                            u[r_] += inv[s] * ap[s];
                         }
                         au += ar * u[r_];
                     }
@@ -1116,7 +1224,9 @@ mod tests {
     }
 
     /// The early-abandoning exact mean is the mean of the exact fits bit for bit, keeps a
-    /// tie and abandons whatever exceeds the bound.
+    /// tie and abandons whatever exceeds the bound, in target order without floors and in
+    /// other orders with the dense floors of the targets still to fit; those floors are
+    /// below the scores of every fit (even without their margin).
     #[test]
     fn abandoning_exact_means_equal_the_exact_means() {
         let coll = Collection::embedded_default();
@@ -1127,6 +1237,8 @@ mod tests {
         let (basis, targets) = ([0, 1, 2, 3], [4, 5, 6, 7, 8, 9, 10]);
         let d = Dense::new(&CpuBackend::new(), &coll, &basis, &targets, &fit).unwrap();
         let (m, nt) = (basis.len() + 1, targets.len());
+        let floors = d.floors(nt);
+        assert!(floors.iter().all(|&f| f > 0.0));
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let draw = |rng: &mut rand_chacha::ChaCha8Rng| {
             draw_sample(rng, m, nt, |r| r.random::<f64>() * 2.0)
@@ -1135,12 +1247,28 @@ mod tests {
         for _ in 0..7 {
             for _ in 0..4 {
                 let (a, y) = draw(&mut rng);
-                let want = mean_rho(&d, &st.exact(Some((&a, &y))));
+                let xs = st.exact(Some((&a, &y)));
+                let want = mean_rho(&d, &xs);
                 assert!(want > 0.0);
-                let got = st.exact_mean_below(&d, (&a, &y), f64::INFINITY);
-                assert_eq!(got.map(f64::to_bits), Some(want.to_bits()));
-                assert_eq!(st.exact_mean_below(&d, (&a, &y), want), Some(want));
-                assert_eq!(st.exact_mean_below(&d, (&a, &y), want * (1.0 - 1e-9)), None);
+                for (t, floor) in floors.iter().enumerate() {
+                    assert!(
+                        d.rho(t, &xs[t]) >= floor / FLOOR * (1.0 - 1e-9),
+                        "target {t}"
+                    );
+                }
+                let current: Vec<f64> = (0..nt).map(|t| d.rho(t, &st.x[t])).collect();
+                let bounds = [
+                    Bound::new((0..nt).collect(), &vec![0.0; nt]),
+                    Bound::new((0..nt).rev().collect(), &floors),
+                    Bound::by_excess(&current, &floors),
+                ];
+                for b in &bounds {
+                    let got = st.exact_mean_below(&d, (&a, &y), f64::INFINITY, b);
+                    assert_eq!(got.map(f64::to_bits), Some(want.to_bits()));
+                    assert_eq!(st.exact_mean_below(&d, (&a, &y), want, b), Some(want));
+                    let below = want * (1.0 - 1e-9);
+                    assert_eq!(st.exact_mean_below(&d, (&a, &y), below, b), None);
+                }
             }
             let (a, y) = draw(&mut rng);
             st.push(&a, &y);

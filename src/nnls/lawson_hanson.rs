@@ -136,6 +136,25 @@ impl<'a> PreparedBatch<'a> {
         let p = self.batch.problem(t)?;
         Some(solve_prepared(&self.sg, &p, &self.params))
     }
+
+    /// The coefficients of target `t` only, into `x` (length `m`): [`PreparedBatch::solve`]'s
+    /// `x` bit for bit, without its objective and KKT check and without allocating
+    /// (`ws` is reused across calls). False when `t >= len()`.
+    pub(crate) fn solve_x(&self, t: usize, ws: &mut Workspace, x: &mut [f64]) -> bool {
+        let Some(p) = self.batch.problem(t) else {
+            return false;
+        };
+        let sg = &self.sg;
+        ws.reset(sg.m);
+        sg.scale_h(p.h(), &mut ws.hs);
+        let hs = std::mem::take(&mut ws.hs);
+        solve_scaled_in(sg, &hs, &self.params, None, self.params.outer_cap(sg.m), ws);
+        ws.hs = hs;
+        for ((xi, &yi), &di) in x.iter_mut().zip(&ws.y).zip(&sg.d) {
+            *xi = if di > 0.0 && yi > 0.0 { yi / di } else { 0.0 };
+        }
+        true
+    }
 }
 
 fn solve_prepared(sg: &ScaledGram, p: &GramProblem<'_>, params: &LhParams) -> NnlsSolution {
@@ -145,36 +164,71 @@ fn solve_prepared(sg: &ScaledGram, p: &GramProblem<'_>, params: &LhParams) -> Nn
     sg.finish(p, &y, iterations)
 }
 
-/// The passive set in entry order and the Cholesky factor of `G~_PP` (row `r` of `l`,
-/// stride `m`, belongs to `passive[r]`).
-struct Passive<'a> {
-    sg: &'a ScaledGram,
-    passive: Vec<usize>,
-    l: Vec<f64>,
+/// Scratch vectors of one Lawson-Hanson solve, reused across solves by
+/// [`PreparedBatch::solve_x`] (contents never carried from one solve to the next: every
+/// entry read is written first in the same solve).
+#[derive(Default)]
+pub(crate) struct Workspace {
+    hs: Vec<f64>,
+    y: Vec<f64>,
+    gy: Vec<f64>,
+    in_p: Vec<bool>,
+    tried: Vec<bool>,
+    z: Vec<f64>,
+    ratios: Vec<f64>,
+    leaving: Vec<bool>,
+    set: Passive,
 }
 
-impl<'a> Passive<'a> {
-    fn new(sg: &'a ScaledGram) -> Self {
-        Self {
-            sg,
-            passive: Vec::with_capacity(sg.m),
-            // Rows are added as columns enter (a full m x m zero matrix per solve would
-            // cost more than the solve when few columns enter).
-            l: Vec::new(),
+impl Workspace {
+    /// Sized for `m` columns, the state of a fresh solve (`y = 0`, empty passive set).
+    fn reset(&mut self, m: usize) {
+        for v in [&mut self.hs, &mut self.y, &mut self.gy] {
+            v.clear();
+            v.resize(m, 0.0);
         }
+        for v in [&mut self.in_p, &mut self.tried, &mut self.leaving] {
+            v.clear();
+            v.resize(m, false);
+        }
+        self.z.clear();
+        self.ratios.clear();
+        self.set.passive.clear();
     }
+}
 
+/// The passive set in entry order and the Cholesky factor of `G~_PP` (row `r` of `l`,
+/// stride `m`, belongs to `passive[r]`), with the scratch of its solves.
+#[derive(Default)]
+struct Passive {
+    passive: Vec<usize>,
+    // Rows are added as columns enter (a full m x m zero matrix per solve would cost more
+    // than the solve when few columns enter); a row is written before it is read.
+    l: Vec<f64>,
+    /// Refinement residual of [`Passive::solve`].
+    r: Vec<f64>,
+    /// The previous passive set during [`Passive::refactor`].
+    old: Vec<usize>,
+    /// Columns [`Passive::refactor`] dropped on the pivot test.
+    failed: Vec<usize>,
+}
+
+impl Passive {
     /// Appends column `j` unless its pivot `1 - ||L^-1 G~_Pj||^2` is `<= pivot_tol`.
-    fn try_push(&mut self, j: usize, pivot_tol: f64) -> bool {
-        let (m, p) = (self.sg.m, self.passive.len());
+    fn try_push(&mut self, sg: &ScaledGram, j: usize, pivot_tol: f64) -> bool {
+        let (m, p) = (sg.m, self.passive.len());
         if self.l.len() < (p + 1) * m {
             self.l.resize((p + 1) * m, 0.0);
         }
-        let mut d2 = self.sg.gs[j * m + j];
-        for r in 0..p {
-            let dot: f64 = (0..r).map(|c| self.l[r * m + c] * self.l[p * m + c]).sum();
-            let v = (self.sg.gs[self.passive[r] * m + j] - dot) / self.l[r * m + r];
-            self.l[p * m + r] = v;
+        let mut d2 = sg.gs[j * m + j];
+        // Row `p` of `l` is written left to right, each entry from the entries before it.
+        let (above, new) = self.l.split_at_mut(p * m);
+        let new = &mut new[..m];
+        for (r, &pr) in self.passive.iter().enumerate() {
+            let lr = &above[r * m..r * m + m];
+            let dot: f64 = lr[..r].iter().zip(&new[..r]).map(|(a, b)| a * b).sum();
+            let v = (sg.gs[pr * m + j] - dot) / lr[r];
+            new[r] = v;
             d2 -= v * v;
         }
         if d2.is_nan() || d2 <= pivot_tol {
@@ -185,49 +239,58 @@ impl<'a> Passive<'a> {
         true
     }
 
-    /// Rebuilds the factor for the columns of `passive` kept by `keep`, in order; returns
-    /// the kept columns that failed the pivot test (only possible through rounding).
-    fn refactor(&mut self, keep: impl Fn(usize) -> bool, pivot_tol: f64) -> Vec<usize> {
-        let old = std::mem::take(&mut self.passive);
-        old.into_iter()
-            .filter(|&j| keep(j) && !self.try_push(j, pivot_tol))
-            .collect()
+    /// Rebuilds the factor for the columns of `passive` kept by `keep`, in order; the kept
+    /// columns that failed the pivot test (only possible through rounding) are left in
+    /// `self.failed`.
+    fn refactor(&mut self, sg: &ScaledGram, keep: impl Fn(usize) -> bool, pivot_tol: f64) {
+        std::mem::swap(&mut self.old, &mut self.passive);
+        self.passive.clear();
+        self.failed.clear();
+        let old = std::mem::take(&mut self.old);
+        for &j in &old {
+            if keep(j) && !self.try_push(sg, j, pivot_tol) {
+                self.failed.push(j);
+            }
+        }
+        self.old = old;
     }
 
     /// Solves `L L^T z = rhs` in place (`rhs.len() == passive.len()`).
-    fn chol_solve(&self, z: &mut [f64]) {
-        let (m, p) = (self.sg.m, self.passive.len());
+    fn chol_solve(l: &[f64], m: usize, z: &mut [f64]) {
+        let p = z.len();
         for r in 0..p {
-            let dot: f64 = (0..r).map(|c| self.l[r * m + c] * z[c]).sum();
-            z[r] = (z[r] - dot) / self.l[r * m + r];
+            let lr = &l[r * m..r * m + r + 1];
+            let dot: f64 = lr[..r].iter().zip(&z[..r]).map(|(a, b)| a * b).sum();
+            z[r] = (z[r] - dot) / lr[r];
         }
         for r in (0..p).rev() {
-            let dot: f64 = (r + 1..p).map(|c| self.l[c * m + r] * z[c]).sum();
-            z[r] = (z[r] - dot) / self.l[r * m + r];
+            // Column `r` of `l` below the diagonal: rows r + 1 .. p.
+            let (head, tail) = z.split_at_mut(r + 1);
+            let col = l[r..].iter().step_by(m).skip(r + 1);
+            let dot: f64 = col.zip(tail.iter()).map(|(a, b)| a * b).sum();
+            head[r] = (head[r] - dot) / l[r * m + r];
         }
     }
 
     /// `z = G~_PP^-1 h~_P` with one step of iterative refinement.
-    fn solve(&self, hs: &[f64], z: &mut Vec<f64>) {
-        let m = self.sg.m;
+    fn solve(&mut self, sg: &ScaledGram, hs: &[f64], z: &mut Vec<f64>) {
+        let m = sg.m;
         z.clear();
         z.extend(self.passive.iter().map(|&i| hs[i]));
-        self.chol_solve(z);
-        let mut r: Vec<f64> = self
-            .passive
-            .iter()
-            .map(|&i| {
-                hs[i]
-                    - self
-                        .passive
-                        .iter()
-                        .zip(z.iter())
-                        .map(|(&k, zk)| self.sg.gs[i * m + k] * zk)
-                        .sum::<f64>()
-            })
-            .collect();
-        self.chol_solve(&mut r);
-        z.iter_mut().zip(&r).for_each(|(zk, rk)| *zk += rk);
+        Self::chol_solve(&self.l, m, z);
+        self.r.clear();
+        self.r.extend(self.passive.iter().map(|&i| {
+            let row = &sg.gs[i * m..(i + 1) * m];
+            hs[i]
+                - self
+                    .passive
+                    .iter()
+                    .zip(z.iter())
+                    .map(|(&k, zk)| row[k] * zk)
+                    .sum::<f64>()
+        }));
+        Self::chol_solve(&self.l, m, &mut self.r);
+        z.iter_mut().zip(&self.r).for_each(|(zk, rk)| *zk += rk);
     }
 }
 
@@ -241,31 +304,51 @@ fn solve_scaled(
     excluded: Option<usize>,
     cap: usize,
 ) -> (Vec<f64>, usize) {
+    let mut ws = Workspace::default();
+    ws.reset(sg.m);
+    let outer = solve_scaled_in(sg, hs, params, excluded, cap, &mut ws);
+    (ws.y, outer)
+}
+
+/// [`solve_scaled`] in the scratch `ws` (reset for `sg.m` columns): `y` is left in `ws.y`.
+fn solve_scaled_in(
+    sg: &ScaledGram,
+    hs: &[f64],
+    params: &LhParams,
+    excluded: Option<usize>,
+    cap: usize,
+    ws: &mut Workspace,
+) -> usize {
     let m = sg.m;
-    let mut y = vec![0.0; m];
-    let mut gy = vec![0.0; m];
-    let mut in_p = vec![false; m];
+    let Workspace {
+        y,
+        gy,
+        in_p,
+        tried,
+        z,
+        ratios,
+        leaving,
+        set,
+        ..
+    } = ws;
     if let Some(c) = excluded {
         // Never passive, never a candidate: marked as if in P, but never in `passive`.
         in_p[c] = true;
     }
-    let mut tried = vec![false; m];
-    let mut z = Vec::with_capacity(m);
-    let mut set = Passive::new(sg);
     let mut outer = 0;
     while outer < cap {
-        for (i, gi) in gy.iter_mut().enumerate() {
-            *gi = set.passive.iter().map(|&k| sg.gs[i * m + k] * y[k]).sum();
+        for (gi, row) in gy.iter_mut().zip(sg.gs.chunks_exact(m)) {
+            *gi = set.passive.iter().map(|&k| row[k] * y[k]).sum();
         }
         let s = hs.iter().fold(0.0f64, |a, v| a.max(v.abs())) + y.iter().sum::<f64>();
         tried.fill(false);
         let mut entered = None;
-        while let Some(j) = pick(sg, hs, &gy, &in_p, &tried, s, params) {
+        while let Some(j) = pick(sg, hs, gy, in_p, tried, s, params) {
             tried[j] = true;
-            if !set.try_push(j, params.pivot_tol) {
+            if !set.try_push(sg, j, params.pivot_tol) {
                 continue;
             }
-            set.solve(hs, &mut z);
+            set.solve(sg, hs, z);
             if z.last().is_some_and(|&zj| zj > 0.0) {
                 entered = Some(j);
                 break;
@@ -277,21 +360,17 @@ fn solve_scaled(
         in_p[j] = true;
         // Inner loop: move towards z until every passive coefficient is positive.
         while z.iter().any(|&zk| zk <= 0.0) {
-            let ratios: Vec<f64> = set
-                .passive
-                .iter()
-                .zip(&z)
-                .map(|(&i, &zk)| {
-                    if zk <= 0.0 {
-                        y[i] / (y[i] - zk)
-                    } else {
-                        f64::NAN
-                    }
-                })
-                .collect();
+            ratios.clear();
+            ratios.extend(set.passive.iter().zip(z.iter()).map(|(&i, &zk)| {
+                if zk <= 0.0 {
+                    y[i] / (y[i] - zk)
+                } else {
+                    f64::NAN
+                }
+            }));
             let alpha = ratios.iter().fold(1.0, |a: f64, &r| a.min(r));
-            let mut leaving = vec![false; m];
-            for ((&i, &zk), &r) in set.passive.iter().zip(&z).zip(&ratios) {
+            leaving.fill(false);
+            for ((&i, &zk), &r) in set.passive.iter().zip(z.iter()).zip(ratios.iter()) {
                 y[i] = if r <= alpha {
                     0.0
                 } else {
@@ -299,20 +378,21 @@ fn solve_scaled(
                 };
                 leaving[i] = y[i] <= 0.0;
             }
-            for i in set.refactor(|i| !leaving[i], params.pivot_tol) {
+            set.refactor(sg, |i| !leaving[i], params.pivot_tol);
+            for &i in &set.failed {
                 leaving[i] = true;
             }
             for i in (0..m).filter(|&i| leaving[i]) {
                 in_p[i] = false;
                 y[i] = 0.0;
             }
-            set.solve(hs, &mut z);
+            set.solve(sg, hs, z);
         }
-        for (&i, &zk) in set.passive.iter().zip(&z) {
+        for (&i, &zk) in set.passive.iter().zip(z.iter()) {
             y[i] = zk;
         }
     }
-    (y, outer)
+    outer
 }
 
 /// Leave-one-out solves on one Gram matrix: column `c` fitted by all the other columns
@@ -663,6 +743,17 @@ mod tests {
                 solve(&batch.problem(t).unwrap(), &LhParams::default()).unwrap()
             );
         }
+        // The coefficients alone, one workspace reused across targets, the targets in
+        // reverse (whatever the previous solve left in it): the same bits.
+        let pb = PreparedBatch::new(&batch, &LhParams::default()).unwrap();
+        let mut ws = Workspace::default();
+        let mut x = vec![0.0; 12];
+        for (t, sol) in first.iter().enumerate().rev() {
+            assert!(pb.solve_x(t, &mut ws, &mut x));
+            let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&x), bits(&sol.x), "target {t}");
+        }
+        assert!(!pb.solve_x(first.len(), &mut ws, &mut x));
     }
 
     #[test]
