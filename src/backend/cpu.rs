@@ -646,6 +646,7 @@ impl Backend for CpuBackend {
 
     fn tabulate(&self, lobes: &[Lobe], cells: &[u32]) -> Result<Vec<f32>, BackendError> {
         let mut out = vec![0f32; lobes.len() * cells.len()];
+        huge_pages(&mut out);
         if cells.is_empty() {
             return Ok(out);
         }
@@ -757,6 +758,31 @@ impl Backend for CpuBackend {
             add_block(&mut out, n, b, |r, q| acc[r][q]);
         }
         Ok(out)
+    }
+}
+
+/// Asks the kernel for transparent huge pages under a large, freshly allocated (still
+/// untouched) buffer: the first writes then fault in 2 MiB pages instead of 4 KiB ones
+/// (a 1.75 GB tabulation: ~900 faults instead of ~430,000). Advice only: nothing changes
+/// where the kernel has huge pages off, and no value changes anywhere.
+fn huge_pages(buf: &mut [f32]) {
+    const HUGE: usize = 2 << 20;
+    let bytes = std::mem::size_of_val(buf);
+    if bytes < 4 * HUGE {
+        return;
+    }
+    #[cfg(target_os = "linux")]
+    {
+        let start = buf.as_mut_ptr() as usize;
+        let lo = start.div_ceil(HUGE) * HUGE;
+        let hi = (start + bytes) / HUGE * HUGE;
+        if hi > lo {
+            // SAFETY: [lo, hi) lies inside `buf`'s allocation; MADV_HUGEPAGE changes no
+            // contents and only how the range is backed.
+            unsafe {
+                libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_HUGEPAGE);
+            }
+        }
     }
 }
 
