@@ -248,7 +248,7 @@ pub(crate) fn gram_full(
 /// three passes.
 pub const RGB_PASS_MAX_LOBES: usize = 4096;
 
-/// Per channel `c`, the back-end's Gram pass ([`Backend::gram`], as [`gram_full`] makes it
+/// Per channel `c`, the back-end's Gram pass ([`Backend::gram`], as `gram_full` makes it
 /// with [`GramMode::Grid`]) of `lobes[c]` (each `n` lobes, the first `basis` of them the
 /// basis columns): in one pass over the cells for the three channels together, so that a
 /// material's three lobes are filled together (a network runs once per cell for its three
@@ -257,7 +257,7 @@ pub const RGB_PASS_MAX_LOBES: usize = 4096;
 /// the cells (the canonical summation order of both back-ends), so every matrix is bit for
 /// bit the one a pass over its channel alone gives (tested); above
 /// [`RGB_PASS_MAX_LOBES`] lobes it is made that way, one pass per channel.
-pub(crate) fn gram_grid_rgb(
+pub fn gram_grid_rgb(
     backend: &dyn Backend,
     lobes: [Vec<Lobe>; 3],
     cells: &CellSet,
