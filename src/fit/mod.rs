@@ -330,14 +330,25 @@ impl CollectionGrams {
     ) -> Result<Self, FitError> {
         let all: Vec<usize> = (0..coll.len()).collect();
         let cells = fit_cells(coll, &all, p)?;
-        let grams = gram_grid_rgb(
+        let grams = Self::over(backend, coll, &cells, progress)?;
+        Ok(Self { cells, grams })
+    }
+
+    /// The Gram matrices alone, per channel, of every material of `coll` over `cells`
+    /// (one grid pass for the three channels, [`gram_grid_rgb`]).
+    pub fn over(
+        backend: &dyn Backend,
+        coll: &Collection,
+        cells: &CellSet,
+        progress: Progress<'_>,
+    ) -> Result<[Vec<f64>; 3], FitError> {
+        gram_grid_rgb(
             backend,
             collection_lobes(coll),
-            &cells,
+            cells,
             coll.len() + 1,
             progress,
-        )?;
-        Ok(Self { cells, grams })
+        )
     }
 
     /// Whether [`CollectionGrams::grid`] is how the Gram matrices of `coll` are made with

@@ -19,9 +19,7 @@
 
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
-use crate::fit::{
-    collection_lobes, fit_cells, gram_grid_rgb, CollectionGrams, FitParams, GramMode,
-};
+use crate::fit::{fit_cells, CollectionGrams, FitParams, GramMode};
 use crate::merl::{Mask, Weighting};
 use crate::nnls::incremental::{self, ChanState, Cosine};
 use crate::nnls::NnlsError;
@@ -133,7 +131,8 @@ pub struct Objective {
 impl Objective {
     /// Builds the objective of `coll`: one Gram matrix of all materials per channel (the
     /// separable closed form when every material is analytic and the mode is auto, else one
-    /// back-end pass per channel over the fit cells).
+    /// back-end pass over the fit cells for the three channels together,
+    /// [`CollectionGrams::over`]).
     pub fn new(
         backend: &dyn Backend,
         coll: &Collection,
@@ -161,7 +160,7 @@ impl Objective {
             )));
         }
         let grams = if CollectionGrams::needed(coll, p.gram) {
-            gram_grid_rgb(backend, collection_lobes(coll), &cells, n + 1, progress)?
+            CollectionGrams::over(backend, coll, &cells, progress)?
         } else {
             analytic_grams(coll, &cells)
         };
