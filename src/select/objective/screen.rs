@@ -8,28 +8,47 @@
 //! score could not replace it either (the threshold only falls along the chain), so the
 //! chain, the chosen candidate and its score are exactly those of the exhaustive sweep.
 //!
-//! The bound, per target `t`, channel and candidate `c`:
+//! The bound, per target `t`, channel and candidate `c` (cosine space: unit columns, unit
+//! target; `B'` the non-zero columns of the basis with the Lambertian, `G = C_B'B'`,
+//! `L L^T = G`; the optimum on `B` has passive set `P`, coefficients `y_P`, residual `r_t`,
+//! value `q_t`, and `I = B' \ P`):
 //! * when adding `c` leaves the optimum as it is ([`ChanState::unchanged_adding`]: no
-//!   positive gradient), the exact value is the current `q_t`, bit for bit;
-//! * otherwise the NNLS residual on `B + c` is at least the least-squares residual on the
-//!   span of `B + c` with a non-negative coefficient on `c`:
-//!   `q >= 1 - |V_t|^2 - max(0, C_ct - V_c . V_t)^2 / (1 - |V_c|^2)`, with `V = L^-1 C_B.`
-//!   (`L L^T = C_BB` over the non-zero basis columns), less [`MARGIN`] for rounding.
+//!   positive gradient `w = C_ct - C_cP y_P`), the exact value is the current `q_t`, bit for
+//!   bit;
+//! * otherwise, when the cosines among the columns of `B' + c` are non-negative (as those of
+//!   non-negative BRDFs are), by weak duality: for any `u`, the NNLS optimum `x*` on
+//!   `B' + c` satisfies `q >= 2 b.u - |u|^2 - 2 sum_k x*_k max(0, a_k.u)`, and `sum_k x*_k
+//!   <= X = 2 sqrt(p + 1)` (with non-negative cosines `|A x|^2 >= |x|^2`, and `|A x*| <=
+//!   2`). With `e` the part of column `c` orthogonal to the span of `P`, `d2 = |e|^2`, and
+//!   `u = r_t - (w / d2) e`: `a_c.u = 0`, `a_k.u = 0` on `P` (the KKT equalities), and
+//!   `q >= q_t - w^2 / d2` whenever `u` is dual feasible on `I`: `a_i.u = w_i - (w / d2)
+//!   s_i <= 0`, with `w_i` the (non-positive) gradient of `i` at the optimum and `s_i` the
+//!   cosine of `i` with `e`. This is the **exact** value whenever the bordered update of
+//!   [`ChanState::q_adding`] keeps every coefficient positive (the common case), so the
+//!   bound screens candidates whose scores differ by far less than the looser bounds could.
+//!   It costs `O(|I|^2)` per pair, not `O(p^2)`: with `a = G^-1 C_B'c` (per candidate, once)
+//!   and the Schur complement `S_t = G_II - G_IP G_PP^-1 G_PI` (per target, once),
+//!   `s = S_t a_I` and `d2 = 1 - |V_c|^2 + a_I . s` (block inverse of `G`: `(G^-1)_II =
+//!   S_t^-1`).
+//! * when that `u` is not dual feasible, `u = r_t - (w / s2) z` with `z` the part of `c`
+//!   orthogonal to the span of all of `B'` (`s2 = |z|^2 = 1 - |V_c|^2 <= d2`, `V = L^-1
+//!   C_B'.`) is (`a_i.z = 0` on all of `B'`): `q >= q_t - w^2 / s2`;
+//! * and, with any cosines, the NNLS residual on `B' + c` is at least the least-squares
+//!   residual on their span with a non-negative coefficient on `c`: `q >= 1 - |V_t|^2 -
+//!   max(0, C_ct - V_c . V_t)^2 / s2`.
 //!
-//! * and, when the cosines among the columns of `B + c` are non-negative (as those of
-//!   non-negative BRDFs are), at least the value of the dual NNLS problem at
-//!   `u = r_t - (w / s2) z`, with `r_t` the residual of the optimum on `B`, `w` the gradient
-//!   of `c`, `z` the part of column `c` orthogonal to the span of `B` and `s2 = |z|^2 = 1 -
-//!   |V_c|^2`: `u` is dual feasible (`A_B^T u = A_B^T r_t <= 0` by the KKT conditions of the
-//!   optimum, `a_c^T u = 0`), so `q >= 2 b.u - |u|^2 = q_t - w^2 / s2`. The KKT conditions
-//!   hold to Lawson-Hanson's tolerance (~1e-11) and the coefficients of a fit with
-//!   non-negative cosines sum to at most `2 sqrt(p)`, hence a margin of `MARGIN (1 + 2
-//!   sqrt(p))`. Unlike the least-squares bound, it starts from the NNLS residual `q_t`.
+//! Rounding: the KKT conditions hold to Lawson-Hanson's tolerance (~1e-11) and dual
+//! feasibility is tested with the same slack [`TAU`], hence a margin of `MARGIN (1 + X)`;
+//! the computed `d2` and `a` carry a relative error of about `eps kappa(G) / s2`, which the
+//! bound pays for explicitly (a candidate for which it exceeds [`EPS_MAX`] gets the looser
+//! bounds), and so does the rounding of `w`. The bounds need not equal anything bit for bit:
+//! only the exact scores ([`refine`]) decide.
 //!
 //! A candidate nearly in the span of the basis (`1 - |V_c|^2 < `[`NC_MIN`], where the
 //! bordered update loses digits) is never screened, and neither is any candidate when
-//! `C_BB` has no Cholesky factor. The bound costs `O(p)` per target and candidate against
-//! the exact `O(p^2)`.
+//! `C_BB` has no Cholesky factor. The bounds cost `O(p)` per target and candidate (the
+//! gradients, as blocked matrix products) and `O(|I|^2)` for the pairs with a positive
+//! gradient, against the exact `O(p^2)` (`O(p^3)` when coefficients leave the passive set).
 
 use super::Objective;
 use crate::nnls::incremental::{cholesky, ChanState, KKT_TOL};
@@ -41,6 +60,11 @@ pub const MARGIN: f64 = 1e-10;
 /// Smallest squared sine between a candidate and the span of the basis for which the
 /// least-squares bound is used.
 pub const NC_MIN: f64 = 1e-4;
+/// Dual infeasibility tolerated in the tight bound (module docs; the KKT tolerance of the
+/// optimum on the basis is of the same size).
+pub const TAU: f64 = 5e-11;
+/// Largest relative rounding error of `d2` for which the tight bound is used.
+pub const EPS_MAX: f64 = 1e-2;
 
 /// The argmin chain of [`crate::select::search`]: the earliest lowest score, a later
 /// one winning only by more than `tol` relative.
@@ -76,42 +100,65 @@ impl Chain {
     }
 }
 
-/// One channel's projections: the number `p` of non-zero basis columns, `V^T` (`m x p`)
-/// and `|V_x|^2` per column.
-type Projection = (usize, Vec<f64>, Vec<f64>);
+/// One channel's basis: its non-zero columns `nz` (`p` of them), per column `x` of the
+/// matrix `|V_x|^2` and `a_x = G^-1 C_{nz,x}` (`m x p`, row `x`), and the relative rounding
+/// scale `64 (p + 1) eps kappa` of `a` and `1 - |V_x|^2` (kappa: the squared ratio of the
+/// extreme pivots of `L`, an estimate of the condition number of `G`).
+#[derive(Default)]
+struct Basis {
+    nz: Vec<usize>,
+    nrm: Vec<f64>,
+    a: Vec<f64>,
+    e64: f64,
+    sk: f64,
+    kappa: f64,
+}
 
-/// Per channel: `V^T` (`m x p`, row `x` = `V_x`) and `|V_x|^2`, or `None` when the
-/// non-zero basis columns have no Cholesky factor.
-fn projections(obj: &Objective, cols: &[usize]) -> Option<[Projection; 3]> {
+/// Per channel, the [`Basis`] of `cols`, or `None` when the non-zero basis columns have no
+/// Cholesky factor.
+fn projections(obj: &Objective, cols: &[usize]) -> Option<[Basis; 3]> {
     let m = obj.len() + 1;
-    let mut out: [Projection; 3] = Default::default();
+    let mut out: [Basis; 3] = Default::default();
     for (c, o) in out.iter_mut().enumerate() {
         let g = obj.view(c);
         let nz: Vec<usize> = cols.iter().copied().filter(|&k| g.at(k, k) > 0.0).collect();
         let p = nz.len();
-        let mut a = vec![0.0; p * p];
+        let mut gm = vec![0.0; p * p];
         for (r, &kr) in nz.iter().enumerate() {
             for (s, &ks) in nz.iter().enumerate() {
-                a[r * p + s] = g.at(kr, ks);
+                gm[r * p + s] = g.at(kr, ks);
             }
         }
-        let l = cholesky(p, &a)?;
-        let mut vt = vec![0.0; m * p];
+        let l = cholesky(p, &gm)?;
+        let mut a = vec![0.0; m * p];
+        let mut nrm = vec![0.0; m];
         let rows: Vec<&[f64]> = nz.iter().map(|&k| g.row(k)).collect();
-        vt.par_chunks_mut(p.max(1)).enumerate().for_each(|(x, v)| {
-            for r in 0..p {
-                let dot: f64 = (0..r).map(|s| l[r * p + s] * v[s]).sum();
-                v[r] = (rows[r][x] - dot) / l[r * p + r];
-            }
-        });
-        let nrm: Vec<f64> = if p == 0 {
-            vec![0.0; m]
-        } else {
-            vt.chunks(p)
-                .map(|v| v.iter().map(|a| a * a).sum())
-                .collect()
+        a.par_chunks_mut(p.max(1))
+            .zip(nrm.par_iter_mut())
+            .enumerate()
+            .for_each(|(x, (v, n))| {
+                // V_x = L^-1 C_{nz,x}, then a_x = L^-T V_x in place.
+                for r in 0..p {
+                    let dot: f64 = (0..r).map(|s| l[r * p + s] * v[s]).sum();
+                    v[r] = (rows[r][x] - dot) / l[r * p + r];
+                }
+                *n = v.iter().map(|a| a * a).sum();
+                for r in (0..p).rev() {
+                    let dot: f64 = (r + 1..p).map(|s| l[s * p + r] * v[s]).sum();
+                    v[r] = (v[r] - dot) / l[r * p + r];
+                }
+            });
+        let piv = (0..p).map(|r| l[r * p + r]);
+        let (lo, hi) = piv.fold((f64::INFINITY, 0.0f64), |(lo, hi), d| (lo.min(d), hi.max(d)));
+        let kappa = if p == 0 { 1.0 } else { (hi / lo).powi(2) };
+        *o = Basis {
+            nz,
+            nrm,
+            a,
+            e64: 64.0 * (p + 1) as f64 * f64::EPSILON,
+            sk: kappa.sqrt(),
+            kappa,
         };
-        *o = (p, vt, nrm);
     }
     Some(out)
 }
@@ -151,25 +198,100 @@ pub(super) fn ruled_out(lb: f64, terms: usize, thr: Option<f64>) -> bool {
 
 /// Per channel, the live targets' data of the bounds, laid out for [`lower_bounds`]'s
 /// tiles: coefficient matrix `y` (`cols x lp`, column-major by target: entry `k * lp + t`,
-/// zero outside the passive set), `V` (`p x lp`), and per target the KKT scale, `q`,
-/// `|V_t|^2`, share and whether the channel counts.
+/// zero outside the passive set); per target the KKT scale, `q`, share, whether the
+/// channel counts, the rounding scale of its gradients, and the data of the tight bound:
+/// the positions in `nz` of its inactive columns, their gradients and the Schur complement
+/// `S_t` (row-major), at `off[i]..off[i + 1]` and `soff[i]..` (`tight[i]` false: none).
+#[derive(Default)]
 struct Targets {
     y: Vec<f64>,
-    v: Vec<f64>,
     hmax: Vec<f64>,
     ysum: Vec<f64>,
     q: Vec<f64>,
-    nrm: Vec<f64>,
     share: Vec<f64>,
     active: Vec<bool>,
+    werr: Vec<f64>,
+    tight: Vec<bool>,
+    kp: Vec<f64>,
+    off: Vec<usize>,
+    soff: Vec<usize>,
+    inact: Vec<u32>,
+    wold: Vec<f64>,
+    s: Vec<f64>,
 }
 
-/// Targets per register tile and candidates per block of [`lower_bounds`].
+/// The tight bound's data of one target: inactive positions, their gradients, `S_t` and
+/// the square root of the condition estimate of `G_PP` (squared ratio of its extreme
+/// Cholesky pivots).
+type Schur = (Vec<u32>, Vec<f64>, Vec<f64>, f64);
+
+/// The tight bound's data of one target ([`Targets`]): inactive positions in `nz`, their
+/// gradients and `S_t`; `None` when a passive column is not in `nz` or `G_PP` or `S_t`
+/// has no positive pivots.
+fn schur(
+    g: crate::nnls::incremental::Cosine<'_>,
+    nz: &[usize],
+    st: &ChanState,
+    t: usize,
+) -> Option<Schur> {
+    let (passive, y, _, _) = st.kkt_parts();
+    if !passive.iter().all(|k| nz.contains(k)) {
+        return None;
+    }
+    let inact: Vec<u32> = (0..nz.len())
+        .filter(|&r| !passive.contains(&nz[r]))
+        .map(|r| r as u32)
+        .collect();
+    let (np, ni) = (passive.len(), inact.len());
+    let mut gpp = vec![0.0; np * np];
+    for (r, &kr) in passive.iter().enumerate() {
+        for (s, &ks) in passive.iter().enumerate() {
+            gpp[r * np + s] = g.at(kr, ks);
+        }
+    }
+    let l = cholesky(np, &gpp)?;
+    let piv = (0..np).map(|r| l[r * np + r]);
+    let (lo, hi) = piv.fold((f64::INFINITY, 0.0f64), |(lo, hi), d| (lo.min(d), hi.max(d)));
+    let kp = if np == 0 { 1.0 } else { hi / lo };
+    // X = L^-1 G_PI (np x ni, column by column), S = G_II - X^T X.
+    let mut x = vec![0.0; np * ni];
+    for (col, &ri) in inact.iter().enumerate() {
+        let row = g.row(nz[ri as usize]);
+        for r in 0..np {
+            let dot: f64 = (0..r).map(|s| l[r * np + s] * x[s * ni + col]).sum();
+            x[r * ni + col] = (row[passive[r]] - dot) / l[r * np + r];
+        }
+    }
+    let mut s = vec![0.0; ni * ni];
+    for a in 0..ni {
+        let ra = g.row(nz[inact[a] as usize]);
+        for b in 0..ni {
+            let xx: f64 = (0..np).map(|r| x[r * ni + a] * x[r * ni + b]).sum();
+            s[a * ni + b] = ra[nz[inact[b] as usize]] - xx;
+        }
+        if s[a * ni + a].is_nan() || s[a * ni + a] <= 0.0 {
+            return None;
+        }
+    }
+    let wold = inact
+        .iter()
+        .map(|&ri| {
+            let row = g.row(nz[ri as usize]);
+            row[t] - passive.iter().zip(y).map(|(&k, &yk)| row[k] * yk).sum::<f64>()
+        })
+        .collect();
+    Some((inact, wold, s, kp))
+}
+
+/// Targets per register tile, candidates per block, targets per cache tile and
+/// candidates per parallel task of [`lower_bounds`].
 const TT: usize = 4;
 const CB: usize = 4;
+const TB: usize = 64;
+const CT: usize = 64;
 
 /// `acc[a][b] = sum_k x[k][a] y[k * lp + t0 + b]` for `k` in order (the sums of
-/// [`ChanState::unchanged_adding`]'s gradient and of the projections, entry by entry).
+/// [`ChanState::unchanged_adding`]'s gradient, entry by entry).
 #[inline(always)]
 fn tile(x: &[[f64; CB]], y: &[f64], lp: usize, t0: usize) -> [[f64; TT]; CB] {
     let mut acc = [[0.0f64; TT]; CB];
@@ -184,11 +306,132 @@ fn tile(x: &[[f64; CB]], y: &[f64], lp: usize, t0: usize) -> [[f64; TT]; CB] {
     acc
 }
 
+/// One block of [`CB`] candidates of one channel: column indices, `C_jk` over the basis
+/// columns, and per candidate whether it is a zero column, `s2 = 1 - |V_j|^2`, its cosine
+/// row, whether the dual bounds apply (non-negative cosines) and the relative rounding of
+/// its `d2`.
+struct Block<'a> {
+    nb: usize,
+    j: [usize; CB],
+    xg: Vec<[f64; CB]>,
+    zero: [bool; CB],
+    nc: [f64; CB],
+    rows: [&'a [f64]; CB],
+    nonneg: [bool; CB],
+    anorm: [f64; CB],
+}
+
+/// One (target, candidate) pair with a positive gradient `w`: `C_ct`, `s2 = 1 - |V_c|^2`,
+/// `a_c` and its norm, and whether the dual bounds apply.
+struct Pair<'a> {
+    w: f64,
+    cjt: f64,
+    s2: f64,
+    arow: &'a [f64],
+    anorm: f64,
+    nonneg: bool,
+}
+
+/// The bound of one pair with a positive gradient (module docs), target `i` of `d`, or
+/// `None` when the candidate must not be screened (it is nearly in the span of the
+/// target's passive columns, or, without the tight bound's data, of the basis).
+///
+/// With the data of the tight bound: the best dual point `u = r_t - alpha e - beta z` on
+/// the segment from the loose one (`alpha = 0`) to the tight one (`alpha = w / d2`) that is
+/// dual feasible on the inactive columns (`w_i - alpha s_i <= TAU`), with `beta = (w -
+/// alpha d2) / s2` so that `a_c.u = 0` (`beta = 0` at the tight end); its value is `q_t -
+/// f`, `f = 2 alpha w - alpha^2 d2 + (w - alpha d2)^2 / s2` (`|e'|^2` of `u = r_t - e'`,
+/// with `e.z = s2`), which falls as `alpha` grows. With `alpha = 0`, or without those data,
+/// also the least-squares bound; never below 0.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn pair_bound(
+    pr: &Pair<'_>,
+    d: &Targets,
+    i: usize,
+    bs: &Basis,
+    (gt, t_col): (&[f64], usize),
+    margin_dual: f64,
+    xsum: f64,
+    (quad, sig): (f64, &[f64]),
+) -> f64 {
+    let Pair {
+        w,
+        cjt,
+        s2,
+        arow,
+        anorm,
+        nonneg,
+    } = *pr;
+    let q = d.q[i];
+    let werr = d.werr[i];
+    // Absolute rounding of `1 - |V_x|^2`; `s2` is usable above 16 times it.
+    let es2 = bs.e64 * bs.sk;
+    let s2_ok = s2 > 16.0 * es2;
+    let eps_v = es2 / s2;
+    // The least-squares bound (any cosines).
+    let ls = |alpha: f64| -> f64 {
+        if alpha != 0.0 || !s2_ok {
+            return f64::NEG_INFINITY;
+        }
+        let dv: f64 = arow.iter().zip(&bs.nz).map(|(&x, &k)| x * gt[k]).sum();
+        let mm = (cjt - dv).max(0.0);
+        1.0 - bs.nrm[t_col] - mm * mm / s2 * (1.0 + 4.0 * eps_v) - MARGIN - 2.0 * es2
+    };
+    if nonneg && d.tight[i] {
+        let (lo, hi) = (d.off[i], d.off[i + 1]);
+        let ni = hi - lo;
+        let d2 = s2 + quad.max(0.0);
+        let eps = bs.e64 * (bs.sk + bs.kappa * anorm * d2.sqrt()) / d2;
+        // The exact value's own rounding (the bordered update's `d2`, module docs).
+        let exact_err = 4.0 * bs.e64 * d.kp[i] / d2;
+        if eps <= EPS_MAX && exact_err <= EPS_MAX {
+            let full = w / d2;
+            let mut alpha = full;
+            for (&wo, &sk) in d.wold[lo..hi].iter().zip(&sig[..ni]) {
+                let room = TAU - werr - wo;
+                if room < 0.0 {
+                    alpha = 0.0;
+                    break;
+                }
+                if sk < 0.0 {
+                    alpha = alpha.min(room / (-sk * (1.0 + eps)));
+                }
+            }
+            let f = if alpha == full {
+                w * w / d2 * (1.0 + 4.0 * eps) + 4.0 * w * werr / d2
+            } else if s2_ok {
+                let rest = w - alpha * d2;
+                (2.0 * alpha * w - alpha * alpha * d2) * (1.0 + 4.0 * eps)
+                    + rest * rest / s2 * (1.0 + 4.0 * eps_v)
+                    + 4.0 * w * werr / s2
+            } else {
+                f64::INFINITY
+            };
+            let dual = q - f - 4.0 * xsum * w * eps - (4.0 * eps + exact_err) * q - margin_dual;
+            return dual.max(ls(alpha)).max(0.0);
+        }
+    }
+    // The loose bounds alone: they need `s2` (the exact value's rounding, too, is then
+    // below the margins), else 0 (which no computed value is below).
+    if s2.is_nan() || s2 < NC_MIN {
+        return 0.0;
+    }
+    let dual = if nonneg {
+        q - w * w / s2 * (1.0 + 4.0 * eps_v) - 4.0 * w * werr / s2 - 4.0 * xsum * w * eps_v
+            - margin_dual
+    } else {
+        f64::NEG_INFINITY
+    };
+    dual.max(ls(0.0)).max(0.0)
+}
+
 /// Lower bounds of `S(B + c; T)` for every candidate (`None`: not screened), from the
-/// live targets and their states (module docs). Candidates in blocks of [`CB`], live
-/// targets in tiles of [`TT`]: the gradients and projections of a block are small matrix
-/// products, each entry summed in the order of the per-pair test, so that "unchanged" is
-/// decided on the very numbers [`ChanState::q_adding`] decides it on.
+/// live targets and their states (module docs). Candidates in parallel tasks of [`CT`]
+/// and blocks of [`CB`], live targets in cache tiles of [`TB`] and register tiles of
+/// [`TT`]: the gradients of a block are small matrix products, each entry summed in the
+/// order of the per-pair test, so that "unchanged" is decided on the very numbers
+/// [`ChanState::q_adding`] decides it on.
 pub(super) fn lower_bounds(
     obj: &Objective,
     live: &[usize],
@@ -204,22 +447,34 @@ pub(super) fn lower_bounds(
     let nk = cols.len();
     let pos: std::collections::HashMap<usize, usize> =
         cols.iter().enumerate().map(|(k, &c)| (c, k)).collect();
+    let werr_scale = 4.0 * (nk + 2) as f64 * f64::EPSILON;
     let tg: Vec<Targets> = (0..3)
         .map(|c| {
-            let (p, vt, nrm) = &proj[c];
-            let p = *p;
+            let g = obj.view(c);
+            let nz = &proj[c].nz;
             let mut d = Targets {
                 y: vec![0.0; nk * lp],
-                v: vec![0.0; p * lp],
                 hmax: vec![0.0; lp],
                 ysum: vec![0.0; lp],
                 q: vec![0.0; lp],
-                nrm: vec![0.0; lp],
                 share: vec![0.0; lp],
                 active: vec![false; lp],
+                werr: vec![0.0; lp],
+                tight: vec![false; lp],
+                kp: vec![0.0; lp],
+                off: vec![0; lp + 1],
+                soff: vec![0; lp + 1],
+                ..Default::default()
             };
-            for (i, (&t, st)) in live.iter().zip(states).enumerate() {
+            let sch: Vec<Option<Schur>> = live
+                .par_iter()
+                .zip(states)
+                .map(|(&t, st)| st[c].is_active().then(|| schur(g, nz, &st[c], t + 1)).flatten())
+                .collect();
+            for (i, ((&t, st), sc)) in live.iter().zip(states).zip(sch).enumerate() {
                 let ch = &st[c];
+                d.off[i + 1] = d.off[i];
+                d.soff[i + 1] = d.soff[i];
                 if !ch.is_active() {
                     continue;
                 }
@@ -227,101 +482,306 @@ pub(super) fn lower_bounds(
                 for (&k, &yk) in passive.iter().zip(y) {
                     d.y[pos[&k] * lp + i] = yk;
                 }
-                for r in 0..p {
-                    d.v[r * lp + i] = vt[(t + 1) * p + r];
-                }
                 d.hmax[i] = hmax;
                 d.ysum[i] = ysum;
                 d.q[i] = ch.q();
-                d.nrm[i] = nrm[t + 1];
                 d.share[i] = obj.share[t][c];
                 d.active[i] = true;
+                d.werr[i] = werr_scale * (1.0 + ysum);
+                if let Some((inact, wold, s, kp)) = sc {
+                    d.tight[i] = true;
+                    d.kp[i] = kp;
+                    d.off[i + 1] += inact.len();
+                    d.soff[i + 1] += s.len();
+                    d.inact.extend(inact);
+                    d.wold.extend(wold);
+                    d.s.extend(s);
+                }
             }
             d
         })
         .collect();
-    // The dual bound (module docs) needs non-negative cosines among the columns.
+    // The dual bounds need non-negative cosines among the columns.
     let basis_nonneg: [bool; 3] = std::array::from_fn(|c| {
         let g = obj.view(c);
         cols.iter()
             .all(|&k| cols.iter().all(|&l| g.at(k, l) >= 0.0))
     });
-    let margin_dual = MARGIN * (1.0 + 2.0 * ((nk + 1) as f64).sqrt());
-    let nchunks = nl.div_ceil(CHUNK);
-    let mut is_live = vec![false; obj.len()];
-    for &t in live {
-        is_live[t] = true;
+    let xsum = 2.0 * ((nk + 1) as f64).sqrt();
+    let margin_dual = MARGIN * (1.0 + xsum);
+    let mut live_pos = vec![usize::MAX; obj.len()];
+    for (i, &t) in live.iter().enumerate() {
+        live_pos[t] = i;
     }
+    let ctx = Ctx {
+        obj,
+        live,
+        cols,
+        tg: &tg,
+        proj: &proj,
+        basis_nonneg,
+        margin_dual,
+        xsum,
+        nchunks: nl.div_ceil(CHUNK),
+        lp,
+        live_pos: &live_pos,
+    };
     candidates
-        .par_chunks(CB)
-        .flat_map_iter(|blk| {
-            let nb = blk.len();
-            let mut chunks = vec![vec![0.0; nchunks]; nb];
-            let mut none = [false; CB];
-            for (c, d) in tg.iter().enumerate() {
-                let g = obj.view(c);
-                let (p, vt, nrm) = &proj[c];
-                let p = *p;
+        .par_chunks(CT)
+        .flat_map_iter(|task| {
+            let chunks = task_bounds(&ctx, task);
+            chunks
+                .into_iter()
+                .zip(task)
+                .map(|(ch, &cand)| {
+                    Some(Bound {
+                        chunks: ch,
+                        count: nl - usize::from(live_pos[cand] != usize::MAX),
+                    })
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// What the tasks of [`lower_bounds`] share.
+struct Ctx<'a> {
+    obj: &'a Objective,
+    live: &'a [usize],
+    cols: &'a [usize],
+    tg: &'a [Targets],
+    proj: &'a [Basis; 3],
+    basis_nonneg: [bool; 3],
+    margin_dual: f64,
+    xsum: f64,
+    nchunks: usize,
+    lp: usize,
+    /// Per material, its position among the live targets (`usize::MAX`: not live).
+    live_pos: &'a [usize],
+}
+
+/// The chunk sums of the bounds of one task's candidates: with AVX2 where the CPU has it
+/// (the same operations, so the same numbers, in wider registers).
+fn task_bounds(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked above).
+        return unsafe { task_bounds_avx2(ctx, task) };
+    }
+    task_bounds_body(ctx, task)
+}
+
+/// [`task_bounds_body`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn task_bounds_avx2(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+    task_bounds_body(ctx, task)
+}
+
+/// `sig[k][a] = sum_l S[k][l] x[l][a]` for the `ni x ni` matrix `S` and four vectors `x`,
+/// and `x[.][a] . sig[.][a]` per vector.
+#[inline(always)]
+fn schur4(sm: &[f64], ni: usize, x: &[[f64; 4]], sig: &mut [[f64; 4]]) -> [f64; 4] {
+    let mut quad = [0.0f64; 4];
+    for k in 0..ni {
+        let row = &sm[k * ni..(k + 1) * ni];
+        let mut acc = [0.0f64; 4];
+        for (&sv, xl) in row.iter().zip(&x[..ni]) {
+            for a in 0..4 {
+                acc[a] += sv * xl[a];
+            }
+        }
+        sig[k] = acc;
+        for a in 0..4 {
+            quad[a] += x[k][a] * acc[a];
+        }
+    }
+    quad
+}
+
+/// A pair of one target with a positive gradient, waiting for its tight bound: the
+/// candidate's position in the task and block, `w` and `C_ct`.
+#[derive(Clone, Copy)]
+struct Pending {
+    ca: u32,
+    w: f64,
+    cjt: f64,
+}
+
+/// The body of [`task_bounds`]: per channel, the gradients of each block of [`CB`]
+/// candidates and register tile of [`TT`] targets (cache tiles of [`TB`] targets); the
+/// unchanged pairs add `q_t`, the others wait per target and are bounded four at a time
+/// ([`schur4`], then [`pair_bound`]).
+#[inline(always)]
+fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+    let Ctx {
+        obj,
+        live,
+        cols,
+        tg,
+        proj,
+        basis_nonneg,
+        margin_dual,
+        xsum,
+        nchunks,
+        lp,
+        live_pos,
+    } = *ctx;
+    let nl = live.len();
+    let nt = task.len();
+    let mut chunks = vec![vec![0.0; nchunks]; nt];
+    let pmax = proj.iter().map(|b| b.nz.len()).max().unwrap_or(0);
+    let mut xs = vec![[0.0f64; 4]; pmax];
+    let mut sig4 = vec![[0.0f64; 4]; pmax];
+    let mut sig = vec![0.0; pmax];
+    let mut pend: Vec<Vec<Pending>> = vec![Vec::new(); TB];
+    // Per chunk, the sum of the `q_t` it starts from: every partial sum of the chunk is at
+    // most twice it in magnitude, which bounds the rounding of the adjusted sums.
+    let mut slack = vec![vec![0.0; nchunks]; nt];
+    for (c, d) in tg.iter().enumerate() {
+        let g = obj.view(c);
+        let bs = &proj[c];
+        let p = bs.nz.len();
+        let blocks: Vec<Block<'_>> = task
+            .chunks(CB)
+            .map(|blk| {
+                let nb = blk.len();
                 let j: [usize; CB] = std::array::from_fn(|a| blk[a.min(nb - 1)] + 1);
                 let xg: Vec<[f64; CB]> = cols
                     .iter()
                     .map(|&k| std::array::from_fn(|a| g.at(j[a], k)))
                     .collect();
-                let xv: Vec<[f64; CB]> = (0..p)
-                    .map(|r| std::array::from_fn(|a| vt[j[a] * p + r]))
-                    .collect();
-                let zero: [bool; CB] = std::array::from_fn(|a| g.at(j[a], j[a]) == 0.0);
-                let nc: [f64; CB] = std::array::from_fn(|a| 1.0 - nrm[j[a]]);
-                let rows: [&[f64]; CB] = std::array::from_fn(|a| g.row(j[a]));
-                let nonneg: [bool; CB] =
-                    std::array::from_fn(|a| basis_nonneg[c] && xg.iter().all(|x| x[a] >= 0.0));
-                for t0 in (0..nl).step_by(TT) {
-                    let gw = tile(&xg, &d.y, lp, t0);
-                    let dv = tile(&xv, &d.v, lp, t0);
-                    for b in 0..TT.min(nl - t0) {
-                        let i = t0 + b;
-                        if !d.active[i] {
+                let nc: [f64; CB] = std::array::from_fn(|a| 1.0 - bs.nrm[j[a]]);
+                Block {
+                    nb,
+                    j,
+                    zero: std::array::from_fn(|a| g.at(j[a], j[a]) == 0.0),
+                    nc,
+                    rows: std::array::from_fn(|a| g.row(j[a])),
+                    nonneg: std::array::from_fn(|a| {
+                        basis_nonneg[c] && xg.iter().all(|x| x[a] >= 0.0)
+                    }),
+                    anorm: std::array::from_fn(|a| {
+                        let r = &bs.a[j[a] * p..(j[a] + 1) * p];
+                        r.iter().map(|x| x * x).sum::<f64>().sqrt()
+                    }),
+                    xg,
+                }
+            })
+            .collect();
+        // Every pair starts at `q_t` (unchanged); a changed pair adds `lb - q_t`.
+        for (ca, ch) in chunks.iter_mut().enumerate() {
+            let own = live_pos[task[ca]];
+            for (k, v) in ch.iter_mut().enumerate() {
+                let end = ((k + 1) * CHUNK).min(nl);
+                let base: f64 = (k * CHUNK..end)
+                    .filter(|&i| i != own && d.active[i])
+                    .map(|i| d.share[i] * d.q[i])
+                    .sum();
+                *v += base;
+                slack[ca][k] += base;
+            }
+        }
+        for t0 in (0..nl).step_by(TB) {
+            let t1 = (t0 + TB).min(nl);
+            for (bi, blk) in blocks.iter().enumerate() {
+                for u0 in (t0..t1).step_by(TT) {
+                    let gw = tile(&blk.xg, &d.y, lp, u0);
+                    let tix: [usize; TT] =
+                        std::array::from_fn(|b| live.get(u0 + b).map_or(0, |&t| t + 1));
+                    let hm: [f64; TT] = d.hmax[u0..u0 + TT].try_into().expect("tile");
+                    let ys: [f64; TT] = d.ysum[u0..u0 + TT].try_into().expect("tile");
+                    let act: u32 = (0..TT).fold(0, |m, b| m | (u32::from(d.active[u0 + b]) << b));
+                    for a in 0..blk.nb {
+                        if blk.zero[a] {
                             continue;
                         }
-                        let t = live[i];
-                        for a in 0..nb {
-                            if t + 1 == j[a] || none[a] {
-                                continue;
+                        let row = blk.rows[a];
+                        let cj: [f64; TT] = std::array::from_fn(|b| row[tix[b]]);
+                        let w: [f64; TT] = std::array::from_fn(|b| cj[b] - gw[a][b]);
+                        let thr: [f64; TT] = std::array::from_fn(|b| {
+                            KKT_TOL * (hm[b].max(cj[b].abs()) + ys[b])
+                        });
+                        let mut m = act;
+                        for b in 0..TT {
+                            if w[b] <= thr[b] || tix[b] == blk.j[a] {
+                                m &= !(1 << b);
                             }
-                            let cjt = rows[a][t + 1];
-                            let w = cjt - gw[a][b];
-                            let lb = if zero[a]
-                                || w <= KKT_TOL * (d.hmax[i].max(cjt.abs()) + d.ysum[i])
-                            {
-                                d.q[i]
-                            } else if nc[a].is_nan() || nc[a] < NC_MIN {
-                                none[a] = true;
-                                continue;
-                            } else {
-                                let mm = (cjt - dv[a][b]).max(0.0);
-                                let ls = 1.0 - d.nrm[i] - mm * mm / nc[a] - MARGIN;
-                                let dual = if nonneg[a] {
-                                    d.q[i] - w * w / nc[a] - margin_dual
-                                } else {
-                                    f64::NEG_INFINITY
-                                };
-                                ls.max(dual).max(0.0)
-                            };
-                            chunks[a][i / CHUNK] += d.share[i] * lb;
+                        }
+                        while m != 0 {
+                            let b = m.trailing_zeros() as usize;
+                            m &= m - 1;
+                            pend[u0 + b - t0].push(Pending {
+                                ca: (bi * CB + a) as u32,
+                                w: w[b],
+                                cjt: cj[b],
+                            });
                         }
                     }
                 }
             }
-            let mut out = Vec::with_capacity(nb);
-            for (a, ch) in chunks.into_iter().enumerate() {
-                out.push((!none[a]).then(|| Bound {
-                    chunks: ch,
-                    count: nl - usize::from(is_live[blk[a]]),
-                }));
+            for (i, pl) in (t0..t1).zip(pend.iter_mut()) {
+                if pl.is_empty() {
+                    continue;
+                }
+                let t = live[i];
+                let gt = g.row(t + 1);
+                let (lo, hi) = (d.off[i], d.off[i + 1]);
+                let ni = hi - lo;
+                let sm = &d.s[d.soff[i]..d.soff[i] + ni * ni];
+                let inact = &d.inact[lo..hi];
+                for group in pl.chunks(4) {
+                    let arows: [&[f64]; 4] = std::array::from_fn(|a| {
+                        let ca = group[a.min(group.len() - 1)].ca as usize;
+                        let j = task[ca] + 1;
+                        &bs.a[j * p..(j + 1) * p]
+                    });
+                    let quad = if d.tight[i] {
+                        for (x, &r) in xs.iter_mut().zip(inact) {
+                            *x = std::array::from_fn(|a| arows[a][r as usize]);
+                        }
+                        schur4(sm, ni, &xs, &mut sig4)
+                    } else {
+                        [0.0; 4]
+                    };
+                    for (a, pr) in group.iter().enumerate() {
+                        let ca = pr.ca as usize;
+                        let blk = &blocks[ca / CB];
+                        let ab = ca % CB;
+                        for (sv, s4) in sig.iter_mut().zip(&sig4[..ni]) {
+                            *sv = s4[a];
+                        }
+                        let lb = pair_bound(
+                            &Pair {
+                                w: pr.w,
+                                cjt: pr.cjt,
+                                s2: blk.nc[ab],
+                                arow: arows[a],
+                                anorm: blk.anorm[ab],
+                                nonneg: blk.nonneg[ab],
+                            },
+                            d,
+                            i,
+                            bs,
+                            (gt, t + 1),
+                            margin_dual,
+                            xsum,
+                            (quad[a], &sig[..ni]),
+                        );
+                        chunks[ca][i / CHUNK] += d.share[i] * (lb - d.q[i]);
+                    }
+                }
+                pl.clear();
             }
-            out
-        })
-        .collect()
+        }
+    }
+    let round = 4.0 * (CHUNK + 1) as f64 * f64::EPSILON;
+    for (ch, sl) in chunks.iter_mut().zip(&slack) {
+        for (v, &b) in ch.iter_mut().zip(sl) {
+            *v = (*v - round * b).max(0.0);
+        }
+    }
+    chunks
 }
 
 /// Whether candidate `cand` can replace a best of threshold `thr`: its bound, then,
@@ -589,5 +1049,79 @@ mod tests {
         }
         // Not a bound that cannot screen: some candidates are ruled out.
         assert!(screened > 0);
+    }
+}
+#[cfg(test)]
+mod probe {
+    use super::*;
+    use crate::backend::cpu::CpuBackend;
+    use crate::collection::Collection;
+    use crate::select::objective::ObjectiveParams;
+    fn synthetic(n: usize, seed: u64) -> Collection {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut csv = String::from("material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n");
+        for i in 0..n {
+            let d: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..0.6)).collect();
+            let s: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..1.2)).collect();
+            let f0: f64 = rng.random_range(0.02..0.98);
+            let e: f64 = 80_000f64.powf(rng.random_range(0.0..1.0));
+            csv.push_str(&format!("synth-{i:05},{},{},{},{},{},{},{f0},{e}\n", d[0], d[1], d[2], s[0], s[1], s[2]));
+        }
+        crate::collection::parse_csv(csv.as_bytes(), std::path::Path::new("<synthetic>")).expect("synthetic collection")
+    }
+    #[test]
+    #[ignore]
+    fn probe_synth() {
+        let n: usize = std::env::var("PROBE_N").ok().and_then(|v| v.parse().ok()).unwrap_or(1000);
+        let coll = synthetic(n, 2016);
+        let p = ObjectiveParams::default().stride(3).check().expect("p");
+        let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
+        let all: Vec<usize> = (0..coll.len()).collect();
+        let sp = crate::select::SearchParams::new(20).check(obj.names()).expect("sp");
+        let full = crate::select::greedy::greedy_indices(&obj, &sp, &|_, _| {}).expect("g");
+        for k in [2, 5, 10, 15, 19] {
+            let basis = full[..k].to_vec();
+            let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
+            let a = obj.adding(&basis, &all).expect("states");
+            let lbs: Vec<f64> = lower_bounds(&obj, &a.live, &a.states, &a.cols, &cands)
+                .iter()
+                .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
+                .collect();
+            let exact = obj.exact_scores(&a, &cands).expect("exact");
+            let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
+            let mut gaps: Vec<f64> = exact.iter().zip(&lbs).map(|(e, l)| (e - l) / e).collect();
+            gaps.sort_by(f64::total_cmp);
+            let out = lbs.iter().filter(|&&l| l > best).count();
+            eprintln!("k {k} best {best:.6e} ruled-out {out} of {} gaps q10 {:.2e} q50 {:.2e} q90 {:.2e}", cands.len(), gaps[gaps.len()/10], gaps[gaps.len()/2], gaps[gaps.len()*9/10]);
+            let mut spread: Vec<f64> = exact.iter().map(|e| (e - best) / best).collect();
+            spread.sort_by(f64::total_cmp);
+            eprintln!("  score spread over best: q01 {:.2e} q10 {:.2e} q50 {:.2e}", spread[spread.len()/100], spread[spread.len()/10], spread[spread.len()/2]);
+        }
+    }
+    #[test]
+    #[ignore]
+    fn probe_tightness() {
+        let coll = Collection::embedded_default();
+        let p = ObjectiveParams::default().stride(3).check().expect("p");
+        let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
+        let all: Vec<usize> = (0..coll.len()).collect();
+        for basis in [vec![3, 17, 40], vec![1, 5, 9, 22, 30, 44, 51, 12, 50, 55]] {
+            let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
+            let a = obj.adding(&basis, &all).expect("states");
+            let lbs: Vec<f64> = lower_bounds(&obj, &a.live, &a.states, &a.cols, &cands)
+                .iter()
+                .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
+                .collect();
+            let exact = obj.exact_scores(&a, &cands).expect("exact");
+            let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
+            let mut gaps: Vec<f64> = exact.iter().zip(&lbs).map(|(e, l)| (e - l) / e).collect();
+            gaps.sort_by(f64::total_cmp);
+            let out = lbs.iter().filter(|&&l| l > best).count();
+            eprintln!("n {} basis {} best {best:.6e} ruled-out {out} of {} gaps q10 {:.2e} q50 {:.2e} q90 {:.2e} max {:.2e}", coll.len(), basis.len(), cands.len(), gaps[gaps.len()/10], gaps[gaps.len()/2], gaps[gaps.len()*9/10], gaps[gaps.len()-1]);
+            let mut spread: Vec<f64> = exact.iter().map(|e| (e - best) / best).collect();
+            spread.sort_by(f64::total_cmp);
+            eprintln!("  score spread over best: q10 {:.2e} q50 {:.2e}", spread[spread.len()/10], spread[spread.len()/2]);
+        }
     }
 }
