@@ -750,13 +750,13 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
                     let hm: [f64; TT] = d.hmax[u0..u0 + TT].try_into().expect("tile");
                     let ys: [f64; TT] = d.ysum[u0..u0 + TT].try_into().expect("tile");
                     let act: u32 = (0..TT).fold(0, |m, b| m | (u32::from(d.active[u0 + b]) << b));
-                    for a in 0..blk.nb {
+                    for (a, gwa) in gw.iter().enumerate().take(blk.nb) {
                         if blk.zero[a] {
                             continue;
                         }
                         let row = blk.rows[a];
                         let cj: [f64; TT] = std::array::from_fn(|b| row[tix[b]]);
-                        let w: [f64; TT] = std::array::from_fn(|b| cj[b] - gw[a][b]);
+                        let w: [f64; TT] = std::array::from_fn(|b| cj[b] - gwa[b]);
                         let thr: [f64; TT] =
                             std::array::from_fn(|b| KKT_TOL * (hm[b].max(cj[b].abs()) + ys[b]));
                         let mut m = act;
