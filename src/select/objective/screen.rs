@@ -37,18 +37,25 @@
 //!   residual on their span with a non-negative coefficient on `c`: `q >= 1 - |V_t|^2 -
 //!   max(0, C_ct - V_c . V_t)^2 / s2`.
 //!
+//! Between the two ends, the best dual point `u = r_t - alpha e - beta z` that is feasible
+//! on `I` (`pair_bound`) keeps what the tight one gives where adding `c` would make an
+//! inactive column enter.
+//!
 //! Rounding: the KKT conditions hold to Lawson-Hanson's tolerance (~1e-11) and dual
 //! feasibility is tested with the same slack [`TAU`], hence a margin of `MARGIN (1 + X)`;
-//! the computed `d2` and `a` carry a relative error of about `eps kappa(G) / s2`, which the
-//! bound pays for explicitly (a candidate for which it exceeds [`EPS_MAX`] gets the looser
-//! bounds), and so does the rounding of `w`. The bounds need not equal anything bit for bit:
-//! only the exact scores ([`refine`]) decide.
+//! the computed `d2` and `a` carry an absolute error of about `64 (p + 1) eps (sqrt(kappa)
+//! + kappa |a_c|)` (`kappa` the condition estimate of `G`), which the bound pays for
+//! relatively to `d2` (above [`EPS_MAX`] the pair gets the looser bounds), and so do the
+//! rounding of `w` and that of the exact value itself (the bordered update's `d2`, with the
+//! condition of `G_PP`). A pair none of whose bounds can be trusted (`s2 < `[`NC_MIN`]
+//! without the tight bound) is bounded by 0, which no computed value is below. The bounds
+//! need not equal anything bit for bit: only the exact scores ([`refine`]) decide; no
+//! candidate is screened when `C_B'B'` has no Cholesky factor.
 //!
-//! A candidate nearly in the span of the basis (`1 - |V_c|^2 < `[`NC_MIN`], where the
-//! bordered update loses digits) is never screened, and neither is any candidate when
-//! `C_BB` has no Cholesky factor. The bounds cost `O(p)` per target and candidate (the
-//! gradients, as blocked matrix products) and `O(|I|^2)` for the pairs with a positive
-//! gradient, against the exact `O(p^2)` (`O(p^3)` when coefficients leave the passive set).
+//! Cost: the gradients of all pairs as blocked matrix products (`O(p)` per target and
+//! candidate), then `O(|I|^2)` for the pairs with a positive gradient (about one in ten late
+//! in a greedy run), four candidates of one target at a time; the exact update costs
+//! `O(p^2)` (`O(p^3)` when coefficients leave the passive set).
 
 use super::Objective;
 use crate::nnls::incremental::{cholesky, ChanState, KKT_TOL};
