@@ -175,8 +175,8 @@ pub(super) unsafe fn forward(
     }
     // The live lists for `super::recheck_windows` (hb[t] holds hi1 in every lane).
     (s.live1, s.n1, s.live2, s.n2) = (live1, n1, live2, n2);
-    for t in 0..n1 {
-        s.hi1[t] = _mm256_cvtss_f32(hb[t]);
+    for (h, b) in s.hi1.iter_mut().zip(&hb).take(n1) {
+        *h = _mm256_cvtss_f32(*b);
     }
     // Layer 2 on the live units.
     for g in (0..n2_pad).step_by(RU) {
