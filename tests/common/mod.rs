@@ -267,7 +267,7 @@ impl Spec9 {
         if err > worst.0 {
             *worst = (err, label(), got, want);
         }
-        if !(e <= tol) {
+        if e.is_nan() || e > tol {
             self.bad += 1;
             if self.first_bad.is_none() {
                 self.first_bad = Some((label(), got, want));
