@@ -14,26 +14,40 @@
 //
 // Inputs: the features texture holds (sin td cos pd, sin td sin pd, cos td) of each
 // (theta_d, phi_d) cell pair at texel j * 180 + k and (sin th, cos th) of row i at texel
-// D_CELLS + i, computed in f64 on the host and rounded once. A cell index decodes as
+// D_CELLS + i (.xy), computed in f64 on the host and rounded once; their rounding errors
+// (f64 value - f32 value, rounded) at texel 2 D_CELLS + j * 180 + k and in .zw of texel
+// D_CELLS + i. A cell index decodes as
 // (i, jk) = (cell / D_CELLS, cell % D_CELLS); the same decoding serves arbitrary points
 // (point p is passed as p * D_CELLS + p, with its features at texels p and D_CELLS + p).
 //
 // One invocation: one cell of one row block: it evaluates the (at most 4) distinct
 // networks of the block's rows and stores one texel, each row its channel (or the mean of
 // R, G, B) times the cell's row scale. Work per invocation is bounded: at most 4 networks,
-// loops of at most 21 iterations (lavapipe silently ends loops after 65,535). No
-// workgroup memory or barrier.
+// loops of at most 21 iterations, nested at most twice (441) in the double-f32 pass
+// (lavapipe silently ends loops after 65,535). No workgroup memory or barrier.
 //
 // exp(z) - 1 is an accurate expm1 (Cody-Waite reduction z = n ln 2 + r, a degree-8
 // polynomial for expm1(r), |r| <= ln 2 / 2): a plain f32 exp(z) - 1 loses the relative
 // accuracy of small values to cancellation.
+//
+// Each value comes with an estimate of the f32 pass's rounding error (the one of the CPU
+// twin, `recheck_windows` in src/brdf/nbrdf.rs, here per cell: one unit roundoff per
+// magnitude sum of the units live at the cell, carried to z by the absolute weights).
+// Where the estimate is not within half of SPEC 9's tolerance (5e-4 relative above 1e-3,
+// 1e-6 below), the network is run again in double-f32 arithmetic (a value as an unevaluated
+// sum hi + lo of two f32; Dekker's exact product by splitting, Knuth's exact sum), inputs
+// included (their f32 rounding errors come as lo parts in the features texture): about
+// 44 significant bits, far beyond what SPEC 9 needs. Every rounded intermediate of those
+// exact transformations is multiplied by `one` (1.0 from the uniforms, opaque to the
+// shader compiler), so that no algebraic simplification can fold `(a + b) - a` into `b`.
 
 // Keep in sync with `NeuralParams` in src/backend/gpu/neural.rs.
 struct NeuralParams {
     n_cells: u32,
     row_stride: u32,
     out_base: u32,
-    _pad0: u32,
+    // 1.0 (f32 bits): see the header.
+    one_bits: u32,
 }
 
 // One row block: the distinct networks its rows use (`count` of them, their weights in
@@ -91,12 +105,117 @@ fn expm1_acc(z_in: f32) -> f32 {
     return t * e + (t - 1.0);
 }
 
-// The clamped RGB output of the block's network in `slot` at a cell of features h = (sin th, cos th),
-// d = (sin td cos pd, sin td sin pd, cos td).
-fn network(slot: u32, h: vec2<f32>, d: vec3<f32>) -> vec3<f32> {
+// Double-f32 arithmetic (see the header): a value is vec2(hi, lo), |lo| <= ulp(hi) / 2.
+// (a + b) exactly, as (s, e).
+fn two_sum(a: f32, b: f32) -> vec2<f32> {
+    let one = bitcast<f32>(p.one_bits);
+    let s = (a + b) * one;
+    let bb = (s - a) * one;
+    let e = (a - (s - bb)) + (b - bb);
+    return vec2<f32>(s, e);
+}
+
+// (a + b) exactly for |a| >= |b|.
+fn fast_two_sum(a: f32, b: f32) -> vec2<f32> {
+    let one = bitcast<f32>(p.one_bits);
+    let s = (a + b) * one;
+    return vec2<f32>(s, b - (s - a));
+}
+
+// a = hi + lo with hi of 12 significant bits (Veltkamp).
+fn split(a: f32) -> vec2<f32> {
+    let one = bitcast<f32>(p.one_bits);
+    let c = (4097.0 * a) * one;
+    let hi = c - (c - a) * one;
+    return vec2<f32>(hi, a - hi);
+}
+
+// (a b) exactly, as (p, e) (Dekker: the partial products of the halves are exact).
+fn two_prod(a: f32, b: f32) -> vec2<f32> {
+    let one = bitcast<f32>(p.one_bits);
+    let q = (a * b) * one;
+    let x = split(a);
+    let y = split(b);
+    let e = ((x.x * y.x - q) + x.x * y.y + x.y * y.x) + x.y * y.y;
+    return vec2<f32>(q, e);
+}
+
+fn df_add(a: vec2<f32>, b: vec2<f32>) -> vec2<f32> {
+    let s = two_sum(a.x, b.x);
+    return fast_two_sum(s.x, s.y + (a.y + b.y));
+}
+
+// a (double-f32) times b (f32).
+fn df_mul(a: vec2<f32>, b: f32) -> vec2<f32> {
+    let q = two_prod(a.x, b);
+    return fast_two_sum(q.x, q.y + a.y * b);
+}
+
+// Weight `u` (0..21) of the vec4 row starting at `at`.
+fn wu(at: u32, u: u32) -> f32 {
+    return blk.w[at + u / 4u][u % 4u];
+}
+
+// The network in `slot` in double-f32 at inputs x = (hi, lo) per feature: the raw RGB
+// output exp(z) - 1, z rounded to hi + lo.
+fn network_df(slot: u32, x: array<vec2<f32>, 5>) -> vec3<f32> {
+    let o = slot * NET_VEC4;
+    var a1: array<vec2<f32>, 21>;
+    for (var j = 0u; j < HIDDEN; j = j + 1u) {
+        var s = vec2<f32>(wu(o + B1, j), 0.0);
+        for (var r = 0u; r < 5u; r = r + 1u) {
+            s = df_add(s, df_mul(x[r], wu(o + W1 + 6u * r, j)));
+        }
+        a1[j] = select(vec2<f32>(0.0), s, s.x > 0.0);
+    }
+    var z = array<vec2<f32>, 3>(vec2<f32>(blk.w[o + B3].x, 0.0), vec2<f32>(blk.w[o + B3].y, 0.0),
+        vec2<f32>(blk.w[o + B3].z, 0.0));
+    for (var k = 0u; k < HIDDEN; k = k + 1u) {
+        let wb = blk.w[o + W3B2 + k];
+        var s = vec2<f32>(wb.w, 0.0);
+        for (var j = 0u; j < HIDDEN; j = j + 1u) {
+            s = df_add(s, df_mul(a1[j], wu(o + W2T + 6u * k, j)));
+        }
+        if (s.x > 0.0) {
+            for (var c = 0u; c < 3u; c = c + 1u) {
+                z[c] = df_add(z[c], df_mul(s, wb[c]));
+            }
+        }
+    }
+    var f: vec3<f32>;
+    for (var c = 0u; c < 3u; c = c + 1u) {
+        // expm1(hi + lo) = expm1(hi) + exp(hi) lo to first order (|lo| <= ulp(hi) / 2).
+        let e = expm1_acc(z[c].x);
+        f[c] = e + (1.0 + e) * z[c].y;
+    }
+    return f;
+}
+
+// Whether a value f of the f32 pass, with error estimate `e` of its z, may be off by
+// more than half of SPEC 9's tolerance (values clamped at 0 afterwards).
+fn recheck(f: f32, e: f32) -> bool {
+    // expm1_acc's error (a few ulps) and the estimate's own roundings, with margin.
+    let err = e * (1.0 + max(f, 0.0)) * 1.01 + 1e-6 * abs(f);
+    var tol = 1e-6;
+    if (f > 1.001e-3) {
+        tol = 4.995e-4 * f;
+    } else if (f > 0.999e-3) {
+        tol = 4.99e-7;
+    }
+    // Below -2e both the value and the exact one are negative: 0 once clamped.
+    return f > -2.0 * e && err > 0.5 * tol;
+}
+
+// The clamped RGB output of the block's network in `slot` at a cell of features h = (sin th,
+// cos th), d = (sin td cos pd, sin td sin pd, cos td), and their f32 rounding errors hl, dl.
+fn network(slot: u32, h: vec2<f32>, d: vec3<f32>, hl: vec2<f32>, dl: vec3<f32>) -> vec3<f32> {
     let o = slot * NET_VEC4;
     let z = vec4<f32>(0.0);
     var a: array<vec4<f32>, 6>;
+    // Per layer-1 unit: 2 a1 + M1 where a1 > 0 (M1: the unit's magnitude sum), else 0.
+    var g1: array<vec4<f32>, 6>;
+    let ah = abs(h);
+    let ad = abs(d);
     for (var g = 0u; g < 6u; g = g + 1u) {
         var s = blk.w[o + B1 + g];
         s = s + h.x * blk.w[o + W1 + g];
@@ -105,8 +224,14 @@ fn network(slot: u32, h: vec2<f32>, d: vec3<f32>) -> vec3<f32> {
         s = s + d.y * blk.w[o + W1 + 18u + g];
         s = s + d.z * blk.w[o + W1 + 24u + g];
         a[g] = max(s, z);
+        let m1 = abs(blk.w[o + B1 + g]) + ah.x * abs(blk.w[o + W1 + g])
+            + ah.y * abs(blk.w[o + W1 + 6u + g]) + ad.x * abs(blk.w[o + W1 + 12u + g])
+            + ad.y * abs(blk.w[o + W1 + 18u + g]) + ad.z * abs(blk.w[o + W1 + 24u + g]);
+        g1[g] = select(z, 2.0 * a[g] + m1, s > z);
     }
     var acc = blk.w[o + B3];
+    // The error estimate of z per channel, in units of the unit roundoff.
+    var est = abs(acc.xyz);
     for (var j = 0u; j < HIDDEN; j = j + 1u) {
         let w = o + W2T + 6u * j;
         let wb = blk.w[o + W3B2 + j];
@@ -114,8 +239,22 @@ fn network(slot: u32, h: vec2<f32>, d: vec3<f32>) -> vec3<f32> {
             + (dot(a[2], blk.w[w + 2u]) + dot(a[3], blk.w[w + 3u]))
             + (dot(a[4], blk.w[w + 4u]) + dot(a[5], blk.w[w + 5u])));
         acc = acc + max(s, 0.0) * wb;
+        let m = 2.0 * abs(wb.w) + ((dot(g1[0], abs(blk.w[w])) + dot(g1[1], abs(blk.w[w + 1u])))
+            + (dot(g1[2], abs(blk.w[w + 2u])) + dot(g1[3], abs(blk.w[w + 3u])))
+            + (dot(g1[4], abs(blk.w[w + 4u])) + dot(g1[5], abs(blk.w[w + 5u]))));
+        // A unit that is 0 in f32 carries an error only when its exact sum may be positive.
+        if (s > -1e-5 * m) {
+            est = est + m * abs(wb.xyz);
+        }
     }
-    return max(vec3<f32>(expm1_acc(acc.x), expm1_acc(acc.y), expm1_acc(acc.z)), vec3<f32>(0.0));
+    let f = vec3<f32>(expm1_acc(acc.x), expm1_acc(acc.y), expm1_acc(acc.z));
+    let e = est * 5.9604645e-8;
+    if (recheck(f.x, e.x) || recheck(f.y, e.y) || recheck(f.z, e.z)) {
+        let x = array<vec2<f32>, 5>(vec2<f32>(h.x, hl.x), vec2<f32>(h.y, hl.y),
+            vec2<f32>(d.x, dl.x), vec2<f32>(d.y, dl.y), vec2<f32>(d.z, dl.z));
+        return max(network_df(slot, x), vec3<f32>(0.0));
+    }
+    return max(f, vec3<f32>(0.0));
 }
 
 @compute @workgroup_size(64)
@@ -127,13 +266,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let desc = blk.desc;
     let cell = cells[c];
     let d = textureLoad(features, texel_coord(cell % D_CELLS), 0).xyz;
-    let h = textureLoad(features, texel_coord(D_CELLS + cell / D_CELLS), 0).xy;
+    let dl = textureLoad(features, texel_coord(2u * D_CELLS + cell % D_CELLS), 0).xyz;
+    let ht = textureLoad(features, texel_coord(D_CELLS + cell / D_CELLS), 0);
     var v = vec4<f32>(0.0);
     for (var s = 0u; s < 4u; s = s + 1u) {
         if (s >= desc.count) {
             break;
         }
-        let f = network(s, h, d);
+        let f = network(s, ht.xy, d, ht.zw, dl);
         let m = vec4<f32>(f, (f.x + f.y + f.z) * (1.0 / 3.0));
         let pick = vec4<f32>(m[min(desc.chan.x, 3u)], m[min(desc.chan.y, 3u)],
             m[min(desc.chan.z, 3u)], m[min(desc.chan.w, 3u)]);

@@ -232,3 +232,81 @@ pub fn read_f32_npy(path: &Path) -> (Vec<usize>, Vec<f32>) {
     );
     (shape, data)
 }
+
+/// SPEC 9's accuracy record of tabulated neural values against the f64 network: the
+/// worst relative error where the reference exceeds 1e-3 (SPEC 9: 5e-4), the worst
+/// absolute error at or below it (1e-6), where each occurred, and the values outside SPEC
+/// 9 (the first kept).
+#[derive(Clone, Debug, Default)]
+pub struct Spec9 {
+    /// Values compared.
+    pub n: usize,
+    /// Worst relative error (reference > 1e-3) and where: (error, label, got, want).
+    pub rel: (f64, String, f64, f64),
+    /// Worst absolute error (reference <= 1e-3) and where.
+    pub abs: (f64, String, f64, f64),
+    /// Values outside SPEC 9.
+    pub bad: usize,
+    /// The first value outside SPEC 9.
+    pub first_bad: Option<(String, f64, f64)>,
+}
+
+impl Spec9 {
+    /// Records a tabulated value `got` against its f64 reference `want` (both as
+    /// tabulated: clamped at 0); `label` names it (material, channel, cell), built only
+    /// when needed.
+    pub fn add(&mut self, got: f64, want: f64, label: impl Fn() -> String) {
+        self.n += 1;
+        let e = (got - want).abs();
+        let (worst, tol) = if want.abs() > 1e-3 {
+            (&mut self.rel, 5e-4 * want.abs())
+        } else {
+            (&mut self.abs, 1e-6)
+        };
+        let err = if want.abs() > 1e-3 { e / want.abs() } else { e };
+        if err > worst.0 {
+            *worst = (err, label(), got, want);
+        }
+        if e.is_nan() || e > tol {
+            self.bad += 1;
+            if self.first_bad.is_none() {
+                self.first_bad = Some((label(), got, want));
+            }
+        }
+    }
+
+    /// Both records as one.
+    pub fn merge(mut self, o: Spec9) -> Spec9 {
+        self.n += o.n;
+        self.bad += o.bad;
+        if o.rel.0 > self.rel.0 {
+            self.rel = o.rel;
+        }
+        if o.abs.0 > self.abs.0 {
+            self.abs = o.abs;
+        }
+        if self.first_bad.is_none() {
+            self.first_bad = o.first_bad;
+        }
+        self
+    }
+
+    /// One line: the worst errors and where.
+    pub fn report(&self) -> String {
+        format!(
+            "{} values: worst relative error {:.3e} (values > 1e-3; {}: {:.7e} vs f64 {:.7e}), \
+             worst absolute error {:.3e} (values <= 1e-3; {}: {:.4e} vs {:.4e}); {} outside \
+             SPEC 9",
+            self.n,
+            self.rel.0,
+            self.rel.1,
+            self.rel.2,
+            self.rel.3,
+            self.abs.0,
+            self.abs.1,
+            self.abs.2,
+            self.abs.3,
+            self.bad
+        )
+    }
+}

@@ -8,9 +8,11 @@
 //! 6 x 21 at 0, b1 at 126, fc2 21 x 21 at 147, b2 at 588, fc3 21 x 3 at 609, b3 at 672,
 //! matrices row-major, input-major) and are repacked once per call into the kernel's
 //! vec4 layout ([`kernel_weights`]). The inputs of each cell (sin, cos of its angles) are
-//! computed on the host in f64 and rounded once ([`grid_features`]); the kernel runs the
-//! network in f32 with an accurate `expm1` (SPEC 9: within 5e-4 relative of an f64
-//! evaluation wherever the value exceeds 1e-3, 1e-6 absolute below).
+//! computed on the host in f64 and rounded once ([`grid_features`], with the rounding
+//! errors); the kernel runs the network in f32 with an accurate `expm1`, estimates the
+//! rounding error of each value, and runs the network again in double-f32 arithmetic where
+//! the estimate is not well within SPEC 9 (5e-4 relative of an f64 evaluation wherever the
+//! value exceeds 1e-3, 1e-6 absolute below).
 //!
 //! One invocation evaluates the distinct networks of one row block (at most four) at one
 //! cell: rows of one network in one block share its evaluation, and the work of an
@@ -68,8 +70,9 @@ pub struct NeuralParams {
     pub row_stride: u32,
     /// Texel of row block 0's cell 0.
     pub out_base: u32,
-    /// Padding.
-    pub _pad0: u32,
+    /// `1.0f32.to_bits()`: a 1 the shader compiler cannot see, which keeps the kernel's
+    /// exact transformations (double-f32 arithmetic) from being simplified away.
+    pub one_bits: u32,
 }
 
 /// One row block as the kernel reads it; keep in sync with `BlockDesc` in the shader.
@@ -199,27 +202,44 @@ pub fn kernel_weights(flat: &[f32]) -> Vec<f32> {
 
 /// The features of the MERL grid as the kernel reads them (rgba texels): texel
 /// `j * 180 + k` holds `(sin td cos pd, sin td sin pd, cos td, 0)` at the centre of
-/// `(j, k)`, texel `D_CELLS + i` holds `(sin th, cos th, 0, 0)` of row `i` (f64, rounded
-/// once).
+/// `(j, k)`, texel `D_CELLS + i` holds `(sin th, cos th)` of row `i` and their rounding
+/// errors (f64, rounded once; the errors `v - (v as f32)`, rounded), texel `2 D_CELLS +
+/// j * 180 + k` the rounding errors of the first.
 pub fn grid_features() -> Vec<f32> {
-    let mut t = vec![0f32; 4 * (D_CELLS + N_TH)];
+    let mut t = vec![0f32; 4 * 3 * D_CELLS];
     for j in 0..N_TD {
         for k in 0..N_PD {
-            let d = d_features(theta_d(j), phi_d(k));
-            t[4 * (j * N_PD + k)..4 * (j * N_PD + k) + 3].copy_from_slice(&d);
+            set_d(&mut t, j * N_PD + k, theta_d(j), phi_d(k));
         }
     }
     for i in 0..N_TH {
-        let (s, c) = theta_h(i).sin_cos();
-        t[4 * (D_CELLS + i)..4 * (D_CELLS + i) + 2].copy_from_slice(&[s as f32, c as f32]);
+        set_h(&mut t, i, theta_h(i));
     }
     t
 }
 
-fn d_features(td: f64, pd: f64) -> [f32; 3] {
+/// `v` in f32 and its rounding error.
+fn hi_lo(v: f64) -> [f32; 2] {
+    let hi = v as f32;
+    [hi, (v - hi as f64) as f32]
+}
+
+/// The theta_d, phi_d features of texel `at` (and their errors at `2 D_CELLS + at`).
+fn set_d(t: &mut [f32], at: usize, td: f64, pd: f64) {
     let (sd, cd) = td.sin_cos();
     let (sp, cp) = pd.sin_cos();
-    [(sd * cp) as f32, (sd * sp) as f32, cd as f32]
+    for (q, v) in [sd * cp, sd * sp, cd].into_iter().enumerate() {
+        let [hi, lo] = hi_lo(v);
+        t[4 * at + q] = hi;
+        t[4 * (2 * D_CELLS + at) + q] = lo;
+    }
+}
+
+/// The theta_h features of texel `D_CELLS + at`, their errors in its `.zw`.
+fn set_h(t: &mut [f32], at: usize, th: f64) {
+    let (s, c) = th.sin_cos();
+    let ([sh, sl], [ch, cl]) = (hi_lo(s), hi_lo(c));
+    t[4 * (D_CELLS + at)..4 * (D_CELLS + at) + 4].copy_from_slice(&[sh, ch, sl, cl]);
 }
 
 /// Most points of one [`NeuralKernel::eval_points`] batch (each point takes a feature
@@ -412,7 +432,7 @@ impl NeuralKernel {
             n_cells,
             row_stride: target.row_stride as u32,
             out_base: target.base as u32,
-            _pad0: 0,
+            one_bits: 1f32.to_bits(),
         };
         let pbuf = ctx.uniform("neural params", &params);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -472,11 +492,10 @@ impl NeuralKernel {
     ) -> Result<Vec<f32>, GpuError> {
         let mut out = vec![0f32; rows.len() * points.len()];
         for (k, batch) in points.chunks(MAX_POINTS).enumerate() {
-            let mut t = vec![0f32; 4 * (D_CELLS + batch.len())];
+            let mut t = vec![0f32; 4 * (2 * D_CELLS + batch.len())];
             for (p, &[th, td, pd]) in batch.iter().enumerate() {
-                t[4 * p..4 * p + 3].copy_from_slice(&d_features(td, pd));
-                let (s, c) = th.sin_cos();
-                t[4 * (D_CELLS + p)..4 * (D_CELLS + p) + 2].copy_from_slice(&[s as f32, c as f32]);
+                set_d(&mut t, p, td, pd);
+                set_h(&mut t, p, th);
             }
             let features = ctx.linear_texture("point features", &t);
             // Point p decodes as (p, p): h texel D_CELLS + p, d texel p.

@@ -173,6 +173,11 @@ pub(super) unsafe fn forward(
     for t in n2..n2_pad {
         live2[t] = live2[n2 - 1];
     }
+    // The live lists for `super::recheck_windows` (hb[t] holds hi1 in every lane).
+    (s.live1, s.n1, s.live2, s.n2) = (live1, n1, live2, n2);
+    for (h, b) in s.hi1.iter_mut().zip(&hb).take(n1) {
+        *h = _mm256_cvtss_f32(*b);
+    }
     // Layer 2 on the live units.
     for g in (0..n2_pad).step_by(RU) {
         let u = [live2[g], live2[g + 1], live2[g + 2]];
