@@ -20,33 +20,16 @@
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::cluster::{GcukParams, KMedoidsParams};
-use brdf_basis::collection::{parse_csv, Collection};
+use brdf_basis::collection::Collection;
 use brdf_basis::distance::{distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS};
 use brdf_basis::io::saved::write_npy_with_sidecar;
 use brdf_basis::io::sidecar::MatrixSettings;
 use brdf_basis::select::empirical::{empirical, EmpiricalParams};
-use rand::{Rng, SeedableRng};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// `n` Ashikhmin-Shirley materials from `seed`: diffuse albedo in [0, 0.6]^3, specular
-/// scale in [0, 1.2]^3, F0 in [0.02, 0.98], exponent log-uniform in [1, 80,000].
-fn synthetic(n: usize, seed: u64) -> Collection {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut csv = String::from("material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n");
-    for i in 0..n {
-        let d: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..0.6)).collect();
-        let s: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..1.2)).collect();
-        let f0: f64 = rng.random_range(0.02..0.98);
-        let e: f64 = 80_000f64.powf(rng.random_range(0.0..1.0));
-        csv.push_str(&format!(
-            "synth-{i:05},{},{},{},{},{},{},{f0},{e}\n",
-            d[0], d[1], d[2], s[0], s[1], s[2]
-        ));
-    }
-    parse_csv(csv.as_bytes(), Path::new("<synthetic>")).expect("synthetic collection")
-}
+use brdf_basis::collection::synthetic;
 
 fn peak_rss_mb() -> f64 {
     std::fs::read_to_string("/proc/self/status")

@@ -521,6 +521,27 @@ pub fn check_name(name: &str) -> Result<(), String> {
 /// Largest magnitude accepted for a parameter: computations on the grid run in f32.
 pub const MAX_PARAMETER: f64 = f32::MAX as f64;
 
+/// `n` seeded synthetic Ashikhmin-Shirley materials (`synth-00000`, ...): diffuse albedo
+/// in `[0, 0.6]^3`, specular scale in `[0, 1.2]^3`, F0 in `[0.02, 0.98]`, exponent
+/// log-uniform in `[1, 80,000]`. The large-collection bench's collection (and its tests').
+#[doc(hidden)]
+pub fn synthetic(n: usize, seed: u64) -> Collection {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut csv = String::from("material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n");
+    for i in 0..n {
+        let d: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..0.6)).collect();
+        let s: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..1.2)).collect();
+        let f0: f64 = rng.random_range(0.02..0.98);
+        let e: f64 = 80_000f64.powf(rng.random_range(0.0..1.0));
+        csv.push_str(&format!(
+            "synth-{i:05},{},{},{},{},{},{},{f0},{e}\n",
+            d[0], d[1], d[2], s[0], s[1], s[2]
+        ));
+    }
+    parse_csv(csv.as_bytes(), Path::new("<synthetic>")).expect("a valid synthetic collection")
+}
+
 /// Parses an analytic CSV (SPEC 1) from bytes; `path` names the source in errors.
 ///
 /// Over 100 lines on purpose: one check per column and per value, each with its own error

@@ -1063,6 +1063,27 @@ mod tests {
     use crate::select::objective::argmin;
     use crate::select::objective::ObjectiveParams;
 
+    /// Asserts that every candidate's bound is at most its exact score for `basis`, and
+    /// returns how many bounds exceed the best exact score (rule their candidate out) and
+    /// the number of candidates.
+    fn bounds_below_exact(obj: &Objective, basis: &[usize], all: &[usize]) -> (usize, usize) {
+        let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
+        let a = obj.adding(basis, all).expect("states");
+        let lbs: Vec<f64> = lower_bounds(obj, &a.live, &a.states, &a.cols, &cands)
+            .iter()
+            .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
+            .collect();
+        let exact = obj.exact_scores(&a, &cands).expect("exact");
+        let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
+        for ((&c, &lb), &s) in cands.iter().zip(&lbs).zip(&exact) {
+            assert!(
+                lb <= s,
+                "basis {basis:?}, candidate {c}: bound {lb} > exact {s}"
+            );
+        }
+        (lbs.iter().filter(|&&lb| lb > best).count(), cands.len())
+    }
+
     #[test]
     fn the_chain_is_the_argmin_of_the_search() {
         let tol = 1e-12;
@@ -1095,50 +1116,17 @@ mod tests {
             vec![3, 17, 40],
             vec![1, 5, 9, 22, 30, 44, 51],
         ] {
-            let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
-            let a = obj.adding(&basis, &all).expect("states");
-            let lbs: Vec<f64> = lower_bounds(&obj, &a.live, &a.states, &a.cols, &cands)
-                .iter()
-                .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
-                .collect();
-            let exact = obj.exact_scores(&a, &cands).expect("exact");
-            let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
-            for ((&c, &lb), &s) in cands.iter().zip(&lbs).zip(&exact) {
-                assert!(
-                    lb <= s,
-                    "basis {basis:?}, candidate {c}: bound {lb} > exact {s}"
-                );
-                screened += usize::from(lb > best);
-            }
+            screened += bounds_below_exact(&obj, &basis, &all).0;
         }
         // Not a bound that cannot screen: some candidates are ruled out.
         assert!(screened > 0);
-    }
-
-    /// `n` Ashikhmin-Shirley materials from `seed` (the large bench's generator).
-    fn synthetic(n: usize, seed: u64) -> Collection {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let mut csv = String::from("material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n");
-        for i in 0..n {
-            let d: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..0.6)).collect();
-            let s: Vec<f64> = (0..3).map(|_| rng.random_range(0.0..1.2)).collect();
-            let f0: f64 = rng.random_range(0.02..0.98);
-            let e: f64 = 80_000f64.powf(rng.random_range(0.0..1.0));
-            csv.push_str(&format!(
-                "synth-{i:05},{},{},{},{},{},{},{f0},{e}\n",
-                d[0], d[1], d[2], s[0], s[1], s[2]
-            ));
-        }
-        crate::collection::parse_csv(csv.as_bytes(), std::path::Path::new("<synthetic>"))
-            .expect("synthetic collection")
     }
 
     #[test]
     fn late_greedy_steps_are_bounded_validly_and_tightly() {
         // Late in a greedy run most candidates lie close to the span of the basis: the
         // bounds must stay below every exact score and still rule most candidates out.
-        let coll = synthetic(300, 2016);
+        let coll = crate::collection::synthetic(300, 2016);
         let p = ObjectiveParams::default().stride(4).check().expect("p");
         let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
         let all: Vec<usize> = (0..coll.len()).collect();
@@ -1148,22 +1136,10 @@ mod tests {
         let full = crate::select::greedy::greedy_indices(&obj, &sp, &|_, _| {}).expect("greedy");
         for k in [4, 10, 15] {
             let basis = &full[..k];
-            let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
-            let a = obj.adding(basis, &all).expect("states");
-            let lbs: Vec<f64> = lower_bounds(&obj, &a.live, &a.states, &a.cols, &cands)
-                .iter()
-                .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
-                .collect();
-            let exact = obj.exact_scores(&a, &cands).expect("exact");
-            let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
-            for ((&c, &lb), &s) in cands.iter().zip(&lbs).zip(&exact) {
-                assert!(lb <= s, "k {k}, candidate {c}: bound {lb} > exact {s}");
-            }
-            let out = lbs.iter().filter(|&&lb| lb > best).count();
+            let (out, cands) = bounds_below_exact(&obj, basis, &all);
             assert!(
-                out * 4 >= cands.len() * 3,
-                "k {k}: only {out} of {} candidates ruled out",
-                cands.len()
+                out * 4 >= cands * 3,
+                "k {k}: only {out} of {cands} candidates ruled out"
             );
         }
     }
