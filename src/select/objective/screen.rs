@@ -1130,10 +1130,15 @@ mod tests {
         let p = ObjectiveParams::default().stride(4).check().expect("p");
         let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
         let all: Vec<usize> = (0..coll.len()).collect();
-        let sp = crate::select::SearchParams::new(16)
-            .check(obj.names())
-            .expect("sp");
-        let full = crate::select::greedy::greedy_indices(&obj, &sp, &|_, _| {}).expect("greedy");
+        // The greedy basis, step by step (the chain of every step, as the greedy takes it).
+        let mut full: Vec<usize> = Vec::new();
+        for _ in 0..15 {
+            let cands: Vec<usize> = all.iter().copied().filter(|c| !full.contains(c)).collect();
+            let r = obj
+                .best_of_groups(&[(full.as_slice(), cands.as_slice())], &all, 1e-12)
+                .expect("step");
+            full.push(cands[r.best.expect("a candidate").0]);
+        }
         for k in [4, 10, 15] {
             let basis = &full[..k];
             let (out, cands) = bounds_below_exact(&obj, basis, &all);
