@@ -205,7 +205,7 @@ pub(super) fn ruled_out(lb: f64, terms: usize, thr: Option<f64>) -> bool {
     thr.is_some_and(|t| lb - slack * lb.abs() >= t)
 }
 
-/// Per channel, the live targets' data of the bounds, laid out for [`Prepared::bounds`]'s
+/// Per channel, the live targets' data of the bounds, laid out for [`lower_bounds`]'s
 /// tiles: coefficient matrix `y` (`cols x lp`, column-major by target: entry `k * lp + t`,
 /// zero outside the passive set); per target the KKT scale, `q`, share, whether the
 /// channel counts, the rounding scale of its gradients, and the data of the tight bound:
@@ -300,7 +300,7 @@ fn schur(
 }
 
 /// Targets per register tile, candidates per block, targets per cache tile and
-/// candidates per parallel task of [`Prepared::bounds`].
+/// candidates per parallel task of [`lower_bounds`].
 const TT: usize = 4;
 const CB: usize = 4;
 const TB: usize = 64;
@@ -359,8 +359,7 @@ struct Pair<'a> {
 /// alpha d2) / s2` so that `a_c.u = 0` (`beta = 0` at the tight end); its value is `q_t -
 /// f`, `f = 2 alpha w - alpha^2 d2 + (w - alpha d2)^2 / s2` (`|e'|^2` of `u = r_t - e'`,
 /// with `e.z = s2`), which falls as `alpha` grows. With `alpha = 0`, or without those data,
-/// also the least-squares bound; never below 0. `dual_point`: `a_I . S_t a_I` and `S_t
-/// a_I` for the tight bound, `None` for the loose bounds alone.
+/// also the least-squares bound; never below 0.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn pair_bound(
@@ -371,7 +370,7 @@ fn pair_bound(
     (gt, t_col): (&[f64], usize),
     margin_dual: f64,
     xsum: f64,
-    dual_point: Option<(f64, &[f64])>,
+    (quad, sig): (f64, &[f64]),
 ) -> f64 {
     let Pair {
         w,
@@ -396,7 +395,7 @@ fn pair_bound(
         let mm = (cjt - dv).max(0.0);
         1.0 - bs.nrm[t_col] - mm * mm / s2 * (1.0 + 4.0 * eps_v) - MARGIN - 2.0 * es2
     };
-    if let (true, true, Some((quad, sig))) = (nonneg, d.tight[i], dual_point) {
+    if nonneg && d.tight[i] {
         let (lo, hi) = (d.off[i], d.off[i + 1]);
         let ni = hi - lo;
         let d2 = s2 + quad.max(0.0);
@@ -448,29 +447,24 @@ fn pair_bound(
     } else {
         f64::NEG_INFINITY
     };
-    // The first pass of `best_first` (no dual point) takes the `O(p)` least-squares bound
-    // only where the dual one does not apply: the tight pass makes up for it.
-    if nonneg && dual_point.is_none() {
-        return dual.max(0.0);
-    }
     dual.max(ls(0.0)).max(0.0)
 }
 
-/// The data of the bounds of one basis and its live targets ([`prepare`]), shared by
-/// every candidate; `None` inside when the basis columns have no Cholesky factor (no
-/// candidate is screened).
-pub(super) struct Prepared<'a>(Option<Ctx<'a>>);
-
-/// The data of [`Prepared`]: per channel the [`Basis`] and the live targets'
-/// [`Targets`].
-pub(super) fn prepare<'a>(
-    obj: &'a Objective,
-    live: &'a [usize],
+/// Lower bounds of `S(B + c; T)` for every candidate (`None`: not screened), from the
+/// live targets and their states (module docs). Candidates in parallel tasks of [`CT`]
+/// and blocks of [`CB`], live targets in cache tiles of [`TB`] and register tiles of
+/// [`TT`]: the gradients of a block are small matrix products, each entry summed in the
+/// order of the per-pair test, so that "unchanged" is decided on the very numbers
+/// [`ChanState::q_adding`] decides it on.
+pub(super) fn lower_bounds(
+    obj: &Objective,
+    live: &[usize],
     states: &[[ChanState; 3]],
-    cols: &'a [usize],
-) -> Prepared<'a> {
+    cols: &[usize],
+    candidates: &[usize],
+) -> Vec<Option<Bound>> {
     let Some(proj) = projections(obj, cols) else {
-        return Prepared(None);
+        return vec![None; candidates.len()];
     };
     let nl = live.len();
     let lp = nl.div_ceil(TT) * TT;
@@ -548,94 +542,69 @@ pub(super) fn prepare<'a>(
     for (i, &t) in live.iter().enumerate() {
         live_pos[t] = i;
     }
-    Prepared(Some(Ctx {
+    let ctx = Ctx {
         obj,
         live,
         cols,
-        tg,
-        proj,
+        tg: &tg,
+        proj: &proj,
         basis_nonneg,
         margin_dual,
         xsum,
         nchunks: nl.div_ceil(CHUNK),
         lp,
-        live_pos,
-    }))
-}
-
-impl Prepared<'_> {
-    /// Lower bounds of `S(B + c; T)` for every candidate (`None`: not screened): with
-    /// `tight`, every bound of the module docs; without, the loose ones alone (no
-    /// `O(|I|^2)` dual point per pair: the cheap first pass of [`best_first`]).
-    /// Candidates in parallel tasks of at most [`CT`] and blocks of [`CB`], live targets
-    /// in cache tiles of [`TB`] and register tiles of [`TT`]: the gradients of a block are
-    /// small matrix products, each entry summed in the order of the per-pair test, so that
-    /// "unchanged" is decided on the very numbers [`ChanState::q_adding`] decides it on. A
-    /// candidate's bound does not depend on the others of its task.
-    pub(super) fn bounds(&self, candidates: &[usize], tight: bool) -> Vec<Option<Bound>> {
-        let Some(ctx) = &self.0 else {
-            return vec![None; candidates.len()];
-        };
-        let nl = ctx.live.len();
-        let per = candidates
-            .len()
-            .div_ceil(rayon::current_num_threads())
-            .clamp(1, CT);
-        candidates
-            .par_chunks(per)
-            .flat_map_iter(|task| {
-                let chunks = if tight {
-                    task_bounds::<true>(ctx, task)
-                } else {
-                    task_bounds::<false>(ctx, task)
-                };
-                chunks
-                    .into_iter()
-                    .zip(task)
-                    .map(|(ch, &cand)| {
-                        Some(Bound {
-                            chunks: ch,
-                            count: nl - usize::from(ctx.live_pos[cand] != usize::MAX),
-                        })
+        live_pos: &live_pos,
+    };
+    candidates
+        .par_chunks(CT)
+        .flat_map_iter(|task| {
+            let chunks = task_bounds(&ctx, task);
+            chunks
+                .into_iter()
+                .zip(task)
+                .map(|(ch, &cand)| {
+                    Some(Bound {
+                        chunks: ch,
+                        count: nl - usize::from(live_pos[cand] != usize::MAX),
                     })
-                    .collect::<Vec<_>>()
-            })
-            .collect()
-    }
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
 }
 
-/// What the tasks of [`Prepared::bounds`] share.
+/// What the tasks of [`lower_bounds`] share.
 struct Ctx<'a> {
     obj: &'a Objective,
     live: &'a [usize],
     cols: &'a [usize],
-    tg: Vec<Targets>,
-    proj: [Basis; 3],
+    tg: &'a [Targets],
+    proj: &'a [Basis; 3],
     basis_nonneg: [bool; 3],
     margin_dual: f64,
     xsum: f64,
     nchunks: usize,
     lp: usize,
     /// Per material, its position among the live targets (`usize::MAX`: not live).
-    live_pos: Vec<usize>,
+    live_pos: &'a [usize],
 }
 
 /// The chunk sums of the bounds of one task's candidates: with AVX2 where the CPU has it
 /// (the same operations, so the same numbers, in wider registers).
-fn task_bounds<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+fn task_bounds(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked above).
-        return unsafe { task_bounds_avx2::<TIGHT>(ctx, task) };
+        return unsafe { task_bounds_avx2(ctx, task) };
     }
-    task_bounds_body::<TIGHT>(ctx, task)
+    task_bounds_body(ctx, task)
 }
 
 /// [`task_bounds_body`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn task_bounds_avx2<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
-    task_bounds_body::<TIGHT>(ctx, task)
+unsafe fn task_bounds_avx2(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+    task_bounds_body(ctx, task)
 }
 
 /// Asks for the cache lines of `v` (a hint; no effect on any value).
@@ -690,19 +659,19 @@ struct Pending {
 /// unchanged pairs add `q_t`, the others wait per target and are bounded four at a time
 /// ([`schur4`], then [`pair_bound`]).
 #[inline(always)]
-fn task_bounds_body<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
     let Ctx {
         obj,
         live,
         cols,
-        ref tg,
-        ref proj,
+        tg,
+        proj,
         basis_nonneg,
         margin_dual,
         xsum,
         nchunks,
         lp,
-        ref live_pos,
+        live_pos,
     } = *ctx;
     let nl = live.len();
     let nt = task.len();
@@ -831,7 +800,7 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec
                         let j = task[ca] + 1;
                         &bs.a[j * p..(j + 1) * p]
                     });
-                    let quad = if TIGHT && d.tight[i] {
+                    let quad = if d.tight[i] {
                         for (x, &r) in xs.iter_mut().zip(inact) {
                             *x = std::array::from_fn(|a| arows[a][r as usize]);
                         }
@@ -843,10 +812,8 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec
                         let ca = pr.ca as usize;
                         let blk = &blocks[ca / CB];
                         let ab = ca % CB;
-                        if TIGHT {
-                            for (sv, s4) in sig.iter_mut().zip(&sig4[..ni]) {
-                                *sv = s4[a];
-                            }
+                        for (sv, s4) in sig.iter_mut().zip(&sig4[..ni]) {
+                            *sv = s4[a];
                         }
                         let lb = pair_bound(
                             &Pair {
@@ -863,7 +830,7 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec
                             (gt, t + 1),
                             margin_dual,
                             xsum,
-                            TIGHT.then_some((quad[a], &sig[..ni])),
+                            (quad[a], &sig[..ni]),
                         );
                         chunks[ca][i / CHUNK] += d.share[i] * (lb - d.q[i]);
                     }
@@ -961,39 +928,31 @@ fn band_low(c: f64, tol: f64) -> f64 {
 /// group's basis in `addings`), as `(flat index, score)`, and how many exact scores were
 /// computed.
 ///
-/// Best first: every candidate gets the loose bound ([`Prepared::bounds`] without the
-/// `O(|I|^2)` dual points: a matrix product and a few operations per pair), and candidates
-/// are taken in the order of their bounds: one with a loose bound gets its tight bound and
-/// goes back in line by it (in parallel batches); one with a tight bound is scored exactly
-/// (in small parallel batches), only until its refined bound reaches the cutoff `c = s* (1
-/// + 16 tol)` of the lowest exact score `s*` so far ([`refine`]). The scan ends at the
-/// first bound at or above `c`. Every candidate left has a score `>= c` (both bounds are
-/// lower bounds), and when no known score lies in `[c (1 - tol)^2, c)` (else `c` is raised
-/// and the scan goes on), the chain over the known scores in collection order chooses
-/// exactly what the chain over all the scores would ([`band_low`]).
+/// Best first: candidates are scored exactly in the order of their lower bounds (in small
+/// parallel batches), each only until its refined bound reaches the cutoff
+/// `c = s* (1 + 16 tol)` of the lowest exact score `s*` so far ([`refine`]); the scan
+/// ends at the first bound at or above `c`. Every candidate left has a score `>= c`, and
+/// when no known score lies in `[c (1 - tol)^2, c)` (else `c` is raised and the scan goes
+/// on), the chain over the known scores in collection order chooses exactly what the
+/// chain over all the scores would ([`band_low`]).
 pub(super) fn best_first(
     obj: &Objective,
     addings: &[super::Adding],
     groups: &[(&[usize], &[usize])],
     tol: f64,
 ) -> Result<(Option<(usize, f64)>, usize), crate::select::SelectionError> {
-    use std::cmp::Reverse;
-    use std::collections::BinaryHeap;
-    let preps: Vec<Prepared<'_>> = addings
-        .iter()
-        .map(|a| prepare(obj, &a.live, &a.states, &a.cols))
-        .collect();
-    // Items: (group, candidate index, bound, whether the bound is the tight one).
-    let mut items: Vec<(usize, usize, Option<Bound>, bool)> = Vec::new();
-    for (gi, (p, &(_, cands))) in preps.iter().zip(groups).enumerate() {
-        let b = p.bounds(cands, false);
-        items.extend(b.into_iter().enumerate().map(|(k, b)| (gi, k, b, false)));
+    // Items: (group, candidate index, bound).
+    let mut items: Vec<(usize, usize, Option<Bound>)> = Vec::new();
+    for (gi, (a, &(_, cands))) in addings.iter().zip(groups).enumerate() {
+        let b = lower_bounds(obj, &a.live, &a.states, &a.cols, cands);
+        items.extend(b.into_iter().enumerate().map(|(k, b)| (gi, k, b)));
     }
     let n = items.len();
     let terms: Vec<usize> = addings.iter().map(|a| 3 * a.live.len()).collect();
-    // The bound an item is ordered by (`-inf`: not screened).
-    let key = |(g, _, b, _): &(usize, usize, Option<Bound>, bool)| -> Key {
-        Key(match b {
+    // The bound each candidate is ordered by (`-inf`: not screened).
+    let lb: Vec<f64> = items
+        .iter()
+        .map(|(g, _, b)| match b {
             None => f64::NEG_INFINITY,
             Some(b) => {
                 let m = b.mean();
@@ -1001,21 +960,17 @@ pub(super) fn best_first(
                 m - slack * m.abs()
             }
         })
-    };
-    let ordered = tol <= BEST_FIRST_TOL_MAX;
-    // Items not yet taken, by bound then collection order (collection order alone when
-    // not `ordered`).
-    let mut line: BinaryHeap<Reverse<(Key, usize)>> = (0..n)
-        .map(|i| {
-            let k = if ordered { key(&items[i]) } else { Key(0.0) };
-            Reverse((k, i))
-        })
         .collect();
+    let ordered = tol <= BEST_FIRST_TOL_MAX;
+    let mut order: Vec<usize> = (0..n).collect();
+    if ordered {
+        order.sort_by(|&a, &b| lb[a].total_cmp(&lb[b]).then(a.cmp(&b)));
+    }
     // Exact score per item (`None`: not known); items ruled out at cutoff `c` (score >= c).
     // A candidate no target is left for scores `+inf` (no exact work).
     let mut known: Vec<Option<f64>> = items
         .iter()
-        .map(|(_, _, b, _)| match b {
+        .map(|(_, _, b)| match b {
             Some(b) if b.count == 0 => Some(f64::INFINITY),
             _ => None,
         })
@@ -1024,11 +979,25 @@ pub(super) fn best_first(
     let mut evaluated = 0;
     let mut s_best = f64::INFINITY;
     let mut raise = 0;
-    let threads = rayon::current_num_threads();
-    let batch = (2 * threads).max(4);
-    let tighten_batch = (8 * threads).max(16);
-    let flat: Vec<usize> = groups.iter().flat_map(|g| g.1.iter().copied()).collect();
-    let cand_of = |i: usize| flat[i];
+    let mut pos = 0;
+    let batch = (2 * rayon::current_num_threads()).max(4);
+    let score = |i: usize, c: f64| -> Result<Option<f64>, crate::select::SelectionError> {
+        let (g, k, b) = &items[i];
+        let a = &addings[*g];
+        let cand = groups[*g].1[*k];
+        match b {
+            None => Ok(Some(obj.exact_scores(a, &[cand])?[0])),
+            Some(b) => refine(
+                obj,
+                &a.live,
+                &a.states,
+                &a.cols,
+                cand,
+                b,
+                c.is_finite().then_some(c),
+            ),
+        }
+    };
     loop {
         let c = if ordered {
             cutoff(s_best, tol, raise)
@@ -1045,45 +1014,11 @@ pub(super) fn best_first(
                 true
             }
         });
-        while todo.len() < batch {
-            // The next items below the cutoff: the tight-bounded to be scored, the others
-            // to get their tight bounds and go back in line.
-            let mut loose: Vec<usize> = Vec::new();
-            while todo.len() < batch && loose.len() < tighten_batch {
-                match line.peek() {
-                    Some(&Reverse((k, i))) if k.0 < c => {
-                        line.pop();
-                        if known[i].is_some() {
-                            continue;
-                        }
-                        if !ordered || items[i].3 || items[i].2.is_none() {
-                            todo.push(i);
-                        } else {
-                            loose.push(i);
-                        }
-                    }
-                    _ => break,
-                }
+        while todo.len() < batch && pos < n && lb[order[pos]] < c {
+            if known[order[pos]].is_none() {
+                todo.push(order[pos]);
             }
-            if loose.is_empty() {
-                break;
-            }
-            for (gi, p) in preps.iter().enumerate() {
-                let mine: Vec<usize> = loose
-                    .iter()
-                    .copied()
-                    .filter(|&i| items[i].0 == gi)
-                    .collect();
-                if mine.is_empty() {
-                    continue;
-                }
-                let cands: Vec<usize> = mine.iter().map(|&i| cand_of(i)).collect();
-                for (&i, b) in mine.iter().zip(p.bounds(&cands, true)) {
-                    items[i].2 = b;
-                    items[i].3 = true;
-                    line.push(Reverse((key(&items[i]), i)));
-                }
-            }
+            pos += 1;
         }
         if todo.is_empty() {
             if !ordered || s_best == f64::INFINITY {
@@ -1096,26 +1031,9 @@ pub(super) fn best_first(
             }
             break;
         }
-        let score = |i: usize| -> Result<Option<f64>, crate::select::SelectionError> {
-            let (g, _, b, _) = &items[i];
-            let a = &addings[*g];
-            let cand = cand_of(i);
-            match b {
-                None => Ok(Some(obj.exact_scores(a, &[cand])?[0])),
-                Some(b) => refine(
-                    obj,
-                    &a.live,
-                    &a.states,
-                    &a.cols,
-                    cand,
-                    b,
-                    c.is_finite().then_some(c),
-                ),
-            }
-        };
         let out: Vec<Option<f64>> = todo
             .par_iter()
-            .map(|&i| score(i))
+            .map(|&i| score(i, c))
             .collect::<Result<_, _>>()?;
         for (&i, s) in todo.iter().zip(out) {
             match s {
@@ -1137,30 +1055,6 @@ pub(super) fn best_first(
     Ok((chain.best(), evaluated))
 }
 
-/// A bound ordered by [`f64::total_cmp`] (the order of the line of [`best_first`]).
-#[derive(Clone, Copy, Debug)]
-struct Key(f64);
-
-impl PartialEq for Key {
-    fn eq(&self, o: &Self) -> bool {
-        self.0.total_cmp(&o.0).is_eq()
-    }
-}
-
-impl Eq for Key {}
-
-impl PartialOrd for Key {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-
-impl Ord for Key {
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&o.0)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1169,26 +1063,22 @@ mod tests {
     use crate::select::objective::argmin;
     use crate::select::objective::ObjectiveParams;
 
-    /// Asserts that every candidate's bound, loose and tight, is at most its exact score
-    /// for `basis`, and returns how many tight bounds exceed the best exact score (rule
-    /// their candidate out) and the number of candidates.
+    /// Asserts that every candidate's bound is at most its exact score for `basis`, and
+    /// returns how many bounds exceed the best exact score (rule their candidate out) and
+    /// the number of candidates.
     fn bounds_below_exact(obj: &Objective, basis: &[usize], all: &[usize]) -> (usize, usize) {
         let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
         let a = obj.adding(basis, all).expect("states");
-        let prep = prepare(obj, &a.live, &a.states, &a.cols);
-        let means = |tight: bool| -> Vec<f64> {
-            prep.bounds(&cands, tight)
-                .iter()
-                .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
-                .collect()
-        };
-        let (loose, lbs) = (means(false), means(true));
+        let lbs: Vec<f64> = lower_bounds(obj, &a.live, &a.states, &a.cols, &cands)
+            .iter()
+            .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
+            .collect();
         let exact = obj.exact_scores(&a, &cands).expect("exact");
         let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
-        for (((&c, &lb), &lo), &s) in cands.iter().zip(&lbs).zip(&loose).zip(&exact) {
+        for ((&c, &lb), &s) in cands.iter().zip(&lbs).zip(&exact) {
             assert!(
-                lb <= s && lo <= s,
-                "basis {basis:?}, candidate {c}: bounds {lo} (loose), {lb} > exact {s}"
+                lb <= s,
+                "basis {basis:?}, candidate {c}: bound {lb} > exact {s}"
             );
         }
         (lbs.iter().filter(|&&lb| lb > best).count(), cands.len())
