@@ -1054,6 +1054,112 @@ mod tests {
         assert!(rechecked > 0);
     }
 
+    /// Hashes of every tabulated value of the 100 MERL networks on the full grid, per
+    /// path (AVX2 clamped and raw, the portable pass with and without FMA), written to
+    /// `$BRDF_BASIS_NBRDF_GOLDEN` when that file is missing, else compared with it: a
+    /// kernel change must leave every bit as it was. Ignored (minutes):
+    /// `BRDF_BASIS_NBRDF_GOLDEN=/tmp/nb_golden.txt cargo test --release --lib golden -- --ignored`.
+    #[test]
+    #[ignore]
+    fn golden_hashes_of_the_merl100_tabulation() {
+        use rayon::prelude::*;
+        let Ok(file) = std::env::var("BRDF_BASIS_NBRDF_GOLDEN") else {
+            return;
+        };
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/real/nbrdf/merl100");
+        let coll = crate::collection::Collection::load(&dir).expect("merl100");
+        let nets: Vec<_> = coll
+            .materials()
+            .iter()
+            .filter_map(|m| match &m.data {
+                crate::collection::MaterialData::Neural(n) => Some((m.name.clone(), n.clone())),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(nets.len(), 100);
+        let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+        let hash = |rows: &[Vec<f32>]| {
+            let mut h = 0xcbf2_9ce4_8422_2325u64;
+            for r in rows {
+                for v in r {
+                    h = (h ^ v.to_bits() as u64).wrapping_mul(0x0000_0100_0000_01b3);
+                }
+            }
+            h
+        };
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn port_fma(
+            w: &[f32; NBRDF_WEIGHTS],
+            cells: &[u32],
+            clamp: bool,
+            out: [&mut [f32]; 3],
+        ) {
+            let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
+            let exact = |k: usize| cell_features_f64(cells[k] as usize);
+            eval_blocks(w, cells.len(), fill, exact, clamp, out, forward::<true>);
+        }
+        let paths = [
+            "avx2-clamp",
+            "avx2-raw",
+            "port-fma-clamp",
+            "port-nofma-clamp",
+        ];
+        let t = std::time::Instant::now();
+        let lines: Vec<String> = nets
+            .par_iter()
+            .map(|(name, n)| {
+                let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
+                let mut line = name.clone();
+                for p in paths {
+                    let mut out = vec![vec![0f32; cells.len()]; 3];
+                    match p {
+                        "avx2-clamp" => n.eval_cells(&cells, true, rows(&mut out)),
+                        "avx2-raw" => n.eval_cells(&cells, false, rows(&mut out)),
+                        // SAFETY: the test machine has AVX2 and FMA (x86-64 CI).
+                        "port-fma-clamp" => unsafe { port_fma(w, &cells, true, rows(&mut out)) },
+                        _ => {
+                            let fill = |s: usize, m: usize, x: &mut [[V; 5]]| {
+                                fill_cells(&cells[s..s + m], x)
+                            };
+                            let exact = |k: usize| cell_features_f64(cells[k] as usize);
+                            eval_blocks(
+                                w,
+                                cells.len(),
+                                fill,
+                                exact,
+                                true,
+                                rows(&mut out),
+                                forward::<false>,
+                            );
+                        }
+                    }
+                    line += &format!(" {p}={:016x}", hash(&out));
+                }
+                line
+            })
+            .collect();
+        let text = lines.join("\n") + "\n";
+        eprintln!("golden: {:.1} s", t.elapsed().as_secs_f64());
+        match std::fs::read_to_string(&file) {
+            Ok(want) => {
+                let bad: Vec<_> = text
+                    .lines()
+                    .zip(want.lines())
+                    .filter(|(a, b)| a != b)
+                    .collect();
+                assert!(
+                    bad.is_empty() && text.lines().count() == want.lines().count(),
+                    "{} networks differ: {bad:?}",
+                    bad.len()
+                );
+                eprintln!("golden: all {} networks bit for bit", lines.len());
+            }
+            Err(_) => std::fs::write(&file, text).expect("write golden"),
+        }
+    }
+
     #[test]
     fn bad_weights_are_refused_with_the_part_named() {
         assert!(Nbrdf::from_weights(vec![0.0; 674])
