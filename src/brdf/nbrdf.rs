@@ -289,27 +289,107 @@ impl Nbrdf {
             }
         }
         let _ = fast;
-        eval_blocks(w, len, fill, exact, clamp, out, forward::<false>)
+        eval_blocks(Portable::<false>, w, len, fill, exact, clamp, out)
     }
 }
 
-/// The loop of [`Nbrdf::eval_with`] over blocks, with `forward` the network on a block:
-/// the f32 pass, then the cells whose rounding error the block's estimate
+/// The parts of the block loop that run per block, by instruction set: [`Portable`]
+/// (`FMA`: fused multiply-adds, as the AVX2 kernel) and `avx2::Avx2`. Every
+/// implementation gives the same values bit for bit: the same f32 operations in the same
+/// order per cell (`forward`) or per unit (`windows`), or exact ones (`flags`, `store`).
+trait Kernel: Copy {
+    /// [`forward`].
+    fn forward(self, w: &[f32; NBRDF_WEIGHTS], x: &[[V; 5]], y: &mut [[V; 3]], s: &mut Scratch);
+    /// [`recheck_windows`].
+    fn windows(
+        self,
+        w: &[f32; NBRDF_WEIGHTS],
+        x: &[[V; 5]],
+        s: &Scratch,
+        clamp: bool,
+    ) -> [(f32, f32); 3];
+    /// [`window_flags`].
+    fn flags(self, y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64;
+    /// [`store_block`].
+    fn store(self, y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool);
+}
+
+/// The portable block kernel (`FMA`: with fused multiply-adds, which is a library call
+/// unless compiled with the FMA feature).
+#[derive(Clone, Copy)]
+struct Portable<const FMA: bool>;
+
+impl<const FMA: bool> Kernel for Portable<FMA> {
+    #[inline(always)]
+    fn forward(self, w: &[f32; NBRDF_WEIGHTS], x: &[[V; 5]], y: &mut [[V; 3]], s: &mut Scratch) {
+        forward::<FMA>(w, x, y, s)
+    }
+    #[inline(always)]
+    fn windows(
+        self,
+        w: &[f32; NBRDF_WEIGHTS],
+        x: &[[V; 5]],
+        s: &Scratch,
+        clamp: bool,
+    ) -> [(f32, f32); 3] {
+        recheck_windows(w, x, s, clamp)
+    }
+    #[inline(always)]
+    fn flags(self, y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
+        window_flags(y, win, clamp)
+    }
+    #[inline(always)]
+    fn store(self, y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool) {
+        store_block(y, out, clamp)
+    }
+}
+
+/// The cells of a block (bit `v * LANES + l` for lane `l` of vector `v`, over `y`'s
+/// vectors, at most 64 cells) whose raw value of some channel lies in its window
+/// (`in_windows`).
+#[inline(always)]
+fn window_flags(y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
+    let mut bits = 0u64;
+    for (v, yv) in y.iter().enumerate() {
+        for l in 0..LANES {
+            let y = [yv[0][l], yv[1][l], yv[2][l]];
+            bits |= u64::from(in_windows(y, win, clamp)) << (v * LANES + l);
+        }
+    }
+    bits
+}
+
+/// The block's values `y` into `out` (rows of the block's `m` cells), clamped at 0 with
+/// `clamp` (NaN cannot arise from finite weights; `> 0` keeps 0 for it anyway).
+#[inline(always)]
+fn store_block(y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool) {
+    for (c, o) in out.into_iter().enumerate() {
+        for (o, yv) in o.chunks_mut(LANES).zip(y) {
+            for (o, &v) in o.iter_mut().zip(&yv[c]) {
+                *o = if !clamp || v > 0.0 { v } else { 0.0 };
+            }
+        }
+    }
+}
+
+/// The loop of [`Nbrdf::eval_with`] over blocks, with `k` the kernel of a block: the f32
+/// pass ([`forward`]), then the cells whose rounding error the block's estimate
 /// ([`recheck_windows`]) cannot show to be well within SPEC 9 rechecked one by one with
 /// their own estimate, and recomputed with the f64 network where that fails too
 /// ([`recheck_cell`]).
 #[inline(always)]
 fn eval_blocks(
+    k: impl Kernel,
     w: &[f32; NBRDF_WEIGHTS],
     len: usize,
     mut fill: impl FnMut(usize, usize, &mut [[V; 5]]),
     exact: impl Fn(usize) -> [f64; 5],
     clamp: bool,
     out: [&mut [f32]; 3],
-    mut forward: impl FnMut(&[f32; NBRDF_WEIGHTS], &[[V; 5]], &mut [[V; 3]], &mut Scratch),
 ) {
+    const _: () = assert!(BLOCK_CELLS <= 64, "a block's flags are one u64");
     let [r, g, b] = out;
-    let mut out = [&mut r[..len], &mut g[..len], &mut b[..len]];
+    let (r, g, b) = (&mut r[..len], &mut g[..len], &mut b[..len]);
     let mut x = [[[0f32; LANES]; 5]; BLOCK_VECS];
     let mut y = [[[0f32; LANES]; 3]; BLOCK_VECS];
     let mut scratch = Scratch::default();
@@ -317,42 +397,35 @@ fn eval_blocks(
         let m = (len - start).min(BLOCK_CELLS);
         let nv = m.div_ceil(LANES).next_multiple_of(RV);
         fill(start, m, &mut x[..nv]);
-        forward(w, &x[..nv], &mut y[..nv], &mut scratch);
-        let win = recheck_windows(w, &x[..nv], &scratch, clamp);
+        k.forward(w, &x[..nv], &mut y[..nv], &mut scratch);
+        let win = k.windows(w, &x[..nv], &scratch, clamp);
         if win.iter().any(|&(lo, hi)| lo < hi) {
-            for (v, yv) in y[..m.div_ceil(LANES)].iter_mut().enumerate() {
-                let mut flag = [false; LANES];
-                for (c, &(lo, hi)) in win.iter().enumerate() {
-                    for (f, &y) in flag.iter_mut().zip(&yv[c]) {
-                        let y = if clamp { y } else { y.abs() };
-                        *f |= (y > lo) & (y < hi);
-                    }
-                }
-                if flag.iter().any(|&f| f) {
-                    for l in 0..LANES.min(m - v * LANES) {
-                        if flag[l] {
-                            let y = [yv[0][l], yv[1][l], yv[2][l]];
-                            let y = recheck_cell(w, y, exact(start + v * LANES + l), clamp);
-                            for (yc, y) in yv.iter_mut().zip(y) {
-                                yc[l] = y;
-                            }
-                        }
-                    }
+            let mut bits = k.flags(&y[..nv], &win, clamp);
+            if m < 64 {
+                bits &= (1u64 << m) - 1;
+            }
+            while bits != 0 {
+                let n = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let (v, l) = (n / LANES, n % LANES);
+                let yv = &mut y[v];
+                let yc = [yv[0][l], yv[1][l], yv[2][l]];
+                let yc = recheck_cell(w, yc, exact(start + n), clamp);
+                for (c, y) in yv.iter_mut().zip(yc) {
+                    c[l] = y;
                 }
             }
         }
-        for (c, o) in out.iter_mut().enumerate() {
-            for (o, yv) in o[start..start + m].chunks_mut(LANES).zip(&y) {
-                for (o, &v) in o.iter_mut().zip(&yv[c]) {
-                    // NaN cannot arise from finite weights; `> 0` keeps 0 for it anyway.
-                    *o = if !clamp || v > 0.0 { v } else { 0.0 };
-                }
-            }
-        }
+        let end = start + m;
+        k.store(
+            &y[..nv],
+            [&mut r[start..end], &mut g[start..end], &mut b[start..end]],
+            clamp,
+        );
     }
 }
 
-/// [`eval_blocks`] compiled for AVX2 and FMA, with [`avx2::forward`].
+/// [`eval_blocks`] compiled for AVX2 and FMA, with `avx2::Avx2`.
 ///
 /// # Safety
 /// The processor must support AVX2 and FMA.
@@ -366,10 +439,9 @@ unsafe fn eval_blocks_avx2(
     clamp: bool,
     out: [&mut [f32]; 3],
 ) {
-    // SAFETY (of the calls): this function's own contract.
-    eval_blocks(w, len, fill, exact, clamp, out, |w, x, y, s| unsafe {
-        avx2::forward(w, x, y, s)
-    })
+    // SAFETY: this function's own contract.
+    let k = unsafe { avx2::Avx2::new() };
+    eval_blocks(k, w, len, fill, exact, clamp, out)
 }
 
 fn fma_available() -> bool {
@@ -666,6 +738,17 @@ fn recheck_windows(
             *g += wv.abs() * h;
         }
     }
+    windows_from_g(w, s, &g, clamp)
+}
+
+/// The end of [`recheck_windows`] from the `g_k` of the block's units (`g[..HIDDEN]`).
+#[inline(always)]
+fn windows_from_g(
+    w: &[f32; NBRDF_WEIGHTS],
+    s: &Scratch,
+    g: &[f32],
+    clamp: bool,
+) -> [(f32, f32); 3] {
     let mut e = [0f32; 3];
     for &k in &s.live2[..s.n2] {
         for (c, e) in e.iter_mut().enumerate() {
@@ -1015,15 +1098,23 @@ mod tests {
                 n.eval_features(&feats, false, rows(b));
                 let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
                 let exact = |k: usize| cell_features_f64(cells[k] as usize);
-                eval_blocks(w, cells.len(), fill, exact, false, rows(c), forward::<true>);
                 eval_blocks(
+                    Portable::<true>,
+                    w,
+                    cells.len(),
+                    fill,
+                    exact,
+                    false,
+                    rows(c),
+                );
+                eval_blocks(
+                    Portable::<false>,
                     w,
                     cells.len(),
                     fill,
                     exact,
                     false,
                     rows(d),
-                    forward::<false>,
                 );
                 for (k, f) in feats.iter().enumerate() {
                     // The dense pass, then the cell's own recheck (from the cell's f64
@@ -1098,7 +1189,7 @@ mod tests {
         ) {
             let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
             let exact = |k: usize| cell_features_f64(cells[k] as usize);
-            eval_blocks(w, cells.len(), fill, exact, clamp, out, forward::<true>);
+            eval_blocks(Portable::<true>, w, cells.len(), fill, exact, clamp, out);
         }
         let paths = [
             "avx2-clamp",
@@ -1125,13 +1216,13 @@ mod tests {
                             };
                             let exact = |k: usize| cell_features_f64(cells[k] as usize);
                             eval_blocks(
+                                Portable::<false>,
                                 w,
                                 cells.len(),
                                 fill,
                                 exact,
                                 true,
                                 rows(&mut out),
-                                forward::<false>,
                             );
                         }
                     }
@@ -1157,6 +1248,72 @@ mod tests {
                 eprintln!("golden: all {} networks bit for bit", lines.len());
             }
             Err(_) => std::fs::write(&file, text).expect("write golden"),
+        }
+    }
+
+    /// Thread CPU seconds so far.
+    fn thread_cpu() -> f64 {
+        // SAFETY: clock_gettime writes the struct it is given.
+        let mut t: libc::timespec = unsafe { std::mem::zeroed() };
+        unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
+        t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+    }
+
+    /// Single-thread timing of the tabulation of 10 of the MERL networks (every 10th),
+    /// whole and in parts, in CPU ns per cell. Ignored:
+    /// `cargo test --release --lib nbrdf_speed -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn nbrdf_speed() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/real/nbrdf/merl100");
+        let coll = crate::collection::Collection::load(&dir).expect("merl100");
+        let nets: Vec<_> = coll
+            .materials()
+            .iter()
+            .filter_map(|m| match &m.data {
+                crate::collection::MaterialData::Neural(n) => Some(n.clone()),
+                _ => None,
+            })
+            .step_by(10)
+            .collect();
+        let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+        let mut out = vec![vec![0f32; cells.len()]; 3];
+        let per = (nets.len() * cells.len()) as f64 * 1e-9;
+        let reps: usize = std::env::var("NB_REPS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(3);
+        for _ in 0..reps {
+            let t = thread_cpu();
+            for n in &nets {
+                n.eval_cells(&cells, true, rows(&mut out));
+            }
+            let whole = (thread_cpu() - t) / per;
+            #[cfg(target_arch = "x86_64")]
+            let fwd = {
+                let t = thread_cpu();
+                let mut x = [[[0f32; LANES]; 5]; BLOCK_VECS];
+                let mut y = [[[0f32; LANES]; 3]; BLOCK_VECS];
+                let mut s = Scratch::default();
+                let mut sink = 0f32;
+                for n in &nets {
+                    let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
+                    for start in (0..cells.len()).step_by(BLOCK_CELLS) {
+                        let m = (cells.len() - start).min(BLOCK_CELLS);
+                        let nv = m.div_ceil(LANES).next_multiple_of(RV);
+                        fill_cells(&cells[start..start + m], &mut x[..nv]);
+                        // SAFETY: AVX2 and FMA on the test machine.
+                        unsafe { avx2::forward(w, &x[..nv], &mut y[..nv], &mut s) };
+                        sink += y[0][0][0];
+                    }
+                }
+                assert!(sink.is_finite());
+                (thread_cpu() - t) / per
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let fwd = 0.0;
+            eprintln!("nbrdf_speed: whole {whole:.2} ns/cell, fill+forward {fwd:.2} ns/cell");
         }
     }
 
