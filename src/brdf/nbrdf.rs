@@ -23,6 +23,8 @@
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 
 /// Weights of one network (f32): `fc1` 6 x 21, `b1` 21, `fc2` 21 x 21, `b2` 21, `fc3`
 /// 21 x 3, `b3` 3.
@@ -135,6 +137,8 @@ fn cell_features_f64(cell: usize) -> [f64; 5] {
 /// The inputs of a block of grid cells (at most [`BLOCK_CELLS`]) into `x`, padded to
 /// `x.len()` vectors with the last cell. A vector of eight consecutive cells of one theta_h
 /// row (the common case: tabulations and masks run in cell order) is read as slices.
+/// Inlined, so that the copies are as wide as the kernel's loads that read them.
+#[inline(always)]
 fn fill_cells(cells: &[u32], x: &mut [[V; 5]]) {
     let g = grid_features();
     let m = cells.len();
@@ -283,6 +287,10 @@ impl Nbrdf {
         let fast = fma_available();
         #[cfg(target_arch = "x86_64")]
         {
+            if fast && avx512_available() {
+                // SAFETY: AVX-512F, AVX2 and FMA were detected on this processor.
+                return unsafe { eval_blocks_avx512(w, len, fill, exact, clamp, out) };
+            }
             if fast {
                 // SAFETY: AVX2 and FMA were detected on this processor.
                 return unsafe { eval_blocks_avx2(w, len, fill, exact, clamp, out) };
@@ -350,10 +358,9 @@ impl<const FMA: bool> Kernel for Portable<FMA> {
 #[inline(always)]
 fn window_flags(y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
     let mut bits = 0u64;
-    for (v, yv) in y.iter().enumerate() {
-        for l in 0..LANES {
-            let y = [yv[0][l], yv[1][l], yv[2][l]];
-            bits |= u64::from(in_windows(y, win, clamp)) << (v * LANES + l);
+    for (v, [r, g, b]) in y.iter().enumerate() {
+        for (l, ((&r, &g), &b)) in r.iter().zip(g).zip(b).enumerate() {
+            bits |= u64::from(in_windows([r, g, b], win, clamp)) << (v * LANES + l);
         }
     }
     bits
@@ -442,6 +449,38 @@ unsafe fn eval_blocks_avx2(
     // SAFETY: this function's own contract.
     let k = unsafe { avx2::Avx2::new() };
     eval_blocks(k, w, len, fill, exact, clamp, out)
+}
+
+/// [`eval_blocks`] compiled for AVX-512F, AVX2 and FMA, with `avx512::Avx512`.
+///
+/// # Safety
+/// The processor must support AVX-512F, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn eval_blocks_avx512(
+    w: &[f32; NBRDF_WEIGHTS],
+    len: usize,
+    fill: impl FnMut(usize, usize, &mut [[V; 5]]),
+    exact: impl Fn(usize) -> [f64; 5],
+    clamp: bool,
+    out: [&mut [f32]; 3],
+) {
+    // SAFETY: this function's own contract.
+    let k = unsafe { avx512::Avx512::new() };
+    eval_blocks(k, w, len, fill, exact, clamp, out)
+}
+
+/// Whether the processor has AVX-512F (the AVX-512 kernel also needs AVX2 and FMA,
+/// [`fma_available`]).
+fn avx512_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 fn fma_available() -> bool {
@@ -1116,6 +1155,26 @@ mod tests {
                     false,
                     rows(d),
                 );
+                // Each SIMD kernel the processor has (`eval_cells` picks one), bit for bit.
+                #[cfg(target_arch = "x86_64")]
+                for avx512 in [false, true] {
+                    if !fma || (avx512 && !avx512_available()) {
+                        continue;
+                    }
+                    let mut e = vec![vec![0f32; cells.len()]; 3];
+                    // SAFETY: checked just before.
+                    unsafe {
+                        if avx512 {
+                            eval_blocks_avx512(w, cells.len(), fill, exact, false, rows(&mut e))
+                        } else {
+                            eval_blocks_avx2(w, cells.len(), fill, exact, false, rows(&mut e))
+                        }
+                    }
+                    for (e, a) in e.iter().zip(&got[..3]) {
+                        let bits = |r: &[f32]| r.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                        assert!(bits(e) == bits(a), "seed {seed}: avx512 {avx512}");
+                    }
+                }
                 for (k, f) in feats.iter().enumerate() {
                     // The dense pass, then the cell's own recheck (from the cell's f64
                     // inputs, or, features given in f32, from those).
@@ -1191,6 +1250,20 @@ mod tests {
             let exact = |k: usize| cell_features_f64(cells[k] as usize);
             eval_blocks(Portable::<true>, w, cells.len(), fill, exact, clamp, out);
         }
+        // The AVX2 and AVX-512 kernels, explicitly (`eval_cells` picks one).
+        let simd = |avx512: bool, w: &[f32; NBRDF_WEIGHTS], clamp: bool, out: [&mut [f32]; 3]| {
+            let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
+            let exact = |k: usize| cell_features_f64(cells[k] as usize);
+            // SAFETY: checked just before.
+            assert!(fma_available() && (!avx512 || avx512_available()));
+            unsafe {
+                if avx512 {
+                    eval_blocks_avx512(w, cells.len(), fill, exact, clamp, out)
+                } else {
+                    eval_blocks_avx2(w, cells.len(), fill, exact, clamp, out)
+                }
+            }
+        };
         let paths = [
             "avx2-clamp",
             "avx2-raw",
@@ -1206,8 +1279,18 @@ mod tests {
                 for p in paths {
                     let mut out = vec![vec![0f32; cells.len()]; 3];
                     match p {
-                        "avx2-clamp" => n.eval_cells(&cells, true, rows(&mut out)),
-                        "avx2-raw" => n.eval_cells(&cells, false, rows(&mut out)),
+                        "avx2-clamp" | "avx2-raw" => {
+                            let clamp = p == "avx2-clamp";
+                            simd(false, w, clamp, rows(&mut out));
+                            // The AVX-512 kernel and `eval_cells` give the same bits.
+                            let mut more = vec![vec![0f32; cells.len()]; 3];
+                            if avx512_available() {
+                                simd(true, w, clamp, rows(&mut more));
+                                assert_eq!(hash(&more), hash(&out), "{name} {p}: avx512");
+                            }
+                            n.eval_cells(&cells, clamp, rows(&mut more));
+                            assert_eq!(hash(&more), hash(&out), "{name} {p}: eval_cells");
+                        }
                         // SAFETY: the test machine has AVX2 and FMA (x86-64 CI).
                         "port-fma-clamp" => unsafe { port_fma(w, &cells, true, rows(&mut out)) },
                         _ => {
@@ -1291,29 +1374,30 @@ mod tests {
             }
             let whole = (thread_cpu() - t) / per;
             #[cfg(target_arch = "x86_64")]
-            let fwd = {
+            let [avx2, avx512] = [false, true].map(|avx512| {
                 let t = thread_cpu();
-                let mut x = [[[0f32; LANES]; 5]; BLOCK_VECS];
-                let mut y = [[[0f32; LANES]; 3]; BLOCK_VECS];
-                let mut s = Scratch::default();
-                let mut sink = 0f32;
                 for n in &nets {
                     let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
-                    for start in (0..cells.len()).step_by(BLOCK_CELLS) {
-                        let m = (cells.len() - start).min(BLOCK_CELLS);
-                        let nv = m.div_ceil(LANES).next_multiple_of(RV);
-                        fill_cells(&cells[start..start + m], &mut x[..nv]);
-                        // SAFETY: AVX2 and FMA on the test machine.
-                        unsafe { avx2::forward(w, &x[..nv], &mut y[..nv], &mut s) };
-                        sink += y[0][0][0];
+                    let fill =
+                        |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
+                    let exact = |k: usize| cell_features_f64(cells[k] as usize);
+                    // SAFETY: checked just before.
+                    assert!(fma_available() && avx512_available());
+                    unsafe {
+                        if avx512 {
+                            eval_blocks_avx512(w, cells.len(), fill, exact, true, rows(&mut out))
+                        } else {
+                            eval_blocks_avx2(w, cells.len(), fill, exact, true, rows(&mut out))
+                        }
                     }
                 }
-                assert!(sink.is_finite());
                 (thread_cpu() - t) / per
-            };
+            });
             #[cfg(not(target_arch = "x86_64"))]
-            let fwd = 0.0;
-            eprintln!("nbrdf_speed: whole {whole:.2} ns/cell, fill+forward {fwd:.2} ns/cell");
+            let [avx2, avx512] = [0.0; 2];
+            eprintln!(
+                "nbrdf_speed: eval_cells {whole:.2} ns/cell, avx2 {avx2:.2}, avx512 {avx512:.2}"
+            );
         }
     }
 
