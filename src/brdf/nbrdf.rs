@@ -248,56 +248,87 @@ impl Nbrdf {
     /// The f32 twin at the flat grid cells `cells`: RGB into `out[c][n]` (`out` rows of at
     /// least `cells.len()`), clamped at 0 (`clamp`) or raw.
     pub fn eval_cells(&self, cells: &[u32], clamp: bool, out: [&mut [f32]; 3]) {
-        self.eval_with(
-            cells.len(),
-            |start, m, x| fill_cells(&cells[start..start + m], x),
-            |n| cell_features_f64(cells[n] as usize),
-            clamp,
-            out,
-        )
+        self.eval_with(&GridCells(cells), clamp, out)
     }
 
     /// The f32 twin at given features ([`features`]); as [`Self::eval_cells`] (a value
     /// recomputed in f64 starts from the f32 features, the only inputs there are).
     pub fn eval_features(&self, feats: &[[f32; 5]], clamp: bool, out: [&mut [f32]; 3]) {
-        let fill = |start: usize, m: usize, x: &mut [[V; 5]]| {
-            for n in 0..x.len() * LANES {
-                let f = feats[start + n.min(m - 1)];
-                for (xi, fi) in x[n / LANES].iter_mut().zip(f) {
-                    xi[n % LANES] = fi;
-                }
-            }
-        };
-        self.eval_with(feats.len(), fill, |n| feats[n].map(f64::from), clamp, out)
+        self.eval_with(&Features(feats), clamp, out)
     }
 
-    /// Runs the network on blocks of [`BLOCK_CELLS`]: `fill(start, m, x)` writes the
-    /// inputs of cells `start..start + m` into `x` (whole vectors; padding lanes repeat the
-    /// last cell, so that they neither wake a hidden unit nor hide a shared theta_h);
-    /// `exact(n)` gives cell `n`'s inputs in f64, for a value recomputed in f64.
-    fn eval_with(
-        &self,
-        len: usize,
-        fill: impl FnMut(usize, usize, &mut [[V; 5]]),
-        exact: impl Fn(usize) -> [f64; 5],
-        clamp: bool,
-        out: [&mut [f32]; 3],
-    ) {
+    /// Runs the network on blocks of [`BLOCK_CELLS`] of the cells of `src`, with the
+    /// kernel of the processor.
+    fn eval_with(&self, src: &impl Source, clamp: bool, out: [&mut [f32]; 3]) {
         let w: &[f32; NBRDF_WEIGHTS] = self.w[..].try_into().expect("675 weights");
         let fast = fma_available();
         #[cfg(target_arch = "x86_64")]
         {
             if fast && avx512_available() {
                 // SAFETY: AVX-512F, AVX2 and FMA were detected on this processor.
-                return unsafe { eval_blocks_avx512(w, len, fill, exact, clamp, out) };
+                return unsafe { eval_blocks_avx512(w, src, clamp, out) };
             }
             if fast {
                 // SAFETY: AVX2 and FMA were detected on this processor.
-                return unsafe { eval_blocks_avx2(w, len, fill, exact, clamp, out) };
+                return unsafe { eval_blocks_avx2(w, src, clamp, out) };
             }
         }
         let _ = fast;
-        eval_blocks(Portable::<false>, w, len, fill, exact, clamp, out)
+        eval_blocks(Portable::<false>, w, src, clamp, out)
+    }
+}
+
+/// The cells of an evaluation. Its methods are inlined into the kernel's loop (compiled
+/// with the kernel's features: the inputs are written as wide as they are read).
+trait Source {
+    /// Number of cells.
+    fn len(&self) -> usize;
+    /// Writes the inputs of cells `start..start + m` into `x` (whole vectors; padding
+    /// lanes repeat the last cell, so that they neither wake a hidden unit nor hide a
+    /// shared theta_h).
+    fn fill(&self, start: usize, m: usize, x: &mut [[V; 5]]);
+    /// Cell `n`'s inputs in f64, for a value recomputed in f64.
+    fn exact(&self, n: usize) -> [f64; 5];
+}
+
+/// Flat grid cells ([`cell_features`]).
+struct GridCells<'a>(&'a [u32]);
+
+impl Source for GridCells<'_> {
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    #[inline(always)]
+    fn fill(&self, start: usize, m: usize, x: &mut [[V; 5]]) {
+        fill_cells(&self.0[start..start + m], x)
+    }
+    #[inline(always)]
+    fn exact(&self, n: usize) -> [f64; 5] {
+        cell_features_f64(self.0[n] as usize)
+    }
+}
+
+/// Given features ([`features`]; in f64, the same values).
+struct Features<'a>(&'a [[f32; 5]]);
+
+impl Source for Features<'_> {
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    #[inline(always)]
+    fn fill(&self, start: usize, m: usize, x: &mut [[V; 5]]) {
+        for n in 0..x.len() * LANES {
+            let f = self.0[start + n.min(m - 1)];
+            for (xi, fi) in x[n / LANES].iter_mut().zip(f) {
+                xi[n % LANES] = fi;
+            }
+        }
+    }
+    #[inline(always)]
+    fn exact(&self, n: usize) -> [f64; 5] {
+        self.0[n].map(f64::from)
     }
 }
 
@@ -388,13 +419,12 @@ fn store_block(y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool) {
 fn eval_blocks(
     k: impl Kernel,
     w: &[f32; NBRDF_WEIGHTS],
-    len: usize,
-    mut fill: impl FnMut(usize, usize, &mut [[V; 5]]),
-    exact: impl Fn(usize) -> [f64; 5],
+    src: &impl Source,
     clamp: bool,
     out: [&mut [f32]; 3],
 ) {
     const _: () = assert!(BLOCK_CELLS <= 64, "a block's flags are one u64");
+    let len = src.len();
     let [r, g, b] = out;
     let (r, g, b) = (&mut r[..len], &mut g[..len], &mut b[..len]);
     let mut x = [[[0f32; LANES]; 5]; BLOCK_VECS];
@@ -403,7 +433,7 @@ fn eval_blocks(
     for start in (0..len).step_by(BLOCK_CELLS) {
         let m = (len - start).min(BLOCK_CELLS);
         let nv = m.div_ceil(LANES).next_multiple_of(RV);
-        fill(start, m, &mut x[..nv]);
+        src.fill(start, m, &mut x[..nv]);
         k.forward(w, &x[..nv], &mut y[..nv], &mut scratch);
         let win = k.windows(w, &x[..nv], &scratch, clamp);
         if win.iter().any(|&(lo, hi)| lo < hi) {
@@ -417,7 +447,7 @@ fn eval_blocks(
                 let (v, l) = (n / LANES, n % LANES);
                 let yv = &mut y[v];
                 let yc = [yv[0][l], yv[1][l], yv[2][l]];
-                let yc = recheck_cell(w, yc, exact(start + n), clamp);
+                let yc = recheck_cell(w, yc, src.exact(start + n), clamp);
                 for (c, y) in yv.iter_mut().zip(yc) {
                     c[l] = y;
                 }
@@ -440,15 +470,13 @@ fn eval_blocks(
 #[target_feature(enable = "avx2,fma")]
 unsafe fn eval_blocks_avx2(
     w: &[f32; NBRDF_WEIGHTS],
-    len: usize,
-    fill: impl FnMut(usize, usize, &mut [[V; 5]]),
-    exact: impl Fn(usize) -> [f64; 5],
+    src: &impl Source,
     clamp: bool,
     out: [&mut [f32]; 3],
 ) {
     // SAFETY: this function's own contract.
     let k = unsafe { avx2::Avx2::new() };
-    eval_blocks(k, w, len, fill, exact, clamp, out)
+    eval_blocks(k, w, src, clamp, out)
 }
 
 /// [`eval_blocks`] compiled for AVX-512F, AVX2 and FMA, with `avx512::Avx512`.
@@ -459,15 +487,13 @@ unsafe fn eval_blocks_avx2(
 #[target_feature(enable = "avx512f,avx2,fma")]
 unsafe fn eval_blocks_avx512(
     w: &[f32; NBRDF_WEIGHTS],
-    len: usize,
-    fill: impl FnMut(usize, usize, &mut [[V; 5]]),
-    exact: impl Fn(usize) -> [f64; 5],
+    src: &impl Source,
     clamp: bool,
     out: [&mut [f32]; 3],
 ) {
     // SAFETY: this function's own contract.
     let k = unsafe { avx512::Avx512::new() };
-    eval_blocks(k, w, len, fill, exact, clamp, out)
+    eval_blocks(k, w, src, clamp, out)
 }
 
 /// Whether the processor has AVX-512F (the AVX-512 kernel also needs AVX2 and FMA,
@@ -842,7 +868,7 @@ fn recheck_cell(w: &[f32; NBRDF_WEIGHTS], y: [f32; 3], x: [f64; 5], clamp: bool)
     let (z, e) = net_f64(w, x);
     let win = e.map(|e| window(e * (1.0 - 1e-4), clamp));
     if in_windows(y, &win, clamp) {
-        z.map(|v| v as f32)
+        z.map(|z| z.exp_m1() as f32)
     } else {
         y
     }
@@ -859,11 +885,12 @@ fn f32_above(v: f64) -> f32 {
 }
 
 /// The network in f64 from the f32 weights at inputs `x` (as [`features`], in f64): the
-/// raw outputs `exp(z) - 1`, and per channel the cell's own error estimate of the f32
-/// pass's `z` ([`recheck_windows`]'s, with the units live at the cell and its own
-/// magnitudes: a layer-1 unit counts when clearly positive, `z1 > 2^-20 M1`, so that the
-/// f32 pass has it positive too). A dense pass (a unit that is 0 adds nothing and is
-/// skipped), loops over units innermost so that they vectorise.
+/// last layer's sums `z` (the raw outputs are `exp(z) - 1`, taken only for the values
+/// kept), and per channel the cell's own error estimate of the f32 pass's `z`
+/// ([`recheck_windows`]'s, with the units live at the cell and its own magnitudes: a
+/// layer-1 unit counts when clearly positive, `z1 > 2^-20 M1`, so that the f32 pass has
+/// it positive too). A dense pass (a unit that is 0 adds nothing and is skipped), loops
+/// over units innermost so that they vectorise.
 fn net_f64(w: &[f32; NBRDF_WEIGHTS], x: [f64; 5]) -> ([f64; 3], [f64; 3]) {
     const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
     let (mut a1, mut m1) = ([0f64; HIDDEN], [0f64; HIDDEN]);
@@ -913,7 +940,7 @@ fn net_f64(w: &[f32; NBRDF_WEIGHTS], x: [f64; 5]) -> ([f64; 3], [f64; 3]) {
             }
         }
     }
-    (z.map(f64::exp_m1), e.map(|e| e * U32))
+    (z, e.map(|e| e * U32))
 }
 
 /// Layer 1 of [`forward`]: `a1 = relu(x . fc1 + b1)` per vector of `x`, and each unit's
@@ -1135,26 +1162,8 @@ mod tests {
                 let (c, d) = rest.split_at_mut(3);
                 n.eval_cells(&cells, false, rows(a));
                 n.eval_features(&feats, false, rows(b));
-                let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
-                let exact = |k: usize| cell_features_f64(cells[k] as usize);
-                eval_blocks(
-                    Portable::<true>,
-                    w,
-                    cells.len(),
-                    fill,
-                    exact,
-                    false,
-                    rows(c),
-                );
-                eval_blocks(
-                    Portable::<false>,
-                    w,
-                    cells.len(),
-                    fill,
-                    exact,
-                    false,
-                    rows(d),
-                );
+                eval_blocks(Portable::<true>, w, &GridCells(&cells), false, rows(c));
+                eval_blocks(Portable::<false>, w, &GridCells(&cells), false, rows(d));
                 // Each SIMD kernel the processor has (`eval_cells` picks one), bit for bit.
                 #[cfg(target_arch = "x86_64")]
                 for avx512 in [false, true] {
@@ -1165,9 +1174,9 @@ mod tests {
                     // SAFETY: checked just before.
                     unsafe {
                         if avx512 {
-                            eval_blocks_avx512(w, cells.len(), fill, exact, false, rows(&mut e))
+                            eval_blocks_avx512(w, &GridCells(&cells), false, rows(&mut e))
                         } else {
-                            eval_blocks_avx2(w, cells.len(), fill, exact, false, rows(&mut e))
+                            eval_blocks_avx2(w, &GridCells(&cells), false, rows(&mut e))
                         }
                     }
                     for (e, a) in e.iter().zip(&got[..3]) {
@@ -1246,21 +1255,17 @@ mod tests {
             clamp: bool,
             out: [&mut [f32]; 3],
         ) {
-            let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
-            let exact = |k: usize| cell_features_f64(cells[k] as usize);
-            eval_blocks(Portable::<true>, w, cells.len(), fill, exact, clamp, out);
+            eval_blocks(Portable::<true>, w, &GridCells(cells), clamp, out);
         }
         // The AVX2 and AVX-512 kernels, explicitly (`eval_cells` picks one).
         let simd = |avx512: bool, w: &[f32; NBRDF_WEIGHTS], clamp: bool, out: [&mut [f32]; 3]| {
-            let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
-            let exact = |k: usize| cell_features_f64(cells[k] as usize);
             // SAFETY: checked just before.
             assert!(fma_available() && (!avx512 || avx512_available()));
             unsafe {
                 if avx512 {
-                    eval_blocks_avx512(w, cells.len(), fill, exact, clamp, out)
+                    eval_blocks_avx512(w, &GridCells(&cells), clamp, out)
                 } else {
-                    eval_blocks_avx2(w, cells.len(), fill, exact, clamp, out)
+                    eval_blocks_avx2(w, &GridCells(&cells), clamp, out)
                 }
             }
         };
@@ -1294,16 +1299,10 @@ mod tests {
                         // SAFETY: the test machine has AVX2 and FMA (x86-64 CI).
                         "port-fma-clamp" => unsafe { port_fma(w, &cells, true, rows(&mut out)) },
                         _ => {
-                            let fill = |s: usize, m: usize, x: &mut [[V; 5]]| {
-                                fill_cells(&cells[s..s + m], x)
-                            };
-                            let exact = |k: usize| cell_features_f64(cells[k] as usize);
                             eval_blocks(
                                 Portable::<false>,
                                 w,
-                                cells.len(),
-                                fill,
-                                exact,
+                                &GridCells(&cells),
                                 true,
                                 rows(&mut out),
                             );
@@ -1378,16 +1377,13 @@ mod tests {
                 let t = thread_cpu();
                 for n in &nets {
                     let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
-                    let fill =
-                        |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
-                    let exact = |k: usize| cell_features_f64(cells[k] as usize);
                     // SAFETY: checked just before.
                     assert!(fma_available() && avx512_available());
                     unsafe {
                         if avx512 {
-                            eval_blocks_avx512(w, cells.len(), fill, exact, true, rows(&mut out))
+                            eval_blocks_avx512(w, &GridCells(&cells), true, rows(&mut out))
                         } else {
-                            eval_blocks_avx2(w, cells.len(), fill, exact, true, rows(&mut out))
+                            eval_blocks_avx2(w, &GridCells(&cells), true, rows(&mut out))
                         }
                     }
                 }
