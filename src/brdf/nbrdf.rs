@@ -23,6 +23,8 @@
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 
 /// Weights of one network (f32): `fc1` 6 x 21, `b1` 21, `fc2` 21 x 21, `b2` 21, `fc3`
 /// 21 x 3, `b3` 3.
@@ -135,6 +137,8 @@ fn cell_features_f64(cell: usize) -> [f64; 5] {
 /// The inputs of a block of grid cells (at most [`BLOCK_CELLS`]) into `x`, padded to
 /// `x.len()` vectors with the last cell. A vector of eight consecutive cells of one theta_h
 /// row (the common case: tabulations and masks run in cell order) is read as slices.
+/// Inlined, so that the copies are as wide as the kernel's loads that read them.
+#[inline(always)]
 fn fill_cells(cells: &[u32], x: &mut [[V; 5]]) {
     let g = grid_features();
     let m = cells.len();
@@ -244,115 +248,221 @@ impl Nbrdf {
     /// The f32 twin at the flat grid cells `cells`: RGB into `out[c][n]` (`out` rows of at
     /// least `cells.len()`), clamped at 0 (`clamp`) or raw.
     pub fn eval_cells(&self, cells: &[u32], clamp: bool, out: [&mut [f32]; 3]) {
-        self.eval_with(
-            cells.len(),
-            |start, m, x| fill_cells(&cells[start..start + m], x),
-            |n| cell_features_f64(cells[n] as usize),
-            clamp,
-            out,
-        )
+        self.eval_with(&GridCells(cells), clamp, out)
     }
 
     /// The f32 twin at given features ([`features`]); as [`Self::eval_cells`] (a value
     /// recomputed in f64 starts from the f32 features, the only inputs there are).
     pub fn eval_features(&self, feats: &[[f32; 5]], clamp: bool, out: [&mut [f32]; 3]) {
-        let fill = |start: usize, m: usize, x: &mut [[V; 5]]| {
-            for n in 0..x.len() * LANES {
-                let f = feats[start + n.min(m - 1)];
-                for (xi, fi) in x[n / LANES].iter_mut().zip(f) {
-                    xi[n % LANES] = fi;
-                }
-            }
-        };
-        self.eval_with(feats.len(), fill, |n| feats[n].map(f64::from), clamp, out)
+        self.eval_with(&Features(feats), clamp, out)
     }
 
-    /// Runs the network on blocks of [`BLOCK_CELLS`]: `fill(start, m, x)` writes the
-    /// inputs of cells `start..start + m` into `x` (whole vectors; padding lanes repeat the
-    /// last cell, so that they neither wake a hidden unit nor hide a shared theta_h);
-    /// `exact(n)` gives cell `n`'s inputs in f64, for a value recomputed in f64.
-    fn eval_with(
-        &self,
-        len: usize,
-        fill: impl FnMut(usize, usize, &mut [[V; 5]]),
-        exact: impl Fn(usize) -> [f64; 5],
-        clamp: bool,
-        out: [&mut [f32]; 3],
-    ) {
+    /// Runs the network on blocks of [`BLOCK_CELLS`] of the cells of `src`, with the
+    /// kernel of the processor.
+    fn eval_with(&self, src: &impl Source, clamp: bool, out: [&mut [f32]; 3]) {
         let w: &[f32; NBRDF_WEIGHTS] = self.w[..].try_into().expect("675 weights");
         let fast = fma_available();
         #[cfg(target_arch = "x86_64")]
         {
+            if fast && avx512_available() {
+                // SAFETY: AVX-512F, AVX2 and FMA were detected on this processor.
+                return unsafe { eval_blocks_avx512(w, src, clamp, out) };
+            }
             if fast {
                 // SAFETY: AVX2 and FMA were detected on this processor.
-                return unsafe { eval_blocks_avx2(w, len, fill, exact, clamp, out) };
+                return unsafe { eval_blocks_avx2(w, src, clamp, out) };
             }
         }
         let _ = fast;
-        eval_blocks(w, len, fill, exact, clamp, out, forward::<false>)
+        eval_blocks(Portable::<false>, w, src, clamp, out)
     }
 }
 
-/// The loop of [`Nbrdf::eval_with`] over blocks, with `forward` the network on a block:
-/// the f32 pass, then the cells whose rounding error the block's estimate
+/// The cells of an evaluation. Its methods are inlined into the kernel's loop (compiled
+/// with the kernel's features: the inputs are written as wide as they are read).
+trait Source {
+    /// Number of cells.
+    fn len(&self) -> usize;
+    /// Writes the inputs of cells `start..start + m` into `x` (whole vectors; padding
+    /// lanes repeat the last cell, so that they neither wake a hidden unit nor hide a
+    /// shared theta_h).
+    fn fill(&self, start: usize, m: usize, x: &mut [[V; 5]]);
+    /// Cell `n`'s inputs in f64, for a value recomputed in f64.
+    fn exact(&self, n: usize) -> [f64; 5];
+}
+
+/// Flat grid cells ([`cell_features`]).
+struct GridCells<'a>(&'a [u32]);
+
+impl Source for GridCells<'_> {
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    #[inline(always)]
+    fn fill(&self, start: usize, m: usize, x: &mut [[V; 5]]) {
+        fill_cells(&self.0[start..start + m], x)
+    }
+    #[inline(always)]
+    fn exact(&self, n: usize) -> [f64; 5] {
+        cell_features_f64(self.0[n] as usize)
+    }
+}
+
+/// Given features ([`features`]; in f64, the same values).
+struct Features<'a>(&'a [[f32; 5]]);
+
+impl Source for Features<'_> {
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    #[inline(always)]
+    fn fill(&self, start: usize, m: usize, x: &mut [[V; 5]]) {
+        for n in 0..x.len() * LANES {
+            let f = self.0[start + n.min(m - 1)];
+            for (xi, fi) in x[n / LANES].iter_mut().zip(f) {
+                xi[n % LANES] = fi;
+            }
+        }
+    }
+    #[inline(always)]
+    fn exact(&self, n: usize) -> [f64; 5] {
+        self.0[n].map(f64::from)
+    }
+}
+
+/// The parts of the block loop that run per block, by instruction set: [`Portable`]
+/// (`FMA`: fused multiply-adds, as the AVX2 kernel) and `avx2::Avx2`. Every
+/// implementation gives the same values bit for bit: the same f32 operations in the same
+/// order per cell (`forward`) or per unit (`windows`), or exact ones (`flags`, `store`).
+trait Kernel: Copy {
+    /// [`forward`].
+    fn forward(self, w: &[f32; NBRDF_WEIGHTS], x: &[[V; 5]], y: &mut [[V; 3]], s: &mut Scratch);
+    /// [`recheck_windows`].
+    fn windows(
+        self,
+        w: &[f32; NBRDF_WEIGHTS],
+        x: &[[V; 5]],
+        s: &Scratch,
+        clamp: bool,
+    ) -> [(f32, f32); 3];
+    /// [`window_flags`].
+    fn flags(self, y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64;
+    /// [`store_block`].
+    fn store(self, y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool);
+}
+
+/// The portable block kernel (`FMA`: with fused multiply-adds, which is a library call
+/// unless compiled with the FMA feature).
+#[derive(Clone, Copy)]
+struct Portable<const FMA: bool>;
+
+impl<const FMA: bool> Kernel for Portable<FMA> {
+    #[inline(always)]
+    fn forward(self, w: &[f32; NBRDF_WEIGHTS], x: &[[V; 5]], y: &mut [[V; 3]], s: &mut Scratch) {
+        forward::<FMA>(w, x, y, s)
+    }
+    #[inline(always)]
+    fn windows(
+        self,
+        w: &[f32; NBRDF_WEIGHTS],
+        x: &[[V; 5]],
+        s: &Scratch,
+        clamp: bool,
+    ) -> [(f32, f32); 3] {
+        recheck_windows(w, x, s, clamp)
+    }
+    #[inline(always)]
+    fn flags(self, y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
+        window_flags(y, win, clamp)
+    }
+    #[inline(always)]
+    fn store(self, y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool) {
+        store_block(y, out, clamp)
+    }
+}
+
+/// The cells of a block (bit `v * LANES + l` for lane `l` of vector `v`, over `y`'s
+/// vectors, at most 64 cells) whose raw value of some channel lies in its window
+/// (`in_windows`).
+#[inline(always)]
+fn window_flags(y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
+    let mut bits = 0u64;
+    for (v, [r, g, b]) in y.iter().enumerate() {
+        for (l, ((&r, &g), &b)) in r.iter().zip(g).zip(b).enumerate() {
+            bits |= u64::from(in_windows([r, g, b], win, clamp)) << (v * LANES + l);
+        }
+    }
+    bits
+}
+
+/// The block's values `y` into `out` (rows of the block's `m` cells), clamped at 0 with
+/// `clamp` (NaN cannot arise from finite weights; `> 0` keeps 0 for it anyway).
+#[inline(always)]
+fn store_block(y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool) {
+    for (c, o) in out.into_iter().enumerate() {
+        for (o, yv) in o.chunks_mut(LANES).zip(y) {
+            for (o, &v) in o.iter_mut().zip(&yv[c]) {
+                *o = if !clamp || v > 0.0 { v } else { 0.0 };
+            }
+        }
+    }
+}
+
+/// The loop of [`Nbrdf::eval_with`] over blocks, with `k` the kernel of a block: the f32
+/// pass ([`forward`]), then the cells whose rounding error the block's estimate
 /// ([`recheck_windows`]) cannot show to be well within SPEC 9 rechecked one by one with
 /// their own estimate, and recomputed with the f64 network where that fails too
 /// ([`recheck_cell`]).
 #[inline(always)]
 fn eval_blocks(
+    k: impl Kernel,
     w: &[f32; NBRDF_WEIGHTS],
-    len: usize,
-    mut fill: impl FnMut(usize, usize, &mut [[V; 5]]),
-    exact: impl Fn(usize) -> [f64; 5],
+    src: &impl Source,
     clamp: bool,
     out: [&mut [f32]; 3],
-    mut forward: impl FnMut(&[f32; NBRDF_WEIGHTS], &[[V; 5]], &mut [[V; 3]], &mut Scratch),
 ) {
+    const _: () = assert!(BLOCK_CELLS <= 64, "a block's flags are one u64");
+    let len = src.len();
     let [r, g, b] = out;
-    let mut out = [&mut r[..len], &mut g[..len], &mut b[..len]];
+    let (r, g, b) = (&mut r[..len], &mut g[..len], &mut b[..len]);
     let mut x = [[[0f32; LANES]; 5]; BLOCK_VECS];
     let mut y = [[[0f32; LANES]; 3]; BLOCK_VECS];
     let mut scratch = Scratch::default();
     for start in (0..len).step_by(BLOCK_CELLS) {
         let m = (len - start).min(BLOCK_CELLS);
         let nv = m.div_ceil(LANES).next_multiple_of(RV);
-        fill(start, m, &mut x[..nv]);
-        forward(w, &x[..nv], &mut y[..nv], &mut scratch);
-        let win = recheck_windows(w, &x[..nv], &scratch, clamp);
+        src.fill(start, m, &mut x[..nv]);
+        k.forward(w, &x[..nv], &mut y[..nv], &mut scratch);
+        let win = k.windows(w, &x[..nv], &scratch, clamp);
         if win.iter().any(|&(lo, hi)| lo < hi) {
-            for (v, yv) in y[..m.div_ceil(LANES)].iter_mut().enumerate() {
-                let mut flag = [false; LANES];
-                for (c, &(lo, hi)) in win.iter().enumerate() {
-                    for (f, &y) in flag.iter_mut().zip(&yv[c]) {
-                        let y = if clamp { y } else { y.abs() };
-                        *f |= (y > lo) & (y < hi);
-                    }
-                }
-                if flag.iter().any(|&f| f) {
-                    for l in 0..LANES.min(m - v * LANES) {
-                        if flag[l] {
-                            let y = [yv[0][l], yv[1][l], yv[2][l]];
-                            let y = recheck_cell(w, y, exact(start + v * LANES + l), clamp);
-                            for (yc, y) in yv.iter_mut().zip(y) {
-                                yc[l] = y;
-                            }
-                        }
-                    }
+            let mut bits = k.flags(&y[..nv], &win, clamp);
+            if m < 64 {
+                bits &= (1u64 << m) - 1;
+            }
+            while bits != 0 {
+                let n = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let (v, l) = (n / LANES, n % LANES);
+                let yv = &mut y[v];
+                let yc = [yv[0][l], yv[1][l], yv[2][l]];
+                let yc = recheck_cell(w, yc, src.exact(start + n), clamp);
+                for (c, y) in yv.iter_mut().zip(yc) {
+                    c[l] = y;
                 }
             }
         }
-        for (c, o) in out.iter_mut().enumerate() {
-            for (o, yv) in o[start..start + m].chunks_mut(LANES).zip(&y) {
-                for (o, &v) in o.iter_mut().zip(&yv[c]) {
-                    // NaN cannot arise from finite weights; `> 0` keeps 0 for it anyway.
-                    *o = if !clamp || v > 0.0 { v } else { 0.0 };
-                }
-            }
-        }
+        let end = start + m;
+        k.store(
+            &y[..nv],
+            [&mut r[start..end], &mut g[start..end], &mut b[start..end]],
+            clamp,
+        );
     }
 }
 
-/// [`eval_blocks`] compiled for AVX2 and FMA, with [`avx2::forward`].
+/// [`eval_blocks`] compiled for AVX2 and FMA, with `avx2::Avx2`.
 ///
 /// # Safety
 /// The processor must support AVX2 and FMA.
@@ -360,16 +470,43 @@ fn eval_blocks(
 #[target_feature(enable = "avx2,fma")]
 unsafe fn eval_blocks_avx2(
     w: &[f32; NBRDF_WEIGHTS],
-    len: usize,
-    fill: impl FnMut(usize, usize, &mut [[V; 5]]),
-    exact: impl Fn(usize) -> [f64; 5],
+    src: &impl Source,
     clamp: bool,
     out: [&mut [f32]; 3],
 ) {
-    // SAFETY (of the calls): this function's own contract.
-    eval_blocks(w, len, fill, exact, clamp, out, |w, x, y, s| unsafe {
-        avx2::forward(w, x, y, s)
-    })
+    // SAFETY: this function's own contract.
+    let k = unsafe { avx2::Avx2::new() };
+    eval_blocks(k, w, src, clamp, out)
+}
+
+/// [`eval_blocks`] compiled for AVX-512F, AVX2 and FMA, with `avx512::Avx512`.
+///
+/// # Safety
+/// The processor must support AVX-512F, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn eval_blocks_avx512(
+    w: &[f32; NBRDF_WEIGHTS],
+    src: &impl Source,
+    clamp: bool,
+    out: [&mut [f32]; 3],
+) {
+    // SAFETY: this function's own contract.
+    let k = unsafe { avx512::Avx512::new() };
+    eval_blocks(k, w, src, clamp, out)
+}
+
+/// Whether the processor has AVX-512F (the AVX-512 kernel also needs AVX2 and FMA,
+/// [`fma_available`]).
+fn avx512_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 fn fma_available() -> bool {
@@ -666,6 +803,17 @@ fn recheck_windows(
             *g += wv.abs() * h;
         }
     }
+    windows_from_g(w, s, &g, clamp)
+}
+
+/// The end of [`recheck_windows`] from the `g_k` of the block's units (`g[..HIDDEN]`).
+#[inline(always)]
+fn windows_from_g(
+    w: &[f32; NBRDF_WEIGHTS],
+    s: &Scratch,
+    g: &[f32],
+    clamp: bool,
+) -> [(f32, f32); 3] {
     let mut e = [0f32; 3];
     for &k in &s.live2[..s.n2] {
         for (c, e) in e.iter_mut().enumerate() {
@@ -720,7 +868,7 @@ fn recheck_cell(w: &[f32; NBRDF_WEIGHTS], y: [f32; 3], x: [f64; 5], clamp: bool)
     let (z, e) = net_f64(w, x);
     let win = e.map(|e| window(e * (1.0 - 1e-4), clamp));
     if in_windows(y, &win, clamp) {
-        z.map(|v| v as f32)
+        z.map(|z| z.exp_m1() as f32)
     } else {
         y
     }
@@ -737,11 +885,12 @@ fn f32_above(v: f64) -> f32 {
 }
 
 /// The network in f64 from the f32 weights at inputs `x` (as [`features`], in f64): the
-/// raw outputs `exp(z) - 1`, and per channel the cell's own error estimate of the f32
-/// pass's `z` ([`recheck_windows`]'s, with the units live at the cell and its own
-/// magnitudes: a layer-1 unit counts when clearly positive, `z1 > 2^-20 M1`, so that the
-/// f32 pass has it positive too). A dense pass (a unit that is 0 adds nothing and is
-/// skipped), loops over units innermost so that they vectorise.
+/// last layer's sums `z` (the raw outputs are `exp(z) - 1`, taken only for the values
+/// kept), and per channel the cell's own error estimate of the f32 pass's `z`
+/// ([`recheck_windows`]'s, with the units live at the cell and its own magnitudes: a
+/// layer-1 unit counts when clearly positive, `z1 > 2^-20 M1`, so that the f32 pass has
+/// it positive too). A dense pass (a unit that is 0 adds nothing and is skipped), loops
+/// over units innermost so that they vectorise.
 fn net_f64(w: &[f32; NBRDF_WEIGHTS], x: [f64; 5]) -> ([f64; 3], [f64; 3]) {
     const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
     let (mut a1, mut m1) = ([0f64; HIDDEN], [0f64; HIDDEN]);
@@ -791,7 +940,7 @@ fn net_f64(w: &[f32; NBRDF_WEIGHTS], x: [f64; 5]) -> ([f64; 3], [f64; 3]) {
             }
         }
     }
-    (z.map(f64::exp_m1), e.map(|e| e * U32))
+    (z, e.map(|e| e * U32))
 }
 
 /// Layer 1 of [`forward`]: `a1 = relu(x . fc1 + b1)` per vector of `x`, and each unit's
@@ -1013,18 +1162,28 @@ mod tests {
                 let (c, d) = rest.split_at_mut(3);
                 n.eval_cells(&cells, false, rows(a));
                 n.eval_features(&feats, false, rows(b));
-                let fill = |s: usize, m: usize, x: &mut [[V; 5]]| fill_cells(&cells[s..s + m], x);
-                let exact = |k: usize| cell_features_f64(cells[k] as usize);
-                eval_blocks(w, cells.len(), fill, exact, false, rows(c), forward::<true>);
-                eval_blocks(
-                    w,
-                    cells.len(),
-                    fill,
-                    exact,
-                    false,
-                    rows(d),
-                    forward::<false>,
-                );
+                eval_blocks(Portable::<true>, w, &GridCells(&cells), false, rows(c));
+                eval_blocks(Portable::<false>, w, &GridCells(&cells), false, rows(d));
+                // Each SIMD kernel the processor has (`eval_cells` picks one), bit for bit.
+                #[cfg(target_arch = "x86_64")]
+                for avx512 in [false, true] {
+                    if !fma || (avx512 && !avx512_available()) {
+                        continue;
+                    }
+                    let mut e = vec![vec![0f32; cells.len()]; 3];
+                    // SAFETY: checked just before.
+                    unsafe {
+                        if avx512 {
+                            eval_blocks_avx512(w, &GridCells(&cells), false, rows(&mut e))
+                        } else {
+                            eval_blocks_avx2(w, &GridCells(&cells), false, rows(&mut e))
+                        }
+                    }
+                    for (e, a) in e.iter().zip(&got[..3]) {
+                        let bits = |r: &[f32]| r.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                        assert!(bits(e) == bits(a), "seed {seed}: avx512 {avx512}");
+                    }
+                }
                 for (k, f) in feats.iter().enumerate() {
                     // The dense pass, then the cell's own recheck (from the cell's f64
                     // inputs, or, features given in f32, from those).
@@ -1052,6 +1211,190 @@ mod tests {
         }
         // The rechecked values were exercised (the pruned nets give small values).
         assert!(rechecked > 0);
+    }
+
+    /// Hashes of every tabulated value of the 100 MERL networks on the full grid, per
+    /// path (AVX2 clamped and raw, the portable pass with and without FMA), written to
+    /// `$BRDF_BASIS_NBRDF_GOLDEN` when that file is missing, else compared with it: a
+    /// kernel change must leave every bit as it was. Ignored (minutes):
+    /// `BRDF_BASIS_NBRDF_GOLDEN=/tmp/nb_golden.txt cargo test --release --lib golden -- --ignored`.
+    #[test]
+    #[ignore]
+    fn golden_hashes_of_the_merl100_tabulation() {
+        use rayon::prelude::*;
+        let Ok(file) = std::env::var("BRDF_BASIS_NBRDF_GOLDEN") else {
+            return;
+        };
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/real/nbrdf/merl100");
+        let coll = crate::collection::Collection::load(&dir).expect("merl100");
+        let nets: Vec<_> = coll
+            .materials()
+            .iter()
+            .filter_map(|m| match &m.data {
+                crate::collection::MaterialData::Neural(n) => Some((m.name.clone(), n.clone())),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(nets.len(), 100);
+        let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+        let hash = |rows: &[Vec<f32>]| {
+            let mut h = 0xcbf2_9ce4_8422_2325u64;
+            for r in rows {
+                for v in r {
+                    h = (h ^ v.to_bits() as u64).wrapping_mul(0x0000_0100_0000_01b3);
+                }
+            }
+            h
+        };
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn port_fma(
+            w: &[f32; NBRDF_WEIGHTS],
+            cells: &[u32],
+            clamp: bool,
+            out: [&mut [f32]; 3],
+        ) {
+            eval_blocks(Portable::<true>, w, &GridCells(cells), clamp, out);
+        }
+        // The AVX2 and AVX-512 kernels, explicitly (`eval_cells` picks one).
+        let simd = |avx512: bool, w: &[f32; NBRDF_WEIGHTS], clamp: bool, out: [&mut [f32]; 3]| {
+            // SAFETY: checked just before.
+            assert!(fma_available() && (!avx512 || avx512_available()));
+            unsafe {
+                if avx512 {
+                    eval_blocks_avx512(w, &GridCells(&cells), clamp, out)
+                } else {
+                    eval_blocks_avx2(w, &GridCells(&cells), clamp, out)
+                }
+            }
+        };
+        let paths = [
+            "avx2-clamp",
+            "avx2-raw",
+            "port-fma-clamp",
+            "port-nofma-clamp",
+        ];
+        let t = std::time::Instant::now();
+        let lines: Vec<String> = nets
+            .par_iter()
+            .map(|(name, n)| {
+                let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
+                let mut line = name.clone();
+                for p in paths {
+                    let mut out = vec![vec![0f32; cells.len()]; 3];
+                    match p {
+                        "avx2-clamp" | "avx2-raw" => {
+                            let clamp = p == "avx2-clamp";
+                            simd(false, w, clamp, rows(&mut out));
+                            // The AVX-512 kernel and `eval_cells` give the same bits.
+                            let mut more = vec![vec![0f32; cells.len()]; 3];
+                            if avx512_available() {
+                                simd(true, w, clamp, rows(&mut more));
+                                assert_eq!(hash(&more), hash(&out), "{name} {p}: avx512");
+                            }
+                            n.eval_cells(&cells, clamp, rows(&mut more));
+                            assert_eq!(hash(&more), hash(&out), "{name} {p}: eval_cells");
+                        }
+                        // SAFETY: the test machine has AVX2 and FMA (x86-64 CI).
+                        "port-fma-clamp" => unsafe { port_fma(w, &cells, true, rows(&mut out)) },
+                        _ => {
+                            eval_blocks(
+                                Portable::<false>,
+                                w,
+                                &GridCells(&cells),
+                                true,
+                                rows(&mut out),
+                            );
+                        }
+                    }
+                    line += &format!(" {p}={:016x}", hash(&out));
+                }
+                line
+            })
+            .collect();
+        let text = lines.join("\n") + "\n";
+        eprintln!("golden: {:.1} s", t.elapsed().as_secs_f64());
+        match std::fs::read_to_string(&file) {
+            Ok(want) => {
+                let bad: Vec<_> = text
+                    .lines()
+                    .zip(want.lines())
+                    .filter(|(a, b)| a != b)
+                    .collect();
+                assert!(
+                    bad.is_empty() && text.lines().count() == want.lines().count(),
+                    "{} networks differ: {bad:?}",
+                    bad.len()
+                );
+                eprintln!("golden: all {} networks bit for bit", lines.len());
+            }
+            Err(_) => std::fs::write(&file, text).expect("write golden"),
+        }
+    }
+
+    /// Thread CPU seconds so far.
+    fn thread_cpu() -> f64 {
+        // SAFETY: clock_gettime writes the struct it is given.
+        let mut t: libc::timespec = unsafe { std::mem::zeroed() };
+        unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
+        t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+    }
+
+    /// Single-thread timing of the tabulation of 10 of the MERL networks (every 10th),
+    /// whole and in parts, in CPU ns per cell. Ignored:
+    /// `cargo test --release --lib nbrdf_speed -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn nbrdf_speed() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/real/nbrdf/merl100");
+        let coll = crate::collection::Collection::load(&dir).expect("merl100");
+        let nets: Vec<_> = coll
+            .materials()
+            .iter()
+            .filter_map(|m| match &m.data {
+                crate::collection::MaterialData::Neural(n) => Some(n.clone()),
+                _ => None,
+            })
+            .step_by(10)
+            .collect();
+        let cells: Vec<u32> = (0..N_CELLS as u32).collect();
+        let mut out = vec![vec![0f32; cells.len()]; 3];
+        let per = (nets.len() * cells.len()) as f64 * 1e-9;
+        let reps: usize = std::env::var("NB_REPS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(3);
+        for _ in 0..reps {
+            let t = thread_cpu();
+            for n in &nets {
+                n.eval_cells(&cells, true, rows(&mut out));
+            }
+            let whole = (thread_cpu() - t) / per;
+            #[cfg(target_arch = "x86_64")]
+            let [avx2, avx512] = [false, true].map(|avx512| {
+                let t = thread_cpu();
+                for n in &nets {
+                    let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
+                    // SAFETY: checked just before.
+                    assert!(fma_available() && avx512_available());
+                    unsafe {
+                        if avx512 {
+                            eval_blocks_avx512(w, &GridCells(&cells), true, rows(&mut out))
+                        } else {
+                            eval_blocks_avx2(w, &GridCells(&cells), true, rows(&mut out))
+                        }
+                    }
+                }
+                (thread_cpu() - t) / per
+            });
+            #[cfg(not(target_arch = "x86_64"))]
+            let [avx2, avx512] = [0.0; 2];
+            eprintln!(
+                "nbrdf_speed: eval_cells {whole:.2} ns/cell, avx2 {avx2:.2}, avx512 {avx512:.2}"
+            );
+        }
     }
 
     #[test]

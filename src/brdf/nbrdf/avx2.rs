@@ -8,10 +8,146 @@
 //! have checked that the processor has AVX2 and FMA (`super::fma_available`).
 
 use super::{
-    Scratch, B1, B2, B3, BLOCK_VECS, EXPM1_C, FC1, FC2, FC3, HIDDEN, LANES, LN2_HI, LN2_LO, LOG2E,
-    NBRDF_WEIGHTS, PRUNE_MARGIN, ROUND, RU, RV, V,
+    windows_from_g, Kernel, Scratch, B1, B2, B3, BLOCK_VECS, EXPM1_C, FC1, FC2, FC3, HIDDEN, LANES,
+    LN2_HI, LN2_LO, LOG2E, NBRDF_WEIGHTS, PRUNE_MARGIN, ROUND, RU, RV, V,
 };
 use std::arch::x86_64::*;
+
+/// The AVX2 + FMA block kernel; a value of it is a proof that the processor has both.
+#[derive(Clone, Copy)]
+pub(super) struct Avx2(());
+
+impl Avx2 {
+    /// # Safety
+    /// The processor must support AVX2 and FMA.
+    pub(super) unsafe fn new() -> Self {
+        Self(())
+    }
+}
+
+impl Kernel for Avx2 {
+    #[inline(always)]
+    fn forward(self, w: &[f32; NBRDF_WEIGHTS], x: &[[V; 5]], y: &mut [[V; 3]], s: &mut Scratch) {
+        // SAFETY: `self` exists, so AVX2 and FMA were detected.
+        unsafe { forward(w, x, y, s) }
+    }
+    #[inline(always)]
+    fn windows(
+        self,
+        w: &[f32; NBRDF_WEIGHTS],
+        x: &[[V; 5]],
+        s: &Scratch,
+        clamp: bool,
+    ) -> [(f32, f32); 3] {
+        // SAFETY: as above.
+        unsafe { windows(w, x, s, clamp) }
+    }
+    #[inline(always)]
+    fn flags(self, y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
+        // SAFETY: as above.
+        unsafe { flags(y, win, clamp) }
+    }
+    #[inline(always)]
+    fn store(self, y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool) {
+        // SAFETY: as above.
+        unsafe { store_block(y, out, clamp) }
+    }
+}
+
+/// [`super::recheck_windows`] with AVX2, the same values: the same f32 operations per
+/// unit (multiplies and adds unfused, in the same order), eight units at a time, and
+/// maxima (exact in any order).
+#[target_feature(enable = "avx2")]
+unsafe fn windows(
+    w: &[f32; NBRDF_WEIGHTS],
+    x: &[[V; 5]],
+    s: &Scratch,
+    clamp: bool,
+) -> [(f32, f32); 3] {
+    const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
+    let sign = _mm256_set1_ps(-0.0);
+    let abs = |v: __m256| _mm256_andnot_ps(sign, v);
+    let mut xm = [_mm256_setzero_ps(); 5];
+    for xv in x {
+        for (m, xi) in xm.iter_mut().zip(xv) {
+            *m = _mm256_max_ps(*m, abs(load(xi)));
+        }
+    }
+    let xmax = xm.map(|m| hmax(m));
+    // M1_j for every unit (lanes 21..24 read the next weights and are not used).
+    let mut m1 = [0f32; 24];
+    for grp in 0..3 {
+        let mut m = abs(load8(w, B1 + 8 * grp));
+        for (i, &xm) in xmax.iter().enumerate() {
+            m = _mm256_add_ps(
+                m,
+                _mm256_mul_ps(abs(load8(w, FC1 + ROWS[i] * HIDDEN + 8 * grp)), xm),
+            );
+        }
+        _mm256_storeu_ps(m1.as_mut_ptr().add(8 * grp), m);
+    }
+    let two = _mm256_set1_ps(2.0);
+    let mut g = [
+        _mm256_mul_ps(two, abs(load8(w, B2))),
+        _mm256_mul_ps(two, abs(load8(w, B2 + 8))),
+        _mm256_mul_ps(two, abs(load8(w, B2 + 16))),
+    ];
+    for t in 0..s.n1 {
+        let j = s.live1[t];
+        let h = _mm256_set1_ps(2.0 * s.hi1[t] + m1[j]);
+        for (grp, g) in g.iter_mut().enumerate() {
+            let row = abs(load8(w, FC2 + j * HIDDEN + 8 * grp));
+            *g = _mm256_add_ps(*g, _mm256_mul_ps(row, h));
+        }
+    }
+    let mut gs = [0f32; 24];
+    for (grp, g) in g.iter().enumerate() {
+        _mm256_storeu_ps(gs.as_mut_ptr().add(8 * grp), *g);
+    }
+    windows_from_g(w, s, &gs, clamp)
+}
+
+/// [`super::window_flags`] with AVX2 (exact comparisons).
+#[target_feature(enable = "avx2")]
+unsafe fn flags(y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
+    let sign = _mm256_set1_ps(if clamp { 0.0 } else { -0.0 });
+    let lo = win.map(|w| _mm256_set1_ps(w.0));
+    let hi = win.map(|w| _mm256_set1_ps(w.1));
+    let mut bits = 0u64;
+    for (v, yv) in y.iter().enumerate() {
+        let mut f = _mm256_setzero_ps();
+        for c in 0..3 {
+            // |y| unless `clamp` (and-not with 0 keeps y).
+            let t = _mm256_andnot_ps(sign, load(&yv[c]));
+            let inside = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GT_OQ>(t, lo[c]),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(t, hi[c]),
+            );
+            f = _mm256_or_ps(f, inside);
+        }
+        bits |= (_mm256_movemask_ps(f) as u32 as u64) << (v * LANES);
+    }
+    bits
+}
+
+/// [`super::store_block`] with AVX2: `max(v, +0)` is `v` when `v > 0`, else +0, as there.
+#[target_feature(enable = "avx2")]
+unsafe fn store_block(y: &[[V; 3]], out: [&mut [f32]; 3], clamp: bool) {
+    let zero = _mm256_setzero_ps();
+    for (c, o) in out.into_iter().enumerate() {
+        let full = o.len() / LANES;
+        for (v, yv) in y[..full].iter().enumerate() {
+            let a = load(&yv[c]);
+            let a = if clamp { _mm256_max_ps(a, zero) } else { a };
+            // `v * LANES + 8 <= o.len()`.
+            _mm256_storeu_ps(o.as_mut_ptr().add(v * LANES), a);
+        }
+        for (k, o) in o[full * LANES..].iter_mut().enumerate() {
+            let v = y[full][c][k];
+            *o = if !clamp || v > 0.0 { v } else { 0.0 };
+        }
+    }
+}
 
 /// Horizontal maximum of `v`, broadcast to every lane.
 #[inline]
