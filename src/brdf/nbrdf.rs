@@ -1213,6 +1213,32 @@ mod tests {
         assert!(rechecked > 0);
     }
 
+    /// The MERL networks of `dir` by name, read part by part (not through `collection`,
+    /// which depends on this module).
+    fn merl100_nets(dir: &std::path::Path) -> Vec<(String, Nbrdf)> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .expect("merl100")
+            .filter_map(|e| {
+                let n = e.ok()?.file_name().into_string().ok()?;
+                n.strip_suffix("_fc1.npy").map(str::to_string)
+            })
+            .collect();
+        names.sort();
+        names
+            .into_iter()
+            .map(|name| {
+                let mut flat = Vec::with_capacity(NBRDF_WEIGHTS);
+                for (part, _, _) in NBRDF_PARTS {
+                    let f = dir.join(format!("{name}_{part}.npy"));
+                    let a = crate::npy_format::read_npy_f32(&f, 4096).expect("weights");
+                    flat.extend(a.data);
+                }
+                let n = Nbrdf::from_weights(flat).expect("network");
+                (name, n)
+            })
+            .collect()
+    }
+
     /// Hashes of every tabulated value of the 100 MERL networks on the full grid, per
     /// path (AVX2 clamped and raw, the portable pass with and without FMA), written to
     /// `$BRDF_BASIS_NBRDF_GOLDEN` when that file is missing, else compared with it: a
@@ -1227,15 +1253,7 @@ mod tests {
         };
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../shared/data/real/nbrdf/merl100");
-        let coll = crate::collection::Collection::load(&dir).expect("merl100");
-        let nets: Vec<_> = coll
-            .materials()
-            .iter()
-            .filter_map(|m| match &m.data {
-                crate::collection::MaterialData::Neural(n) => Some((m.name.clone(), n.clone())),
-                _ => None,
-            })
-            .collect();
+        let nets = merl100_nets(&dir);
         assert_eq!(nets.len(), 100);
         let cells: Vec<u32> = (0..N_CELLS as u32).collect();
         let hash = |rows: &[Vec<f32>]| {
@@ -1349,14 +1367,9 @@ mod tests {
     fn nbrdf_speed() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../shared/data/real/nbrdf/merl100");
-        let coll = crate::collection::Collection::load(&dir).expect("merl100");
-        let nets: Vec<_> = coll
-            .materials()
-            .iter()
-            .filter_map(|m| match &m.data {
-                crate::collection::MaterialData::Neural(n) => Some(n.clone()),
-                _ => None,
-            })
+        let nets: Vec<Nbrdf> = merl100_nets(&dir)
+            .into_iter()
+            .map(|(_, n)| n)
             .step_by(10)
             .collect();
         let cells: Vec<u32> = (0..N_CELLS as u32).collect();
