@@ -45,6 +45,9 @@ pub const NBRDF_PARTS: [(&str, &[usize], usize); 6] = [
 ];
 
 const FC1: usize = 0;
+/// The rows of `fc1` that the five inputs of [`features`] multiply (row 1's input, the
+/// dropped one, is always 0).
+const FC1_ROWS: [usize; 5] = [0, 2, 3, 4, 5];
 const B1: usize = 126;
 const FC2: usize = 147;
 const B2: usize = 588;
@@ -765,15 +768,15 @@ const EXPM1_REL: f64 = 4.76837158203125e-7;
 /// ([`recheck_cell`]).
 ///
 /// The windows depend on the block's units only through `hi1`, `live1`, `live2` and the
-/// block's inputs, which the AVX2 and portable passes share bit for bit; they are
-/// computed here, in one order, for both (about 200 operations per block of 64 cells).
+/// block's inputs, which every pass shares bit for bit; the portable pass computes them
+/// here, the SIMD ones with the same f32 operations in the same order per unit (about 200
+/// operations per block of 64 cells).
 fn recheck_windows(
     w: &[f32; NBRDF_WEIGHTS],
     x: &[[V; 5]],
     s: &Scratch,
     clamp: bool,
 ) -> [(f32, f32); 3] {
-    const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
     // f32 throughout, in one order (`a * b + c` unfused: the same values whether or not
     // the compiler vectorises); relative error of the estimate below 1e-5, allowed for.
     let max = |a: f32, b: f32| if a > b { a } else { b };
@@ -795,7 +798,7 @@ fn recheck_windows(
         let j = s.live1[t];
         let mut m1 = w[B1 + j].abs();
         for (i, &xm) in xmax.iter().enumerate() {
-            m1 += w[FC1 + ROWS[i] * HIDDEN + j].abs() * xm;
+            m1 += w[FC1 + FC1_ROWS[i] * HIDDEN + j].abs() * xm;
         }
         let h = 2.0 * s.hi1[t] + m1;
         let row = &w[FC2 + j * HIDDEN..][..HIDDEN];
@@ -892,14 +895,13 @@ fn f32_above(v: f64) -> f32 {
 /// it positive too). A dense pass (a unit that is 0 adds nothing and is skipped), loops
 /// over units innermost so that they vectorise.
 fn net_f64(w: &[f32; NBRDF_WEIGHTS], x: [f64; 5]) -> ([f64; 3], [f64; 3]) {
-    const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
     let (mut a1, mut m1) = ([0f64; HIDDEN], [0f64; HIDDEN]);
     for j in 0..HIDDEN {
         a1[j] = w[B1 + j] as f64;
         m1[j] = (w[B1 + j] as f64).abs();
     }
     for (i, &xi) in x.iter().enumerate() {
-        let row = &w[FC1 + ROWS[i] * HIDDEN..][..HIDDEN];
+        let row = &w[FC1 + FC1_ROWS[i] * HIDDEN..][..HIDDEN];
         for ((a, m), &wv) in a1.iter_mut().zip(&mut m1).zip(row) {
             *a += xi * wv as f64;
             *m += (xi * wv as f64).abs();
@@ -955,7 +957,6 @@ fn layer1<const FMA: bool, const SHARED: bool>(
     lo: &mut [V; HIDDEN],
 ) {
     // Input rows of fc1 for the five non-zero inputs (row 1 multiplies the zero input).
-    const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
     let (h0, h1) = (x[0][0][0], x[0][1][0]);
     let mut start = [0f32; HIDDEN];
     for (j, s) in start.iter_mut().enumerate() {
@@ -969,7 +970,7 @@ fn layer1<const FMA: bool, const SHARED: bool>(
         for j in 0..HIDDEN {
             let mut acc = [if SHARED { start[j] } else { w[B1 + j] }; LANES];
             for i in if SHARED { 2 } else { 0 }..5 {
-                let wv = w[FC1 + ROWS[i] * HIDDEN + j];
+                let wv = w[FC1 + FC1_ROWS[i] * HIDDEN + j];
                 for l in 0..LANES {
                     acc[l] = madd::<FMA>(xv[i][l], wv, acc[l]);
                 }
@@ -1348,65 +1349,6 @@ mod tests {
                 eprintln!("golden: all {} networks bit for bit", lines.len());
             }
             Err(_) => std::fs::write(&file, text).expect("write golden"),
-        }
-    }
-
-    /// Thread CPU seconds so far.
-    fn thread_cpu() -> f64 {
-        // SAFETY: clock_gettime writes the struct it is given.
-        let mut t: libc::timespec = unsafe { std::mem::zeroed() };
-        unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
-        t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
-    }
-
-    /// Single-thread timing of the tabulation of 10 of the MERL networks (every 10th),
-    /// whole and in parts, in CPU ns per cell. Ignored:
-    /// `cargo test --release --lib nbrdf_speed -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn nbrdf_speed() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/data/real/nbrdf/merl100");
-        let nets: Vec<Nbrdf> = merl100_nets(&dir)
-            .into_iter()
-            .map(|(_, n)| n)
-            .step_by(10)
-            .collect();
-        let cells: Vec<u32> = (0..N_CELLS as u32).collect();
-        let mut out = vec![vec![0f32; cells.len()]; 3];
-        let per = (nets.len() * cells.len()) as f64 * 1e-9;
-        let reps: usize = std::env::var("NB_REPS")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(3);
-        for _ in 0..reps {
-            let t = thread_cpu();
-            for n in &nets {
-                n.eval_cells(&cells, true, rows(&mut out));
-            }
-            let whole = (thread_cpu() - t) / per;
-            #[cfg(target_arch = "x86_64")]
-            let [avx2, avx512] = [false, true].map(|avx512| {
-                let t = thread_cpu();
-                for n in &nets {
-                    let w: &[f32; NBRDF_WEIGHTS] = n.weights().try_into().expect("675");
-                    // SAFETY: checked just before.
-                    assert!(fma_available() && avx512_available());
-                    unsafe {
-                        if avx512 {
-                            eval_blocks_avx512(w, &GridCells(&cells), true, rows(&mut out))
-                        } else {
-                            eval_blocks_avx2(w, &GridCells(&cells), true, rows(&mut out))
-                        }
-                    }
-                }
-                (thread_cpu() - t) / per
-            });
-            #[cfg(not(target_arch = "x86_64"))]
-            let [avx2, avx512] = [0.0; 2];
-            eprintln!(
-                "nbrdf_speed: eval_cells {whole:.2} ns/cell, avx2 {avx2:.2}, avx512 {avx512:.2}"
-            );
         }
     }
 

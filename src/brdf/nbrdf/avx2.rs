@@ -8,8 +8,8 @@
 //! have checked that the processor has AVX2 and FMA (`super::fma_available`).
 
 use super::{
-    windows_from_g, Kernel, Scratch, B1, B2, B3, BLOCK_VECS, EXPM1_C, FC1, FC2, FC3, HIDDEN, LANES,
-    LN2_HI, LN2_LO, LOG2E, NBRDF_WEIGHTS, PRUNE_MARGIN, ROUND, RU, RV, V,
+    windows_from_g, Kernel, Scratch, B1, B2, B3, BLOCK_VECS, EXPM1_C, FC1, FC1_ROWS, FC2, FC3,
+    HIDDEN, LANES, LN2_HI, LN2_LO, LOG2E, NBRDF_WEIGHTS, PRUNE_MARGIN, ROUND, RU, RV, V,
 };
 use std::arch::x86_64::*;
 
@@ -64,7 +64,6 @@ unsafe fn windows(
     s: &Scratch,
     clamp: bool,
 ) -> [(f32, f32); 3] {
-    const ROWS: [usize; 5] = [0, 2, 3, 4, 5];
     let sign = _mm256_set1_ps(-0.0);
     let abs = |v: __m256| _mm256_andnot_ps(sign, v);
     let mut xm = [_mm256_setzero_ps(); 5];
@@ -81,7 +80,7 @@ unsafe fn windows(
         for (i, &xm) in xmax.iter().enumerate() {
             m = _mm256_add_ps(
                 m,
-                _mm256_mul_ps(abs(load8(w, FC1 + ROWS[i] * HIDDEN + 8 * grp)), xm),
+                _mm256_mul_ps(abs(load8(w, FC1 + FC1_ROWS[i] * HIDDEN + 8 * grp)), xm),
             );
         }
         _mm256_storeu_ps(m1.as_mut_ptr().add(8 * grp), m);
