@@ -64,15 +64,16 @@ unsafe fn windows(
     s: &Scratch,
     clamp: bool,
 ) -> [(f32, f32); 3] {
-    let sign = _mm256_set1_ps(-0.0);
-    let abs = |v: __m256| _mm256_andnot_ps(sign, v);
     let mut xm = [_mm256_setzero_ps(); 5];
     for xv in x {
         for (m, xi) in xm.iter_mut().zip(xv) {
             *m = _mm256_max_ps(*m, abs(load(xi)));
         }
     }
-    let xmax = xm.map(|m| hmax(m));
+    let mut xmax = xm;
+    for m in xmax.iter_mut() {
+        *m = hmax(*m);
+    }
     // M1_j for every unit (lanes 21..24 read the next weights and are not used).
     let mut m1 = [0f32; 24];
     for grp in 0..3 {
@@ -106,12 +107,21 @@ unsafe fn windows(
     windows_from_g(w, s, &gs, clamp)
 }
 
+/// `|v|` (the sign bits cleared).
+#[inline]
+#[target_feature(enable = "avx")]
+unsafe fn abs(v: __m256) -> __m256 {
+    _mm256_andnot_ps(_mm256_set1_ps(-0.0), v)
+}
+
 /// [`super::window_flags`] with AVX2 (exact comparisons).
 #[target_feature(enable = "avx2")]
 unsafe fn flags(y: &[[V; 3]], win: &[(f32, f32); 3], clamp: bool) -> u64 {
     let sign = _mm256_set1_ps(if clamp { 0.0 } else { -0.0 });
-    let lo = win.map(|w| _mm256_set1_ps(w.0));
-    let hi = win.map(|w| _mm256_set1_ps(w.1));
+    let (mut lo, mut hi) = ([_mm256_setzero_ps(); 3], [_mm256_setzero_ps(); 3]);
+    for c in 0..3 {
+        (lo[c], hi[c]) = (_mm256_set1_ps(win[c].0), _mm256_set1_ps(win[c].1));
+    }
     let mut bits = 0u64;
     for (v, yv) in y.iter().enumerate() {
         let mut f = _mm256_setzero_ps();

@@ -293,45 +293,52 @@ unsafe fn forward_n<const NZ: usize>(
     }
 }
 
+/// `max(a, b)` (`MAX`) or `min(a, b)`, lane by lane.
+#[inline]
+#[target_feature(enable = "avx512f")]
+unsafe fn op<const MAX: bool>(a: __m512, b: __m512) -> __m512 {
+    if MAX {
+        _mm512_max_ps(a, b)
+    } else {
+        _mm512_min_ps(a, b)
+    }
+}
+
 /// The maxima (`MAX`) or minima of the sixteen registers `v`, lane `u` that of `v[u]`:
 /// a tree of fifteen pairwise `max` (or `min`) over lane halves, quarters, pairs and
 /// single lanes, each unit's lanes only with its own.
 #[inline]
 #[target_feature(enable = "avx512f")]
 unsafe fn reduce16<const MAX: bool>(v: &[__m512; 16]) -> __m512 {
-    let op = |a: __m512, b: __m512| {
-        if MAX {
-            _mm512_max_ps(a, b)
-        } else {
-            _mm512_min_ps(a, b)
-        }
-    };
     // Halves: c[a] = (v[2a] over 8 lanes, v[2a + 1] over 8 lanes).
-    let c: [__m512; 8] = std::array::from_fn(|a| {
+    let mut c = [_mm512_setzero_ps(); 8];
+    for (a, c) in c.iter_mut().enumerate() {
         let (x, y) = (v[2 * a], v[2 * a + 1]);
-        op(
+        *c = op::<MAX>(
             _mm512_shuffle_f32x4::<0x44>(x, y),
             _mm512_shuffle_f32x4::<0xEE>(x, y),
-        )
-    });
+        );
+    }
     // Quarters: 128-bit lane q of e[b] holds unit 4b + q over 4 lanes.
-    let e: [__m512; 4] = std::array::from_fn(|b| {
+    let mut e = [_mm512_setzero_ps(); 4];
+    for (b, e) in e.iter_mut().enumerate() {
         let (x, y) = (c[2 * b], c[2 * b + 1]);
-        op(
+        *e = op::<MAX>(
             _mm512_shuffle_f32x4::<0x88>(x, y),
             _mm512_shuffle_f32x4::<0xDD>(x, y),
-        )
-    });
+        );
+    }
     // Pairs: in 128-bit lane q of g[c], lanes 0-1 unit 8c + q, lanes 2-3 unit 8c + 4 + q.
-    let g: [__m512; 2] = std::array::from_fn(|c| {
+    let mut g = [_mm512_setzero_ps(); 2];
+    for (c, g) in g.iter_mut().enumerate() {
         let (x, y) = (e[2 * c], e[2 * c + 1]);
-        op(
+        *g = op::<MAX>(
             _mm512_shuffle_ps::<0x88>(x, y),
             _mm512_shuffle_ps::<0xDD>(x, y),
-        )
-    });
+        );
+    }
     // Single lanes: lane 4q + r holds unit 4r + q.
-    let h = op(
+    let h = op::<MAX>(
         _mm512_shuffle_ps::<0x88>(g[0], g[1]),
         _mm512_shuffle_ps::<0xDD>(g[0], g[1]),
     );
