@@ -135,8 +135,9 @@ fn main() {
     let load_before = load();
     let (t_cpu, c_cpu, sums) = tabulate_all(&cpu, &nets);
     println!(
-        "tabulate 100 NBRDF x RGB x {N_CELLS} cells, {}: {t_cpu:.2} s wall, {c_cpu:.2} s CPU, load {load_before} -> {} ({:.1} M network evaluations/s)",
+        "tabulate 100 NBRDF x RGB x {N_CELLS} cells, {}, network kernel {}: {t_cpu:.2} s wall, {c_cpu:.2} s CPU, load {load_before} -> {} ({:.1} M network evaluations/s)",
         cpu.name(),
+        brdf_basis::brdf::nbrdf::cpu_kernel(),
         load(),
         cell_evals / t_cpu / 1e6
     );

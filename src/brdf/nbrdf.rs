@@ -499,6 +499,19 @@ unsafe fn eval_blocks_avx512(
     eval_blocks(k, w, src, clamp, out)
 }
 
+/// The CPU kernel that evaluates the networks on this processor: `"avx512"`, `"avx2"` or
+/// `"portable"` (the two SIMD kernels give the portable pass with FMA bit for bit;
+/// benchmarks print which one ran).
+pub fn cpu_kernel() -> &'static str {
+    if fma_available() && avx512_available() {
+        "avx512"
+    } else if fma_available() {
+        "avx2"
+    } else {
+        "portable"
+    }
+}
+
 /// Whether the processor has AVX-512F (the AVX-512 kernel also needs AVX2 and FMA,
 /// [`fma_available`]).
 fn avx512_available() -> bool {
