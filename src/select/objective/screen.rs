@@ -209,8 +209,10 @@ pub(super) fn ruled_out(lb: f64, terms: usize, thr: Option<f64>) -> bool {
 /// tiles: coefficient matrix `y` (`cols x lp`, column-major by target: entry `k * lp + t`,
 /// zero outside the passive set); per target the KKT scale, `q`, share, whether the
 /// channel counts, the rounding scale of its gradients, and the data of the tight bound:
-/// the positions in `nz` of its inactive columns, their gradients and the Schur complement
-/// `S_t` (row-major), at `off[i]..off[i + 1]` and `soff[i]..` (`tight[i]` false: none).
+/// its group (the targets with the same passive set, which share the positions in `nz` of
+/// the inactive columns and the Schur complement `S_t`, row-major, at
+/// `goff[g]..goff[g + 1]` and `gsoff[g]..`) and the gradients of its inactive columns at
+/// `off[i]..off[i + 1]` (`tight[i]` false: none).
 #[derive(Default)]
 struct Targets {
     y: Vec<f64>,
@@ -223,27 +225,27 @@ struct Targets {
     tight: Vec<bool>,
     kp: Vec<f64>,
     off: Vec<usize>,
-    soff: Vec<usize>,
-    inact: Vec<u32>,
     wold: Vec<f64>,
+    grp: Vec<u32>,
+    goff: Vec<usize>,
+    gsoff: Vec<usize>,
+    inact: Vec<u32>,
     s: Vec<f64>,
 }
 
-/// The tight bound's data of one target: inactive positions, their gradients, `S_t` and
-/// the square root of the condition estimate of `G_PP` (squared ratio of its extreme
-/// Cholesky pivots).
-type Schur = (Vec<u32>, Vec<f64>, Vec<f64>, f64);
+/// The tight bound's data of one passive set: inactive positions, `S_t` and the square
+/// root of the condition estimate of `G_PP` (squared ratio of its extreme Cholesky
+/// pivots).
+type Schur = (Vec<u32>, Vec<f64>, f64);
 
-/// The tight bound's data of one target ([`Targets`]): inactive positions in `nz`, their
-/// gradients and `S_t`; `None` when a passive column is not in `nz` or `G_PP` or `S_t`
-/// has no positive pivots.
+/// The tight bound's data of the targets whose passive set is `passive` ([`Targets`]):
+/// inactive positions in `nz` and `S_t`; `None` when a passive column is not in `nz` or
+/// `G_PP` or `S_t` has no positive pivots.
 fn schur(
     g: crate::nnls::incremental::Cosine<'_>,
     nz: &[usize],
-    st: &ChanState,
-    t: usize,
+    passive: &[usize],
 ) -> Option<Schur> {
-    let (passive, y, _, _) = st.kkt_parts();
     if !passive.iter().all(|k| nz.contains(k)) {
         return None;
     }
@@ -284,7 +286,20 @@ fn schur(
             return None;
         }
     }
-    let wold = inact
+    Some((inact, s, kp))
+}
+
+/// The gradients `w_i = C_it - C_iP y_P` of the inactive columns `inact` (positions in
+/// `nz`) of target `t` at its optimum.
+fn inactive_gradients(
+    g: crate::nnls::incremental::Cosine<'_>,
+    nz: &[usize],
+    inact: &[u32],
+    st: &ChanState,
+    t: usize,
+) -> Vec<f64> {
+    let (passive, y, _, _) = st.kkt_parts();
+    inact
         .iter()
         .map(|&ri| {
             let row = g.row(nz[ri as usize]);
@@ -295,8 +310,7 @@ fn schur(
                     .map(|(&k, &yk)| row[k] * yk)
                     .sum::<f64>()
         })
-        .collect();
-    Some((inact, wold, s, kp))
+        .collect()
 }
 
 /// Targets per register tile, candidates per block, targets per cache tile and
@@ -487,23 +501,57 @@ pub(super) fn lower_bounds(
                 tight: vec![false; lp],
                 kp: vec![0.0; lp],
                 off: vec![0; lp + 1],
-                soff: vec![0; lp + 1],
+                grp: vec![0; lp],
+                goff: vec![0],
+                gsoff: vec![0],
                 ..Default::default()
             };
-            let sch: Vec<Option<Schur>> = live
-                .par_iter()
-                .zip(states)
-                .map(|(&t, st)| {
-                    st[c]
-                        .is_active()
-                        .then(|| schur(g, nz, &st[c], t + 1))
-                        .flatten()
+            // The passive sets (sorted), each once, in order of first appearance: late in
+            // a run a few hundred sets serve thousands of targets.
+            let mut ids: std::collections::HashMap<Vec<usize>, u32> = Default::default();
+            let mut sets: Vec<Vec<usize>> = Vec::new();
+            let tgrp: Vec<Option<u32>> = states
+                .iter()
+                .map(|st| {
+                    st[c].is_active().then(|| {
+                        let mut set = st[c].kkt_parts().0.to_vec();
+                        set.sort_unstable();
+                        *ids.entry(set).or_insert_with_key(|set| {
+                            sets.push(set.clone());
+                            (sets.len() - 1) as u32
+                        })
+                    })
                 })
                 .collect();
-            for (i, ((&t, st), sc)) in live.iter().zip(states).zip(sch).enumerate() {
+            let sch: Vec<Option<Schur>> = sets.par_iter().map(|set| schur(g, nz, set)).collect();
+            // Per group: its position among the groups with the tight bound's data.
+            let mut gpos = vec![u32::MAX; sch.len()];
+            for (gi, sc) in sch.iter().enumerate() {
+                if let Some((inact, s, _)) = sc {
+                    gpos[gi] = (d.goff.len() - 1) as u32;
+                    d.inact.extend(inact);
+                    d.s.extend(s);
+                    d.goff.push(d.inact.len());
+                    d.gsoff.push(d.s.len());
+                }
+            }
+            let wold: Vec<Option<Vec<f64>>> = live
+                .par_iter()
+                .zip(states)
+                .zip(&tgrp)
+                .map(|((&t, st), gr)| {
+                    let (inact, _, _) = sch[(*gr)? as usize].as_ref()?;
+                    Some(inactive_gradients(g, nz, inact, &st[c], t + 1))
+                })
+                .collect();
+            for (i, ((&t, st), (gr, wo))) in live
+                .iter()
+                .zip(states)
+                .zip(tgrp.iter().zip(wold))
+                .enumerate()
+            {
                 let ch = &st[c];
                 d.off[i + 1] = d.off[i];
-                d.soff[i + 1] = d.soff[i];
                 if !ch.is_active() {
                     continue;
                 }
@@ -517,14 +565,13 @@ pub(super) fn lower_bounds(
                 d.share[i] = obj.share[t][c];
                 d.active[i] = true;
                 d.werr[i] = werr_scale * (1.0 + ysum);
-                if let Some((inact, wold, s, kp)) = sc {
+                if let (Some(gr), Some(wo)) = (gr, wo) {
+                    let gr = *gr as usize;
                     d.tight[i] = true;
-                    d.kp[i] = kp;
-                    d.off[i + 1] += inact.len();
-                    d.soff[i + 1] += s.len();
-                    d.inact.extend(inact);
-                    d.wold.extend(wold);
-                    d.s.extend(s);
+                    d.kp[i] = sch[gr].as_ref().map_or(1.0, |sc| sc.2);
+                    d.grp[i] = gpos[gr];
+                    d.off[i + 1] += wo.len();
+                    d.wold.extend(wo);
                 }
             }
             d
@@ -624,25 +671,59 @@ fn prefetch(v: &[f64]) {
     let _ = v;
 }
 
-/// `sig[k][a] = sum_l S[k][l] x[l][a]` for the `ni x ni` matrix `S` and four vectors `x`,
-/// and `x[.][a] . sig[.][a]` per vector.
+/// `sig = S x` for the symmetric `ni x ni` matrix `S` (by its rows, as `axpy`s), and
+/// `x . sig`.
 #[inline(always)]
-fn schur4(sm: &[f64], ni: usize, x: &[[f64; 4]], sig: &mut [[f64; 4]]) -> [f64; 4] {
-    let mut quad = [0.0f64; 4];
-    for k in 0..ni {
-        let row = &sm[k * ni..(k + 1) * ni];
-        let mut acc = [0.0f64; 4];
-        for (&sv, xl) in row.iter().zip(&x[..ni]) {
-            for a in 0..4 {
-                acc[a] += sv * xl[a];
-            }
-        }
-        sig[k] = acc;
-        for a in 0..4 {
-            quad[a] += x[k][a] * acc[a];
+fn schur1(sm: &[f64], x: &[f64], sig: &mut [f64]) -> f64 {
+    let ni = x.len();
+    sig.fill(0.0);
+    for (row, &xl) in sm.chunks_exact(ni.max(1)).zip(x) {
+        for (sv, &r) in sig.iter_mut().zip(row) {
+            *sv += r * xl;
         }
     }
-    quad
+    x.iter().zip(&*sig).map(|(a, b)| a * b).sum()
+}
+
+/// Per group of targets with the same passive set ([`Targets`]), per candidate of a task:
+/// `a_I . S a_I` and `S a_I` (`1 + ni` values at `slot * (1 + ni)`), computed on first use.
+struct Memo {
+    have: Vec<u64>,
+    vals: Vec<Vec<f64>>,
+    x: Vec<f64>,
+}
+
+impl Memo {
+    fn new(groups: usize) -> Self {
+        Self {
+            have: vec![0; groups],
+            vals: vec![Vec::new(); groups],
+            x: Vec::new(),
+        }
+    }
+
+    /// `(a_I . S a_I, S a_I)` of candidate `ca` (`< 64`, row `arow` of `a`) for group
+    /// `gr` of `d`.
+    #[inline(always)]
+    fn get(&mut self, d: &Targets, gr: usize, ca: usize, arow: &[f64]) -> (f64, &[f64]) {
+        let (lo, hi) = (d.goff[gr], d.goff[gr + 1]);
+        let ni = hi - lo;
+        let v = &mut self.vals[gr];
+        if v.is_empty() {
+            v.resize(CT * (1 + ni), 0.0);
+        }
+        let slot = &mut v[ca * (1 + ni)..(ca + 1) * (1 + ni)];
+        if self.have[gr] & (1u64 << ca) == 0 {
+            self.have[gr] |= 1u64 << ca;
+            self.x.clear();
+            self.x
+                .extend(d.inact[lo..hi].iter().map(|&r| arow[r as usize]));
+            let sm = &d.s[d.gsoff[gr]..d.gsoff[gr] + ni * ni];
+            let (q, sig) = slot.split_first_mut().expect("1 + ni");
+            *q = schur1(sm, &self.x, sig);
+        }
+        (slot[0], &slot[1..])
+    }
 }
 
 /// A pair of one target with a positive gradient, waiting for its tight bound: the
@@ -676,15 +757,14 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
     let nl = live.len();
     let nt = task.len();
     let mut chunks = vec![vec![0.0; nchunks]; nt];
-    let pmax = proj.iter().map(|b| b.nz.len()).max().unwrap_or(0);
-    let mut xs = vec![[0.0f64; 4]; pmax];
-    let mut sig4 = vec![[0.0f64; 4]; pmax];
-    let mut sig = vec![0.0; pmax];
     let mut pend: Vec<Vec<Pending>> = vec![Vec::new(); TB];
     // Per chunk, the sum of the `q_t` it starts from: every partial sum of the chunk is at
     // most twice it in magnitude, which bounds the rounding of the adjusted sums.
     let mut slack = vec![vec![0.0; nchunks]; nt];
+    // The memo's candidate masks are 64 bits wide.
+    const { assert!(CT <= 64) };
     for (c, d) in tg.iter().enumerate() {
+        let mut memo = Memo::new(d.goff.len() - 1);
         let g = obj.view(c);
         let bs = &proj[c];
         let p = bs.nz.len();
@@ -790,50 +870,35 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
                 }
                 let t = live[i];
                 let gt = g.row(t + 1);
-                let (lo, hi) = (d.off[i], d.off[i + 1]);
-                let ni = hi - lo;
-                let sm = &d.s[d.soff[i]..d.soff[i] + ni * ni];
-                let inact = &d.inact[lo..hi];
-                for group in pl.chunks(4) {
-                    let arows: [&[f64]; 4] = std::array::from_fn(|a| {
-                        let ca = group[a.min(group.len() - 1)].ca as usize;
-                        let j = task[ca] + 1;
-                        &bs.a[j * p..(j + 1) * p]
-                    });
-                    let quad = if d.tight[i] {
-                        for (x, &r) in xs.iter_mut().zip(inact) {
-                            *x = std::array::from_fn(|a| arows[a][r as usize]);
-                        }
-                        schur4(sm, ni, &xs, &mut sig4)
+                for pr in pl.iter() {
+                    let ca = pr.ca as usize;
+                    let j = task[ca] + 1;
+                    let arow = &bs.a[j * p..(j + 1) * p];
+                    let (quad, sig) = if d.tight[i] {
+                        memo.get(d, d.grp[i] as usize, ca, arow)
                     } else {
-                        [0.0; 4]
+                        (0.0, &[][..])
                     };
-                    for (a, pr) in group.iter().enumerate() {
-                        let ca = pr.ca as usize;
-                        let blk = &blocks[ca / CB];
-                        let ab = ca % CB;
-                        for (sv, s4) in sig.iter_mut().zip(&sig4[..ni]) {
-                            *sv = s4[a];
-                        }
-                        let lb = pair_bound(
-                            &Pair {
-                                w: pr.w,
-                                cjt: pr.cjt,
-                                s2: blk.nc[ab],
-                                arow: arows[a],
-                                ea: blk.ea[ab],
-                                nonneg: blk.nonneg[ab],
-                            },
-                            d,
-                            i,
-                            bs,
-                            (gt, t + 1),
-                            margin_dual,
-                            xsum,
-                            (quad[a], &sig[..ni]),
-                        );
-                        chunks[ca][i / CHUNK] += d.share[i] * (lb - d.q[i]);
-                    }
+                    let blk = &blocks[ca / CB];
+                    let ab = ca % CB;
+                    let lb = pair_bound(
+                        &Pair {
+                            w: pr.w,
+                            cjt: pr.cjt,
+                            s2: blk.nc[ab],
+                            arow,
+                            ea: blk.ea[ab],
+                            nonneg: blk.nonneg[ab],
+                        },
+                        d,
+                        i,
+                        bs,
+                        (gt, t + 1),
+                        margin_dual,
+                        xsum,
+                        (quad, sig),
+                    );
+                    chunks[ca][i / CHUNK] += d.share[i] * (lb - d.q[i]);
                 }
                 pl.clear();
             }
