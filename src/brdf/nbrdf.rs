@@ -1254,12 +1254,16 @@ mod tests {
     }
 
     /// Hashes of every tabulated value of the 100 MERL networks on the full grid, per
-    /// path (AVX2 clamped and raw, the portable pass with and without FMA), written to
-    /// `$BRDF_BASIS_NBRDF_GOLDEN` when that file is missing, else compared with it: a
-    /// kernel change must leave every bit as it was. Ignored (minutes):
+    /// path (AVX-512 where the CPU has it, AVX2 clamped and raw, the portable pass with and
+    /// without FMA), written to `$BRDF_BASIS_NBRDF_GOLDEN` when that file is missing, else
+    /// compared with it: a kernel change must leave every bit as it was. A tool for kernel
+    /// changes, not a check of the current code (it needs the hashes of the code before the
+    /// change, and minutes of CPU):
     /// `BRDF_BASIS_NBRDF_GOLDEN=/tmp/nb_golden.txt cargo test --release --lib golden -- --ignored`.
+    /// The tests that always run check every kernel against the f64 network and the SIMD
+    /// kernels against the portable pass bit for bit.
     #[test]
-    #[ignore]
+    #[ignore = "a tool for kernel changes: compares with hashes written before the change (BRDF_BASIS_NBRDF_GOLDEN), minutes of CPU"]
     fn golden_hashes_of_the_merl100_tabulation() {
         use rayon::prelude::*;
         let Ok(file) = std::env::var("BRDF_BASIS_NBRDF_GOLDEN") else {
