@@ -187,7 +187,7 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
             let shape = KernelShape::choose(rows, software);
             let plan = PairPlan::new(rows, 0, 1_096_216, &limits, shape).expect("plan");
             assert!(plan.run_iters <= MAX_RUN_ITERS && (shape.lanes as u32) < LAVAPIPE_LOOP_LIMIT);
-            assert!(plan.n_pad >= rows && plan.n_pad % shape.side() == 0);
+            assert!(plan.n_pad >= rows && plan.n_pad.is_multiple_of(shape.side()));
             assert!(
                 plan.texture_height() <= limits.max_texture_dim,
                 "texture side"
@@ -199,7 +199,7 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
                 "measured texture within budget"
             );
             assert!(measured.texture_height() <= limits.max_texture_dim);
-            assert!(plan.row_stride % TEX_W == 0 && plan.row_stride >= plan.chunk);
+            assert!(plan.row_stride.is_multiple_of(TEX_W) && plan.row_stride >= plan.chunk);
             assert!(
                 plan.n_runs * shape.lanes * plan.run_iters as usize >= plan.chunk,
                 "runs cover the chunk"

@@ -616,7 +616,7 @@ fn forward<const FMA: bool>(
     scratch: &mut Scratch,
 ) {
     let nv = x.len();
-    assert!(nv % RV == 0 && nv <= BLOCK_VECS && y.len() == nv);
+    assert!(nv.is_multiple_of(RV) && nv <= BLOCK_VECS && y.len() == nv);
     let Scratch { a1, a2, .. } = scratch;
     // Layer 1: a1 = relu(x . fc1 + b1) per vector, and each unit's range over the block.
     let mut hi = [[0f32; LANES]; HIDDEN];

@@ -21,7 +21,7 @@ pub const DEFAULT_BAND_ROWS: usize = 1024;
 
 /// Checks a super-block size: a positive multiple of the back-end block side (4).
 pub fn check_band_rows(band_rows: usize) -> Result<(), DistanceError> {
-    if band_rows == 0 || band_rows % BLOCK != 0 {
+    if band_rows == 0 || !band_rows.is_multiple_of(BLOCK) {
         return Err(DistanceError::UnknownOption {
             what: "band rows",
             found: band_rows.to_string(),

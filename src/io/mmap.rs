@@ -173,7 +173,8 @@ impl MappedF64 {
             .checked_mul(8)
             .and_then(|b| b.checked_add(offset))
             .is_some_and(|end| end <= map.len);
-        let aligned = (map.ptr.as_ptr() as usize + offset) % std::mem::align_of::<f64>() == 0;
+        let aligned =
+            (map.ptr.as_ptr() as usize + offset).is_multiple_of(std::mem::align_of::<f64>());
         if fits && aligned && cfg!(target_endian = "little") {
             Ok(Self { map, offset, count })
         } else {

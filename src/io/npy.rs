@@ -262,7 +262,7 @@ fn check_file_len(
             h.rows,
             h.cols,
             h.data_offset,
-            if found % 8 == 0 {
+            if found.is_multiple_of(8) {
                 format!(" ({} values)", found / 8)
             } else {
                 format!(" ({} values and {} stray bytes)", found / 8, found % 8)

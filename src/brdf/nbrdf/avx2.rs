@@ -237,7 +237,7 @@ pub(super) unsafe fn forward(
     s: &mut Scratch,
 ) {
     let nv = x.len();
-    assert!(nv % RV == 0 && nv <= BLOCK_VECS && y.len() == nv);
+    assert!(nv.is_multiple_of(RV) && nv <= BLOCK_VECS && y.len() == nv);
     let zero = _mm256_setzero_ps();
     // Layer 1, and each unit's per-lane range over the block.
     let (h0, h1) = (x[0][0][0], x[0][1][0]);

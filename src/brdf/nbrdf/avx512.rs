@@ -11,9 +11,7 @@
 //! Every function here is an `unsafe fn` with the features it needs: its caller must
 //! have checked that the processor has AVX-512F, AVX2 and FMA.
 //!
-//! The AVX-512 intrinsics are stable since Rust 1.89 (the crate's `rust-version` says
-//! 1.85: to be raised with this module).
-#![allow(clippy::incompatible_msrv)]
+//! The AVX-512 intrinsics are stable since Rust 1.89, the crate's `rust-version`.
 
 use super::avx2;
 use super::{
@@ -129,7 +127,7 @@ unsafe fn load16(w: &[f32; NBRDF_WEIGHTS], at: usize) -> __m512 {
 #[target_feature(enable = "avx512f,avx2,fma")]
 unsafe fn forward(w: &[f32; NBRDF_WEIGHTS], x: &[[V; 5]], y: &mut [[V; 3]], s: &mut Scratch) {
     let nv = x.len();
-    assert!(nv % RV == 0 && nv <= BLOCK_VECS && y.len() == nv);
+    assert!(nv.is_multiple_of(RV) && nv <= BLOCK_VECS && y.len() == nv);
     match nv / 2 {
         2 => forward_n::<2>(w, x, y, s),
         _ => forward_n::<BLOCK_V16>(w, x, y, s),

@@ -76,7 +76,9 @@ impl KernelShape {
 /// texel pairs `(i <= j)` (the rest mirror them).
 pub fn kernel_source(shape: KernelShape, diagonal: bool) -> String {
     assert!(
-        shape.lanes % crate::backend::cpu::CANONICAL_LANES == 0,
+        shape
+            .lanes
+            .is_multiple_of(crate::backend::cpu::CANONICAL_LANES),
         "lanes of a workgroup come in whole canonical runs"
     );
     let (r, side) = (shape.r, shape.side());
