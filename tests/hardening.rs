@@ -562,8 +562,20 @@ fn no_loader_noise_without_xdg_runtime_dir() {
 #[cfg(unix)]
 #[test]
 fn an_interrupted_export_leaves_nothing() {
+    use std::os::unix::process::CommandExt;
     let dir = tmp();
-    let mut child = bin()
+    let mut cmd = bin();
+    // A harness started in the background (`cargo test &` in a script) runs with SIGINT
+    // ignored, and the binary keeps an ignored SIGINT ignored by design (main.rs): give
+    // the child the default disposition, as a Ctrl-C in a terminal finds it.
+    // SAFETY: `signal` is async-signal-safe; nothing else runs between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    let mut child = cmd
         .args([
             "--backend",
             "cpu",
