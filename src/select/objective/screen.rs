@@ -211,8 +211,9 @@ pub(super) fn ruled_out(lb: f64, terms: usize, thr: Option<f64>) -> bool {
 /// channel counts, the rounding scale of its gradients, and the data of the tight bound:
 /// its group (the targets with the same passive set, which share the positions in `nz` of
 /// the inactive columns and the Schur complement `S_t`, row-major, at
-/// `goff[g]..goff[g + 1]` and `gsoff[g]..`) and the gradients of its inactive columns at
-/// `off[i]..off[i + 1]` (`tight[i]` false: none).
+/// `goff[g]..goff[g + 1]` and `gsoff[g]..`) and the room left in the dual feasibility of
+/// its inactive columns, `TAU - werr - w_i` at `off[i]..off[i + 1]` (`tight[i]` false:
+/// none; `blocked[i]`: one of them is negative).
 #[derive(Default)]
 struct Targets {
     y: Vec<f64>,
@@ -225,7 +226,8 @@ struct Targets {
     tight: Vec<bool>,
     kp: Vec<f64>,
     off: Vec<usize>,
-    wold: Vec<f64>,
+    room: Vec<f64>,
+    blocked: Vec<bool>,
     grp: Vec<u32>,
     goff: Vec<usize>,
     gsoff: Vec<usize>,
@@ -336,13 +338,13 @@ fn tile(x: &[[f64; CB]], y: &[f64], lp: usize, t0: usize) -> [[f64; TT]; CB] {
     acc
 }
 
-/// One block of [`CB`] candidates of one channel: column indices, `C_jk` over the basis
-/// columns, and per candidate whether it is a zero column, `s2 = 1 - |V_j|^2`, its cosine
-/// row, whether the dual bounds apply (non-negative cosines) and the relative rounding of
-/// its `d2`.
+/// One block of [`CB`] candidates of one channel: their positions among the live targets
+/// (`usize::MAX`: none), `C_jk` over the basis columns, and per candidate whether it is a
+/// zero column, `s2 = 1 - |V_j|^2`, its cosine row, whether the dual bounds apply
+/// (non-negative cosines) and the relative rounding of its `d2`.
 struct Block<'a> {
     nb: usize,
-    j: [usize; CB],
+    own: [usize; CB],
     xg: Vec<[f64; CB]>,
     zero: [bool; CB],
     nc: [f64; CB],
@@ -423,15 +425,20 @@ fn pair_bound(
         if d2 > 0.0 && eps <= EPS_MAX && exact_err <= EPS_MAX {
             let full = w * inv;
             let mut alpha = full;
-            for (&wo, &sk) in d.wold[lo..hi].iter().zip(&sig[..ni]) {
-                let room = TAU - werr - wo;
-                if room < 0.0 {
-                    alpha = 0.0;
-                    break;
-                }
-                let push = -sk * (1.0 + eps);
-                if sk < 0.0 && alpha * push > room {
-                    alpha = alpha.min(room / push);
+            let room = &d.room[lo..hi];
+            if d.blocked[i] {
+                // An inactive column with no room: only the loose end is feasible.
+                alpha = 0.0;
+            } else if room.iter().zip(&sig[..ni]).fold(false, |hit, (&r, &sk)| {
+                hit | (sk < 0.0 && full * (-sk * (1.0 + eps)) > r)
+            }) {
+                // Some column leaves the full step infeasible: shorten it column by column
+                // (without a hit, the loop below leaves `alpha = full`).
+                for (&r, &sk) in room.iter().zip(&sig[..ni]) {
+                    let push = -sk * (1.0 + eps);
+                    if sk < 0.0 && alpha * push > r {
+                        alpha = alpha.min(r / push);
+                    }
                 }
             }
             let f = if alpha == full {
@@ -499,6 +506,7 @@ pub(super) fn lower_bounds(
                 active: vec![false; lp],
                 werr: vec![0.0; lp],
                 tight: vec![false; lp],
+                blocked: vec![false; lp],
                 kp: vec![0.0; lp],
                 off: vec![0; lp + 1],
                 grp: vec![0; lp],
@@ -571,7 +579,11 @@ pub(super) fn lower_bounds(
                     d.kp[i] = sch[gr].as_ref().map_or(1.0, |sc| sc.2);
                     d.grp[i] = gpos[gr];
                     d.off[i + 1] += wo.len();
-                    d.wold.extend(wo);
+                    // The slack of each inactive column's dual feasibility.
+                    let werr = d.werr[i];
+                    let start = d.room.len();
+                    d.room.extend(wo.iter().map(|&w| TAU - werr - w));
+                    d.blocked[i] = d.room[start..].iter().any(|&r| r < 0.0);
                 }
             }
             d
@@ -686,43 +698,45 @@ fn schur1(sm: &[f64], x: &[f64], sig: &mut [f64]) -> f64 {
 }
 
 /// Per group of targets with the same passive set ([`Targets`]), per candidate of a task:
-/// `a_I . S a_I` and `S a_I` (`1 + ni` values at `slot * (1 + ni)`), computed on first use.
+/// `a_I . S a_I` and `S a_I` (`1 + ni` values), computed on first use. One arena per task,
+/// reused from channel to channel: only the slots used are written.
+#[derive(Default)]
 struct Memo {
-    have: Vec<u64>,
-    vals: Vec<Vec<f64>>,
+    /// Per group and candidate (`group * CT + candidate`): the offset of its values in
+    /// `vals` (`u32::MAX`: not computed yet).
+    at: Vec<u32>,
+    vals: Vec<f64>,
     x: Vec<f64>,
 }
 
 impl Memo {
-    fn new(groups: usize) -> Self {
-        Self {
-            have: vec![0; groups],
-            vals: vec![Vec::new(); groups],
-            x: Vec::new(),
-        }
+    /// Forgets every value, for `groups` groups.
+    fn reset(&mut self, groups: usize) {
+        self.at.clear();
+        self.at.resize(groups * CT, u32::MAX);
+        self.vals.clear();
     }
 
-    /// `(a_I . S a_I, S a_I)` of candidate `ca` (`< 64`, row `arow` of `a`) for group
-    /// `gr` of `d`.
+    /// `(a_I . S a_I, S a_I)` of candidate `ca` (`< CT`, row `arow` of `a`) for group `gr`
+    /// of `d`.
     #[inline(always)]
     fn get(&mut self, d: &Targets, gr: usize, ca: usize, arow: &[f64]) -> (f64, &[f64]) {
         let (lo, hi) = (d.goff[gr], d.goff[gr + 1]);
         let ni = hi - lo;
-        let v = &mut self.vals[gr];
-        if v.is_empty() {
-            v.resize(CT * (1 + ni), 0.0);
-        }
-        let slot = &mut v[ca * (1 + ni)..(ca + 1) * (1 + ni)];
-        if self.have[gr] & (1u64 << ca) == 0 {
-            self.have[gr] |= 1u64 << ca;
+        let key = gr * CT + ca;
+        let mut o = self.at[key] as usize;
+        if self.at[key] == u32::MAX {
+            o = self.vals.len();
+            self.at[key] = u32::try_from(o).expect("memo arena below 2^32 values");
             self.x.clear();
             self.x
                 .extend(d.inact[lo..hi].iter().map(|&r| arow[r as usize]));
             let sm = &d.s[d.gsoff[gr]..d.gsoff[gr] + ni * ni];
-            let (q, sig) = slot.split_first_mut().expect("1 + ni");
+            self.vals.resize(o + 1 + ni, 0.0);
+            let (q, sig) = self.vals[o..].split_first_mut().expect("1 + ni");
             *q = schur1(sm, &self.x, sig);
         }
-        (slot[0], &slot[1..])
+        (self.vals[o], &self.vals[o + 1..o + 1 + ni])
     }
 }
 
@@ -737,8 +751,8 @@ struct Pending {
 
 /// The body of [`task_bounds`]: per channel, the gradients of each block of [`CB`]
 /// candidates and register tile of [`TT`] targets (cache tiles of [`TB`] targets); the
-/// unchanged pairs add `q_t`, the others wait per target and are bounded four at a time
-/// ([`schur4`], then [`pair_bound`]).
+/// unchanged pairs add `q_t`, the others wait per target and are bounded one by one
+/// ([`Memo`] per passive set and candidate, then [`pair_bound`]).
 #[inline(always)]
 fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
     let Ctx {
@@ -761,10 +775,9 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
     // Per chunk, the sum of the `q_t` it starts from: every partial sum of the chunk is at
     // most twice it in magnitude, which bounds the rounding of the adjusted sums.
     let mut slack = vec![vec![0.0; nchunks]; nt];
-    // The memo's candidate masks are 64 bits wide.
-    const { assert!(CT <= 64) };
+    let mut memo = Memo::default();
     for (c, d) in tg.iter().enumerate() {
-        let mut memo = Memo::new(d.goff.len() - 1);
+        memo.reset(d.goff.len() - 1);
         let g = obj.view(c);
         let bs = &proj[c];
         let p = bs.nz.len();
@@ -780,7 +793,7 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
                 let nc: [f64; CB] = std::array::from_fn(|a| 1.0 - bs.nrm[j[a]]);
                 Block {
                     nb,
-                    j,
+                    own: std::array::from_fn(|a| live_pos[j[a] - 1]),
                     zero: std::array::from_fn(|a| g.at(j[a], j[a]) == 0.0),
                     nc,
                     rows: std::array::from_fn(|a| g.row(j[a])),
@@ -834,6 +847,8 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
                     let gw = tile(&blk.xg, &d.y, lp, u0);
                     let tix: [usize; TT] =
                         std::array::from_fn(|b| live.get(u0 + b).map_or(0, |&t| t + 1));
+                    // Live targets are increasing: four in a row are one load per row.
+                    let run = u0 + TT <= nl && tix[TT - 1] == tix[0] + (TT - 1);
                     let hm: [f64; TT] = d.hmax[u0..u0 + TT].try_into().expect("tile");
                     let ys: [f64; TT] = d.ysum[u0..u0 + TT].try_into().expect("tile");
                     let act: u32 = (0..TT).fold(0, |m, b| m | (u32::from(d.active[u0 + b]) << b));
@@ -842,16 +857,28 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
                             continue;
                         }
                         let row = blk.rows[a];
-                        let cj: [f64; TT] = std::array::from_fn(|b| row[tix[b]]);
+                        let cj: [f64; TT] = if run {
+                            row[tix[0]..tix[0] + TT].try_into().expect("tile")
+                        } else {
+                            std::array::from_fn(|b| row[tix[b]])
+                        };
                         let w: [f64; TT] = std::array::from_fn(|b| cj[b] - gwa[b]);
                         let thr: [f64; TT] =
                             std::array::from_fn(|b| KKT_TOL * (hm[b].max(cj[b].abs()) + ys[b]));
-                        let mut m = act;
-                        for b in 0..TT {
-                            if w[b] <= thr[b] || tix[b] == blk.j[a] {
-                                m &= !(1 << b);
-                            }
-                        }
+                        // Branch-free (about one pair in ten goes on, at random): the pairs
+                        // with a positive gradient, but the candidate's own target.
+                        // Not `>`: a NaN gradient is not "unchanged", as in the test of
+                        // `ChanState::q_adding`.
+                        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+                        let up: [bool; TT] = std::array::from_fn(|b| !(w[b] <= thr[b]));
+                        let own = blk.own[a].wrapping_sub(u0);
+                        let own_bit = if own < TT { 1u32 << own } else { 0 };
+                        let mut m = up
+                            .iter()
+                            .enumerate()
+                            .fold(0u32, |m, (b, &u)| m | (u32::from(u) << b))
+                            & act
+                            & !own_bit;
                         while m != 0 {
                             let b = m.trailing_zeros() as usize;
                             m &= m - 1;
@@ -914,8 +941,8 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
 }
 
 /// Whether candidate `cand` can replace a best of threshold `thr`: its bound, then,
-/// chunk by chunk of live targets, the bound with that chunk's exact values in place of
-/// its bounds, until the bound rules it out (`Ok(None)`) or every chunk is exact: then
+/// chunk by chunk of live targets (those whose bounds claim the largest decrease first),
+/// the bound with that chunk's exact values in place of its bounds, until the bound rules it out (`Ok(None)`) or every chunk is exact: then
 /// `Ok(Some(score))`, the exact score summed in the order of
 /// [`Objective::scores_adding`] (target by target, channel by channel, from 0), so equal
 /// to it bit for bit.
@@ -935,12 +962,39 @@ pub(super) fn refine(
     if ruled_out(bound.mean(), terms, thr) {
         return Ok(None);
     }
-    let mut sum: f64 = bound.chunks.iter().sum();
-    let mut values = Vec::with_capacity(terms);
-    let mut scratch = Vec::new();
+    // Per chunk: where its exact values go (target by target, channel by channel) and the
+    // sum of its `q_t`, from which its bound claims the largest decrease: those chunks are
+    // made exact first (any order gives a valid bound; the final sum keeps the order).
+    let nch = bound.chunks.len();
+    let mut at = Vec::with_capacity(nch + 1);
+    at.push(0);
+    let mut claimed = Vec::with_capacity(nch);
     for (k, part) in bound.chunks.iter().enumerate() {
         let end = ((k + 1) * CHUNK).min(live.len());
+        let (mut n, mut base) = (0, 0.0);
+        for (&t, st) in live[k * CHUNK..end].iter().zip(&states[k * CHUNK..end]) {
+            if t == cand {
+                continue;
+            }
+            for (c, ch) in st.iter().enumerate() {
+                if ch.is_active() {
+                    n += 1;
+                    base += obj.share[t][c] * ch.q();
+                }
+            }
+        }
+        at.push(at[k] + n);
+        claimed.push(base - part);
+    }
+    let mut order: Vec<usize> = (0..nch).collect();
+    order.sort_by(|&a, &b| claimed[b].total_cmp(&claimed[a]).then(a.cmp(&b)));
+    let mut sum: f64 = bound.chunks.iter().sum();
+    let mut values = vec![0.0; at[nch]];
+    let mut scratch = Vec::new();
+    for (done, &k) in order.iter().enumerate() {
+        let end = ((k + 1) * CHUNK).min(live.len());
         let mut exact = 0.0;
+        let mut slot = at[k];
         for (&t, st) in live[k * CHUNK..end].iter().zip(&states[k * CHUNK..end]) {
             if t == cand {
                 continue;
@@ -952,14 +1006,15 @@ pub(super) fn refine(
                         .map_err(|e| obj.solve_error(t, c, e))?;
                     let v = obj.share[t][c] * q;
                     exact += v;
-                    values.push(v);
+                    values[slot] = v;
+                    slot += 1;
                 }
             }
         }
-        sum += exact - part;
+        sum += exact - bound.chunks[k];
         // The slack also covers the cancellation of `exact - part` (both below the
         // running sum).
-        if k + 1 < bound.chunks.len() && ruled_out(sum / bound.count as f64, 3 * terms, thr) {
+        if done + 1 < nch && ruled_out(sum / bound.count as f64, 3 * terms, thr) {
             return Ok(None);
         }
     }
