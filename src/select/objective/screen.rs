@@ -942,10 +942,10 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
 
 /// Whether candidate `cand` can replace a best of threshold `thr`: its bound, then,
 /// chunk by chunk of live targets (those whose bounds claim the largest decrease first),
-/// the bound with that chunk's exact values in place of its bounds, until the bound rules it out (`Ok(None)`) or every chunk is exact: then
-/// `Ok(Some(score))`, the exact score summed in the order of
-/// [`Objective::scores_adding`] (target by target, channel by channel, from 0), so equal
-/// to it bit for bit.
+/// the bound with that chunk's exact values in place of its bounds, until the bound rules
+/// it out (`Ok(None)`) or every chunk is exact: then `Ok(Some(score))`, the exact score
+/// summed in the order of [`Objective::scores_adding`] (target by target, channel by
+/// channel, from 0), so equal to it bit for bit.
 pub(super) fn refine(
     obj: &Objective,
     live: &[usize],
