@@ -19,10 +19,13 @@
 //! 3. Otherwise the unconstrained solution on `P + j` is `z_j = w / d2`,
 //!    `z_P = y_P - z_j L^-T v`, and the objective falls by exactly `w^2 / d2` (no
 //!    cancellation). When every `z_P > 0` and no column outside `P` gets a positive
-//!    gradient, this is the NNLS optimum; otherwise Lawson-Hanson's inner loop runs from the
-//!    old optimum, and in the rare case that fails too, the problem is solved afresh.
+//!    gradient, this is the NNLS optimum; otherwise Lawson-Hanson runs on `cols + j` from
+//!    the old optimum instead of from 0 (its inner loop, then columns entering, until the
+//!    KKT conditions hold): the same optimum up to rounding, in a few small Cholesky solves.
+//!    Only a failed factorisation or a loop past Lawson-Hanson's cap solves afresh.
 //!
-//! A candidate therefore costs `O(p^2)`, with `p` the number of columns.
+//! A candidate therefore costs `O(p^2)`, with `p` the number of columns (`O(p^3)` per
+//! change of the passive set when the update is not the optimum).
 
 use super::lawson_hanson::{self, LhParams};
 use super::{GramProblem, NnlsError};
@@ -157,14 +160,21 @@ pub fn solve(g: Cosine<'_>, cols: &[usize], t: usize) -> Result<(Vec<f64>, f64),
 /// Lower Cholesky factor (row-major `p x p`) of a symmetric positive-definite matrix, or
 /// `None` when a pivot is not positive.
 pub fn cholesky(p: usize, a: &[f64]) -> Option<Vec<f64>> {
-    let mut l = vec![0.0; p * p];
+    let mut l = Vec::new();
+    cholesky_into(p, a, &mut l).then_some(l)
+}
+
+/// [`cholesky`] into `l` (resized to `p x p`); false when a pivot is not positive.
+fn cholesky_into(p: usize, a: &[f64], l: &mut Vec<f64>) -> bool {
+    l.clear();
+    l.resize(p * p, 0.0);
     for r in 0..p {
         for s in 0..=r {
             let dot: f64 = (0..s).map(|k| l[r * p + k] * l[s * p + k]).sum();
             let v = a[r * p + s] - dot;
             if r == s {
                 if v.is_nan() || v <= 0.0 {
-                    return None;
+                    return false;
                 }
                 l[r * p + r] = v.sqrt();
             } else {
@@ -172,7 +182,7 @@ pub fn cholesky(p: usize, a: &[f64]) -> Option<Vec<f64>> {
             }
         }
     }
-    Some(l)
+    true
 }
 
 /// The exact optimum of one target on a set of columns, kept for bordered updates.
@@ -279,14 +289,14 @@ impl ChanState {
     }
 
     /// Relative residual `q` of target column `t` after adding column `j` to `cols` (the
-    /// columns this state was built on). `scratch` is reused between calls.
+    /// columns this state was built on). `ws` is scratch, reused between calls.
     pub fn q_adding(
         &self,
         g: Cosine<'_>,
         cols: &[usize],
         j: usize,
         t: usize,
-        scratch: &mut Vec<f64>,
+        ws: &mut Scratch,
     ) -> Result<f64, NnlsError> {
         let row = g.row(j);
         if row[j] == 0.0 {
@@ -301,9 +311,9 @@ impl ChanState {
             return solve_adding(g, cols, j, t);
         }
         let p = self.passive.len();
-        scratch.clear();
-        scratch.resize(2 * p, 0.0);
-        let (v, z) = scratch.split_at_mut(p);
+        let v = &mut ws.v;
+        v.clear();
+        v.resize(p, 0.0);
         // v = L^-1 C_Pj
         for r in 0..p {
             let lr = &self.l[r * p..r * p + r];
@@ -320,133 +330,178 @@ impl ChanState {
             v[r] = (v[r] - dot) / self.l[r * p + r];
         }
         let delta = w / d2;
-        for ((zk, y), u) in z.iter_mut().zip(&self.y).zip(v.iter()) {
-            *zk = y - delta * u;
-        }
-        if z.iter().any(|&x| x <= 0.0) {
-            return self.warm_inner(g, cols, j, t, z, delta);
-        }
-        let s = hmax + z.iter().sum::<f64>() + delta;
-        for &i in &self.inactive {
-            let ri = g.row(i);
-            if ri[i] == 0.0 {
-                continue;
+        // The unconstrained solution on `P + j`, and the old optimum (feasible, `j` at 0).
+        ws.z.clear();
+        ws.z.extend(self.y.iter().zip(v.iter()).map(|(y, u)| y - delta * u));
+        ws.z.push(delta);
+        if ws.z.iter().all(|&x| x > 0.0) {
+            let s = hmax + ws.z.iter().sum::<f64>();
+            let zp = &ws.z[..p];
+            let enters = self.inactive.iter().any(|&i| {
+                let ri = g.row(i);
+                ri[i] != 0.0 && {
+                    let wi = ri[t]
+                        - self
+                            .passive
+                            .iter()
+                            .zip(zp)
+                            .map(|(&k, &zk)| ri[k] * zk)
+                            .sum::<f64>()
+                        - ri[j] * delta;
+                    wi > KKT_TOL * s
+                }
+            });
+            if !enters {
+                return Ok((self.q - w * w / d2).max(0.0));
             }
-            let wi = ri[t]
-                - self
-                    .passive
-                    .iter()
-                    .zip(z.iter())
-                    .map(|(&k, &zk)| ri[k] * zk)
-                    .sum::<f64>()
-                - ri[j] * delta;
-            if wi > KKT_TOL * s {
-                return solve_adding(g, cols, j, t);
-            }
         }
-        Ok((self.q - w * w / d2).max(0.0))
+        ws.set.clear();
+        ws.set.extend_from_slice(&self.passive);
+        ws.set.push(j);
+        ws.x.clear();
+        ws.x.extend_from_slice(&self.y);
+        ws.x.push(0.0);
+        match warm_lh(g, cols, j, t, ws) {
+            Some(q) => Ok(q),
+            None => solve_adding(g, cols, j, t),
+        }
     }
+}
 
-    /// Lawson-Hanson's inner loop from the old optimum (feasible, column `j` at 0) towards
-    /// the unconstrained solution `z` on `P + j` (`z_P`, `z_j = delta`): step to the first
-    /// bound, drop the columns that reach 0, re-solve, until every coefficient is positive;
-    /// then the KKT conditions of every other column are checked (a failure, rare, falls
-    /// back to a fresh solve).
-    fn warm_inner(
-        &self,
-        g: Cosine<'_>,
-        cols: &[usize],
-        j: usize,
-        t: usize,
-        z_p: &[f64],
-        delta: f64,
-    ) -> Result<f64, NnlsError> {
-        let mut set: Vec<usize> = self.passive.clone();
-        set.push(j);
-        let mut x: Vec<f64> = self.y.clone();
-        x.push(0.0);
-        let mut z: Vec<f64> = z_p.to_vec();
-        z.push(delta);
-        for _ in 0..=set.len() {
-            if z.iter().all(|&v| v > 0.0) {
-                break;
+/// Scratch of [`ChanState::q_adding`], reused between calls (every entry read is written
+/// first in the same call).
+#[derive(Default, Debug)]
+pub struct Scratch {
+    v: Vec<f64>,
+    set: Vec<usize>,
+    x: Vec<f64>,
+    z: Vec<f64>,
+    keep_set: Vec<usize>,
+    keep_x: Vec<f64>,
+    tried: Vec<usize>,
+    a: Vec<f64>,
+    l: Vec<f64>,
+}
+
+/// Lawson-Hanson on `cols + j` for target `t`, continued from a feasible point instead of
+/// from 0: `ws.set` the passive columns, `ws.x` their (non-negative) coefficients and `ws.z`
+/// the unconstrained solution on `ws.set`. The inner loop steps from `x` towards `z` to the
+/// first bound and drops the columns that reach 0, until `z > 0`; then the column with the
+/// largest gradient above the KKT tolerance enters (one whose solve gives it no positive
+/// coefficient, or no pivot, is passed over, as in [`lawson_hanson`]), until none is left:
+/// the optimum, whose `q` is returned. The same optimum as a fresh solve (a strictly convex
+/// problem on the passive set; `q` is unique in any case) from another starting point, so
+/// equal to it up to rounding. `None` (the caller solves afresh) when a factorisation fails
+/// or the outer or inner loop exceeds Lawson-Hanson's cap.
+fn warm_lh(g: Cosine<'_>, cols: &[usize], j: usize, t: usize, ws: &mut Scratch) -> Option<f64> {
+    let m = cols.len() + 1;
+    let col = |k: usize| if k < cols.len() { cols[k] } else { j };
+    let hmax = (0..m).map(|k| g.at(col(k), t).abs()).fold(0.0, f64::max);
+    let cap = 3 * m + 30;
+    for _ in 0..cap {
+        // Inner loop: towards `z` until every passive coefficient is positive.
+        let mut inner = 0;
+        while ws.z.iter().any(|&v| v <= 0.0) {
+            inner += 1;
+            if inner > m + 1 {
+                return None;
             }
-            let alpha = x
-                .iter()
-                .zip(&z)
-                .filter(|(_, &zk)| zk <= 0.0)
-                .map(|(&xk, &zk)| xk / (xk - zk))
-                .fold(1.0f64, f64::min);
-            let mut keep_set = Vec::with_capacity(set.len());
-            let mut keep_x = Vec::with_capacity(set.len());
-            for ((&k, &xk), &zk) in set.iter().zip(&x).zip(&z) {
+            let alpha =
+                ws.x.iter()
+                    .zip(&ws.z)
+                    .filter(|(_, &zk)| zk <= 0.0)
+                    .map(|(&xk, &zk)| xk / (xk - zk))
+                    .fold(1.0f64, f64::min);
+            ws.keep_set.clear();
+            ws.keep_x.clear();
+            for ((&k, &xk), &zk) in ws.set.iter().zip(&ws.x).zip(&ws.z) {
                 let nx = if zk <= 0.0 && xk / (xk - zk) <= alpha {
                     0.0
                 } else {
                     xk + alpha * (zk - xk)
                 };
                 if nx > 0.0 {
-                    keep_set.push(k);
-                    keep_x.push(nx);
+                    ws.keep_set.push(k);
+                    ws.keep_x.push(nx);
                 }
             }
-            set = keep_set;
-            x = keep_x;
-            match solve_on(g, &set, t) {
-                Some(sol) => z = sol,
-                None => return solve_adding(g, cols, j, t),
+            std::mem::swap(&mut ws.set, &mut ws.keep_set);
+            std::mem::swap(&mut ws.x, &mut ws.keep_x);
+            if !solve_on(g, &ws.set, t, &mut ws.z, &mut ws.a, &mut ws.l) {
+                return None;
             }
         }
-        if z.iter().any(|&v| v <= 0.0) {
-            return solve_adding(g, cols, j, t);
-        }
-        // KKT of the columns outside the final set.
-        let hmax = cols
-            .iter()
-            .chain(std::iter::once(&j))
-            .map(|&i| g.at(i, t).abs())
-            .fold(0.0, f64::max);
-        let s = hmax + z.iter().sum::<f64>();
-        for &i in cols.iter().chain(std::iter::once(&j)) {
-            if set.contains(&i) {
-                continue;
+        ws.x.clear();
+        ws.x.extend_from_slice(&ws.z);
+        // Outer step: the entering column, if any.
+        let s = hmax + ws.z.iter().sum::<f64>();
+        ws.tried.clear();
+        loop {
+            let mut best: Option<(usize, f64)> = None;
+            for k in 0..m {
+                let i = col(k);
+                let ri = g.row(i);
+                if ri[i] == 0.0 || ws.set.contains(&i) || ws.tried.contains(&i) {
+                    continue;
+                }
+                let wi = ri[t]
+                    - ws.set
+                        .iter()
+                        .zip(&ws.z)
+                        .map(|(&k, &zk)| ri[k] * zk)
+                        .sum::<f64>();
+                if wi > KKT_TOL * s && best.is_none_or(|(_, b)| wi > b) {
+                    best = Some((i, wi));
+                }
             }
-            let ri = g.row(i);
-            if ri[i] == 0.0 {
-                continue;
+            let Some((i, _)) = best else {
+                // The optimum: q = 1 + sum_k z_k ((C z)_k - 2 h_k).
+                let mut q = 1.0;
+                for (&a, &za) in ws.set.iter().zip(&ws.z) {
+                    let ra = g.row(a);
+                    let cz: f64 = ws.set.iter().zip(&ws.z).map(|(&b, &zb)| ra[b] * zb).sum();
+                    q += za * (cz - 2.0 * ra[t]);
+                }
+                return Some(q.clamp(0.0, 1.0));
+            };
+            ws.tried.push(i);
+            ws.set.push(i);
+            if solve_on(g, &ws.set, t, &mut ws.z, &mut ws.a, &mut ws.l)
+                && ws.z.last().is_some_and(|&zi| zi > 0.0)
+            {
+                ws.x.push(0.0);
+                break;
             }
-            let wi = ri[t] - set.iter().zip(&z).map(|(&k, &zk)| ri[k] * zk).sum::<f64>();
-            if wi > KKT_TOL * s {
-                return solve_adding(g, cols, j, t);
-            }
+            ws.set.pop();
+            // `z` is the solution on the set without `i` again.
+            ws.z.clear();
+            ws.z.extend_from_slice(&ws.x);
         }
-        // q = 1 + sum_k z_k ((C z)_k - 2 h_k)
-        let mut q = 1.0;
-        for (&a, &za) in set.iter().zip(&z) {
-            let ra = g.row(a);
-            let cz: f64 = set.iter().zip(&z).map(|(&b, &zb)| ra[b] * zb).sum();
-            q += za * (cz - 2.0 * ra[t]);
-        }
-        Ok(q.clamp(0.0, 1.0))
     }
+    None
 }
 
-/// The unconstrained solution of `C_SS z = C_St` by Cholesky (`None` when `C_SS` is not
-/// numerically positive definite).
-fn solve_on(g: Cosine<'_>, set: &[usize], t: usize) -> Option<Vec<f64>> {
+/// The unconstrained solution `z` of `C_SS z = C_St` by Cholesky (`a` and `l` scratch);
+/// false when `C_SS` is not numerically positive definite.
+fn solve_on(
+    g: Cosine<'_>,
+    set: &[usize],
+    t: usize,
+    z: &mut Vec<f64>,
+    a: &mut Vec<f64>,
+    l: &mut Vec<f64>,
+) -> bool {
     let p = set.len();
-    let mut a = vec![0.0; p * p];
-    for (r, &i) in set.iter().enumerate() {
+    a.clear();
+    for &i in set {
         let ri = g.row(i);
-        for (s, &k) in set.iter().enumerate() {
-            a[r * p + s] = ri[k];
-        }
+        a.extend(set.iter().map(|&k| ri[k]));
     }
-    let l = cholesky(p, &a)?;
-    if (0..p).any(|r| l[r * p + r] * l[r * p + r] <= PIVOT_TOL) {
-        return None;
+    if !cholesky_into(p, a, l) || (0..p).any(|r| l[r * p + r] * l[r * p + r] <= PIVOT_TOL) {
+        return false;
     }
-    let mut z: Vec<f64> = set.iter().map(|&i| g.at(i, t)).collect();
+    z.clear();
+    z.extend(set.iter().map(|&i| g.at(i, t)));
     for r in 0..p {
         let dot: f64 = (0..r).map(|k| l[r * p + k] * z[k]).sum();
         z[r] = (z[r] - dot) / l[r * p + r];
@@ -455,7 +510,7 @@ fn solve_on(g: Cosine<'_>, set: &[usize], t: usize) -> Option<Vec<f64>> {
         let dot: f64 = (r + 1..p).map(|k| l[k * p + r] * z[k]).sum();
         z[r] = (z[r] - dot) / l[r * p + r];
     }
-    Some(z)
+    true
 }
 
 /// The exact `q` on `cols + j`.
@@ -566,7 +621,7 @@ mod tests {
             let cols = [0, 2, 4];
             let st = ChanState::new(g, &cols, t).unwrap();
             assert_eq!(st.q(), solve(g, &cols, t).unwrap().1);
-            let mut scratch = Vec::new();
+            let mut scratch = Scratch::default();
             for j in [1, 3, 5, 6] {
                 let inc = st.q_adding(g, &cols, j, t, &mut scratch).unwrap();
                 let mut all = cols.to_vec();
@@ -578,6 +633,73 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A cosine matrix of `m` sparse non-negative vectors (entries `u^4` of uniform `u`,
+    /// like the lobes of BRDFs): adding one column to a basis often moves coefficients to
+    /// zero and makes other basis columns enter.
+    fn peaky_cosine(m: usize, len: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            ((s >> 11) as f64) / (1u64 << 53) as f64
+        };
+        let v: Vec<Vec<f64>> = (0..m)
+            .map(|_| (0..len).map(|_| next().powi(4)).collect())
+            .collect();
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let mut c = vec![0.0; m * m];
+        for i in 0..m {
+            for j in 0..m {
+                c[i * m + j] = if i == j {
+                    1.0
+                } else {
+                    dot(&v[i], &v[j]) / (dot(&v[i], &v[i]) * dot(&v[j], &v[j])).sqrt()
+                };
+            }
+        }
+        c
+    }
+
+    /// The warm-started Lawson-Hanson of `q_adding` (coefficients leaving, basis columns
+    /// entering) against a fresh solve of every `basis + j`, on bases of 4 to 20 columns.
+    #[test]
+    fn warm_started_updates_match_fresh_solves() {
+        let (m, mut entered, mut left, mut pairs) = (48, 0, 0, 0);
+        for seed in 0..24u64 {
+            let c = peaky_cosine(m, 10 + (seed as usize % 3) * 6, seed);
+            let g = Cosine::new(m, &c).unwrap();
+            let t = m - 1 - (seed as usize % 5);
+            let p = 4 + (seed as usize * 7) % 17;
+            let cols: Vec<usize> = (0..p).map(|k| (k * 5 + seed as usize) % (m - 6)).collect();
+            let mut cols_sorted = cols.clone();
+            cols_sorted.sort_unstable();
+            cols_sorted.dedup();
+            let cols = cols_sorted;
+            let st = ChanState::new(g, &cols, t).unwrap();
+            let mut scratch = Scratch::default();
+            for j in (0..m).filter(|j| !cols.contains(j) && *j != t) {
+                let inc = st.q_adding(g, &cols, j, t, &mut scratch).unwrap();
+                let mut all = cols.clone();
+                all.push(j);
+                let (x, fresh) = solve(g, &all, t).unwrap();
+                assert!(
+                    (inc - fresh).abs() <= 1e-12 * (1.0 + fresh),
+                    "seed {seed} j {j}: {inc} vs {fresh}"
+                );
+                pairs += 1;
+                let was = |k: usize| st.passive.contains(&all[k]);
+                entered += usize::from((0..cols.len()).any(|k| x[k] > 0.0 && !was(k)));
+                left += usize::from((0..cols.len()).any(|k| x[k] <= 0.0 && was(k)));
+            }
+        }
+        // Both warm paths were taken, many times.
+        assert!(
+            entered >= 20 && left >= 20,
+            "{pairs} pairs: {entered} entered, {left} left"
+        );
     }
 
     #[test]

@@ -442,7 +442,7 @@ impl Objective {
             .map(|block| {
                 let mut sums = vec![0.0; block.len()];
                 let mut counts = vec![0usize; block.len()];
-                let mut scratch = Vec::new();
+                let mut scratch = crate::nnls::incremental::Scratch::default();
                 for (&t, st) in live.iter().zip(states) {
                     for (b, &cand) in block.iter().enumerate() {
                         if t == cand {

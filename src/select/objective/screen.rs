@@ -990,7 +990,7 @@ pub(super) fn refine(
     order.sort_by(|&a, &b| claimed[b].total_cmp(&claimed[a]).then(a.cmp(&b)));
     let mut sum: f64 = bound.chunks.iter().sum();
     let mut values = vec![0.0; at[nch]];
-    let mut scratch = Vec::new();
+    let mut scratch = crate::nnls::incremental::Scratch::default();
     for (done, &k) in order.iter().enumerate() {
         let end = ((k + 1) * CHUNK).min(live.len());
         let mut exact = 0.0;
