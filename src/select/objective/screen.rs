@@ -461,175 +461,234 @@ fn pair_bound(
         return 0.0;
     }
     let dual = if nonneg {
-        q - w * w / s2 * (1.0 + 4.0 * eps_v)
-            - 4.0 * w * werr / s2
-            - 4.0 * xsum * w * eps_v
-            - margin_dual
+        loose_dual(q, w, werr, s2, eps_v, xsum, margin_dual)
     } else {
         f64::NEG_INFINITY
     };
     dual.max(ls(0.0)).max(0.0)
 }
 
+/// The loose dual bound `q_t - w^2 / s2` of a pair with a positive gradient `w` (module
+/// docs), less the rounding of `s2` (relative `eps_v`), of `w` (`werr`) and of the KKT
+/// conditions (`margin_dual`); needs non-negative cosines and `s2 >= `[`NC_MIN`].
+#[inline(always)]
+fn loose_dual(q: f64, w: f64, werr: f64, s2: f64, eps_v: f64, xsum: f64, margin_dual: f64) -> f64 {
+    q - w * w / s2 * (1.0 + 4.0 * eps_v)
+        - 4.0 * w * werr / s2
+        - 4.0 * xsum * w * eps_v
+        - margin_dual
+}
+
 /// Lower bounds of `S(B + c; T)` for every candidate (`None`: not screened), from the
-/// live targets and their states (module docs). Candidates in parallel tasks of [`CT`]
-/// and blocks of [`CB`], live targets in cache tiles of [`TB`] and register tiles of
-/// [`TT`]: the gradients of a block are small matrix products, each entry summed in the
-/// order of the per-pair test, so that "unchanged" is decided on the very numbers
-/// [`ChanState::q_adding`] decides it on.
-pub(super) fn lower_bounds(
+/// live targets and their states, at either level of [`Screen::bounds`].
+#[cfg(test)]
+fn lower_bounds(
     obj: &Objective,
     live: &[usize],
     states: &[[ChanState; 3]],
     cols: &[usize],
     candidates: &[usize],
+    tight: bool,
 ) -> Vec<Option<Bound>> {
-    let Some(proj) = projections(obj, cols) else {
-        return vec![None; candidates.len()];
-    };
-    let nl = live.len();
-    let lp = nl.div_ceil(TT) * TT;
-    let nk = cols.len();
-    let pos: std::collections::HashMap<usize, usize> =
-        cols.iter().enumerate().map(|(k, &c)| (c, k)).collect();
-    let werr_scale = 4.0 * (nk + 2) as f64 * f64::EPSILON;
-    let tg: Vec<Targets> = (0..3)
-        .map(|c| {
-            let g = obj.view(c);
-            let nz = &proj[c].nz;
-            let mut d = Targets {
-                y: vec![0.0; nk * lp],
-                hmax: vec![0.0; lp],
-                ysum: vec![0.0; lp],
-                q: vec![0.0; lp],
-                share: vec![0.0; lp],
-                active: vec![false; lp],
-                werr: vec![0.0; lp],
-                tight: vec![false; lp],
-                blocked: vec![false; lp],
-                kp: vec![0.0; lp],
-                off: vec![0; lp + 1],
-                grp: vec![0; lp],
-                goff: vec![0],
-                gsoff: vec![0],
-                ..Default::default()
-            };
-            // The passive sets (sorted), each once, in order of first appearance: late in
-            // a run a few hundred sets serve thousands of targets.
-            let mut ids: std::collections::HashMap<Vec<usize>, u32> = Default::default();
-            let mut sets: Vec<Vec<usize>> = Vec::new();
-            let tgrp: Vec<Option<u32>> = states
-                .iter()
-                .map(|st| {
-                    st[c].is_active().then(|| {
-                        let mut set = st[c].kkt_parts().0.to_vec();
-                        set.sort_unstable();
-                        *ids.entry(set).or_insert_with_key(|set| {
-                            sets.push(set.clone());
-                            (sets.len() - 1) as u32
+    match Screen::new(obj, live, states, cols) {
+        None => vec![None; candidates.len()],
+        Some(sc) => sc.bounds(candidates, tight).into_iter().map(Some).collect(),
+    }
+}
+
+/// The data of the bounds of "basis + one candidate" for one basis (its live targets,
+/// their states, the projections on the basis), built once and asked for bounds at two
+/// levels ([`Screen::bounds`]).
+pub(super) struct Screen<'a> {
+    obj: &'a Objective,
+    live: &'a [usize],
+    cols: &'a [usize],
+    tg: Vec<Targets>,
+    proj: [Basis; 3],
+    basis_nonneg: [bool; 3],
+    margin_dual: f64,
+    xsum: f64,
+    live_pos: Vec<usize>,
+}
+
+impl<'a> Screen<'a> {
+    /// The bounds' data of the live targets and their states on `cols`; `None` when no
+    /// candidate can be screened (the non-zero basis columns have no Cholesky factor).
+    pub(super) fn new(
+        obj: &'a Objective,
+        live: &'a [usize],
+        states: &[[ChanState; 3]],
+        cols: &'a [usize],
+    ) -> Option<Self> {
+        let proj = projections(obj, cols)?;
+        let nl = live.len();
+        let lp = nl.div_ceil(TT) * TT;
+        let nk = cols.len();
+        let pos: std::collections::HashMap<usize, usize> =
+            cols.iter().enumerate().map(|(k, &c)| (c, k)).collect();
+        let werr_scale = 4.0 * (nk + 2) as f64 * f64::EPSILON;
+        let tg: Vec<Targets> = (0..3)
+            .map(|c| {
+                let g = obj.view(c);
+                let nz = &proj[c].nz;
+                let mut d = Targets {
+                    y: vec![0.0; nk * lp],
+                    hmax: vec![0.0; lp],
+                    ysum: vec![0.0; lp],
+                    q: vec![0.0; lp],
+                    share: vec![0.0; lp],
+                    active: vec![false; lp],
+                    werr: vec![0.0; lp],
+                    tight: vec![false; lp],
+                    blocked: vec![false; lp],
+                    kp: vec![0.0; lp],
+                    off: vec![0; lp + 1],
+                    grp: vec![0; lp],
+                    goff: vec![0],
+                    gsoff: vec![0],
+                    ..Default::default()
+                };
+                // The passive sets (sorted), each once, in order of first appearance: late in
+                // a run a few hundred sets serve thousands of targets.
+                let mut ids: std::collections::HashMap<Vec<usize>, u32> = Default::default();
+                let mut sets: Vec<Vec<usize>> = Vec::new();
+                let tgrp: Vec<Option<u32>> = states
+                    .iter()
+                    .map(|st| {
+                        st[c].is_active().then(|| {
+                            let mut set = st[c].kkt_parts().0.to_vec();
+                            set.sort_unstable();
+                            *ids.entry(set).or_insert_with_key(|set| {
+                                sets.push(set.clone());
+                                (sets.len() - 1) as u32
+                            })
                         })
                     })
-                })
-                .collect();
-            let sch: Vec<Option<Schur>> = sets.par_iter().map(|set| schur(g, nz, set)).collect();
-            // Per group: its position among the groups with the tight bound's data.
-            let mut gpos = vec![u32::MAX; sch.len()];
-            for (gi, sc) in sch.iter().enumerate() {
-                if let Some((inact, s, _)) = sc {
-                    gpos[gi] = (d.goff.len() - 1) as u32;
-                    d.inact.extend(inact);
-                    d.s.extend(s);
-                    d.goff.push(d.inact.len());
-                    d.gsoff.push(d.s.len());
+                    .collect();
+                let sch: Vec<Option<Schur>> =
+                    sets.par_iter().map(|set| schur(g, nz, set)).collect();
+                // Per group: its position among the groups with the tight bound's data.
+                let mut gpos = vec![u32::MAX; sch.len()];
+                for (gi, sc) in sch.iter().enumerate() {
+                    if let Some((inact, s, _)) = sc {
+                        gpos[gi] = (d.goff.len() - 1) as u32;
+                        d.inact.extend(inact);
+                        d.s.extend(s);
+                        d.goff.push(d.inact.len());
+                        d.gsoff.push(d.s.len());
+                    }
                 }
-            }
-            let wold: Vec<Option<Vec<f64>>> = live
-                .par_iter()
-                .zip(states)
-                .zip(&tgrp)
-                .map(|((&t, st), gr)| {
-                    let (inact, _, _) = sch[(*gr)? as usize].as_ref()?;
-                    Some(inactive_gradients(g, nz, inact, &st[c], t + 1))
-                })
-                .collect();
-            for (i, ((&t, st), (gr, wo))) in live
-                .iter()
-                .zip(states)
-                .zip(tgrp.iter().zip(wold))
-                .enumerate()
-            {
-                let ch = &st[c];
-                d.off[i + 1] = d.off[i];
-                if !ch.is_active() {
-                    continue;
-                }
-                let (passive, y, hmax, ysum) = ch.kkt_parts();
-                for (&k, &yk) in passive.iter().zip(y) {
-                    d.y[pos[&k] * lp + i] = yk;
-                }
-                d.hmax[i] = hmax;
-                d.ysum[i] = ysum;
-                d.q[i] = ch.q();
-                d.share[i] = obj.share[t][c];
-                d.active[i] = true;
-                d.werr[i] = werr_scale * (1.0 + ysum);
-                if let (Some(gr), Some(wo)) = (gr, wo) {
-                    let gr = *gr as usize;
-                    d.tight[i] = true;
-                    d.kp[i] = sch[gr].as_ref().map_or(1.0, |sc| sc.2);
-                    d.grp[i] = gpos[gr];
-                    d.off[i + 1] += wo.len();
-                    // The slack of each inactive column's dual feasibility.
-                    let werr = d.werr[i];
-                    let start = d.room.len();
-                    d.room.extend(wo.iter().map(|&w| TAU - werr - w));
-                    d.blocked[i] = d.room[start..].iter().any(|&r| r < 0.0);
-                }
-            }
-            d
-        })
-        .collect();
-    // The dual bounds need non-negative cosines among the columns.
-    let basis_nonneg: [bool; 3] = std::array::from_fn(|c| {
-        let g = obj.view(c);
-        cols.iter()
-            .all(|&k| cols.iter().all(|&l| g.at(k, l) >= 0.0))
-    });
-    let xsum = 2.0 * ((nk + 1) as f64).sqrt();
-    let margin_dual = MARGIN * (1.0 + xsum);
-    let mut live_pos = vec![usize::MAX; obj.len()];
-    for (i, &t) in live.iter().enumerate() {
-        live_pos[t] = i;
-    }
-    let ctx = Ctx {
-        obj,
-        live,
-        cols,
-        tg: &tg,
-        proj: &proj,
-        basis_nonneg,
-        margin_dual,
-        xsum,
-        nchunks: nl.div_ceil(CHUNK),
-        lp,
-        live_pos: &live_pos,
-    };
-    candidates
-        .par_chunks(CT)
-        .flat_map_iter(|task| {
-            let chunks = task_bounds(&ctx, task);
-            chunks
-                .into_iter()
-                .zip(task)
-                .map(|(ch, &cand)| {
-                    Some(Bound {
-                        chunks: ch,
-                        count: nl - usize::from(live_pos[cand] != usize::MAX),
+                let wold: Vec<Option<Vec<f64>>> = live
+                    .par_iter()
+                    .zip(states)
+                    .zip(&tgrp)
+                    .map(|((&t, st), gr)| {
+                        let (inact, _, _) = sch[(*gr)? as usize].as_ref()?;
+                        Some(inactive_gradients(g, nz, inact, &st[c], t + 1))
                     })
-                })
-                .collect::<Vec<_>>()
+                    .collect();
+                for (i, ((&t, st), (gr, wo))) in live
+                    .iter()
+                    .zip(states)
+                    .zip(tgrp.iter().zip(wold))
+                    .enumerate()
+                {
+                    let ch = &st[c];
+                    d.off[i + 1] = d.off[i];
+                    if !ch.is_active() {
+                        continue;
+                    }
+                    let (passive, y, hmax, ysum) = ch.kkt_parts();
+                    for (&k, &yk) in passive.iter().zip(y) {
+                        d.y[pos[&k] * lp + i] = yk;
+                    }
+                    d.hmax[i] = hmax;
+                    d.ysum[i] = ysum;
+                    d.q[i] = ch.q();
+                    d.share[i] = obj.share[t][c];
+                    d.active[i] = true;
+                    d.werr[i] = werr_scale * (1.0 + ysum);
+                    if let (Some(gr), Some(wo)) = (gr, wo) {
+                        let gr = *gr as usize;
+                        d.tight[i] = true;
+                        d.kp[i] = sch[gr].as_ref().map_or(1.0, |sc| sc.2);
+                        d.grp[i] = gpos[gr];
+                        d.off[i + 1] += wo.len();
+                        // The slack of each inactive column's dual feasibility.
+                        let werr = d.werr[i];
+                        let start = d.room.len();
+                        d.room.extend(wo.iter().map(|&w| TAU - werr - w));
+                        d.blocked[i] = d.room[start..].iter().any(|&r| r < 0.0);
+                    }
+                }
+                d
+            })
+            .collect();
+        // The dual bounds need non-negative cosines among the columns.
+        let basis_nonneg: [bool; 3] = std::array::from_fn(|c| {
+            let g = obj.view(c);
+            cols.iter()
+                .all(|&k| cols.iter().all(|&l| g.at(k, l) >= 0.0))
+        });
+        let xsum = 2.0 * ((nk + 1) as f64).sqrt();
+        let margin_dual = MARGIN * (1.0 + xsum);
+        let mut live_pos = vec![usize::MAX; obj.len()];
+        for (i, &t) in live.iter().enumerate() {
+            live_pos[t] = i;
+        }
+        Some(Self {
+            obj,
+            live,
+            cols,
+            tg,
+            proj,
+            basis_nonneg,
+            margin_dual,
+            xsum,
+            live_pos,
         })
-        .collect()
+    }
+
+    /// The bound of each of `candidates`: with `tight`, the best of the module docs'
+    /// bounds per pair; without, the loose level, which bounds each pair whose optimum may
+    /// change by the loose dual point alone (0 where that does not apply): a fraction of
+    /// the cost (no Schur complement, no per-pair search), valid, and enough to rule most
+    /// candidates out ([`best_first`] makes tight only the bounds it cannot decide on).
+    ///
+    /// Candidates in parallel tasks of [`CT`] and blocks of [`CB`], live targets in cache
+    /// tiles of [`TB`] and register tiles of [`TT`]: the gradients of a block are small
+    /// matrix products, each entry summed in the order of the per-pair test, so that
+    /// "unchanged" is decided on the very numbers [`ChanState::q_adding`] decides it on.
+    pub(super) fn bounds(&self, candidates: &[usize], tight: bool) -> Vec<Bound> {
+        let nl = self.live.len();
+        let ctx = Ctx {
+            obj: self.obj,
+            live: self.live,
+            cols: self.cols,
+            tg: &self.tg,
+            proj: &self.proj,
+            basis_nonneg: self.basis_nonneg,
+            margin_dual: self.margin_dual,
+            xsum: self.xsum,
+            nchunks: nl.div_ceil(CHUNK),
+            lp: nl.div_ceil(TT) * TT,
+            live_pos: &self.live_pos,
+        };
+        candidates
+            .par_chunks(CT)
+            .flat_map_iter(|task| {
+                let chunks = task_bounds(&ctx, task, tight);
+                chunks
+                    .into_iter()
+                    .zip(task)
+                    .map(|(ch, &cand)| Bound {
+                        chunks: ch,
+                        count: nl - usize::from(self.live_pos[cand] != usize::MAX),
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    }
 }
 
 /// What the tasks of [`lower_bounds`] share.
@@ -650,20 +709,30 @@ struct Ctx<'a> {
 
 /// The chunk sums of the bounds of one task's candidates: with AVX2 where the CPU has it
 /// (the same operations, so the same numbers, in wider registers).
-fn task_bounds(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+fn task_bounds(ctx: &Ctx<'_>, task: &[usize], tight: bool) -> Vec<Vec<f64>> {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked above).
-        return unsafe { task_bounds_avx2(ctx, task) };
+        return unsafe {
+            if tight {
+                task_bounds_avx2::<true>(ctx, task)
+            } else {
+                task_bounds_avx2::<false>(ctx, task)
+            }
+        };
     }
-    task_bounds_body(ctx, task)
+    if tight {
+        task_bounds_body::<true>(ctx, task)
+    } else {
+        task_bounds_body::<false>(ctx, task)
+    }
 }
 
 /// [`task_bounds_body`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn task_bounds_avx2(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
-    task_bounds_body(ctx, task)
+unsafe fn task_bounds_avx2<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+    task_bounds_body::<TIGHT>(ctx, task)
 }
 
 /// Asks for the cache lines of `v` (a hint; no effect on any value).
@@ -754,7 +823,7 @@ struct Pending {
 /// unchanged pairs add `q_t`, the others wait per target and are bounded one by one
 /// ([`Memo`] per passive set and candidate, then [`pair_bound`]).
 #[inline(always)]
-fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+fn task_bounds_body<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
     let Ctx {
         obj,
         live,
@@ -879,6 +948,28 @@ fn task_bounds_body(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
                             .fold(0u32, |m, (b, &u)| m | (u32::from(u) << b))
                             & act
                             & !own_bit;
+                        if !TIGHT {
+                            // The loose level: the loose dual bound, or 0 (module docs).
+                            let s2 = blk.nc[a];
+                            let ok = blk.nonneg[a] && s2 >= NC_MIN;
+                            let eps_v = bs.e64 * bs.sk / s2;
+                            let mut add = 0.0;
+                            while m != 0 {
+                                let b = m.trailing_zeros() as usize;
+                                m &= m - 1;
+                                let i = u0 + b;
+                                let (q, werr) = (d.q[i], d.werr[i]);
+                                let lb = if ok {
+                                    loose_dual(q, w[b], werr, s2, eps_v, xsum, margin_dual).max(0.0)
+                                } else {
+                                    0.0
+                                };
+                                add += d.share[i] * (lb - q);
+                            }
+                            // A register tile never straddles two chunks (`CHUNK % TT == 0`).
+                            chunks[bi * CB + a][u0 / CHUNK] += add;
+                            continue;
+                        }
                         while m != 0 {
                             let b = m.trailing_zeros() as usize;
                             m &= m - 1;
@@ -1044,48 +1135,84 @@ fn band_low(c: f64, tol: f64) -> f64 {
     c * (1.0 - tol) * (1.0 - tol) - 2e-300
 }
 
+/// A candidate in [`best_first`]'s queue: its bound, then its position (the lower first).
+#[derive(Clone, Copy, PartialEq)]
+struct Queued(f64, usize);
+
+impl Eq for Queued {}
+
+impl Ord for Queued {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        // Reversed: `BinaryHeap` is a max-heap.
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+
+impl PartialOrd for Queued {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
 /// The exact [`Chain`] over the concatenated candidates of `groups` (the states of each
 /// group's basis in `addings`), as `(flat index, score)`, and how many exact scores were
 /// computed.
 ///
-/// Best first: candidates are scored exactly in the order of their lower bounds (in small
-/// parallel batches), each only until its refined bound reaches the cutoff
-/// `c = s* (1 + 16 tol)` of the lowest exact score `s*` so far ([`refine`]); the scan
-/// ends at the first bound at or above `c`. Every candidate left has a score `>= c`, and
-/// when no known score lies in `[c (1 - tol)^2, c)` (else `c` is raised and the scan goes
-/// on), the chain over the known scores in collection order chooses exactly what the
-/// chain over all the scores would ([`band_low`]).
+/// Best first: candidates are taken in the order of their lower bounds, first the loose
+/// ones of [`Screen::bounds`] for all; a candidate taken with a loose bound gets its tight
+/// bound (in batches) and goes back in line; one taken with its tight bound is scored
+/// exactly (in small parallel batches), each only until its refined bound reaches the
+/// cutoff `c = s* (1 + 16 tol)` of the lowest exact score `s*` so far ([`refine`]). The
+/// scan ends at the first bound at or above `c`: every candidate left has a score `>= c`
+/// (whichever its bound's level), and when no known score lies in `[c (1 - tol)^2, c)`
+/// (else `c` is raised and the scan goes on), the chain over the known scores in
+/// collection order chooses exactly what the chain over all the scores would
+/// ([`band_low`]).
 pub(super) fn best_first(
     obj: &Objective,
     addings: &[super::Adding],
     groups: &[(&[usize], &[usize])],
     tol: f64,
 ) -> Result<(Option<(usize, f64)>, usize), crate::select::SelectionError> {
-    // Items: (group, candidate index, bound).
+    let ordered = tol <= BEST_FIRST_TOL_MAX;
+    let screens: Vec<Option<Screen<'_>>> = addings
+        .iter()
+        .map(|a| Screen::new(obj, &a.live, &a.states, &a.cols))
+        .collect();
+    // Items: (group, candidate index, bound), the bounds loose (without an order, the
+    // bounds only spare candidates no target is left for: any level serves).
     let mut items: Vec<(usize, usize, Option<Bound>)> = Vec::new();
-    for (gi, (a, &(_, cands))) in addings.iter().zip(groups).enumerate() {
-        let b = lower_bounds(obj, &a.live, &a.states, &a.cols, cands);
-        items.extend(b.into_iter().enumerate().map(|(k, b)| (gi, k, b)));
+    for (gi, (sc, &(_, cands))) in screens.iter().zip(groups).enumerate() {
+        match sc {
+            None => items.extend((0..cands.len()).map(|k| (gi, k, None))),
+            Some(sc) => items.extend(
+                sc.bounds(cands, false)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(k, b)| (gi, k, Some(b))),
+            ),
+        }
     }
-    let n = items.len();
     let terms: Vec<usize> = addings.iter().map(|a| 3 * a.live.len()).collect();
     // The bound each candidate is ordered by (`-inf`: not screened).
-    let lb: Vec<f64> = items
+    let order_key = |g: usize, b: &Option<Bound>| match b {
+        None => f64::NEG_INFINITY,
+        Some(b) => {
+            let m = b.mean();
+            let slack = (terms[g] as f64 + 16.0) * f64::EPSILON;
+            m - slack * m.abs()
+        }
+    };
+    // Whether a candidate's bound is final (tight, or not screened, or no order).
+    let mut tight: Vec<bool> = items
         .iter()
-        .map(|(g, _, b)| match b {
-            None => f64::NEG_INFINITY,
-            Some(b) => {
-                let m = b.mean();
-                let slack = (terms[*g] as f64 + 16.0) * f64::EPSILON;
-                m - slack * m.abs()
-            }
-        })
+        .map(|(_, _, b)| !ordered || b.is_none())
         .collect();
-    let ordered = tol <= BEST_FIRST_TOL_MAX;
-    let mut order: Vec<usize> = (0..n).collect();
-    if ordered {
-        order.sort_by(|&a, &b| lb[a].total_cmp(&lb[b]).then(a.cmp(&b)));
-    }
+    let mut queue: std::collections::BinaryHeap<Queued> = items
+        .iter()
+        .enumerate()
+        .map(|(i, (g, _, b))| Queued(if ordered { order_key(*g, b) } else { 0.0 }, i))
+        .collect();
     // Exact score per item (`None`: not known); items ruled out at cutoff `c` (score >= c).
     // A candidate no target is left for scores `+inf` (no exact work).
     let mut known: Vec<Option<f64>> = items
@@ -1099,25 +1226,9 @@ pub(super) fn best_first(
     let mut evaluated = 0;
     let mut s_best = f64::INFINITY;
     let mut raise = 0;
-    let mut pos = 0;
     let batch = (2 * rayon::current_num_threads()).max(4);
-    let score = |i: usize, c: f64| -> Result<Option<f64>, crate::select::SelectionError> {
-        let (g, k, b) = &items[i];
-        let a = &addings[*g];
-        let cand = groups[*g].1[*k];
-        match b {
-            None => Ok(Some(obj.exact_scores(a, &[cand])?[0])),
-            Some(b) => refine(
-                obj,
-                &a.live,
-                &a.states,
-                &a.cols,
-                cand,
-                b,
-                c.is_finite().then_some(c),
-            ),
-        }
-    };
+    // Candidates made tight at a time: a few tasks per thread.
+    let up_batch = 2 * CT * rayon::current_num_threads();
     loop {
         let c = if ordered {
             cutoff(s_best, tol, raise)
@@ -1134,13 +1245,24 @@ pub(super) fn best_first(
                 true
             }
         });
-        while todo.len() < batch && pos < n && lb[order[pos]] < c {
-            if known[order[pos]].is_none() {
-                todo.push(order[pos]);
+        let mut up: Vec<usize> = Vec::new();
+        while todo.len() < batch && up.len() < up_batch {
+            match queue.peek() {
+                Some(&Queued(l, i)) if l < c => {
+                    queue.pop();
+                    if known[i].is_some() {
+                        continue;
+                    }
+                    if tight[i] {
+                        todo.push(i);
+                    } else {
+                        up.push(i);
+                    }
+                }
+                _ => break,
             }
-            pos += 1;
         }
-        if todo.is_empty() {
+        if todo.is_empty() && up.is_empty() {
             if !ordered || s_best == f64::INFINITY {
                 break;
             }
@@ -1151,6 +1273,49 @@ pub(super) fn best_first(
             }
             break;
         }
+        if !up.is_empty() {
+            // Tight bounds, per group, in parallel tasks; back in line.
+            up.sort_unstable();
+            let tasks: Vec<&[usize]> = up
+                .chunk_by(|&a, &b| items[a].0 == items[b].0)
+                .flat_map(|run| run.chunks(CT))
+                .collect();
+            let tb: Vec<Vec<Bound>> = tasks
+                .par_iter()
+                .map(|task| {
+                    let g = items[task[0]].0;
+                    let sc = screens[g].as_ref().expect("a loose bound has its screen");
+                    let cands: Vec<usize> = task.iter().map(|&i| groups[g].1[items[i].1]).collect();
+                    sc.bounds(&cands, true)
+                })
+                .collect();
+            for (task, bs) in tasks.iter().zip(tb) {
+                for (&i, b) in task.iter().zip(bs) {
+                    let g = items[i].0;
+                    let b = Some(b);
+                    queue.push(Queued(order_key(g, &b), i));
+                    items[i].2 = b;
+                    tight[i] = true;
+                }
+            }
+        }
+        let score = |i: usize, c: f64| -> Result<Option<f64>, crate::select::SelectionError> {
+            let (g, k, b) = &items[i];
+            let a = &addings[*g];
+            let cand = groups[*g].1[*k];
+            match b {
+                None => Ok(Some(obj.exact_scores(a, &[cand])?[0])),
+                Some(b) => refine(
+                    obj,
+                    &a.live,
+                    &a.states,
+                    &a.cols,
+                    cand,
+                    b,
+                    c.is_finite().then_some(c),
+                ),
+            }
+        };
         let out: Vec<Option<f64>> = todo
             .par_iter()
             .map(|&i| score(i, c))
@@ -1183,25 +1348,29 @@ mod tests {
     use crate::select::objective::argmin;
     use crate::select::objective::ObjectiveParams;
 
-    /// Asserts that every candidate's bound is at most its exact score for `basis`, and
-    /// returns how many bounds exceed the best exact score (rule their candidate out) and
-    /// the number of candidates.
+    /// Asserts that every candidate's bound, loose and tight, is at most its exact score for
+    /// `basis`, and returns how many tight bounds exceed the best exact score (rule their
+    /// candidate out) and the number of candidates.
     fn bounds_below_exact(obj: &Objective, basis: &[usize], all: &[usize]) -> (usize, usize) {
         let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
         let a = obj.adding(basis, all).expect("states");
-        let lbs: Vec<f64> = lower_bounds(obj, &a.live, &a.states, &a.cols, &cands)
-            .iter()
-            .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
-            .collect();
         let exact = obj.exact_scores(&a, &cands).expect("exact");
         let best = exact.iter().copied().fold(f64::INFINITY, f64::min);
-        for ((&c, &lb), &s) in cands.iter().zip(&lbs).zip(&exact) {
-            assert!(
-                lb <= s,
-                "basis {basis:?}, candidate {c}: bound {lb} > exact {s}"
-            );
+        let mut out = 0;
+        for tight in [false, true] {
+            let lbs: Vec<f64> = lower_bounds(obj, &a.live, &a.states, &a.cols, &cands, tight)
+                .iter()
+                .map(|b| b.as_ref().map_or(f64::NEG_INFINITY, Bound::mean))
+                .collect();
+            for ((&c, &lb), &s) in cands.iter().zip(&lbs).zip(&exact) {
+                assert!(
+                    lb <= s,
+                    "basis {basis:?}, candidate {c}, tight {tight}: bound {lb} > exact {s}"
+                );
+            }
+            out = lbs.iter().filter(|&&lb| lb > best).count();
         }
-        (lbs.iter().filter(|&&lb| lb > best).count(), cands.len())
+        (out, cands.len())
     }
 
     #[test]
