@@ -1135,6 +1135,13 @@ fn band_low(c: f64, tol: f64) -> f64 {
     c * (1.0 - tol) * (1.0 - tol) - 2e-300
 }
 
+/// One parallel job's result in [`best_first`]: an exact score (`None`: ruled out) or a
+/// task's tight bounds.
+enum Done {
+    Score(Option<f64>),
+    Tight(Vec<Bound>),
+}
+
 /// A candidate in [`best_first`]'s queue: its bound, then its position (the lower first).
 #[derive(Clone, Copy, PartialEq)]
 struct Queued(f64, usize);
@@ -1273,61 +1280,66 @@ pub(super) fn best_first(
             }
             break;
         }
-        if !up.is_empty() {
-            // Tight bounds, per group, in parallel tasks; back in line.
-            up.sort_unstable();
-            let tasks: Vec<&[usize]> = up
-                .chunk_by(|&a, &b| items[a].0 == items[b].0)
-                .flat_map(|run| run.chunks(CT))
-                .collect();
-            let tb: Vec<Vec<Bound>> = tasks
-                .par_iter()
-                .map(|task| {
-                    let g = items[task[0]].0;
-                    let sc = screens[g].as_ref().expect("a loose bound has its screen");
-                    let cands: Vec<usize> = task.iter().map(|&i| groups[g].1[items[i].1]).collect();
-                    sc.bounds(&cands, true)
-                })
-                .collect();
-            for (task, bs) in tasks.iter().zip(tb) {
-                for (&i, b) in task.iter().zip(bs) {
-                    let g = items[i].0;
-                    let b = Some(b);
-                    queue.push(Queued(order_key(g, &b), i));
-                    items[i].2 = b;
-                    tight[i] = true;
+        // Tight bounds (per group, in tasks of [`CT`]) and exact scores, in one parallel
+        // pass: the scores' durations vary widely, the tasks fill the gaps.
+        up.sort_unstable();
+        let tasks: Vec<&[usize]> = up
+            .chunk_by(|&a, &b| items[a].0 == items[b].0)
+            .flat_map(|run| run.chunks(CT))
+            .collect();
+        let out: Vec<Done> = {
+            let tighten = |task: &[usize]| -> Vec<Bound> {
+                let g = items[task[0]].0;
+                let sc = screens[g].as_ref().expect("a loose bound has its screen");
+                let cands: Vec<usize> = task.iter().map(|&i| groups[g].1[items[i].1]).collect();
+                sc.bounds(&cands, true)
+            };
+            let score = |i: usize| -> Result<Option<f64>, crate::select::SelectionError> {
+                let (g, k, b) = &items[i];
+                let a = &addings[*g];
+                let cand = groups[*g].1[*k];
+                match b {
+                    None => Ok(Some(obj.exact_scores(a, &[cand])?[0])),
+                    Some(b) => refine(
+                        obj,
+                        &a.live,
+                        &a.states,
+                        &a.cols,
+                        cand,
+                        b,
+                        c.is_finite().then_some(c),
+                    ),
                 }
-            }
-        }
-        let score = |i: usize, c: f64| -> Result<Option<f64>, crate::select::SelectionError> {
-            let (g, k, b) = &items[i];
-            let a = &addings[*g];
-            let cand = groups[*g].1[*k];
-            match b {
-                None => Ok(Some(obj.exact_scores(a, &[cand])?[0])),
-                Some(b) => refine(
-                    obj,
-                    &a.live,
-                    &a.states,
-                    &a.cols,
-                    cand,
-                    b,
-                    c.is_finite().then_some(c),
-                ),
-            }
+            };
+            (0..todo.len() + tasks.len())
+                .into_par_iter()
+                .map(|k| match todo.get(k) {
+                    Some(&i) => score(i).map(Done::Score),
+                    None => Ok(Done::Tight(tighten(tasks[k - todo.len()]))),
+                })
+                .collect::<Result<_, _>>()?
         };
-        let out: Vec<Option<f64>> = todo
-            .par_iter()
-            .map(|&i| score(i, c))
-            .collect::<Result<_, _>>()?;
-        for (&i, s) in todo.iter().zip(out) {
+        let mut out = out.into_iter();
+        for (&i, s) in todo.iter().zip(out.by_ref()) {
             match s {
-                Some(s) => {
+                Done::Score(Some(s)) => {
                     evaluated += 1;
                     known[i] = Some(s);
                     s_best = s_best.min(s);
                 }
-                None => ruled.push((i, c)),
+                Done::Score(None) => ruled.push((i, c)),
+                Done::Tight(_) => unreachable!("scores come first"),
+            }
+        }
+        for (task, d) in tasks.iter().zip(out) {
+            let Done::Tight(bs) = d else {
+                unreachable!("tight bounds come last")
+            };
+            for (&i, b) in task.iter().zip(bs) {
+                let b = Some(b);
+                queue.push(Queued(order_key(items[i].0, &b), i));
+                items[i].2 = b;
+                tight[i] = true;
             }
         }
     }
