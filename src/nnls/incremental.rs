@@ -597,6 +597,12 @@ mod tests {
             ((s >> 33) as f64) / (1u64 << 31) as f64
         };
         let v: Vec<Vec<f64>> = (0..m).map(|_| (0..len).map(|_| next()).collect()).collect();
+        cosines_of(&v)
+    }
+
+    /// The cosine matrix (unit diagonal) of the vectors `v`.
+    fn cosines_of(v: &[Vec<f64>]) -> Vec<f64> {
+        let m = v.len();
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
         let mut c = vec![0.0; m * m];
         for i in 0..m {
@@ -649,18 +655,7 @@ mod tests {
         let v: Vec<Vec<f64>> = (0..m)
             .map(|_| (0..len).map(|_| next().powi(4)).collect())
             .collect();
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let mut c = vec![0.0; m * m];
-        for i in 0..m {
-            for j in 0..m {
-                c[i * m + j] = if i == j {
-                    1.0
-                } else {
-                    dot(&v[i], &v[j]) / (dot(&v[i], &v[i]) * dot(&v[j], &v[j])).sqrt()
-                };
-            }
-        }
-        c
+        cosines_of(&v)
     }
 
     /// The warm-started Lawson-Hanson of `q_adding` (coefficients leaving, basis columns

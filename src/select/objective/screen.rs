@@ -52,9 +52,9 @@
 //! need not equal anything bit for bit: only the exact scores ([`refine`]) decide; no
 //! candidate is screened when `C_B'B'` has no Cholesky factor.
 //!
-//! Two levels ([`Screen::bounds`]): the loose level bounds every pair with a positive
+//! Two levels (`Screen::bounds`): the loose level bounds every pair with a positive
 //! gradient by the loose dual point alone (`O(1)`, no Schur complement), the tight level as
-//! above. Every candidate gets the loose level; [`best_first`] makes tight only the bounds
+//! above. Every candidate gets the loose level; `best_first` makes tight only the bounds
 //! of the candidates it takes below the cutoff (at N = 10,000, 10-30% of them).
 //!
 //! Cost: the gradients of all pairs as blocked matrix products (`O(p)` per target and
@@ -211,7 +211,7 @@ pub(super) fn ruled_out(lb: f64, terms: usize, thr: Option<f64>) -> bool {
     thr.is_some_and(|t| lb - slack * lb.abs() >= t)
 }
 
-/// Per channel, the live targets' data of the bounds, laid out for [`lower_bounds`]'s
+/// Per channel, the live targets' data of the bounds, laid out for [`Screen::bounds`]'
 /// tiles: coefficient matrix `y` (`cols x lp`, column-major by target: entry `k * lp + t`,
 /// zero outside the passive set); per target the KKT scale, `q`, share, whether the
 /// channel counts, the rounding scale of its gradients, and the data of the tight bound:
@@ -322,7 +322,7 @@ fn inactive_gradients(
 }
 
 /// Targets per register tile, candidates per block, targets per cache tile and
-/// candidates per parallel task of [`lower_bounds`].
+/// candidates per parallel task of [`Screen::bounds`].
 const TT: usize = 4;
 const CB: usize = 4;
 const TB: usize = 64;
@@ -514,6 +514,7 @@ pub(super) struct Screen<'a> {
     basis_nonneg: [bool; 3],
     margin_dual: f64,
     xsum: f64,
+    /// Per material, its position among the live targets (`usize::MAX`: not live).
     live_pos: Vec<usize>,
 }
 
@@ -667,23 +668,10 @@ impl<'a> Screen<'a> {
     /// "unchanged" is decided on the very numbers [`ChanState::q_adding`] decides it on.
     pub(super) fn bounds(&self, candidates: &[usize], tight: bool) -> Vec<Bound> {
         let nl = self.live.len();
-        let ctx = Ctx {
-            obj: self.obj,
-            live: self.live,
-            cols: self.cols,
-            tg: &self.tg,
-            proj: &self.proj,
-            basis_nonneg: self.basis_nonneg,
-            margin_dual: self.margin_dual,
-            xsum: self.xsum,
-            nchunks: nl.div_ceil(CHUNK),
-            lp: nl.div_ceil(TT) * TT,
-            live_pos: &self.live_pos,
-        };
         candidates
             .par_chunks(CT)
             .flat_map_iter(|task| {
-                let chunks = task_bounds(&ctx, task, tight);
+                let chunks = task_bounds(self, task, tight);
                 chunks
                     .into_iter()
                     .zip(task)
@@ -697,25 +685,9 @@ impl<'a> Screen<'a> {
     }
 }
 
-/// What the tasks of [`lower_bounds`] share.
-struct Ctx<'a> {
-    obj: &'a Objective,
-    live: &'a [usize],
-    cols: &'a [usize],
-    tg: &'a [Targets],
-    proj: &'a [Basis; 3],
-    basis_nonneg: [bool; 3],
-    margin_dual: f64,
-    xsum: f64,
-    nchunks: usize,
-    lp: usize,
-    /// Per material, its position among the live targets (`usize::MAX`: not live).
-    live_pos: &'a [usize],
-}
-
 /// The chunk sums of the bounds of one task's candidates: with AVX2 where the CPU has it
 /// (the same operations, so the same numbers, in wider registers).
-fn task_bounds(ctx: &Ctx<'_>, task: &[usize], tight: bool) -> Vec<Vec<f64>> {
+fn task_bounds(ctx: &Screen<'_>, task: &[usize], tight: bool) -> Vec<Vec<f64>> {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked above).
@@ -737,7 +709,7 @@ fn task_bounds(ctx: &Ctx<'_>, task: &[usize], tight: bool) -> Vec<Vec<f64>> {
 /// [`task_bounds_body`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn task_bounds_avx2<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+unsafe fn task_bounds_avx2<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<Vec<f64>> {
     task_bounds_body::<TIGHT>(ctx, task)
 }
 
@@ -829,21 +801,20 @@ struct Pending {
 /// unchanged pairs add `q_t`, the others wait per target and are bounded one by one
 /// ([`Memo`] per passive set and candidate, then [`pair_bound`]).
 #[inline(always)]
-fn task_bounds_body<const TIGHT: bool>(ctx: &Ctx<'_>, task: &[usize]) -> Vec<Vec<f64>> {
-    let Ctx {
+fn task_bounds_body<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+    let Screen {
         obj,
         live,
         cols,
-        tg,
-        proj,
+        ref tg,
+        ref proj,
         basis_nonneg,
         margin_dual,
         xsum,
-        nchunks,
-        lp,
-        live_pos,
+        ref live_pos,
     } = *ctx;
     let nl = live.len();
+    let (nchunks, lp) = (nl.div_ceil(CHUNK), nl.div_ceil(TT) * TT);
     let nt = task.len();
     let mut chunks = vec![vec![0.0; nchunks]; nt];
     let mut pend: Vec<Vec<Pending>> = vec![Vec::new(); TB];
