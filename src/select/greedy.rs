@@ -42,13 +42,17 @@ pub(crate) fn greedy_screened(
     let mut basis: Vec<usize> = Vec::with_capacity(p.k);
     let mut evaluated = Vec::with_capacity(p.k);
     let mut history = Vec::with_capacity(p.k);
+    // The signs of the pairs' gradients, carried from step to step.
+    let mut signs = None;
     for step in 0..p.k {
         let cands = p.candidates_outside(&basis);
-        let r = obj.best_of_groups(
+        let mut r = obj.best_of_groups(
             &[(basis.as_slice(), cands.as_slice())],
             &p.targets,
             p.tie_tol,
+            signs.take(),
         )?;
+        signs = r.signs.take();
         if step > 0 {
             history.push(match r.scores[0] {
                 Some(s) => s,

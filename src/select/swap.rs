@@ -36,7 +36,7 @@ pub fn swap(
             .iter()
             .map(|r| (r.as_slice(), cands.as_slice()))
             .collect();
-        let r = obj.best_of_groups(&groups, &p.targets, p.tie_tol)?;
+        let r = obj.best_of_groups(&groups, &p.targets, p.tie_tol, None)?;
         for pos in 0..basis.len() {
             progress(pos as u64 + 1, basis.len() as u64);
         }

@@ -388,22 +388,27 @@ impl Objective {
     /// ([`screen::best_first`]). Also the number of exact scores computed and, per group,
     /// `S(basis; targets)` from the states of the basis (`None` when no target is left),
     /// equal to [`Objective::score`] bit for bit.
+    ///
+    /// With one group, `signs` may be those of the previous step of a greedy run
+    /// ([`GroupsBest::signs`]): the same result, with less work where they still hold.
     pub(crate) fn best_of_groups(
         &self,
         groups: &[(&[usize], &[usize])],
         targets: &[usize],
         tol: f64,
+        signs: Option<screen::GradSigns>,
     ) -> Result<GroupsBest, SelectionError> {
         let addings: Vec<Adding> = groups
             .iter()
             .map(|&(basis, _)| self.adding(basis, targets))
             .collect::<Result<_, _>>()?;
         let scores = addings.iter().map(|a| self.score_of(a)).collect();
-        let (best, evaluated) = screen::best_first(self, &addings, groups, tol)?;
+        let r = screen::best_first(self, &addings, groups, tol, signs)?;
         Ok(GroupsBest {
-            best,
-            evaluated,
+            best: r.best,
+            evaluated: r.evaluated,
             scores,
+            signs: r.signs,
         })
     }
 
@@ -479,6 +484,8 @@ pub(crate) struct GroupsBest {
     pub evaluated: usize,
     /// Per group: `S(basis; targets)` (`None`: no target left).
     pub scores: Vec<Option<f64>>,
+    /// With one group, the signs of the pairs' gradients, for the next greedy step.
+    pub signs: Option<screen::GradSigns>,
 }
 
 /// The live targets of a basis, their states and the basis columns.

@@ -52,15 +52,23 @@
 //! need not equal anything bit for bit: only the exact scores ([`refine`]) decide; no
 //! candidate is screened when `C_B'B'` has no Cholesky factor.
 //!
-//! Two levels (`Screen::bounds`): the loose level bounds every pair with a positive
+//! Two levels (`Screen::bounds_loose`, `Screen::bounds_tight`): the loose level bounds every pair with a positive
 //! gradient by the loose dual point alone (`O(1)`, no Schur complement), the tight level as
 //! above. Every candidate gets the loose level; `best_first` makes tight only the bounds
 //! of the candidates it takes below the cutoff (at N = 10,000, 10-30% of them).
 //!
-//! Cost: the gradients of all pairs as blocked matrix products (`O(p)` per target and
-//! candidate), then, at the tight level, `O(|I|^2)` for the pairs with a positive gradient
-//! (about one in ten late in a greedy run), four candidates of one target at a time; the
-//! exact update costs `O(p^2)` (`O(p^3)` per change of the passive set when it is not the
+//! Signs carried from step to step (`GradSigns`): which pairs have a positive gradient
+//! depends on the target's state alone (and the fixed cosines). In a greedy run, a target
+//! whose state on `B + b` is bit for bit its state on `B` (70-90% of them late in a run at
+//! N = 10,000) keeps the signs of the previous step; the loose level computes the gradients
+//! of the other targets only, and those of the carried positive pairs one by one. The
+//! signs are also what the tight level and the exact scores read: a pair whose gradient is
+//! not positive contributes `q_t` with no work.
+//!
+//! Cost: the gradients of the fresh targets' pairs as blocked matrix products (`O(p)` per
+//! target and candidate), those of the positive pairs (about one in ten late in a greedy
+//! run) one by one, then, at the tight level, `O(|I|^2)` for each positive pair; the exact
+//! update costs `O(p^2)` (`O(p^3)` per change of the passive set when it is not the
 //! optimum).
 
 use super::Objective;
@@ -211,18 +219,26 @@ pub(super) fn ruled_out(lb: f64, terms: usize, thr: Option<f64>) -> bool {
     thr.is_some_and(|t| lb - slack * lb.abs() >= t)
 }
 
-/// Per channel, the live targets' data of the bounds, laid out for [`Screen::bounds`]'
-/// tiles: coefficient matrix `y` (`cols x lp`, column-major by target: entry `k * lp + t`,
-/// zero outside the passive set); per target the KKT scale, `q`, share, whether the
-/// channel counts, the rounding scale of its gradients, and the data of the tight bound:
-/// its group (the targets with the same passive set, which share the positions in `nz` of
-/// the inactive columns and the Schur complement `S_t`, row-major, at
-/// `goff[g]..goff[g + 1]` and `gsoff[g]..`) and the room left in the dual feasibility of
-/// its inactive columns, `TAU - werr - w_i` at `off[i]..off[i + 1]` (`tight[i]` false:
-/// none; `blocked[i]`: one of them is negative).
+/// Per channel, the live targets' data of the bounds: per live position the coefficients
+/// `yt` (row-major, `lp x cols`, zero outside the passive set: the gradient of one pair), and
+/// the coefficients `y` of the fresh targets (those whose signs are computed again, at live
+/// positions `fresh`, padded with `u32::MAX` to `lf`), column-major for the register tiles
+/// (`cols x lf`: entry `k * lf + f`); per material, as bits, the live targets of an active
+/// channel (`liveact`) and those among them whose carried signs hold (`keep`); per target
+/// the KKT scale, `q`, share, whether the channel counts, the rounding scale of its
+/// gradients, and the data of the tight bound: its group (the targets with the same passive
+/// set, which share the positions in `nz` of the inactive columns and the Schur complement
+/// `S_t`, row-major, at `goff[g]..goff[g + 1]` and `gsoff[g]..`) and the room left in the
+/// dual feasibility of its inactive columns, `TAU - werr - w_i` at `off[i]..off[i + 1]`
+/// (`tight[i]` false: none; `blocked[i]`: one of them is negative).
 #[derive(Default)]
 struct Targets {
     y: Vec<f64>,
+    yt: Vec<f64>,
+    fresh: Vec<u32>,
+    lf: usize,
+    liveact: Vec<u64>,
+    keep: Vec<u64>,
     hmax: Vec<f64>,
     ysum: Vec<f64>,
     q: Vec<f64>,
@@ -496,15 +512,87 @@ fn lower_bounds(
     candidates: &[usize],
     tight: bool,
 ) -> Vec<Option<Bound>> {
-    match Screen::new(obj, live, states, cols) {
+    match Screen::new(obj, live, states, cols, None, candidates) {
         None => vec![None; candidates.len()],
-        Some(sc) => sc.bounds(candidates, tight).into_iter().map(Some).collect(),
+        Some(mut sc) => {
+            let loose = sc.bounds_loose(candidates);
+            let b = if tight {
+                sc.bounds_tight(candidates)
+            } else {
+                loose
+            };
+            b.into_iter().map(Some).collect()
+        }
+    }
+}
+
+/// What one channel state contributes to the test "adding column `j` leaves the optimum as
+/// it is" ([`ChanState::unchanged_adding`]) of every `j`: the passive columns, their
+/// coefficients and the KKT scale, bit for bit.
+#[derive(Clone, Debug, PartialEq)]
+struct Print {
+    passive: Vec<usize>,
+    y: Vec<u64>,
+    hmax: u64,
+    ysum: u64,
+}
+
+impl Print {
+    /// The print of an active state.
+    fn of(st: &ChanState) -> Self {
+        let (passive, y, hmax, ysum) = st.kkt_parts();
+        Self {
+            passive: passive.to_vec(),
+            y: y.iter().map(|v| v.to_bits()).collect(),
+            hmax: hmax.to_bits(),
+            ysum: ysum.to_bits(),
+        }
+    }
+
+    /// Whether `st` (active) has this print.
+    fn matches(&self, st: &ChanState) -> bool {
+        let (passive, y, hmax, ysum) = st.kkt_parts();
+        self.passive == passive
+            && self.y.iter().copied().eq(y.iter().map(|v| v.to_bits()))
+            && self.hmax == hmax.to_bits()
+            && self.ysum == ysum.to_bits()
+    }
+}
+
+/// The signs of one screened step's gradients, carried to the next step of a greedy run:
+/// per candidate and channel, as bits over the materials, the live targets whose optimum
+/// may change when the candidate is added (gradient above the KKT threshold), with the
+/// basis columns and the states they were decided on.
+///
+/// On the next basis (these columns and more at the end), a target whose state is the same
+/// bit for bit (no new column in its passive set) has the same gradients, summed in the same
+/// order (the new columns add exact zeros), against the same threshold: the same signs. So
+/// the next step computes the gradients of the other targets only, and those of the carried
+/// targets' positive pairs one by one; late in a greedy run 70-90% of the states are the
+/// same and one pair in ten is positive.
+#[derive(Clone, Debug)]
+pub(crate) struct GradSigns {
+    cols: Vec<usize>,
+    /// Per material and channel, the print of its state (`None`: not a live target of an
+    /// active channel).
+    prints: Vec<[Option<Print>; 3]>,
+    words: usize,
+    /// Per candidate (material) and channel, `words` words of bits over the materials.
+    bits: Vec<u64>,
+    /// Per material, whether its rows of `bits` were computed.
+    has_row: Vec<bool>,
+}
+
+impl GradSigns {
+    /// The rows of candidate `cand`, channel after channel.
+    fn rows(&self, cand: usize) -> &[u64] {
+        &self.bits[cand * 3 * self.words..(cand + 1) * 3 * self.words]
     }
 }
 
 /// The data of the bounds of "basis + one candidate" for one basis (its live targets,
 /// their states, the projections on the basis), built once and asked for bounds at two
-/// levels ([`Screen::bounds`]).
+/// levels ([`Screen::bounds_loose`], then [`Screen::bounds_tight`]).
 pub(super) struct Screen<'a> {
     obj: &'a Objective,
     live: &'a [usize],
@@ -516,18 +604,38 @@ pub(super) struct Screen<'a> {
     xsum: f64,
     /// Per material, its position among the live targets (`usize::MAX`: not live).
     live_pos: Vec<usize>,
+    /// Words per row of signs (bits over the materials).
+    words: usize,
+    /// The signs carried from the previous step (until the loose bounds are computed).
+    old: Option<GradSigns>,
+    /// Per candidate (material) and channel, the signs of its pairs with the live targets
+    /// ([`GradSigns`]' layout; filled by [`Screen::bounds_loose`]).
+    bits: Vec<u64>,
+    has_row: Vec<bool>,
 }
 
 impl<'a> Screen<'a> {
-    /// The bounds' data of the live targets and their states on `cols`; `None` when no
-    /// candidate can be screened (the non-zero basis columns have no Cholesky factor).
+    /// The bounds' data of the live targets and their states on `cols`, with the signs
+    /// `old` of an earlier step where they serve (`cols` extends their columns, and each of
+    /// `cands` has its rows); `None` when no candidate can be screened (the non-zero basis
+    /// columns have no Cholesky factor).
     pub(super) fn new(
         obj: &'a Objective,
         live: &'a [usize],
         states: &[[ChanState; 3]],
         cols: &'a [usize],
+        old: Option<GradSigns>,
+        cands: &[usize],
     ) -> Option<Self> {
         let proj = projections(obj, cols)?;
+        let n = obj.len();
+        let words = n.div_ceil(64);
+        let old = old.filter(|o| {
+            o.prints.len() == n
+                && o.words == words
+                && cols.starts_with(&o.cols)
+                && cands.iter().all(|&c| o.has_row[c])
+        });
         let nl = live.len();
         let lp = nl.div_ceil(TT) * TT;
         let nk = cols.len();
@@ -539,7 +647,9 @@ impl<'a> Screen<'a> {
                 let g = obj.view(c);
                 let nz = &proj[c].nz;
                 let mut d = Targets {
-                    y: vec![0.0; nk * lp],
+                    yt: vec![0.0; lp * nk],
+                    liveact: vec![0; words],
+                    keep: vec![0; words],
                     hmax: vec![0.0; lp],
                     ysum: vec![0.0; lp],
                     q: vec![0.0; lp],
@@ -607,7 +717,17 @@ impl<'a> Screen<'a> {
                     }
                     let (passive, y, hmax, ysum) = ch.kkt_parts();
                     for (&k, &yk) in passive.iter().zip(y) {
-                        d.y[pos[&k] * lp + i] = yk;
+                        d.yt[i * nk + pos[&k]] = yk;
+                    }
+                    let bit = 1u64 << (t % 64);
+                    d.liveact[t / 64] |= bit;
+                    let carried = old
+                        .as_ref()
+                        .is_some_and(|o| o.prints[t][c].as_ref().is_some_and(|p| p.matches(ch)));
+                    if carried {
+                        d.keep[t / 64] |= bit;
+                    } else {
+                        d.fresh.push(i as u32);
                     }
                     d.hmax[i] = hmax;
                     d.ysum[i] = ysum;
@@ -628,6 +748,16 @@ impl<'a> Screen<'a> {
                         d.blocked[i] = d.room[start..].iter().any(|&r| r < 0.0);
                     }
                 }
+                // The fresh targets' coefficients, column-major for the register tiles.
+                d.lf = d.fresh.len().div_ceil(TT) * TT;
+                d.y = vec![0.0; nk * d.lf];
+                for (f, &i) in d.fresh.iter().enumerate() {
+                    let yi = &d.yt[i as usize * nk..(i as usize + 1) * nk];
+                    for (k, &yk) in yi.iter().enumerate() {
+                        d.y[k * d.lf + f] = yk;
+                    }
+                }
+                d.fresh.resize(d.lf, u32::MAX);
                 d
             })
             .collect();
@@ -653,64 +783,122 @@ impl<'a> Screen<'a> {
             margin_dual,
             xsum,
             live_pos,
+            words,
+            old,
+            bits: Vec::new(),
+            has_row: vec![false; n],
         })
     }
 
-    /// The bound of each of `candidates`: with `tight`, the best of the module docs'
-    /// bounds per pair; without, the loose level, which bounds each pair whose optimum may
-    /// change by the loose dual point alone (0 where that does not apply): a fraction of
-    /// the cost (no Schur complement, no per-pair search), valid, and enough to rule most
-    /// candidates out ([`best_first`] makes tight only the bounds it cannot decide on).
+    /// The loose level of the bounds of `candidates` (each pair whose optimum may change is
+    /// bounded by the loose dual point alone, or 0 where that does not apply: no Schur
+    /// complement, no per-pair search, enough to rule most candidates out), and the signs of
+    /// their pairs ([`GradSigns`]), which the tight level and [`refine`] read.
     ///
-    /// Candidates in parallel tasks of [`CT`] and blocks of [`CB`], live targets in cache
-    /// tiles of [`TB`] and register tiles of [`TT`]: the gradients of a block are small
-    /// matrix products, each entry summed in the order of the per-pair test, so that
-    /// "unchanged" is decided on the very numbers [`ChanState::q_adding`] decides it on.
-    pub(super) fn bounds(&self, candidates: &[usize], tight: bool) -> Vec<Bound> {
-        let nl = self.live.len();
+    /// The fresh targets' gradients: candidates in parallel tasks of [`CT`] and blocks of
+    /// [`CB`], fresh targets in cache tiles of [`TB`] and register tiles of [`TT`], small
+    /// matrix products with each entry summed in the order of the per-pair test, so that
+    /// "unchanged" is decided on the very numbers [`ChanState::q_adding`] decides it on. The
+    /// carried targets' positive pairs, one by one, from the old signs.
+    pub(super) fn bounds_loose(&mut self, candidates: &[usize]) -> Vec<Bound> {
+        let out: Vec<(Vec<Vec<f64>>, Vec<u64>)> = candidates
+            .par_chunks(CT)
+            .map(|task| task_bounds(self, task, false))
+            .collect();
+        let w3 = 3 * self.words;
+        if self.bits.is_empty() {
+            self.bits = vec![0; self.obj.len() * w3];
+        }
+        let mut bounds = Vec::with_capacity(candidates.len());
+        for (task, (chunks, rows)) in candidates.chunks(CT).zip(out) {
+            for ((&cand, ch), r) in task.iter().zip(chunks).zip(rows.chunks_exact(w3)) {
+                self.bits[cand * w3..(cand + 1) * w3].copy_from_slice(r);
+                self.has_row[cand] = true;
+                bounds.push(self.bound_of(cand, ch));
+            }
+        }
+        self.old = None;
+        bounds
+    }
+
+    /// The tight level of the bounds of `candidates` (the best of the module docs' bounds
+    /// per pair), from the signs of [`Screen::bounds_loose`]: the positive pairs one by one,
+    /// in parallel tasks of [`CT`] candidates.
+    pub(super) fn bounds_tight(&self, candidates: &[usize]) -> Vec<Bound> {
         candidates
             .par_chunks(CT)
             .flat_map_iter(|task| {
-                let chunks = task_bounds(self, task, tight);
+                let (chunks, _) = task_bounds(self, task, true);
                 chunks
                     .into_iter()
                     .zip(task)
-                    .map(|(ch, &cand)| Bound {
-                        chunks: ch,
-                        count: nl - usize::from(self.live_pos[cand] != usize::MAX),
-                    })
+                    .map(|(ch, &cand)| self.bound_of(cand, ch))
                     .collect::<Vec<_>>()
             })
             .collect()
     }
+
+    /// The [`Bound`] of candidate `cand` from its chunk sums.
+    fn bound_of(&self, cand: usize, chunks: Vec<f64>) -> Bound {
+        Bound {
+            chunks,
+            count: self.live.len() - usize::from(self.live_pos[cand] != usize::MAX),
+        }
+    }
+
+    /// The signs of candidate `cand`'s pairs, channel after channel (`None`: not computed).
+    pub(super) fn signs(&self, cand: usize) -> Option<&[u64]> {
+        let w3 = 3 * self.words;
+        self.has_row[cand].then(|| &self.bits[cand * w3..(cand + 1) * w3])
+    }
+
+    /// The signs of this step, to carry to the next ([`GradSigns`]), with the prints of
+    /// `states` (those of the live targets).
+    pub(super) fn into_signs(self, states: &[[ChanState; 3]]) -> GradSigns {
+        let mut prints: Vec<[Option<Print>; 3]> = vec![Default::default(); self.obj.len()];
+        for (&t, st) in self.live.iter().zip(states) {
+            prints[t] = std::array::from_fn(|c| st[c].is_active().then(|| Print::of(&st[c])));
+        }
+        GradSigns {
+            cols: self.cols.to_vec(),
+            prints,
+            words: self.words,
+            bits: self.bits,
+            has_row: self.has_row,
+        }
+    }
 }
 
-/// The chunk sums of the bounds of one task's candidates: with AVX2 where the CPU has it
-/// (the same operations, so the same numbers, in wider registers).
-fn task_bounds(ctx: &Screen<'_>, task: &[usize], tight: bool) -> Vec<Vec<f64>> {
+/// The chunk sums of the bounds of one task's candidates and, at the loose level, their
+/// rows of signs: with AVX2 where the CPU has it (the same operations, so the same numbers,
+/// in wider registers).
+fn task_bounds(sc: &Screen<'_>, task: &[usize], tight: bool) -> (Vec<Vec<f64>>, Vec<u64>) {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked above).
         return unsafe {
             if tight {
-                task_bounds_avx2::<true>(ctx, task)
+                task_bounds_avx2::<true>(sc, task)
             } else {
-                task_bounds_avx2::<false>(ctx, task)
+                task_bounds_avx2::<false>(sc, task)
             }
         };
     }
     if tight {
-        task_bounds_body::<true>(ctx, task)
+        task_bounds_body::<true>(sc, task)
     } else {
-        task_bounds_body::<false>(ctx, task)
+        task_bounds_body::<false>(sc, task)
     }
 }
 
 /// [`task_bounds_body`] compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn task_bounds_avx2<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<Vec<f64>> {
-    task_bounds_body::<TIGHT>(ctx, task)
+unsafe fn task_bounds_avx2<const TIGHT: bool>(
+    sc: &Screen<'_>,
+    task: &[usize],
+) -> (Vec<Vec<f64>>, Vec<u64>) {
+    task_bounds_body::<TIGHT>(sc, task)
 }
 
 /// Asks for the cache lines of `v` (a hint; no effect on any value).
@@ -787,21 +975,143 @@ impl Memo {
     }
 }
 
-/// A pair of one target with a positive gradient, waiting for its tight bound: the
-/// candidate's position in the task and block, `w` and `C_ct`.
-#[derive(Clone, Copy)]
-struct Pending {
-    ca: u32,
-    w: f64,
-    cjt: f64,
+/// Calls `f(ca, i, C_ct, w)` for each pair of a task's candidate `ca` (`rows(ca)`: its bits
+/// over the materials) and a live target at position `i` whose bit is set in `mask` (but
+/// the candidate's own), with its gradient ([`with_gradients`]): word by word of targets,
+/// so that the coefficients of 64 targets stay in cache across the task's candidates, then
+/// candidate by candidate (for each candidate, the targets come in increasing order).
+#[inline(always)]
+fn pairs_by_word<'r>(
+    task: &[usize],
+    blocks: &[Block<'_>],
+    rows: impl Fn(usize) -> &'r [u64],
+    mask: &[u64],
+    (live, live_pos, yt, nk): (&[usize], &[usize], &[f64], usize),
+    ids: &mut Vec<u32>,
+    mut f: impl FnMut(usize, usize, f64, f64),
+) {
+    for (wi, &m) in mask.iter().enumerate() {
+        if m == 0 {
+            continue;
+        }
+        // The cosines of the next word's pairs, one row segment per candidate: too many
+        // streams for the hardware prefetcher.
+        if let Some(&mn) = mask.get(wi + 1) {
+            for ca in 0..task.len() {
+                let (blk, a) = (&blocks[ca / CB], ca % CB);
+                let b = rows(ca)[wi + 1] & mn;
+                let row = blk.rows[a];
+                for byte in 0..8 {
+                    if (b >> (8 * byte)) & 0xff != 0 {
+                        // Materials `t..t + 8`: cosines `t + 1..=t + 8`, one or two lines.
+                        let t = (wi + 1) * 64 + 8 * byte;
+                        let hi = (t + 8).min(row.len() - 1);
+                        prefetch(&row[t + 1..=t + 1]);
+                        prefetch(&row[hi..=hi]);
+                    }
+                }
+            }
+        }
+        for (ca, &cand) in task.iter().enumerate() {
+            let (blk, a) = (&blocks[ca / CB], ca % CB);
+            let mut b = rows(ca)[wi] & m;
+            if blk.zero[a] || b == 0 {
+                continue;
+            }
+            ids.clear();
+            while b != 0 {
+                let t = wi * 64 + b.trailing_zeros() as usize;
+                b &= b - 1;
+                if t != cand {
+                    ids.push(live_pos[t] as u32);
+                }
+            }
+            with_gradients(blk, a, (live, yt, nk), ids, |i, cjt, w| f(ca, i, cjt, w));
+        }
+    }
 }
 
-/// The body of [`task_bounds`]: per channel, the gradients of each block of [`CB`]
-/// candidates and register tile of [`TT`] targets (cache tiles of [`TB`] targets); the
-/// unchanged pairs add `q_t`, the others wait per target and are bounded one by one
-/// ([`Memo`] per passive set and candidate, then [`pair_bound`]).
+/// Calls `f(i, C_ct, w)` for each live position `i` of `ids` (target `t`), with the gradient
+/// `w = C_ct - sum_k C_ck y_tk` of candidate `a` of `blk` (coefficients `yt`, row-major with
+/// `nk` per target), each summed in the order of [`tile`]'s entries (so equal to them bit for
+/// bit), four targets at a time.
 #[inline(always)]
-fn task_bounds_body<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<Vec<f64>> {
+fn with_gradients(
+    blk: &Block<'_>,
+    a: usize,
+    (live, yt, nk): (&[usize], &[f64], usize),
+    ids: &[u32],
+    mut f: impl FnMut(usize, f64, f64),
+) {
+    let row = blk.rows[a];
+    let mut quads = ids.chunks_exact(4);
+    for q in &mut quads {
+        let i: [usize; 4] = std::array::from_fn(|b| q[b] as usize);
+        let y: [&[f64]; 4] = std::array::from_fn(|b| &yt[i[b] * nk..(i[b] + 1) * nk]);
+        let mut acc = [0.0f64; 4];
+        for (k, xk) in blk.xg.iter().enumerate() {
+            for b in 0..4 {
+                acc[b] += xk[a] * y[b][k];
+            }
+        }
+        for b in 0..4 {
+            let cjt = row[live[i[b]] + 1];
+            f(i[b], cjt, cjt - acc[b]);
+        }
+    }
+    for &i in quads.remainder() {
+        let i = i as usize;
+        let mut acc = 0.0;
+        for (xk, &yk) in blk.xg.iter().zip(&yt[i * nk..(i + 1) * nk]) {
+            acc += xk[a] * yk;
+        }
+        let cjt = row[live[i] + 1];
+        f(i, cjt, cjt - acc);
+    }
+}
+
+/// A running sum of one candidate's bound adjustments, added to its chunk sum whenever the
+/// chunk changes (chunks come in increasing order): each chunk sum takes a few additions,
+/// whatever the number of pairs.
+struct Acc {
+    chunk: usize,
+    sum: f64,
+}
+
+impl Acc {
+    const NONE: Self = Self {
+        chunk: usize::MAX,
+        sum: 0.0,
+    };
+
+    #[inline(always)]
+    fn add(&mut self, chunks: &mut [f64], k: usize, v: f64) {
+        if k != self.chunk {
+            self.flush(chunks);
+            self.chunk = k;
+        }
+        self.sum += v;
+    }
+
+    #[inline(always)]
+    fn flush(&mut self, chunks: &mut [f64]) {
+        if self.chunk != usize::MAX {
+            chunks[self.chunk] += self.sum;
+        }
+        *self = Self::NONE;
+    }
+}
+
+/// The body of [`task_bounds`], per channel: every chunk sum starts from the `q_t` of its
+/// targets (every pair unchanged), and each pair whose optimum may change adds `lb - q_t`.
+/// Loose level: the fresh targets' gradients by register tiles (their signs set in the
+/// rows), then the carried targets' positive pairs; tight level: every positive pair from
+/// the signs ([`Memo`] per passive set and candidate, then [`pair_bound`]).
+#[inline(always)]
+fn task_bounds_body<const TIGHT: bool>(
+    sc: &Screen<'_>,
+    task: &[usize],
+) -> (Vec<Vec<f64>>, Vec<u64>) {
     let Screen {
         obj,
         live,
@@ -812,18 +1122,30 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<
         margin_dual,
         xsum,
         ref live_pos,
-    } = *ctx;
+        words,
+        ref old,
+        ..
+    } = *sc;
     let nl = live.len();
-    let (nchunks, lp) = (nl.div_ceil(CHUNK), nl.div_ceil(TT) * TT);
+    let nk = cols.len();
+    let nchunks = nl.div_ceil(CHUNK);
     let nt = task.len();
     let mut chunks = vec![vec![0.0; nchunks]; nt];
-    let mut pend: Vec<Vec<Pending>> = vec![Vec::new(); TB];
+    let mut rows: Vec<u64> = if TIGHT {
+        Vec::new()
+    } else {
+        vec![0; nt * 3 * words]
+    };
     // Per chunk, the sum of the `q_t` it starts from: every partial sum of the chunk is at
     // most twice it in magnitude, which bounds the rounding of the adjusted sums.
     let mut slack = vec![vec![0.0; nchunks]; nt];
     let mut memo = Memo::default();
+    let mut accs: Vec<Acc> = (0..nt).map(|_| Acc::NONE).collect();
+    let mut ids: Vec<u32> = Vec::new();
     for (c, d) in tg.iter().enumerate() {
-        memo.reset(d.goff.len() - 1);
+        if TIGHT {
+            memo.reset(d.goff.len() - 1);
+        }
         let g = obj.view(c);
         let bs = &proj[c];
         let p = bs.nz.len();
@@ -876,28 +1198,110 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<
                 *sl += b;
             }
         }
-        for t0 in (0..nl).step_by(TB) {
-            let t1 = (t0 + TB).min(nl);
+        if TIGHT {
+            // Every positive pair, from the signs.
+            let rows = |ca: usize| {
+                let signs = sc.signs(task[ca]).expect("the loose level first");
+                &signs[c * words..(c + 1) * words]
+            };
+            let data = (live, &live_pos[..], &d.yt[..], nk);
+            pairs_by_word(
+                task,
+                &blocks,
+                rows,
+                &d.liveact,
+                data,
+                &mut ids,
+                |ca, i, cjt, w| {
+                    let (blk, a) = (&blocks[ca / CB], ca % CB);
+                    let j = task[ca] + 1;
+                    let arow = &bs.a[j * p..(j + 1) * p];
+                    let t = live[i];
+                    let (quad, sig) = if d.tight[i] {
+                        memo.get(d, d.grp[i] as usize, ca, arow)
+                    } else {
+                        (0.0, &[][..])
+                    };
+                    let lb = pair_bound(
+                        &Pair {
+                            w,
+                            cjt,
+                            s2: blk.nc[a],
+                            arow,
+                            ea: blk.ea[a],
+                            nonneg: blk.nonneg[a],
+                        },
+                        d,
+                        i,
+                        bs,
+                        (g.row(t + 1), t + 1),
+                        margin_dual,
+                        xsum,
+                        (quad, sig),
+                    );
+                    accs[ca].add(&mut chunks[ca], i / CHUNK, d.share[i] * (lb - d.q[i]));
+                },
+            );
+            for (acc, ch) in accs.iter_mut().zip(chunks.iter_mut()) {
+                acc.flush(ch);
+            }
+            continue;
+        }
+        // The loose bound of one pair with a positive gradient `w`, target `i`, candidate
+        // `a` of `blk`.
+        let loose = |blk: &Block<'_>, a: usize, i: usize, w: f64| -> f64 {
+            let s2 = blk.nc[a];
+            let (q, werr) = (d.q[i], d.werr[i]);
+            let lb = if blk.nonneg[a] && s2 >= NC_MIN {
+                let eps_v = bs.e64 * bs.sk / s2;
+                loose_dual(q, w, werr, s2, eps_v, xsum, margin_dual).max(0.0)
+            } else {
+                0.0
+            };
+            d.share[i] * (lb - q)
+        };
+        // The carried signs that hold.
+        if let Some(o) = old {
+            for (ca, &cand) in task.iter().enumerate() {
+                let orow = &o.rows(cand)[c * words..(c + 1) * words];
+                let nrow = &mut rows[(ca * 3 + c) * words..(ca * 3 + c + 1) * words];
+                for ((n, &r), &m) in nrow.iter_mut().zip(orow).zip(&d.keep) {
+                    *n = r & m;
+                }
+            }
+        }
+        // The fresh targets, by register tiles.
+        let (lf, fresh) = (d.lf, &d.fresh);
+        let nf = fresh.iter().take_while(|&&i| i != u32::MAX).count();
+        for t0 in (0..lf).step_by(TB) {
+            let t1 = (t0 + TB).min(lf);
             // The candidates' cosines with the next tile's targets: one stream per
-            // candidate, too many for the hardware prefetcher to follow.
-            if t1 < nl {
-                let (lo, hi) = (live[t1] + 1, live[(t1 + TB).min(nl) - 1] + 1);
-                for blk in &blocks {
-                    for row in &blk.rows[..blk.nb] {
-                        prefetch(&row[lo..=hi]);
+            // candidate, too many for the hardware prefetcher to follow (when the tile's
+            // targets lie close together).
+            if t1 < nf {
+                let lo = live[fresh[t1] as usize] + 1;
+                let hi = live[fresh[(t1 + TB).min(nf) - 1] as usize] + 1;
+                if hi - lo < 4 * TB {
+                    for blk in &blocks {
+                        for row in &blk.rows[..blk.nb] {
+                            prefetch(&row[lo..=hi]);
+                        }
                     }
                 }
             }
             for (bi, blk) in blocks.iter().enumerate() {
                 for u0 in (t0..t1).step_by(TT) {
-                    let gw = tile(&blk.xg, &d.y, lp, u0);
+                    let gw = tile(&blk.xg, &d.y, lf, u0);
+                    let pos: [usize; TT] = std::array::from_fn(|b| fresh[u0 + b] as usize);
+                    let valid: u32 = (0..TT).fold(0, |m, b| m | (u32::from(pos[b] < nl) << b));
                     let tix: [usize; TT] =
-                        std::array::from_fn(|b| live.get(u0 + b).map_or(0, |&t| t + 1));
+                        std::array::from_fn(|b| if pos[b] < nl { live[pos[b]] + 1 } else { 0 });
                     // Live targets are increasing: four in a row are one load per row.
-                    let run = u0 + TT <= nl && tix[TT - 1] == tix[0] + (TT - 1);
-                    let hm: [f64; TT] = d.hmax[u0..u0 + TT].try_into().expect("tile");
-                    let ys: [f64; TT] = d.ysum[u0..u0 + TT].try_into().expect("tile");
-                    let act: u32 = (0..TT).fold(0, |m, b| m | (u32::from(d.active[u0 + b]) << b));
+                    let run = valid == (1 << TT) - 1 && tix[TT - 1] == tix[0] + (TT - 1);
+                    let hm: [f64; TT] =
+                        std::array::from_fn(|b| if pos[b] < nl { d.hmax[pos[b]] } else { 0.0 });
+                    let ys: [f64; TT] =
+                        std::array::from_fn(|b| if pos[b] < nl { d.ysum[pos[b]] } else { 0.0 });
                     for (a, gwa) in gw.iter().enumerate().take(blk.nb) {
                         if blk.zero[a] {
                             continue;
@@ -912,93 +1316,57 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<
                         let thr: [f64; TT] =
                             std::array::from_fn(|b| KKT_TOL * (hm[b].max(cj[b].abs()) + ys[b]));
                         // Branch-free (about one pair in ten goes on, at random): the pairs
-                        // with a positive gradient, but the candidate's own target.
-                        // Not `>`: a NaN gradient is not "unchanged", as in the test of
-                        // `ChanState::q_adding`.
+                        // with a positive gradient. Not `>`: a NaN gradient is not
+                        // "unchanged", as in the test of `ChanState::q_adding`.
                         #[allow(clippy::neg_cmp_op_on_partial_ord)]
                         let up: [bool; TT] = std::array::from_fn(|b| !(w[b] <= thr[b]));
-                        let own = blk.own[a].wrapping_sub(u0);
-                        let own_bit = if own < TT { 1u32 << own } else { 0 };
                         let mut m = up
                             .iter()
                             .enumerate()
                             .fold(0u32, |m, (b, &u)| m | (u32::from(u) << b))
-                            & act
-                            & !own_bit;
-                        if !TIGHT {
-                            if m == 0 {
-                                continue;
-                            }
-                            // The loose level: the loose dual bound, or 0 (module docs).
-                            let s2 = blk.nc[a];
-                            let ok = blk.nonneg[a] && s2 >= NC_MIN;
-                            let eps_v = bs.e64 * bs.sk / s2;
-                            let mut add = 0.0;
-                            while m != 0 {
-                                let b = m.trailing_zeros() as usize;
-                                m &= m - 1;
-                                let i = u0 + b;
-                                let (q, werr) = (d.q[i], d.werr[i]);
-                                let lb = if ok {
-                                    loose_dual(q, w[b], werr, s2, eps_v, xsum, margin_dual).max(0.0)
-                                } else {
-                                    0.0
-                                };
-                                add += d.share[i] * (lb - q);
-                            }
-                            // A register tile never straddles two chunks (`CHUNK % TT == 0`).
-                            chunks[bi * CB + a][u0 / CHUNK] += add;
+                            & valid;
+                        if m == 0 {
                             continue;
                         }
+                        let ca = bi * CB + a;
+                        let nrow = &mut rows[(ca * 3 + c) * words..(ca * 3 + c + 1) * words];
+                        let own = blk.own[a];
                         while m != 0 {
                             let b = m.trailing_zeros() as usize;
                             m &= m - 1;
-                            pend[u0 + b - t0].push(Pending {
-                                ca: (bi * CB + a) as u32,
-                                w: w[b],
-                                cjt: cj[b],
-                            });
+                            let t = tix[b] - 1;
+                            nrow[t / 64] |= 1 << (t % 64);
+                            // The candidate's own target does not count.
+                            if pos[b] != own {
+                                let v = loose(blk, a, pos[b], w[b]);
+                                accs[ca].add(&mut chunks[ca], pos[b] / CHUNK, v);
+                            }
                         }
                     }
                 }
             }
-            for (i, pl) in (t0..t1).zip(pend.iter_mut()) {
-                if pl.is_empty() {
-                    continue;
-                }
-                let t = live[i];
-                let gt = g.row(t + 1);
-                for pr in pl.iter() {
-                    let ca = pr.ca as usize;
-                    let j = task[ca] + 1;
-                    let arow = &bs.a[j * p..(j + 1) * p];
-                    let (quad, sig) = if d.tight[i] {
-                        memo.get(d, d.grp[i] as usize, ca, arow)
-                    } else {
-                        (0.0, &[][..])
-                    };
-                    let blk = &blocks[ca / CB];
-                    let ab = ca % CB;
-                    let lb = pair_bound(
-                        &Pair {
-                            w: pr.w,
-                            cjt: pr.cjt,
-                            s2: blk.nc[ab],
-                            arow,
-                            ea: blk.ea[ab],
-                            nonneg: blk.nonneg[ab],
-                        },
-                        d,
-                        i,
-                        bs,
-                        (gt, t + 1),
-                        margin_dual,
-                        xsum,
-                        (quad, sig),
-                    );
-                    chunks[ca][i / CHUNK] += d.share[i] * (lb - d.q[i]);
-                }
-                pl.clear();
+        }
+        for (acc, ch) in accs.iter_mut().zip(chunks.iter_mut()) {
+            acc.flush(ch);
+        }
+        // The carried targets' positive pairs.
+        if let Some(o) = old {
+            let rows = |ca: usize| &o.rows(task[ca])[c * words..(c + 1) * words];
+            let data = (live, &live_pos[..], &d.yt[..], nk);
+            pairs_by_word(
+                task,
+                &blocks,
+                rows,
+                &d.keep,
+                data,
+                &mut ids,
+                |ca, i, _, w| {
+                    let v = loose(&blocks[ca / CB], ca % CB, i, w);
+                    accs[ca].add(&mut chunks[ca], i / CHUNK, v);
+                },
+            );
+            for (acc, ch) in accs.iter_mut().zip(chunks.iter_mut()) {
+                acc.flush(ch);
             }
         }
     }
@@ -1008,7 +1376,7 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<
             *v = (*v - round * b).max(0.0);
         }
     }
-    chunks
+    (chunks, rows)
 }
 
 /// Whether candidate `cand` can replace a best of threshold `thr`: its bound, then,
@@ -1016,7 +1384,11 @@ fn task_bounds_body<const TIGHT: bool>(ctx: &Screen<'_>, task: &[usize]) -> Vec<
 /// the bound with that chunk's exact values in place of its bounds, until the bound rules
 /// it out (`Ok(None)`) or every chunk is exact: then `Ok(Some(score))`, the exact score
 /// summed in the order of [`Objective::scores_adding`] (target by target, channel by
-/// channel, from 0), so equal to it bit for bit.
+/// channel, from 0), so equal to it bit for bit. With the signs of the candidate's pairs
+/// ([`Screen::signs`]), a pair whose gradient is not positive takes `q_t` without its
+/// gradient: what [`ChanState::q_adding`] returns for it (the same test on the same
+/// numbers).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn refine(
     obj: &Objective,
     live: &[usize],
@@ -1025,7 +1397,12 @@ pub(super) fn refine(
     cand: usize,
     bound: &Bound,
     thr: Option<f64>,
+    signs: Option<&[u64]>,
 ) -> Result<Option<f64>, crate::select::SelectionError> {
+    let words = obj.len().div_ceil(64);
+    let unchanged = |t: usize, c: usize| -> bool {
+        signs.is_some_and(|s| s[c * words + t / 64] >> (t % 64) & 1 == 0)
+    };
     let terms = 3 * live.len();
     if bound.count == 0 {
         return Ok((!ruled_out(f64::INFINITY, terms, thr)).then_some(f64::INFINITY));
@@ -1072,9 +1449,12 @@ pub(super) fn refine(
             }
             for (c, ch) in st.iter().enumerate() {
                 if ch.is_active() {
-                    let q = ch
-                        .q_adding(obj.view(c), cols, cand + 1, t + 1, &mut scratch)
-                        .map_err(|e| obj.solve_error(t, c, e))?;
+                    let q = if unchanged(t, c) {
+                        ch.q()
+                    } else {
+                        ch.q_adding(obj.view(c), cols, cand + 1, t + 1, &mut scratch)
+                            .map_err(|e| obj.solve_error(t, c, e))?
+                    };
                     let v = obj.share[t][c] * q;
                     exact += v;
                     values[slot] = v;
@@ -1155,25 +1535,31 @@ impl PartialOrd for Queued {
 /// (else `c` is raised and the scan goes on), the chain over the known scores in
 /// collection order chooses exactly what the chain over all the scores would
 /// ([`band_low`]).
+///
+/// With one group, `old` are the signs of the previous step of a greedy run (they serve
+/// where this basis extends that one), and the signs of this step come back with the result.
 pub(super) fn best_first(
     obj: &Objective,
     addings: &[super::Adding],
     groups: &[(&[usize], &[usize])],
     tol: f64,
-) -> Result<(Option<(usize, f64)>, usize), crate::select::SelectionError> {
+    old: Option<GradSigns>,
+) -> Result<BestFirst, crate::select::SelectionError> {
     let ordered = tol <= BEST_FIRST_TOL_MAX;
-    let screens: Vec<Option<Screen<'_>>> = addings
+    let mut old = if groups.len() == 1 { old } else { None };
+    let mut screens: Vec<Option<Screen<'_>>> = addings
         .iter()
-        .map(|a| Screen::new(obj, &a.live, &a.states, &a.cols))
+        .zip(groups)
+        .map(|(a, &(_, cands))| Screen::new(obj, &a.live, &a.states, &a.cols, old.take(), cands))
         .collect();
     // Items: (group, candidate index, bound), the bounds loose (without an order, the
     // bounds only spare candidates no target is left for: any level serves).
     let mut items: Vec<(usize, usize, Option<Bound>)> = Vec::new();
-    for (gi, (sc, &(_, cands))) in screens.iter().zip(groups).enumerate() {
+    for (gi, (sc, &(_, cands))) in screens.iter_mut().zip(groups).enumerate() {
         match sc {
             None => items.extend((0..cands.len()).map(|k| (gi, k, None))),
             Some(sc) => items.extend(
-                sc.bounds(cands, false)
+                sc.bounds_loose(cands)
                     .into_iter()
                     .enumerate()
                     .map(|(k, b)| (gi, k, Some(b))),
@@ -1272,7 +1658,7 @@ pub(super) fn best_first(
                 let g = items[task[0]].0;
                 let sc = screens[g].as_ref().expect("a loose bound has its screen");
                 let cands: Vec<usize> = task.iter().map(|&i| groups[g].1[items[i].1]).collect();
-                sc.bounds(&cands, true)
+                sc.bounds_tight(&cands)
             };
             let score = |i: usize| -> Result<Option<f64>, crate::select::SelectionError> {
                 let (g, k, b) = &items[i];
@@ -1288,6 +1674,7 @@ pub(super) fn best_first(
                         cand,
                         b,
                         c.is_finite().then_some(c),
+                        screens[*g].as_ref().and_then(|sc| sc.signs(cand)),
                     ),
                 }
             };
@@ -1329,7 +1716,23 @@ pub(super) fn best_first(
             chain.offer(i, s);
         }
     }
-    Ok((chain.best(), evaluated))
+    let signs = match (groups.len(), screens.pop()) {
+        (1, Some(Some(sc))) => Some(sc.into_signs(&addings[0].states)),
+        _ => None,
+    };
+    Ok(BestFirst {
+        best: chain.best(),
+        evaluated,
+        signs,
+    })
+}
+
+/// The outcome of [`best_first`]: the winner (flat index) and its score, the number of
+/// exact scores computed, and (one group) the signs of this step.
+pub(super) struct BestFirst {
+    pub best: Option<(usize, f64)>,
+    pub evaluated: usize,
+    pub signs: Option<GradSigns>,
 }
 
 #[cfg(test)]
@@ -1404,6 +1807,56 @@ mod tests {
     }
 
     #[test]
+    fn carried_signs_are_the_signs_computed_afresh() {
+        // Step by step through a greedy run: the signs and bounds of a screen that carries
+        // the previous step's signs equal those of a screen that computes them all.
+        let coll = crate::collection::synthetic(300, 2016);
+        let p = ObjectiveParams::default().stride(4).check().expect("p");
+        let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
+        let all: Vec<usize> = (0..coll.len()).collect();
+        let mut basis: Vec<usize> = Vec::new();
+        let mut signs: Option<GradSigns> = None;
+        let mut carried_total = 0;
+        for step in 0..12 {
+            let cands: Vec<usize> = all.iter().copied().filter(|c| !basis.contains(c)).collect();
+            let a = obj.adding(&basis, &all).expect("states");
+            let mut fresh =
+                Screen::new(&obj, &a.live, &a.states, &a.cols, None, &cands).expect("screen");
+            let mut carry = Screen::new(&obj, &a.live, &a.states, &a.cols, signs.take(), &cands)
+                .expect("screen");
+            let carried: usize = carry
+                .tg
+                .iter()
+                .map(|d| {
+                    d.keep
+                        .iter()
+                        .map(|w| w.count_ones() as usize)
+                        .sum::<usize>()
+                })
+                .sum();
+            carried_total += carried;
+            let (lf, lc) = (fresh.bounds_loose(&cands), carry.bounds_loose(&cands));
+            let (tf, tc) = (fresh.bounds_tight(&cands), carry.bounds_tight(&cands));
+            for (k, &c) in cands.iter().enumerate() {
+                assert_eq!(fresh.signs(c), carry.signs(c), "step {step}, candidate {c}");
+                for (x, y) in [(&lf[k], &lc[k]), (&tf[k], &tc[k])] {
+                    let (x, y) = (x.mean(), y.mean());
+                    assert!(
+                        (x - y).abs() <= 1e-13 * x.abs().max(1e-300),
+                        "step {step}, candidate {c}: {x} {y}"
+                    );
+                }
+            }
+            // The carried screen's signs go on; the step adds the exhaustive choice.
+            signs = Some(carry.into_signs(&a.states));
+            let scores = obj.exact_scores(&a, &cands).expect("exact");
+            basis.push(cands[argmin(&scores, 1e-12).expect("a candidate")]);
+        }
+        // Most states carry over late in the run: the carried path is exercised.
+        assert!(carried_total > 1000, "{carried_total}");
+    }
+
+    #[test]
     fn late_greedy_steps_are_bounded_validly_and_tightly() {
         // Late in a greedy run most candidates lie close to the span of the basis: the
         // bounds must stay below every exact score and still rule most candidates out.
@@ -1416,7 +1869,7 @@ mod tests {
         for _ in 0..15 {
             let cands: Vec<usize> = all.iter().copied().filter(|c| !full.contains(c)).collect();
             let r = obj
-                .best_of_groups(&[(full.as_slice(), cands.as_slice())], &all, 1e-12)
+                .best_of_groups(&[(full.as_slice(), cands.as_slice())], &all, 1e-12, None)
                 .expect("step");
             full.push(cands[r.best.expect("a candidate").0]);
         }
