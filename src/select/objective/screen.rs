@@ -596,6 +596,7 @@ impl GradSigns {
 pub(super) struct Screen<'a> {
     obj: &'a Objective,
     live: &'a [usize],
+    states: &'a [[ChanState; 3]],
     cols: &'a [usize],
     tg: Vec<Targets>,
     proj: [Basis; 3],
@@ -622,7 +623,7 @@ impl<'a> Screen<'a> {
     pub(super) fn new(
         obj: &'a Objective,
         live: &'a [usize],
-        states: &[[ChanState; 3]],
+        states: &'a [[ChanState; 3]],
         cols: &'a [usize],
         old: Option<GradSigns>,
         cands: &[usize],
@@ -776,6 +777,7 @@ impl<'a> Screen<'a> {
         Some(Self {
             obj,
             live,
+            states,
             cols,
             tg,
             proj,
@@ -852,11 +854,11 @@ impl<'a> Screen<'a> {
         self.has_row[cand].then(|| &self.bits[cand * w3..(cand + 1) * w3])
     }
 
-    /// The signs of this step, to carry to the next ([`GradSigns`]), with the prints of
-    /// `states` (those of the live targets).
-    pub(super) fn into_signs(self, states: &[[ChanState; 3]]) -> GradSigns {
+    /// The signs of this step, to carry to the next ([`GradSigns`]), with the prints of the
+    /// live targets' states.
+    pub(super) fn into_signs(self) -> GradSigns {
         let mut prints: Vec<[Option<Print>; 3]> = vec![Default::default(); self.obj.len()];
-        for (&t, st) in self.live.iter().zip(states) {
+        for (&t, st) in self.live.iter().zip(self.states) {
             prints[t] = std::array::from_fn(|c| st[c].is_active().then(|| Print::of(&st[c])));
         }
         GradSigns {
@@ -1384,22 +1386,26 @@ fn task_bounds_body<const TIGHT: bool>(
 /// the bound with that chunk's exact values in place of its bounds, until the bound rules
 /// it out (`Ok(None)`) or every chunk is exact: then `Ok(Some(score))`, the exact score
 /// summed in the order of [`Objective::scores_adding`] (target by target, channel by
-/// channel, from 0), so equal to it bit for bit. With the signs of the candidate's pairs
+/// channel, from 0), so equal to it bit for bit. From the signs of the candidate's pairs
 /// ([`Screen::signs`]), a pair whose gradient is not positive takes `q_t` without its
 /// gradient: what [`ChanState::q_adding`] returns for it (the same test on the same
 /// numbers).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn refine(
-    obj: &Objective,
-    live: &[usize],
-    states: &[[ChanState; 3]],
-    cols: &[usize],
+    sc: &Screen<'_>,
     cand: usize,
     bound: &Bound,
     thr: Option<f64>,
-    signs: Option<&[u64]>,
 ) -> Result<Option<f64>, crate::select::SelectionError> {
-    let words = obj.len().div_ceil(64);
+    let Screen {
+        obj,
+        live,
+        states,
+        cols,
+        ref tg,
+        words,
+        ..
+    } = *sc;
+    let signs = sc.signs(cand);
     let unchanged = |t: usize, c: usize| -> bool {
         signs.is_some_and(|s| s[c * words + t / 64] >> (t % 64) & 1 == 0)
     };
@@ -1420,15 +1426,13 @@ pub(super) fn refine(
     for (k, part) in bound.chunks.iter().enumerate() {
         let end = ((k + 1) * CHUNK).min(live.len());
         let (mut n, mut base) = (0, 0.0);
-        for (&t, st) in live[k * CHUNK..end].iter().zip(&states[k * CHUNK..end]) {
+        for (i, &t) in (k * CHUNK..end).zip(&live[k * CHUNK..end]) {
             if t == cand {
                 continue;
             }
-            for (c, ch) in st.iter().enumerate() {
-                if ch.is_active() {
-                    n += 1;
-                    base += obj.share[t][c] * ch.q();
-                }
+            for d in tg.iter().filter(|d| d.active[i]) {
+                n += 1;
+                base += d.share[i] * d.q[i];
             }
         }
         at.push(at[k] + n);
@@ -1443,23 +1447,24 @@ pub(super) fn refine(
         let end = ((k + 1) * CHUNK).min(live.len());
         let mut exact = 0.0;
         let mut slot = at[k];
-        for (&t, st) in live[k * CHUNK..end].iter().zip(&states[k * CHUNK..end]) {
+        for (i, &t) in (k * CHUNK..end).zip(&live[k * CHUNK..end]) {
             if t == cand {
                 continue;
             }
-            for (c, ch) in st.iter().enumerate() {
-                if ch.is_active() {
-                    let q = if unchanged(t, c) {
-                        ch.q()
-                    } else {
-                        ch.q_adding(obj.view(c), cols, cand + 1, t + 1, &mut scratch)
-                            .map_err(|e| obj.solve_error(t, c, e))?
-                    };
-                    let v = obj.share[t][c] * q;
-                    exact += v;
-                    values[slot] = v;
-                    slot += 1;
-                }
+            // `share * q` as `Objective::scores_adding` has it (the screen's copies of
+            // `obj.share[t][c]` and `q_t`); the state is read only for a positive pair.
+            for (c, d) in tg.iter().enumerate().filter(|(_, d)| d.active[i]) {
+                let q = if unchanged(t, c) {
+                    d.q[i]
+                } else {
+                    states[i][c]
+                        .q_adding(obj.view(c), cols, cand + 1, t + 1, &mut scratch)
+                        .map_err(|e| obj.solve_error(t, c, e))?
+                };
+                let v = d.share[i] * q;
+                exact += v;
+                values[slot] = v;
+                slot += 1;
             }
         }
         sum += exact - bound.chunks[k];
@@ -1667,14 +1672,10 @@ pub(super) fn best_first(
                 match b {
                     None => Ok(Some(obj.exact_scores(a, &[cand])?[0])),
                     Some(b) => refine(
-                        obj,
-                        &a.live,
-                        &a.states,
-                        &a.cols,
+                        screens[*g].as_ref().expect("a bound has its screen"),
                         cand,
                         b,
                         c.is_finite().then_some(c),
-                        screens[*g].as_ref().and_then(|sc| sc.signs(cand)),
                     ),
                 }
             };
@@ -1717,7 +1718,7 @@ pub(super) fn best_first(
         }
     }
     let signs = match (groups.len(), screens.pop()) {
-        (1, Some(Some(sc))) => Some(sc.into_signs(&addings[0].states)),
+        (1, Some(Some(sc))) => Some(sc.into_signs()),
         _ => None,
     };
     Ok(BestFirst {
@@ -1848,7 +1849,7 @@ mod tests {
                 }
             }
             // The carried screen's signs go on; the step adds the exhaustive choice.
-            signs = Some(carry.into_signs(&a.states));
+            signs = Some(carry.into_signs());
             let scores = obj.exact_scores(&a, &cands).expect("exact");
             basis.push(cands[argmin(&scores, 1e-12).expect("a candidate")]);
         }
