@@ -1807,14 +1807,19 @@ mod tests {
         assert!(screened > 0);
     }
 
+    /// The objective of a 300-material synthetic collection (stride 4) and its materials.
+    fn synthetic_300() -> (Objective, Vec<usize>) {
+        let coll = crate::collection::synthetic(300, 2016);
+        let p = ObjectiveParams::default().stride(4).check().expect("p");
+        let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
+        (obj, (0..coll.len()).collect())
+    }
+
     #[test]
     fn carried_signs_are_the_signs_computed_afresh() {
         // Step by step through a greedy run: the signs and bounds of a screen that carries
         // the previous step's signs equal those of a screen that computes them all.
-        let coll = crate::collection::synthetic(300, 2016);
-        let p = ObjectiveParams::default().stride(4).check().expect("p");
-        let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
-        let all: Vec<usize> = (0..coll.len()).collect();
+        let (obj, all) = synthetic_300();
         let mut basis: Vec<usize> = Vec::new();
         let mut signs: Option<GradSigns> = None;
         let mut carried_total = 0;
@@ -1861,10 +1866,7 @@ mod tests {
     fn late_greedy_steps_are_bounded_validly_and_tightly() {
         // Late in a greedy run most candidates lie close to the span of the basis: the
         // bounds must stay below every exact score and still rule most candidates out.
-        let coll = crate::collection::synthetic(300, 2016);
-        let p = ObjectiveParams::default().stride(4).check().expect("p");
-        let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
-        let all: Vec<usize> = (0..coll.len()).collect();
+        let (obj, all) = synthetic_300();
         // The greedy basis, step by step (the chain of every step, as the greedy takes it).
         let mut full: Vec<usize> = Vec::new();
         for _ in 0..15 {
