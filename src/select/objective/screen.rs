@@ -501,6 +501,48 @@ fn loose_dual(q: f64, w: f64, werr: f64, s2: f64, eps_v: f64, xsum: f64, margin_
         - margin_dual
 }
 
+/// The loose dual bound of [`loose_dual`] for one candidate, as `max(0, q - margin_dual - w
+/// (w A + werr B + C))`: no division per pair. `A = (1 + 4 eps_v) / s2`, `B = 4 / s2` and
+/// `C = 4 xsum eps_v` are each raised by `16 eps` relative, which covers the rounding of
+/// the reciprocal and of the regrouped sum (a few units in the last place of the
+/// subtracted term; the `4 eps_v >= 512 eps` of `A` is for the rounding of `s2` itself),
+/// so it stays at or below [`loose_dual`]'s value but for the rounding of the last
+/// subtraction (units of `q`, inside the margin). Where the bound does not apply (cosines of either sign, `s2 < `[`NC_MIN`]), it is 0.
+#[derive(Clone, Copy)]
+struct LooseCoef {
+    ok: bool,
+    a: f64,
+    b: f64,
+    c: f64,
+}
+
+impl LooseCoef {
+    /// The coefficients of a candidate with `s2 = 1 - |V_c|^2` (`es2` its absolute
+    /// rounding), whether the dual bounds apply to it, and `xsum`.
+    #[inline(always)]
+    fn new(nonneg: bool, s2: f64, es2: f64, xsum: f64) -> Self {
+        let ok = nonneg && s2 >= NC_MIN;
+        let up = 1.0 + 16.0 * f64::EPSILON;
+        let eps_v = es2 / s2;
+        Self {
+            ok,
+            a: (1.0 + 4.0 * eps_v) / s2 * up,
+            b: 4.0 / s2 * up,
+            c: 4.0 * xsum * eps_v * up,
+        }
+    }
+
+    /// The bound of a pair with value `q`, positive gradient `w` of rounding `werr`.
+    #[inline(always)]
+    fn bound(&self, q: f64, w: f64, werr: f64, margin_dual: f64) -> f64 {
+        if self.ok {
+            (q - margin_dual - w * (w * self.a + werr * self.b + self.c)).max(0.0)
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Lower bounds of `S(B + c; T)` for every candidate (`None`: not screened), from the
 /// live targets and their states, at either level of [`Screen::bounds`].
 #[cfg(test)]
@@ -1249,18 +1291,20 @@ fn task_bounds_body<const TIGHT: bool>(
             }
             continue;
         }
+        // Per candidate of each block, the loose bound's coefficients ([`LooseCoef`]).
+        let coefs: Vec<[LooseCoef; CB]> = blocks
+            .iter()
+            .map(|blk| {
+                std::array::from_fn(|a| {
+                    LooseCoef::new(blk.nonneg[a], blk.nc[a], bs.e64 * bs.sk, xsum)
+                })
+            })
+            .collect();
         // The loose bound of one pair with a positive gradient `w`, target `i`, candidate
-        // `a` of `blk`.
-        let loose = |blk: &Block<'_>, a: usize, i: usize, w: f64| -> f64 {
-            let s2 = blk.nc[a];
-            let (q, werr) = (d.q[i], d.werr[i]);
-            let lb = if blk.nonneg[a] && s2 >= NC_MIN {
-                let eps_v = bs.e64 * bs.sk / s2;
-                loose_dual(q, w, werr, s2, eps_v, xsum, margin_dual).max(0.0)
-            } else {
-                0.0
-            };
-            d.share[i] * (lb - q)
+        // `a` of block `bi`.
+        let loose = |bi: usize, a: usize, i: usize, w: f64| -> f64 {
+            let q = d.q[i];
+            d.share[i] * (coefs[bi][a].bound(q, w, d.werr[i], margin_dual) - q)
         };
         // The carried signs that hold.
         if let Some(o) = old {
@@ -1340,7 +1384,7 @@ fn task_bounds_body<const TIGHT: bool>(
                             nrow[t / 64] |= 1 << (t % 64);
                             // The candidate's own target does not count.
                             if pos[b] != own {
-                                let v = loose(blk, a, pos[b], w[b]);
+                                let v = loose(bi, a, pos[b], w[b]);
                                 accs[ca].add(&mut chunks[ca], pos[b] / CHUNK, v);
                             }
                         }
@@ -1363,7 +1407,7 @@ fn task_bounds_body<const TIGHT: bool>(
                 data,
                 &mut ids,
                 |ca, i, _, w| {
-                    let v = loose(&blocks[ca / CB], ca % CB, i, w);
+                    let v = loose(ca / CB, ca % CB, i, w);
                     accs[ca].add(&mut chunks[ca], i / CHUNK, v);
                 },
             );
@@ -1884,5 +1928,47 @@ mod tests {
                 "k {k}: only {out} of {cands} candidates ruled out"
             );
         }
+    }
+
+    #[test]
+    fn loose_coefficients_bound_below_the_loose_dual_formula_and_as_tightly() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (mut n, mut ok) = (0, 0);
+        for _ in 0..200_000 {
+            let p = rng.random_range(1..=24usize);
+            let e64 = 64.0 * (p + 1) as f64 * f64::EPSILON;
+            let sk = 10f64.powf(rng.random_range(0.0..4.0));
+            let es2 = e64 * sk;
+            let s2 = 10f64.powf(rng.random_range(-4.5..0.0));
+            let nonneg = rng.random_bool(0.9);
+            let q = 10f64.powf(rng.random_range(-8.0..0.0));
+            let w = q.sqrt() * s2.sqrt() * rng.random_range(0.0..1.5);
+            let ysum = rng.random_range(0.0..30.0);
+            let werr = 4.0 * (p + 2) as f64 * f64::EPSILON * (1.0 + ysum);
+            let xsum = 2.0 * ((p + 1) as f64).sqrt();
+            let md = MARGIN * (1.0 + xsum);
+            let new = LooseCoef::new(nonneg, s2, es2, xsum).bound(q, w, werr, md);
+            let old = if nonneg && s2 >= NC_MIN {
+                loose_dual(q, w, werr, s2, es2 / s2, xsum, md).max(0.0)
+            } else {
+                0.0
+            };
+            // Never above the formula (a valid bound wherever it is) but by the rounding of
+            // the last subtraction (two units of `q`, far inside the `1e-10` margin both
+            // subtract), and below it by no more than the extra 16 eps of the coefficients
+            // on the subtracted term.
+            assert!(new <= old + 2.0 * f64::EPSILON * q, "{new} > {old}");
+            assert!(
+                old - new <= 64.0 * f64::EPSILON * q.max(w * w / s2),
+                "{new} << {old}"
+            );
+            n += 1;
+            ok += usize::from(new > 0.0);
+        }
+        assert!(
+            ok > n / 10,
+            "the positive bounds were exercised: {ok} of {n}"
+        );
     }
 }
