@@ -482,18 +482,15 @@ fn pair_bound(
     if s2.is_nan() || s2 < NC_MIN {
         return 0.0;
     }
-    let dual = if nonneg {
-        loose_dual(q, w, werr, s2, eps_v, xsum, margin_dual)
-    } else {
-        f64::NEG_INFINITY
-    };
+    let dual = LooseCoef::new(nonneg, s2, es2, xsum).bound(q, w, werr, margin_dual);
     dual.max(ls(0.0)).max(0.0)
 }
 
 /// The loose dual bound `q_t - w^2 / s2` of a pair with a positive gradient `w` (module
 /// docs), less the rounding of `s2` (relative `eps_v`), of `w` (`werr`) and of the KKT
-/// conditions (`margin_dual`); needs non-negative cosines and `s2 >= `[`NC_MIN`].
-#[inline(always)]
+/// conditions (`margin_dual`); needs non-negative cosines and `s2 >= `[`NC_MIN`]. The
+/// definition that [`LooseCoef`], which both levels use, is tested against.
+#[cfg(test)]
 fn loose_dual(q: f64, w: f64, werr: f64, s2: f64, eps_v: f64, xsum: f64, margin_dual: f64) -> f64 {
     q - w * w / s2 * (1.0 + 4.0 * eps_v)
         - 4.0 * w * werr / s2
@@ -502,12 +499,14 @@ fn loose_dual(q: f64, w: f64, werr: f64, s2: f64, eps_v: f64, xsum: f64, margin_
 }
 
 /// The loose dual bound of [`loose_dual`] for one candidate, as `max(0, q - margin_dual - w
-/// (w A + werr B + C))`: no division per pair. `A = (1 + 4 eps_v) / s2`, `B = 4 / s2` and
+/// (w A + werr B + C))`: built once per candidate, no division per pair (the loose level;
+/// the tight level's fallback builds it per pair). `A = (1 + 4 eps_v) / s2`, `B = 4 / s2` and
 /// `C = 4 xsum eps_v` are each raised by `16 eps` relative, which covers the rounding of
 /// the reciprocal and of the regrouped sum (a few units in the last place of the
 /// subtracted term; the `4 eps_v >= 512 eps` of `A` is for the rounding of `s2` itself),
 /// so it stays at or below [`loose_dual`]'s value but for the rounding of the last
-/// subtraction (units of `q`, inside the margin). Where the bound does not apply (cosines of either sign, `s2 < `[`NC_MIN`]), it is 0.
+/// subtraction (units of `q`, inside the margin). Where the bound does not apply (cosines
+/// of either sign, `s2 < `[`NC_MIN`]), it is 0.
 #[derive(Clone, Copy)]
 struct LooseCoef {
     ok: bool,
