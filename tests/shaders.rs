@@ -6,12 +6,19 @@ use brdf_basis::backend::gpu::{kernel_source, pairwise, pgd, tabulate};
 use std::mem::{offset_of, size_of};
 
 fn module(src: &str) -> (naga::Module, naga::valid::ModuleInfo) {
+    module_with(src, naga::valid::Capabilities::empty())
+}
+
+fn module_with(
+    src: &str,
+    caps: naga::valid::Capabilities,
+) -> (naga::Module, naga::valid::ModuleInfo) {
     let full = kernel_source(src);
     let m = naga::front::wgsl::parse_str(&full)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&full)));
     let info = naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
+        caps,
     )
     .validate(&m)
     .unwrap_or_else(|e| panic!("validation: {e:?}"));
@@ -110,6 +117,37 @@ fn pairwise_shader_validates_and_matches_rust_structs() {
     for ((n, o), (rn, ro)) in members.iter().zip(rust) {
         assert_eq!((n.as_str(), *o as usize), (rn, ro));
     }
+}
+
+#[test]
+fn f64_reduce_shader_validates_with_float64_only_and_matches_rust_structs() {
+    use brdf_basis::backend::gpu::pairwise::{ReduceParams, REDUCE_SOURCE};
+    // The kernel needs f64 (wgpu's SHADER_F64): without the capability naga refuses it.
+    let full = kernel_source(REDUCE_SOURCE);
+    let m = naga::front::wgsl::parse_str(&full).expect("parses");
+    assert!(naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty()
+    )
+    .validate(&m)
+    .is_err());
+    let (m, _) = module_with(REDUCE_SOURCE, naga::valid::Capabilities::FLOAT64);
+    let (span, members) = layout(&m, "ReduceParams");
+    assert_eq!(span as usize, size_of::<ReduceParams>());
+    let rust = [
+        ("ss", offset_of!(ReduceParams, ss)),
+        ("lane_runs", offset_of!(ReduceParams, lane_runs)),
+        ("count", offset_of!(ReduceParams, count)),
+        ("sum_base", offset_of!(ReduceParams, sum_base)),
+        ("row", offset_of!(ReduceParams, row)),
+    ];
+    for ((n, o), (rn, ro)) in members.iter().zip(rust) {
+        assert_eq!((n.as_str(), *o as usize), (rn, ro));
+    }
+    // The tiled entry point shares the template's definitions and unrolls nothing.
+    let tiled = pairwise::kernel_source(pairwise::KernelShape::TILED, false);
+    assert!(tiled.ends_with(pairwise::TILED_SOURCE));
+    assert!(tiled.contains("struct PairParams"));
 }
 
 /// `const NAME: u32 = VALUEu;` declarations of a WGSL source.

@@ -87,6 +87,17 @@ impl Backend for GpuBackend {
     }
 
     fn tabulate(&self, lobes: &[Lobe], cells: &[u32]) -> Result<Vec<f32>, BackendError> {
+        // Analytic lobes only (the common case): straight into the rows, no second copy.
+        let all_analytic: Option<Vec<LobeParams>> = lobes
+            .iter()
+            .map(|l| match l {
+                Lobe::Analytic(p) => Some(*p),
+                Lobe::Measured { .. } | Lobe::Neural { .. } => None,
+            })
+            .collect();
+        if let Some(params) = all_analytic {
+            return Ok(self.tab.tabulate(&self.ctx, &params, cells)?);
+        }
         let analytic: Vec<(usize, LobeParams)> = lobes
             .iter()
             .enumerate()
@@ -116,6 +127,10 @@ impl Backend for GpuBackend {
                 .pair
                 .neural_kernel(&self.ctx)?
                 .tabulate(&self.ctx, &weights, &rows, cells)?;
+            if neural.len() == lobes.len() {
+                // Neural lobes only: the kernel's rows are the output.
+                return Ok(vals);
+            }
             for (r, &i) in neural.iter().enumerate() {
                 out[i * n..(i + 1) * n].copy_from_slice(&vals[r * n..(r + 1) * n]);
             }

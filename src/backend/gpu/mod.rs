@@ -9,6 +9,7 @@ pub mod neural;
 pub mod pairwise;
 #[doc(hidden)]
 pub mod pgd;
+mod readback;
 #[doc(hidden)]
 pub mod tabulate;
 
@@ -46,8 +47,12 @@ pub const TABLE_LEN: usize = 540;
 /// in sync with `TEX_W` in `shaders/common.wgsl`.
 pub const TEX_W: usize = 4096;
 
-/// Bytes of the packed texture of one batch of a tabulation ([`GpuContext::pack_chunk`]).
+/// Bytes of the packed texture of one batch of a tabulation on a software adapter
+/// ([`GpuContext::pack_chunk`]).
 const PACK_BUDGET: usize = 16 << 20;
+/// The same on a hardware GPU: fewer, larger transfers (two staging buffers of this size
+/// are in use while a tabulation streams).
+const PACK_BUDGET_HARDWARE: usize = 256 << 20;
 /// Texels of one lobe's separable beta table: one per (theta_h, theta_d) row pair,
 /// 90 x 90 (the alpha texel follows it).
 pub const NIJ: usize = crate::merl::grid::N_TH * crate::merl::grid::N_TD;
@@ -103,9 +108,13 @@ impl GpuContext {
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
         let info = adapter.get_info();
         let limits = adapter.limits();
+        // f64 in shaders where the adapter has it: the pairwise kernel then adds its f32
+        // partial sums into f64 totals on the device (the host's order, bit for bit)
+        // instead of reading every partial back.
+        let features = adapter.features() & wgpu::Features::SHADER_F64;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("brdf-basis"),
-            required_features: wgpu::Features::empty(),
+            required_features: features,
             required_limits: limits.clone(),
             ..Default::default()
         }))
@@ -135,6 +144,14 @@ impl GpuContext {
             limits,
             staging: Default::default(),
         }
+    }
+
+    /// Whether the device computes in f64 in shaders (`SHADER_F64`: the pairwise kernel's
+    /// partial sums are then added on the device). `BRDF_BASIS_NO_DEVICE_F64=1` turns it
+    /// off (the tests compare both paths).
+    pub fn has_f64(&self) -> bool {
+        self.device.features().contains(wgpu::Features::SHADER_F64)
+            && std::env::var_os("BRDF_BASIS_NO_DEVICE_F64").is_none_or(|v| v != "1")
     }
 
     /// Whether the adapter is a software rasteriser (lavapipe, WARP, SwiftShader).
@@ -325,62 +342,31 @@ impl GpuContext {
         })
     }
 
-    /// Texel blocks (four rows each) per batch of a packed tabulation: as many as a 16 MiB
-    /// texture of one [`TEX_W`]-wide texel row per block holds, within the largest texture
+    /// Bytes of a packed tabulation's texture: small on a software adapter, large on a
+    /// hardware GPU (within its largest buffer).
+    fn pack_budget(&self) -> usize {
+        match self.is_software() {
+            true => PACK_BUDGET,
+            false => PACK_BUDGET_HARDWARE.min(self.limits.max_buffer_size as usize),
+        }
+    }
+
+    /// Texel blocks (four rows each) per batch of a packed tabulation: as many as the
+    /// budget's texture of one [`TEX_W`]-wide texel row per block holds, within the largest texture
     /// side. The texture and readback buffers are reused chunk after chunk (fresh memory
     /// costs more in page faults than the kernels).
     pub(crate) fn pack_max_blocks(&self) -> usize {
         let max_dim = self.limits.max_texture_dimension_2d as usize;
-        (PACK_BUDGET / (16 * TEX_W)).min(max_dim).max(1)
+        (self.pack_budget() / (16 * TEX_W)).min(max_dim).max(1)
     }
 
     /// Cells per chunk of a packed tabulation of `blocks` texel blocks over `n` cells:
-    /// within the 16 MiB budget, the largest texture side and `cap`, whole texel rows.
+    /// within the budget, the largest texture side and `cap`, whole texel rows.
     pub(crate) fn pack_chunk(&self, blocks: usize, n: usize, cap: usize) -> usize {
         let max_dim = self.limits.max_texture_dimension_2d as usize;
-        ((PACK_BUDGET / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
+        ((self.pack_budget() / (16 * blocks)).min(TEX_W * max_dim / blocks) / TEX_W * TEX_W)
             .min(cap)
             .clamp(TEX_W, n.next_multiple_of(TEX_W))
-    }
-
-    /// Copies the packed `texture` (row `r` of the batch in channel `r % 4` of texel block
-    /// `r / 4`, `chunk` texels a block) into `readback`, submits `enc`, waits, and unpacks
-    /// the batch's `rows` rows into `out[(row0 + r) * n + start..][..len]`.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn read_packed_rows(
-        &self,
-        mut enc: wgpu::CommandEncoder,
-        texture: &wgpu::Texture,
-        readback: &wgpu::Buffer,
-        chunk: usize,
-        rows: usize,
-        (row0, n, start, len): (usize, usize, usize, usize),
-        out: &mut [f32],
-    ) -> Result<(), GpuError> {
-        let bytes = readback.size();
-        enc.copy_texture_to_buffer(
-            texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some((TEX_W * 16) as u32),
-                    rows_per_image: None,
-                },
-            },
-            texture.size(),
-        );
-        let data = self.submit_and_read(enc, readback, bytes)?;
-        let texels: &[[f32; 4]] = bytemuck::cast_slice(&data[..bytes as usize]);
-        for r in 0..rows {
-            let (b, q) = (r / 4, r % 4);
-            let l = row0 + r;
-            let row = &mut out[l * n + start..l * n + start + len];
-            for (o, t) in row.iter_mut().zip(&texels[b * chunk..]) {
-                *o = t[q];
-            }
-        }
-        Ok(())
     }
 
     /// A bind group over `buffers` bound at 0, 1, 2, ... of group 0 of `pipeline`.
@@ -476,6 +462,33 @@ impl GpuContext {
         };
         staging.unmap();
         Ok(bytes)
+    }
+
+    /// Submits `encoder` without waiting, reporting a validation error of the submission.
+    pub(crate) fn submit(
+        &self,
+        encoder: wgpu::CommandEncoder,
+    ) -> Result<wgpu::SubmissionIndex, GpuError> {
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let index = self.queue.submit(Some(encoder.finish()));
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Wgpu {
+                context: "submitting work".into(),
+                message: e.to_string(),
+            });
+        }
+        Ok(index)
+    }
+
+    /// Waits until the work of submission `index` is done.
+    pub(crate) fn wait_for(&self, index: wgpu::SubmissionIndex) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(index),
+                timeout: None,
+            })
+            .map(|_| ())
+            .map_err(|e| GpuError::Map(e.to_string()))
     }
 
     /// A new command encoder.

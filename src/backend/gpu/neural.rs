@@ -18,6 +18,7 @@
 //! cell: rows of one network in one block share its evaluation, and the work of an
 //! invocation is bounded whatever the number of cells or networks.
 
+use super::readback::{PackedStream, Unpack};
 use super::{GpuContext, TEX_W};
 use crate::backend::Lobe;
 use crate::brdf::Nbrdf;
@@ -511,7 +512,8 @@ impl NeuralKernel {
     }
 
     /// [`Self::tabulate`] with the given features texture: chunks of cells into a packed
-    /// texture reused chunk after chunk, copied out and unpacked on the host.
+    /// texture reused chunk after chunk, each copied out while the next is computed and
+    /// unpacked on the host in parallel ([`PackedStream`]).
     fn run_rows(
         &self,
         ctx: &GpuContext,
@@ -528,6 +530,7 @@ impl NeuralKernel {
         // Batches of rows and chunks of cells whose texture fits a small budget and the
         // largest texture side.
         let max_blocks = ctx.pack_max_blocks();
+        let mut stream = PackedStream::new();
         for (batch, rb) in rows.chunks(4 * max_blocks).enumerate() {
             let mut padded: Vec<Option<NeuralRow>> = rb.iter().map(|&r| Some(r)).collect();
             padded.resize(rb.len().div_ceil(4) * 4, None);
@@ -545,7 +548,6 @@ impl NeuralKernel {
             );
             let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
             let mut up = NeuralCells::new(ctx, chunk);
-            let readback = ctx.storage("neural tabulated", (blocks * chunk * 16) as u64);
             for (k, cc) in cells.chunks(chunk).enumerate() {
                 up.write(ctx, cc, None);
                 let mut enc = ctx.encoder();
@@ -555,10 +557,18 @@ impl NeuralKernel {
                     row_stride: chunk,
                 };
                 self.encode_with(ctx, &mut enc, &prepared, &up, target, features);
-                let at = (batch * 4 * max_blocks, n, k * chunk, cc.len());
-                ctx.read_packed_rows(enc, &texture, &readback, chunk, rb.len(), at, &mut out)?;
+                let at = Unpack {
+                    chunk,
+                    rows: rb.len(),
+                    row0: batch * 4 * max_blocks,
+                    n,
+                    start: k * chunk,
+                    len: cc.len(),
+                };
+                stream.push(ctx, enc, &texture, at, &mut out)?;
             }
         }
+        stream.finish(ctx, &mut out)?;
         Ok(out)
     }
 }

@@ -4,6 +4,7 @@
 //! kernel's measured row blocks); [`TabulateKernel::tabulate`] reads it back into planar
 //! rows. (The pairwise kernel itself tabulates analytic lobes in registers.)
 
+use super::readback::{PackedStream, Unpack};
 use super::{dispatch, GpuContext};
 use crate::brdf::LobeParams;
 use crate::error::GpuError;
@@ -210,20 +211,35 @@ impl TabulateKernel {
     }
 
     /// Tabulates `lobes` over `cells` and reads the values back (`out[l * cells.len() + c]`):
-    /// packed on the GPU in chunks of cells, copied out and unpacked on the host.
+    /// packed on the GPU in chunks of cells, each copied out while the next is computed
+    /// and unpacked on the host in parallel ([`PackedStream`]).
     pub fn tabulate(
         &self,
         ctx: &GpuContext,
         lobes: &[LobeParams],
         cells: &[u32],
     ) -> Result<Vec<f32>, GpuError> {
+        let mut out = vec![0f32; lobes.len() * cells.len()];
+        self.tabulate_into(ctx, lobes, cells, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Self::tabulate`] into `out` (`lobes.len() * cells.len()` values).
+    pub fn tabulate_into(
+        &self,
+        ctx: &GpuContext,
+        lobes: &[LobeParams],
+        cells: &[u32],
+        out: &mut [f32],
+    ) -> Result<(), GpuError> {
         let n = cells.len();
-        let mut out = vec![0f32; lobes.len() * n];
+        assert_eq!(out.len(), lobes.len() * n, "one row per lobe");
         if n == 0 || lobes.is_empty() {
-            return Ok(out);
+            return Ok(());
         }
-        // Batches of lobes and chunks of cells whose texture fits a small budget.
+        // Batches of lobes and chunks of cells whose texture fits the budget.
         let max_blocks = ctx.pack_max_blocks();
+        let mut stream = PackedStream::new();
         for (batch, lb) in lobes.chunks(4 * max_blocks).enumerate() {
             let mut rows: Vec<Option<LobeParams>> = lb.iter().map(|&l| Some(l)).collect();
             rows.resize(lb.len().div_ceil(4) * 4, None);
@@ -231,21 +247,19 @@ impl TabulateKernel {
             let prepared = self.prepare_packed(ctx, &rows);
             let chunk = ctx.pack_chunk(blocks, n, usize::MAX);
             let target = PackTarget::new(ctx, blocks, chunk, wgpu::TextureUsages::COPY_SRC);
-            let readback = ctx.storage("tabulated", (blocks * chunk * 16) as u64);
             for (k, cc) in cells.chunks(chunk).enumerate() {
                 let enc = self.encode_pack(ctx, &prepared, &target, cc);
-                let at = (batch * 4 * max_blocks, n, k * chunk, cc.len());
-                ctx.read_packed_rows(
-                    enc,
-                    &target.texture,
-                    &readback,
+                let at = Unpack {
                     chunk,
-                    lb.len(),
-                    at,
-                    &mut out,
-                )?;
+                    rows: lb.len(),
+                    row0: batch * 4 * max_blocks,
+                    n,
+                    start: k * chunk,
+                    len: cc.len(),
+                };
+                stream.push(ctx, enc, &target.texture, at, out)?;
             }
         }
-        Ok(out)
+        stream.finish(ctx, out)
     }
 }

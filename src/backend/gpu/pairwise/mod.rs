@@ -27,10 +27,12 @@
 
 mod neural_rows;
 mod plan;
+mod reduce;
 mod shape;
 
 pub use plan::{covering_blocks, PairPlan, PlanLimits, RowLayout};
-pub use shape::{kernel_source, KernelShape};
+pub use shape::{kernel_source, KernelShape, TILED_SOURCE};
+pub use reduce::{ReduceParams, SOURCE as REDUCE_SOURCE};
 
 use super::neural::NeuralKernel;
 use super::tabulate::separable_texels;
@@ -41,6 +43,7 @@ use crate::error::GpuError;
 use crate::merl::{CellSet, GridTables};
 use neural_rows::NeuralPass;
 use plan::table_rows;
+use reduce::DeviceSums;
 
 /// WGSL template of the kernel (see [`kernel_source`]).
 pub const SOURCE: &str = include_str!("../../../../shaders/pairwise.wgsl");
@@ -116,6 +119,7 @@ type PipelineKey = (KernelShape, PairOp, bool);
 #[derive(Debug, Default)]
 pub struct PairwiseKernel {
     pipelines: PipelineCache<PipelineKey>,
+    reduce: PipelineCache<()>,
     texture: std::sync::Mutex<Option<(u32, wgpu::Texture)>>,
     neural: std::sync::Mutex<Option<std::sync::Arc<NeuralKernel>>>,
 }
@@ -146,6 +150,16 @@ impl PairwiseKernel {
             };
             ctx.pipeline_with(&label, &kernel_source(shape, diagonal), &[("OP", code)])
         })
+    }
+
+    /// The f64 reduction's pipeline, compiled on first use where the device has f64.
+    fn reduce_pipeline(&self, ctx: &GpuContext) -> Option<wgpu::ComputePipeline> {
+        if !ctx.has_f64() {
+            return None;
+        }
+        self.reduce
+            .get((), || ctx.pipeline("reduce (f64)", reduce::SOURCE))
+            .ok()
     }
 
     /// The neural kernel, compiled on first use (on `ctx`, the context of every call).
@@ -247,6 +261,9 @@ impl PairwiseKernel {
             .min(max_dim)
             .min(n_blocks.max(1));
         let partial = ctx.storage("partial sums", (per_pass * per_block) as u64);
+        // The totals on the device where it has f64 (one readback at the end), else on
+        // the host after each dispatch.
+        let device_sums = DeviceSums::new(ctx, self.reduce_pipeline(ctx), n_blocks * side * side);
         let (height, texture) = self.value_texture(ctx, plan.texture_height());
         ctx.write_texel_rows(
             &texture,
@@ -272,6 +289,7 @@ impl PairwiseKernel {
         let tables = GridTables::new();
         let total = cells.len() as u64;
         let mut done = 0u64;
+        let mut in_flight = None;
         let pass = Pass {
             plan,
             pipelines: &pipelines,
@@ -284,6 +302,7 @@ impl PairwiseKernel {
             n_diagonal,
             n_blocks,
             side,
+            device_sums: device_sums.as_ref(),
         };
         for (cc, cw) in cells
             .cells
@@ -296,9 +315,17 @@ impl PairwiseKernel {
             if let Some(n) = neural.as_mut() {
                 n.chunk(ctx, op, cc, cw)?;
             }
-            dispatch_groups(ctx, &pass, cc.len(), &mut sums)?;
+            // At most two chunks in flight: this one's uploads were staged while the
+            // device worked on the last one.
+            if let Some(ix) = in_flight.take() {
+                ctx.wait_for(ix)?;
+            }
+            in_flight = dispatch_groups(ctx, &pass, cc.len(), &mut sums)?;
             done += cc.len() as u64;
             progress(done, total);
+        }
+        if let Some(d) = &device_sums {
+            sums = d.read(ctx, ctx.encoder())?;
         }
         self.put_back((height, texture));
         let value = |i: usize, j: usize| {
@@ -336,6 +363,8 @@ struct Pass<'a> {
     n_diagonal: usize,
     n_blocks: usize,
     side: usize,
+    /// The totals on the device, if it has f64.
+    device_sums: Option<&'a DeviceSums>,
 }
 
 /// Uploads one chunk of cells (`cc`, weights `cw`): per cell (e, g, w, 0) into `info`
@@ -395,15 +424,18 @@ fn pack_chunk(
 
 /// Runs the kernel on the uploaded chunk of `len` cells: register-block groups whose
 /// per-lane partials fit one binding (diagonal blocks first, their own pipeline), one
-/// dispatch and one blocking readback each, [`accumulate`]d into `sums`.
+/// dispatch each, added into the totals: on the device where it has f64 (one submission
+/// per group, no wait: the queue orders the reuse of the partials and of the value
+/// texture), else by one blocking readback each, [`accumulate`]d into `sums` on the host.
 fn dispatch_groups(
     ctx: &GpuContext,
     pass: &Pass<'_>,
     len: usize,
     sums: &mut [f64],
-) -> Result<(), GpuError> {
+) -> Result<Option<wgpu::SubmissionIndex>, GpuError> {
     let plan = pass.plan;
     let mut enc = ctx.encoder();
+    let mut last = None;
     let groups = [(0, pass.n_diagonal), (pass.n_diagonal, pass.n_blocks)]
         .into_iter()
         .zip(pass.pipelines)
@@ -444,6 +476,12 @@ fn dispatch_groups(
             &bind,
             (plan.n_runs as u32, count as u32),
         );
+        if let Some(d) = pass.device_sums {
+            let ss = pass.side * pass.side;
+            d.encode(ctx, &mut enc, pass.partial, (off, count, ss, pass.per_block / 4 / ss));
+            last = Some(ctx.submit(std::mem::replace(&mut enc, ctx.encoder()))?);
+            continue;
+        }
         let used = (count * pass.per_block) as u64;
         let bytes = ctx.submit_and_read(
             std::mem::replace(&mut enc, ctx.encoder()),
@@ -458,7 +496,7 @@ fn dispatch_groups(
             pass.per_block / 4,
         );
     }
-    Ok(())
+    Ok(last)
 }
 
 /// Adds the f32 per-lane, per-run partials `part` (`per_block` values per register block)

@@ -308,7 +308,7 @@ mod tests {
     fn covering_blocks_hold_every_requested_pair_in_row_order() {
         // Rows 0, 4, 1, 2 | 5 for lobes a m a a | m; register blocks of 4 rows (R = 1).
         let l = RowLayout::new(&lobes("amaam"));
-        let r1 = KernelShape { r: 1, lanes: 8 };
+        let r1 = KernelShape::register(1, 8);
         // Lobes 0..3 sit in rows 0, 1, 2 (block 0) and 4 (block 1).
         assert_eq!(covering_blocks(&[[0, 0]], &l, r1), [[0, 0], [0, 1], [1, 1]]);
         assert_eq!(
@@ -316,13 +316,13 @@ mod tests {
             [[0, 0], [0, 1], [1, 1]]
         );
         // Blocks of 8 rows hold them all.
-        let r2 = KernelShape { r: 2, lanes: 8 };
+        let r2 = KernelShape::register(2, 8);
         assert_eq!(covering_blocks(&all_blocks(5), &l, r2), [[0, 0]]);
     }
 
     #[test]
     fn diagonal_blocks_evaluate_the_upper_texel_pairs() {
-        let s = KernelShape { r: 5, lanes: 8 };
+        let s = KernelShape::register(5, 8);
         // 100 rows: 5 blocks of 20; 10 off the diagonal (400 pairs), 5 on it (15 of 25
         // texel pairs of 16 lobe pairs).
         assert_eq!(s.evaluated_pairs(100), 10.0 * 400.0 + 5.0 * 15.0 * 16.0);

@@ -3,13 +3,20 @@
 
 use super::SOURCE;
 
+/// WGSL of the tiled entry point (appended to the definitions of [`SOURCE`]).
+pub const TILED_SOURCE: &str = include_str!("../../../../shaders/pairwise_tiled.wgsl");
+
 /// Register block and workgroup of the pairwise kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct KernelShape {
-    /// Texels (of 4 rows) per side of an invocation's register block: `4R x 4R` pairs.
+    /// Texels (of 4 rows) per side of a register block: `4R x 4R` pairs.
     pub r: usize,
-    /// Lanes per workgroup.
+    /// Canonical lanes per workgroup (`lanes / 8` canonical runs per workgroup).
     pub lanes: usize,
+    /// The tiled kernel (`shaders/pairwise_tiled.wgsl`, [`Self::TILED`]): a workgroup of
+    /// 256 invocations stages a 32 x 32 tile's rows in workgroup memory; otherwise one
+    /// invocation per lane holds the whole register block.
+    pub tiled: bool,
 }
 
 /// lavapipe shapes and their rates (G evaluated pair-cells/s, best of three, measured by
@@ -18,21 +25,41 @@ pub struct KernelShape {
 /// too often (4 x 4 pairs per invocation ran at 4.7, 8 x 8 at 10.7 in a first probe);
 /// 24 x 24 spills.
 const SOFTWARE_SHAPES: [(KernelShape, f64); 3] = [
-    (KernelShape { r: 4, lanes: 8 }, 15.4),
-    (KernelShape { r: 5, lanes: 8 }, 17.3),
-    (KernelShape { r: 6, lanes: 8 }, 14.6),
+    (KernelShape::register(4, 8), 15.4),
+    (KernelShape::register(5, 8), 17.3),
+    (KernelShape::register(6, 8), 14.6),
 ];
 
 impl KernelShape {
-    /// Hardware GPUs: 8 x 8 pairs (64 f32 accumulators), 64 lanes.
-    pub const HARDWARE: Self = Self { r: 2, lanes: 64 };
+    /// The register kernel with `4r x 4r` pairs per invocation and `lanes` lanes.
+    pub const fn register(r: usize, lanes: usize) -> Self {
+        Self {
+            r,
+            lanes,
+            tiled: false,
+        }
+    }
+
+    /// The register kernel's hardware shape: 8 x 8 pairs (64 f32 accumulators), 64 lanes.
+    /// On an NVIDIA H200 it ran at 364 G abs-diffs/s (N = 240), fetch-bound: 5 texel
+    /// fetches per 64 abs-diffs.
+    pub const HARDWARE: Self = Self::register(2, 64);
+
+    /// The tiled kernel, chosen on hardware GPUs: 32 x 32 pairs per workgroup of 256
+    /// invocations (4 x 8 pairs and one canonical lane each), rows staged in workgroup
+    /// memory 64 cells at a time, one canonical run per workgroup.
+    pub const TILED: Self = Self {
+        r: 8,
+        lanes: 8,
+        tiled: true,
+    };
 
     /// The shape for `n_rows` packed rows: on a software adapter, the one with the least
     /// modelled time (padded pairs / rate), so that e.g. 100 rows use 20 x 20 blocks
     /// without padding.
     pub fn choose(n_rows: usize, software: bool) -> Self {
         if !software {
-            return Self::HARDWARE;
+            return Self::TILED;
         }
         let cost = |(s, rate): &(KernelShape, f64)| s.evaluated_pairs(n_rows) / rate;
         SOFTWARE_SHAPES
@@ -47,7 +74,10 @@ impl KernelShape {
     pub fn evaluated_pairs(&self, n_rows: usize) -> f64 {
         let nb = n_rows.max(1).div_ceil(self.side()) as f64;
         let block = (self.side() * self.side()) as f64;
-        let diagonal = block * (self.r + 1) as f64 / (2 * self.r) as f64;
+        let diagonal = match self.tiled {
+            true => block,
+            false => block * (self.r + 1) as f64 / (2 * self.r) as f64,
+        };
         nb * (nb - 1.0) / 2.0 * block + nb * diagonal
     }
 
@@ -56,7 +86,7 @@ impl KernelShape {
         SOFTWARE_SHAPES
             .iter()
             .map(|s| s.0)
-            .chain(std::iter::once(Self::HARDWARE))
+            .chain([Self::HARDWARE, Self::TILED])
     }
 
     /// Whether this shape is tuned for a software adapter (longest runs).
@@ -74,7 +104,12 @@ impl KernelShape {
 /// expanded into the unrolled register block. `diagonal`: the variant for register blocks
 /// on the diagonal (`I = J`), which fetches the `R` texels once and accumulates only the
 /// texel pairs `(i <= j)` (the rest mirror them).
+/// The tiled shape has one kernel for both (its diagonal tiles evaluate every pair).
 pub fn kernel_source(shape: KernelShape, diagonal: bool) -> String {
+    if shape.tiled {
+        let defs = &SOURCE[..SOURCE.find("@compute").expect("the template's entry point")];
+        return format!("{defs}{TILED_SOURCE}");
+    }
     assert!(
         shape
             .lanes
