@@ -2,7 +2,8 @@
 //! (evaluation mask, 894,396 cells), each back-end. Prints G abs-diffs/s
 //! (N (N - 1) / 2 x cells / s) and the peak resident memory of the process.
 //!
-//! `cargo bench --bench distance` (set BENCH_N=100 or 1000 to run one size;
+//! `cargo bench --bench distance` (BENCH_N=100,1000,10000 sets the sizes; BENCH_N_GPU_ONLY=1000
+//! runs the CPU back-end only up to that size;
 //! BENCH_SHAPES=1 also times every register-block shape of the GPU kernel at N = 100 and
 //! N = 240, the figures behind `KernelShape::choose`).
 
@@ -44,12 +45,12 @@ fn peak_rss_mb() -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
-fn run(name: &str, b: &dyn Backend, n: usize, cells: &CellSet, reps: usize) -> f64 {
+fn run(name: &str, b: &dyn Backend, n: usize, cells: &CellSet, reps: usize) -> (f64, Vec<f64>) {
     let l = lobes(n);
-    let _ = b.pairwise_l1(&l, cells, &|_, _| {}).expect("warm-up");
+    let mut m = b.pairwise_l1(&l, cells, &|_, _| {}).expect("warm-up");
     let t = Instant::now();
     for _ in 0..reps {
-        std::hint::black_box(b.pairwise_l1(&l, cells, &|_, _| {}).expect("pairwise"));
+        m = std::hint::black_box(b.pairwise_l1(&l, cells, &|_, _| {}).expect("pairwise"));
     }
     let s = t.elapsed().as_secs_f64() / reps as f64;
     let diffs = (n * (n - 1) / 2) as f64 * cells.len() as f64;
@@ -61,7 +62,15 @@ fn run(name: &str, b: &dyn Backend, n: usize, cells: &CellSet, reps: usize) -> f
         g,
         peak_rss_mb()
     );
-    g
+    (g, m)
+}
+
+/// Largest relative difference between two matrices of the same back-end contract.
+fn worst_relative(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1e-300))
+        .fold(0.0, f64::max)
 }
 
 /// Raw rate (evaluated pairs x cells / s, padding and diagonal blocks included) of each
@@ -92,18 +101,23 @@ fn shapes(g: &GpuBackend, n: usize, cells: &CellSet) {
             .fold(f64::INFINITY, f64::min);
         let evaluated = shape.evaluated_pairs(n);
         println!(
-            "shape {0}x{0} lanes {1:<3} N={n:<4} {s:.3} s: {2:.2} G abs-diffs/s, raw {3:.2} G pair-cells/s{4}",
+            "shape {0}x{0} lanes {1:<3}{5} N={n:<4} {s:.3} s: {2:.2} G abs-diffs/s, raw {3:.2} G pair-cells/s{4}",
             shape.side(),
             shape.lanes,
             (n * (n - 1) / 2) as f64 * cells.len() as f64 / s / 1e9,
             evaluated * cells.len() as f64 / s / 1e9,
-            if KernelShape::choose(n, software) == shape { "  <- chosen" } else { "" }
+            if KernelShape::choose(n, software) == shape { "  <- chosen" } else { "" },
+            match (shape.tiled, ctx.has_f64()) {
+                (true, true) => " tiled, f64 totals on the device",
+                (true, false) => " tiled, totals on the host",
+                (false, true) => " register, f64 totals on the device",
+                (false, false) => " register, totals on the host",
+            }
         );
     }
 }
 
 fn main() {
-    let only: Option<usize> = std::env::var("BENCH_N").ok().and_then(|v| v.parse().ok());
     let cells = CellSet::new(Mask::Evaluation, Weighting::Uniform, 1);
     let cpu = CpuBackend::new();
     // BENCH_BACKENDS=cpu skips the GPU (lavapipe takes minutes at N = 1000).
@@ -113,19 +127,54 @@ fn main() {
         GpuBackend::new().ok()
     };
     if let (Some(g), true) = (&gpu, std::env::var("BENCH_SHAPES").is_ok_and(|v| v == "1")) {
-        for n in [100, 240] {
+        let sizes: Vec<usize> = std::env::var("BENCH_SHAPES_N")
+            .ok()
+            .map(|v| v.split(',').filter_map(|x| x.trim().parse().ok()).collect())
+            .unwrap_or(vec![100, 240]);
+        for n in sizes {
             shapes(g, n, &cells);
         }
     }
-    for n in [100usize, 1000] {
-        if only.is_some_and(|o| o != n) {
-            continue;
-        }
-        let reps = if n == 100 { 3 } else { 1 };
-        let c = run(&cpu.name(), &cpu, n, &cells, reps);
+    // BENCH_N=100,1000 (default), or any list; BENCH_N_GPU_ONLY: sizes above which the CPU
+    // back-end is not run (its rate at the largest CPU size stands for it: its throughput
+    // does not depend on N), default 1000.
+    let sizes: Vec<usize> = match std::env::var("BENCH_N") {
+        Ok(v) => v.split(',').filter_map(|x| x.trim().parse().ok()).collect(),
+        Err(_) => vec![100, 1000],
+    };
+    let cpu_max: usize = std::env::var("BENCH_N_GPU_ONLY")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1000);
+
+    let mut cpu_rate = None;
+    for n in sizes {
+        let reps = if n <= 240 { 3 } else { 1 };
+        let c = if n <= cpu_max {
+            let (c, m) = run(&cpu.name(), &cpu, n, &cells, reps);
+            cpu_rate = Some(c);
+            Some((c, m))
+        } else {
+            None
+        };
         if let Some(g) = &gpu {
-            let gg = run(&g.name(), g, n, &cells, reps);
-            println!("distance N={n}: gpu / cpu throughput ratio {:.2}", gg / c);
+            let (gg, gm) = run(&g.name(), g, n, &cells, reps);
+            match &c {
+                Some((c, cm)) => println!(
+                    "distance N={n}: gpu / cpu throughput ratio {:.2}; matrices: largest relative difference {:.1e}, {} of {} entries identical",
+                    gg / c,
+                    worst_relative(&gm, cm),
+                    gm.iter().zip(cm).filter(|(a, b)| a == b).count(),
+                    gm.len()
+                ),
+                None => match cpu_rate {
+                    Some(c) => println!(
+                        "distance N={n}: gpu / cpu throughput ratio {:.2} (the CPU back-end's rate at N = {cpu_max}; it was not run at this size)",
+                        gg / c
+                    ),
+                    None => println!("distance N={n}: GPU only"),
+                },
+            }
         } else {
             println!("distance: no GPU adapter, GPU figures skipped");
         }
