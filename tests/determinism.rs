@@ -1,14 +1,20 @@
-//! Same seed, same collection, same settings: the same results on every back-end.
+//! Same seed, same collection, same settings: the same results on every back-end, by the
+//! determinism contract (docs/determinism.md), on any conformant driver.
 //!
-//! The CPU back-end and the GPU kernel sum in one canonical order (see
-//! `brdf_basis::backend::cpu`), so their matrices agree bit for bit on lavapipe (and on
-//! any adapter with IEEE f32 `fma`, `+`, `-`); the clustering then compares losses and
-//! fitness with a relative tie margin (`cluster::TIE_TOLERANCE`) on top.
+//! The CPU back-end and the GPU kernels sum in one canonical order (see
+//! `brdf_basis::backend::cpu`), so every sum whose terms involve no multiply feeding an add
+//! (specular lobes, measured rows) is identical bit for bit on every driver; sums of
+//! analytic lobes with a diffuse term (`beta g + alpha w` per cell, which a driver may
+//! fuse into one `fma`: NVIDIA does, lavapipe does not) agree within
+//! `CONTRACTION_TOLERANCE`; the clustering then compares losses and fitness with a
+//! relative tie margin (`cluster::TIE_TOLERANCE`) on top, and the bases, medoids and
+//! orders are the same.
 
 use crate::common::*;
 use brdf_basis::backend::blocks::{all_blocks, gram_blocks, PairOp};
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
+use brdf_basis::backend::gpu::CONTRACTION_TOLERANCE;
 use brdf_basis::backend::Backend;
 use brdf_basis::cluster::{GcukParams, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
 use brdf_basis::collection::Collection;
@@ -34,38 +40,59 @@ fn both(
     (cpu, gpu)
 }
 
+/// Asserts the contract for one comparison: identical where no multiply feeds an add
+/// (`fused = false`), else within `CONTRACTION_TOLERANCE`.
+fn assert_contract(what: &str, got: &[f64], want: &[f64], fused: bool) {
+    let (rel, differ) = compare(got, want);
+    eprintln!(
+        "{what}: GPU vs CPU max relative difference {rel:e}, {differ} of {} entries differ",
+        got.len()
+    );
+    match fused {
+        false => assert_eq!(differ, 0, "{what}: max relative difference {rel:e}"),
+        true => assert!(
+            rel <= CONTRACTION_TOLERANCE,
+            "{what}: max relative difference {rel:e} above the contract's {CONTRACTION_TOLERANCE:e}"
+        ),
+    }
+}
+
 #[test]
-fn cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical() {
-    let Some(g) = gpu("cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical") else {
+fn cpu_and_gpu_brdf_it_of_the_ngan_table_agree_by_the_contract() {
+    let Some(g) = gpu("cpu_and_gpu_brdf_it_of_the_ngan_table_agree_by_the_contract") else {
         return;
     };
-    let Some(ngan) = ngan_or_skip("cpu_and_gpu_brdf_it_of_the_ngan_table_are_bit_identical") else {
+    let Some(ngan) =
+        ngan_or_skip("cpu_and_gpu_brdf_it_of_the_ngan_table_agree_by_the_contract")
+    else {
         return;
     };
-    for (what, p) in [
+    for (what, p, fused) in [
         (
-            "specular, evaluation mask, uniform",
+            "BRDF_it specular, evaluation mask, uniform",
             DistanceParams::default(),
+            false,
         ),
         (
-            "full lobe, valid cells, solid angle",
+            "BRDF_it full lobe, valid cells, solid angle",
             DistanceParams::default()
                 .lobe(LobeKind::Full)
                 .mask(Mask::Valid)
                 .weighting(Weighting::SolidAngle),
+            true,
         ),
     ] {
         let (c, gm) = both(&ngan, g, p);
-        let (rel, differ) = compare(gm.as_full(), c.as_full());
-        eprintln!("BRDF_it {what}: GPU vs CPU max relative difference {rel:e}, {differ} of 9,900 entries differ");
-        assert_eq!(differ, 0, "{what}: max relative difference {rel:e}");
+        assert_contract(what, gm.as_full(), c.as_full(), fused);
     }
 }
 
 #[test]
 fn every_kernel_shape_sums_in_the_canonical_order() {
-    // Each register-block shape (the hardware one included, run here on whatever adapter
-    // this is) gives the CPU back-end's sums bit for bit, for L1 and dot products.
+    // Each kernel shape (the hardware ones included, run here on whatever adapter this
+    // is) gives the CPU back-end's sums bit for bit for specular lobes, and within the
+    // contract's tolerance for full lobes (a diffuse term: multiply-adds a driver may
+    // fuse), for L1 and dot products.
     let Some(g) = gpu("every_kernel_shape_sums_in_the_canonical_order") else {
         return;
     };
@@ -73,7 +100,18 @@ fn every_kernel_shape_sums_in_the_canonical_order() {
         return;
     };
     let coll = ngan.subset(&(0..37).collect::<Vec<_>>());
-    let lobes = brdf_basis::distance::lobes(&coll, LobeKind::Full);
+    for (kind, fused) in [(LobeKind::Specular, false), (LobeKind::Full, true)] {
+        shapes_against_cpu(g, &coll, kind, fused);
+    }
+}
+
+fn shapes_against_cpu(
+    g: &brdf_basis::backend::gpu::GpuBackend,
+    coll: &Collection,
+    kind: LobeKind,
+    fused: bool,
+) {
+    let lobes = brdf_basis::distance::lobes(coll, kind);
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 3);
     let ctx = g.context();
     let kernel = PairwiseKernel::new();
@@ -91,11 +129,7 @@ fn every_kernel_shape_sums_in_the_canonical_order() {
             let got = kernel
                 .run(ctx, &lobes, &cells, &blocks, op, &plan, &|_, _| {})
                 .expect("gpu");
-            let (rel, differ) = compare(&got, &want);
-            assert_eq!(
-                differ, 0,
-                "{op:?} {shape:?}: max relative difference {rel:e}"
-            );
+            assert_contract(&format!("{kind:?} {op:?} {shape:?}"), &got, &want, fused);
         }
     }
 }

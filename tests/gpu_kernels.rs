@@ -178,6 +178,8 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
     const { assert!(MAX_RUN_ITERS < LAVAPIPE_LOOP_LIMIT / 16) };
     const { assert!(brdf_basis::backend::gpu::tabulate::BPI * 4 < LAVAPIPE_LOOP_LIMIT as usize) };
     let limits = PlanLimits {
+        // The larger (hardware) chunk: the most lane-runs the f64 reduction adds per value.
+        max_chunk: brdf_basis::backend::gpu::pairwise::MAX_CHUNK_HARDWARE,
         max_binding: 128 << 20,
         max_texture_dim: 16_384,
         max_dispatch: 65_535,
@@ -187,6 +189,8 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
             let shape = KernelShape::choose(rows, software);
             let plan = PairPlan::new(rows, 0, 1_096_216, &limits, shape).expect("plan");
             assert!(plan.run_iters <= MAX_RUN_ITERS && (shape.lanes as u32) < LAVAPIPE_LOOP_LIMIT);
+            // The f64 reduction's loop (shaders/reduce_f64.wgsl): one lane-run per iteration.
+            assert!(plan.n_runs * shape.lanes < LAVAPIPE_LOOP_LIMIT as usize / 16);
             assert!(plan.n_pad >= rows && plan.n_pad.is_multiple_of(shape.side()));
             assert!(
                 plan.texture_height() <= limits.max_texture_dim,

@@ -136,10 +136,15 @@ fn reproduce_report_matches_its_files_and_figures() {
             .to_rgb8();
         let ink = img.pixels().filter(|p| p.0 != [255, 255, 255]).count() as f64
             / (img.width() * img.height()) as f64;
-        assert!(ink > 0.02, "{stem}: only {ink} of the pixels are not white");
+        // Without a font a line plot keeps only its axes and lines (db-vs-k: 0.5% ink).
+        let ink_least = if brdf_basis::plot::with_text() { 0.02 } else { 0.002 };
+        assert!(ink > ink_least, "{stem}: only {ink} of the pixels are not white");
         let svg =
             std::fs::read_to_string(out.join("figures").join(format!("{stem}.svg"))).expect(stem);
-        assert!(svg.contains("<svg") && svg.len() > 2000, "{stem}.svg");
+        // Without a font (none installed, or BRDF_BASIS_FONT=none) the figures carry no
+        // text, so an SVG is shorter; it still draws.
+        let least = if brdf_basis::plot::with_text() { 2000 } else { 500 };
+        assert!(svg.contains("<svg") && svg.len() > least, "{stem}.svg: {} bytes", svg.len());
     }
     assert!(report.contains("## The paper's claims") && report.contains("## Timings"));
     // Acquisition: the table of acquisition.json, the baseline beside our plans, and the
@@ -331,9 +336,14 @@ fn fit_json_keeps_a_material_named_lambertian() {
         .output()
         .expect("run");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(std::fs::read_to_string(&svg)
-        .expect("svg")
-        .contains("fit by f"));
+    let text = std::fs::read_to_string(&svg).expect("svg");
+    if brdf_basis::plot::with_text() {
+        assert!(text.contains("fit by f"));
+    } else {
+        // No font on this machine: the figure has no legend, and the user is told.
+        assert!(text.contains("<svg"));
+        assert!(String::from_utf8_lossy(&o.stderr).contains("no font"));
+    }
 }
 
 /// Without a font, figures are drawn without text: still written, not blank, and the

@@ -19,6 +19,16 @@ use crate::error::GpuError;
 use crate::merl::GridTables;
 use std::sync::Arc;
 
+/// The determinism contract's tolerance (docs/determinism.md): a sum whose terms the
+/// kernels compute as `a * b + c` (analytic lobes with a diffuse term: `beta g + alpha w`)
+/// may differ between back-ends and drivers by this much, relative, because a driver may
+/// fuse the multiply and the add (NVIDIA does; lavapipe does not): each row value then
+/// moves by at most an ulp or two. Measured: 4.0e-8 (BRDF_it of the Ngan table, full lobe)
+/// and 1.1e-7 (one kernel shape) on an NVIDIA H200. Everything computed without a
+/// multiply feeding an add (specular lobes, measured and neural rows once tabulated, the
+/// canonical-order sums of them, the f64 totals) is identical on every conformant driver.
+pub const CONTRACTION_TOLERANCE: f64 = 5e-7;
+
 /// WGSL shared by every kernel.
 #[doc(hidden)]
 pub const COMMON_WGSL: &str = include_str!("../../../shaders/common.wgsl");

@@ -109,6 +109,7 @@ impl PackedStream {
             *slot = None;
             GpuError::Map(e)
         };
+        let t0 = std::time::Instant::now();
         if let Err(e) = ctx.wait_for(index) {
             return Err(fail(e.to_string(), &mut self.slots[s]));
         }
@@ -122,23 +123,49 @@ impl PackedStream {
                 .slice(..bytes)
                 .get_mapped_range()
                 .map_err(|e| GpuError::Map(e.to_string()))?;
+            let t1 = std::time::Instant::now();
             unpack(bytemuck::cast_slice(&view[..]), at, out);
+            if std::env::var_os("BRDF_BASIS_GPU_TRACE").is_some() {
+                eprintln!(
+                    "readback: {} MB, waited {:.1} ms, unpacked in {:.1} ms",
+                    bytes >> 20,
+                    (t1 - t0).as_secs_f64() * 1e3,
+                    t1.elapsed().as_secs_f64() * 1e3
+                );
+            }
         }
         staging.unmap();
         Ok(())
     }
 }
 
-/// Row `r` of the batch is channel `r % 4` of texel block `r / 4`; rows in parallel.
+/// Row `r` of the batch is channel `r % 4` of texel block `r / 4`: each task reads a run
+/// of one block's texels once and writes its four rows (runs of blocks in parallel).
 fn unpack(texels: &[[f32; 4]], at: Unpack, out: &mut [f32]) {
-    let rows = &mut out[at.row0 * at.n..(at.row0 + at.rows) * at.n];
-    rows.par_chunks_mut(at.n.max(1))
+    const RUN: usize = 1 << 15;
+    let n = at.n.max(1);
+    let rows = &mut out[at.row0 * n..(at.row0 + at.rows) * n];
+    rows.par_chunks_mut(4 * n)
         .enumerate()
-        .for_each(|(r, row)| {
-            let (b, q) = (r / 4, r % 4);
-            let src = &texels[b * at.chunk..b * at.chunk + at.len];
-            for (o, t) in row[at.start..at.start + at.len].iter_mut().zip(src) {
-                *o = t[q];
+        .flat_map_iter(|(b, quad)| {
+            // The block's rows (the last block may hold fewer than four), cut into runs.
+            let mut parts: Vec<Vec<&mut [f32]>> = Vec::new();
+            for row in quad.chunks_mut(n) {
+                for (k, run) in row[at.start..at.start + at.len].chunks_mut(RUN).enumerate() {
+                    if parts.len() <= k {
+                        parts.push(Vec::new());
+                    }
+                    parts[k].push(run);
+                }
+            }
+            parts.into_iter().enumerate().map(move |(k, p)| (b, k, p))
+        })
+        .for_each(|(b, k, mut quad)| {
+            let src = &texels[b * at.chunk + k * RUN..];
+            for (c, t) in src.iter().take(quad[0].len()).enumerate() {
+                for (q, row) in quad.iter_mut().enumerate() {
+                    row[c] = t[q];
+                }
             }
         });
 }

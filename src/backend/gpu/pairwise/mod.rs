@@ -51,8 +51,12 @@ pub use super::TEX_W;
 pub use crate::backend::blocks::BLOCK;
 /// Most loop iterations of one invocation (lavapipe silently ends loops after 65,535).
 pub const MAX_RUN_ITERS: u32 = 1024;
-/// Most cells per streamed chunk.
+/// Most cells per streamed chunk on a software adapter.
 pub const MAX_CHUNK: usize = 1 << 18;
+/// Most cells per streamed chunk on a hardware GPU: the evaluation mask (894,396 cells)
+/// in one chunk, so that even N = 100 fills the device (the reduce kernel's loop then
+/// runs 8 x 128 = 1,024 lane-runs per value).
+pub const MAX_CHUNK_HARDWARE: usize = 1 << 20;
 /// Most bytes of measured rows in the value texture (bounds the chunk for large measured
 /// collections).
 pub const MAX_PACKED_BYTES: usize = 256 << 20;
@@ -383,13 +387,20 @@ fn pack_chunk(
     cc: &[u32],
     cw: &[f64],
 ) {
+    use rayon::prelude::*;
     let info_rows = plan.row_stride / TEX_W;
     let mut texels = vec![0f32; plan.row_stride * 4];
-    for ((t, &c), &w) in texels.chunks_exact_mut(4).zip(cc).zip(cw) {
-        let (e, g) = tables.cell_factor(c as usize);
-        let w = op.row_scale(w);
-        t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
-    }
+    texels
+        .par_chunks_mut(4 << 12)
+        .zip(cc.par_chunks(1 << 12))
+        .zip(cw.par_chunks(1 << 12))
+        .for_each(|((ts, cs), ws)| {
+            for ((t, &c), &w) in ts.chunks_exact_mut(4).zip(cs).zip(ws) {
+                let (e, g) = tables.cell_factor(c as usize);
+                let w = op.row_scale(w);
+                t.copy_from_slice(&[e as f32, (g * w) as f32, w as f32, 0.0]);
+            }
+        });
     ctx.write_texel_rows(info, 0, &texels);
     // Measured tables, filled as the CPU back-end fills them (bit for bit); neural rows are
     // written on the device (NeuralPass).

@@ -1,7 +1,9 @@
 //! Where a pairwise reduction's rows sit in the value texture, how the grid is cut into
 //! chunks and runs, and which register blocks cover the requested block pairs.
 
-use super::{KernelShape, BLOCK, MAX_CHUNK, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W};
+use super::{
+    KernelShape, BLOCK, MAX_CHUNK, MAX_CHUNK_HARDWARE, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
+};
 use crate::backend::cpu::CANONICAL_RUN;
 use crate::backend::gpu::tabulate::NIJ;
 use crate::backend::gpu::GpuContext;
@@ -17,6 +19,9 @@ pub struct PlanLimits {
     pub max_texture_dim: u32,
     /// Largest dispatch dimension.
     pub max_dispatch: u32,
+    /// Most cells per streamed chunk ([`MAX_CHUNK`] on a software adapter,
+    /// [`MAX_CHUNK_HARDWARE`] on a hardware GPU).
+    pub max_chunk: usize,
 }
 
 impl PlanLimits {
@@ -26,6 +31,10 @@ impl PlanLimits {
             max_binding: ctx.max_binding(),
             max_texture_dim: ctx.limits.max_texture_dimension_2d,
             max_dispatch: ctx.limits.max_compute_workgroups_per_dimension,
+            max_chunk: match ctx.is_software() {
+                true => MAX_CHUNK,
+                false => MAX_CHUNK_HARDWARE,
+            },
         }
     }
 }
@@ -150,14 +159,14 @@ impl PairPlan {
             )));
         }
         let by_texture = if measured_blocks == 0 {
-            MAX_CHUNK
+            limits.max_chunk
         } else {
             (MAX_PACKED_BYTES / (16 * measured_blocks))
                 .min((max_dim - table_rows) * TEX_W / measured_blocks)
                 / TEX_W
                 * TEX_W
         };
-        let mut chunk = by_texture.min(MAX_CHUNK).min(cells.max(1));
+        let mut chunk = by_texture.min(limits.max_chunk).min(cells.max(1));
         if chunk < shape.lanes.min(cells.max(1)) {
             return Err(GpuError::Limits(format!(
                 "{n_measured} measured lobes do not fit a texture of {MAX_PACKED_BYTES} bytes \

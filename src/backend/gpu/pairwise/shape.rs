@@ -30,6 +30,16 @@ const SOFTWARE_SHAPES: [(KernelShape, f64); 3] = [
     (KernelShape::register(6, 8), 14.6),
 ];
 
+/// Hardware shapes and their raw rates (G evaluated pair-cells/s) on an NVIDIA H200
+/// (Vulkan, driver 580.159), f64 totals on the device, N = 240, evaluation mask
+/// (`BENCH_SHAPES=1 cargo bench --bench distance`, scripts/gpu-bench.sh). The tiled kernel
+/// loses to the register one at this size and gains with N (its 32 x 32 diagonal tiles pad
+/// more); the register kernel's texel fetches hit the texture cache.
+const HARDWARE_SHAPES: [(KernelShape, f64); 2] = [
+    (KernelShape::HARDWARE, 1649.0),
+    (KernelShape::TILED, 1262.0),
+];
+
 impl KernelShape {
     /// The register kernel with `4r x 4r` pairs per invocation and `lanes` lanes.
     pub const fn register(r: usize, lanes: usize) -> Self {
@@ -54,15 +64,16 @@ impl KernelShape {
         tiled: true,
     };
 
-    /// The shape for `n_rows` packed rows: on a software adapter, the one with the least
-    /// modelled time (padded pairs / rate), so that e.g. 100 rows use 20 x 20 blocks
-    /// without padding.
+    /// The shape for `n_rows` packed rows: the one with the least modelled time (padded
+    /// pairs / measured rate) among the adapter kind's shapes, so that e.g. 100 rows use
+    /// 20 x 20 blocks without padding on lavapipe.
     pub fn choose(n_rows: usize, software: bool) -> Self {
-        if !software {
-            return Self::TILED;
-        }
         let cost = |(s, rate): &(KernelShape, f64)| s.evaluated_pairs(n_rows) / rate;
-        SOFTWARE_SHAPES
+        let shapes: &[(KernelShape, f64)] = match software {
+            true => &SOFTWARE_SHAPES,
+            false => &HARDWARE_SHAPES,
+        };
+        shapes
             .iter()
             .min_by(|a, b| cost(a).total_cmp(&cost(b)))
             .map(|s| s.0)
