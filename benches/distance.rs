@@ -83,7 +83,21 @@ fn shapes(g: &GpuBackend, n: usize, cells: &CellSet) {
     let kernel = PairwiseKernel::new();
     let blocks = all_blocks(n);
     let software = ctx.is_software();
-    for shape in KernelShape::all() {
+    // BENCH_SHAPES_EXTRA=2x128,1x64: register shapes (R x lanes) beyond the built-in ones;
+    // on a hardware GPU above N = 240 only the hardware shapes and the extra ones run.
+    let extra: Vec<KernelShape> = std::env::var("BENCH_SHAPES_EXTRA")
+        .unwrap_or_default()
+        .split(',')
+        .filter_map(|s| {
+            let (r, l) = s.split_once('x')?;
+            Some(KernelShape::register(r.parse().ok()?, l.parse().ok()?))
+        })
+        .collect();
+    let all: Vec<KernelShape> = KernelShape::all()
+        .filter(|s| software || n <= 240 || !s.is_software())
+        .chain(extra)
+        .collect();
+    for shape in all {
         let plan = PairPlan::new(n, 0, cells.len(), &PlanLimits::of(ctx), shape).expect("plan");
         let go = || {
             kernel

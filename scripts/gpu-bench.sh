@@ -49,9 +49,9 @@ part() {
     [ $rc = 0 ] || echo "== stopped after ${limit} s or failed (exit $rc)"
     echo "== $(( ($(date +%s%N) - t0) / 1000000 )) ms"
 }
-part 60 env BENCH_SHAPES=1 BENCH_SHAPES_N=240 BENCH_N=100,240,1000 "$bin/distance"
+part 90 env BENCH_SHAPES=1 BENCH_SHAPES_N="${BENCH_SHAPES_N:-240}" BENCH_N=100,240,1000 "$bin/distance"
 part 90 env BENCH_N=10000 BENCH_N_GPU_ONLY=0 BENCH_BACKENDS=gpu "$bin/distance"
-part 60 "$bin/tabulate"
+part 60 env BRDF_BASIS_GPU_TRACE=1 "$bin/tabulate"
 part 90 env BRDF_BASIS_PYTHON=/bin/false "$bin/nbrdf"
 part 60 "$bin/fit"
 if [ -d "$shared/data/real/nbrdf/merl100" ]; then
@@ -65,7 +65,9 @@ if [ -d "$shared/data/real/nbrdf/merl100" ]; then
     cmp "$out/s-gpu.json" "$out/s-cpu.json" >/dev/null && echo "select: the same JSON on both back-ends" \
         || { echo "select: the JSON differs between back-ends:"; diff <(grep -v seconds "$out/s-gpu.json") <(grep -v seconds "$out/s-cpu.json") | head -20; }
 fi
-if python3 -c 'import torch; assert torch.cuda.is_available()' 2>/dev/null; then
+if [ "${BENCH_NO_PEER:-}" = 1 ]; then
+    echo "== torch peer: skipped (BENCH_NO_PEER=1)"
+elif python3 -c 'import torch; assert torch.cuda.is_available()' 2>/dev/null; then
     part 90 python3 "$shared/bench/torch_peer.py" "$shared"
 else
     echo "== torch peer: no python3 with torch and a CUDA device here"

@@ -11,7 +11,7 @@ pub mod gpu;
 mod open;
 
 pub use blocks::{PairOp, BLOCK};
-pub use open::{open, BackendChoice};
+pub use open::{open, AutoBackend, BackendChoice, AUTO_ROUTES};
 
 use crate::brdf::Nbrdf;
 use crate::error::BackendError;

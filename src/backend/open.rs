@@ -1,10 +1,90 @@
-//! Choosing a back-end: `auto` (a hardware GPU when there is one, else the CPU
-//! back-end), `gpu` (any adapter, software ones included) or `cpu`.
+//! Choosing a back-end: `auto` (on a hardware GPU, each operation on the back-end
+//! measured faster for it: [`AutoBackend`]; else the CPU back-end), `gpu` (any adapter,
+//! software ones included) or `cpu`.
 
 use super::cpu::CpuBackend;
-use super::Backend;
+use super::{Backend, Lobe, PairOp, Progress};
 use crate::backend::gpu::{GpuBackend, GpuContext};
-use crate::error::GpuError;
+use crate::error::{BackendError, GpuError};
+use crate::merl::CellSet;
+
+/// Which back-end [`AutoBackend`] runs each operation on, and the measurement behind it
+/// (NVIDIA H200 and its 16 host cores, scripts/gpu-bench.sh, docs/performance.md):
+/// `(operation, back-end, why)`.
+pub const AUTO_ROUTES: [(&str, &str, &str); 3] = [
+    (
+        "pairwise reductions (BRDF_it, Gram)",
+        "gpu",
+        "9.6x the CPU back-end at N = 1,000 analytic lobes; neural lobes 1.0-1.2x",
+    ),
+    (
+        "batched NNLS (projected gradient)",
+        "gpu",
+        "1.12x the CPU back-end's targets/s at 100,000 x 10",
+    ),
+    (
+        "tabulation to host memory",
+        "cpu",
+        "host-bound on the GPU (the readback): the CPU back-end writes the rows faster",
+    ),
+];
+
+/// `auto` on a machine with a hardware GPU: pairwise reductions and batched NNLS on the
+/// GPU, tabulation into host memory on the CPU ([`AUTO_ROUTES`]). Results follow the
+/// determinism contract either way (docs/determinism.md).
+#[derive(Debug)]
+pub struct AutoBackend {
+    gpu: GpuBackend,
+    cpu: CpuBackend,
+}
+
+impl AutoBackend {
+    /// Both back-ends, the GPU one on `ctx`.
+    pub fn with_context(ctx: GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            gpu: GpuBackend::with_context(ctx)?,
+            cpu: CpuBackend::new(),
+        })
+    }
+
+    /// The GPU back-end.
+    pub fn gpu(&self) -> &GpuBackend {
+        &self.gpu
+    }
+}
+
+impl Backend for AutoBackend {
+    fn name(&self) -> String {
+        format!(
+            "auto: {} (pairwise, NNLS) and {} (tabulation)",
+            self.gpu.name(),
+            self.cpu.name()
+        )
+    }
+
+    fn tabulate(&self, lobes: &[Lobe], cells: &[u32]) -> Result<Vec<f32>, BackendError> {
+        self.cpu.tabulate(lobes, cells)
+    }
+
+    fn reduce_pairs(
+        &self,
+        lobes: &[Lobe],
+        cells: &CellSet,
+        blocks: &[[u32; 2]],
+        op: PairOp,
+        progress: Progress<'_>,
+    ) -> Result<Vec<f64>, BackendError> {
+        self.gpu.reduce_pairs(lobes, cells, blocks, op, progress)
+    }
+
+    fn nnls_pgd(
+        &self,
+        batch: &crate::nnls::GramBatch<'_>,
+        params: &crate::nnls::pgd::PgdParams,
+    ) -> Result<Vec<crate::nnls::NnlsSolution>, BackendError> {
+        self.gpu.nnls_pgd(batch, params)
+    }
+}
 
 /// Which back-end to run on (spellings `auto`, `gpu`, `cpu`: [`BackendChoice::as_str`],
 /// which [`Display`](std::fmt::Display) writes; the command line parses them by the
@@ -12,7 +92,8 @@ use crate::error::GpuError;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BackendChoice {
-    /// A hardware GPU if there is one, else the CPU back-end (faster than a software
+    /// On a hardware GPU, each operation on the back-end measured faster for it
+    /// ([`AutoBackend`], [`AUTO_ROUTES`]); else the CPU back-end (faster than a software
     /// rasteriser: ~18 G abs-diffs/s on 2 cores against ~4 for lavapipe).
     #[default]
     Auto,
@@ -45,7 +126,7 @@ pub fn open(choice: BackendChoice) -> Result<Box<dyn Backend>, GpuError> {
         BackendChoice::Cpu => Ok(Box::new(CpuBackend::new())),
         BackendChoice::Gpu => Ok(Box::new(GpuBackend::new()?)),
         BackendChoice::Auto => match GpuContext::new() {
-            Ok(ctx) if !ctx.is_software() => Ok(Box::new(GpuBackend::with_context(ctx)?)),
+            Ok(ctx) if !ctx.is_software() => Ok(Box::new(AutoBackend::with_context(ctx)?)),
             _ => Ok(Box::new(CpuBackend::new())),
         },
     }

@@ -26,11 +26,18 @@ pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
     let chosen = match (&gpu, g.backend) {
         (_, BackendChoice::Cpu) => "cpu",
         (Some(Ok(_)), BackendChoice::Gpu) => "gpu",
-        (Some(Ok(c)), BackendChoice::Auto) if !c.is_software() => "gpu",
+        (Some(Ok(c)), BackendChoice::Auto) if !c.is_software() => "auto (per operation)",
         (Some(Err(e)), BackendChoice::Gpu) => anyhow::bail!("{e}"),
         _ => "cpu",
     };
     println!("backend: {chosen} (requested: --backend {})", g.backend);
+    if chosen.starts_with("auto") {
+        for (op, on, why) in brdf_basis::backend::AUTO_ROUTES {
+            println!("  {op}: {on} ({why})");
+        }
+    } else if g.backend == BackendChoice::Auto {
+        println!("  everything on the cpu: no hardware GPU (a software adapter is slower than the CPU back-end)");
+    }
     match gpu {
         Some(Ok(c)) => {
             println!("adapter: {}", c.info.name);
