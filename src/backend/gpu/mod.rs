@@ -20,13 +20,14 @@ use crate::merl::GridTables;
 use std::sync::Arc;
 
 /// The determinism contract's tolerance (docs/determinism.md): a sum whose terms the
-/// kernels compute as `a * b + c` (analytic lobes with a diffuse term: `beta g + alpha w`)
-/// may differ between back-ends and drivers by this much, relative, because a driver may
-/// fuse the multiply and the add (NVIDIA does; lavapipe does not): each row value then
-/// moves by at most an ulp or two. Measured: 4.0e-8 (BRDF_it of the Ngan table, full lobe)
-/// and 1.1e-7 (one kernel shape) on an NVIDIA H200. Everything computed without a
-/// multiply feeding an add (specular lobes, measured and neural rows once tabulated, the
-/// canonical-order sums of them, the f64 totals) is identical on every conformant driver.
+/// kernels compute with a multiply feeding an add (analytic lobes with a diffuse term:
+/// `beta g + alpha w`; every dot product of a Gram pass: `acc + a b`) may differ between
+/// back-ends and drivers by this much, relative, because a driver may fuse the two into
+/// one `fma` (NVIDIA does; lavapipe does not). Measured on an NVIDIA H200: 4.0e-8 (BRDF_it
+/// of the Ngan table, full lobe), 1.1e-7 (full-lobe L1, one kernel shape), 7.2e-8
+/// (specular Gram). The L1 sums of specular lobes and of measured rows (no multiply-add
+/// in the canonical order) and the f64 totals of partial sums are identical on every
+/// conformant driver.
 pub const CONTRACTION_TOLERANCE: f64 = 5e-7;
 
 /// WGSL shared by every kernel.
@@ -104,6 +105,9 @@ pub struct GpuContext {
     /// The readback buffer, reused while large enough (fresh mappable memory costs page
     /// faults on every call).
     staging: Arc<std::sync::Mutex<Option<wgpu::Buffer>>>,
+    /// The two staging buffers of streamed readbacks ([`readback`]), kept between calls:
+    /// pinning hundreds of MB of host memory per call costs more than the copies.
+    stream_staging: Arc<std::sync::Mutex<[Option<wgpu::Buffer>; 2]>>,
 }
 
 impl GpuContext {
@@ -135,6 +139,7 @@ impl GpuContext {
             info,
             limits,
             staging: Default::default(),
+            stream_staging: Default::default(),
         })
     }
 
@@ -153,6 +158,7 @@ impl GpuContext {
             info,
             limits,
             staging: Default::default(),
+            stream_staging: Default::default(),
         }
     }
 

@@ -530,7 +530,7 @@ impl NeuralKernel {
         // Batches of rows and chunks of cells whose texture fits a small budget and the
         // largest texture side.
         let max_blocks = ctx.pack_max_blocks();
-        let mut stream = PackedStream::new();
+        let mut stream = PackedStream::new(ctx);
         for (batch, rb) in rows.chunks(4 * max_blocks).enumerate() {
             let mut padded: Vec<Option<NeuralRow>> = rb.iter().map(|&r| Some(r)).collect();
             padded.resize(rb.len().div_ceil(4) * 4, None);

@@ -35,10 +35,17 @@ pub(crate) struct PackedStream {
 }
 
 impl PackedStream {
-    /// A stream with no staging memory yet.
-    pub(crate) fn new() -> Self {
+    /// A stream on `ctx`'s cached staging buffers (taken out of the cache, so that
+    /// concurrent streams never share them; [`Self::finish`] puts them back).
+    pub(crate) fn new(ctx: &GpuContext) -> Self {
+        let slots = std::mem::take(
+            &mut *ctx
+                .stream_staging
+                .lock()
+                .unwrap_or_else(|e| e.into_inner()),
+        );
         Self {
-            slots: [None, None],
+            slots,
             next: 0,
             pending: None,
         }
@@ -88,9 +95,13 @@ impl PackedStream {
         Ok(())
     }
 
-    /// Unpacks the chunk in flight, if any.
+    /// Unpacks the chunk in flight, if any, and returns the staging buffers to `ctx`'s
+    /// cache.
     pub(crate) fn finish(&mut self, ctx: &GpuContext, out: &mut [f32]) -> Result<(), GpuError> {
-        self.finish_pending(ctx, out)
+        self.finish_pending(ctx, out)?;
+        *ctx.stream_staging.lock().unwrap_or_else(|e| e.into_inner()) =
+            std::mem::take(&mut self.slots);
+        Ok(())
     }
 
     fn finish_pending(&mut self, ctx: &GpuContext, out: &mut [f32]) -> Result<(), GpuError> {

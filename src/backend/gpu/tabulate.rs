@@ -245,7 +245,7 @@ impl TabulateKernel {
         }
         // Batches of lobes and chunks of cells whose texture fits the budget.
         let max_blocks = ctx.pack_max_blocks();
-        let mut stream = PackedStream::new();
+        let mut stream = PackedStream::new(ctx);
         for (batch, lb) in lobes.chunks(4 * max_blocks).enumerate() {
             let mut rows: Vec<Option<LobeParams>> = lb.iter().map(|&l| Some(l)).collect();
             rows.resize(lb.len().div_ceil(4) * 4, None);
