@@ -28,7 +28,9 @@ pub use crate::acquire::{
 pub use crate::backend::cpu::CpuBackend;
 pub use crate::backend::gpu::GpuBackend;
 pub use crate::backend::{open as open_backend, Backend, BackendChoice};
-pub use crate::cluster::{KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
+pub use crate::cluster::{
+    KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsOrder, KMedoidsParams,
+};
 pub use crate::collection::Collection;
 pub use crate::distance::{DistanceMatrix, DistanceParams, Distances, Metric};
 pub use crate::fit::{FitParams, GramMode, Solver, TargetFit};

@@ -429,15 +429,49 @@ def cross_validate(collection: Collection, **options) -> CvResult:
     return CvResult.from_json(_native.cross_validate_json(collection, **options))
 
 
-def kmedoids(d: np.ndarray, k: int, *, seed: int = 1, init: str = "build", algorithm: str = "fasterpam") -> KMedoidsResult:
+def kmedoids(
+    d: np.ndarray,
+    k: int,
+    *,
+    seed: int = 1,
+    init: str = "build",
+    algorithm: str = "fasterpam",
+    restarts: int = 1,
+    max_iter: int = 100,
+    order: str = "shuffled",
+    tolerance: Optional[float] = None,
+    medoids: Optional[Sequence[int]] = None,
+) -> KMedoidsResult:
     """k-medoids (FasterPAM or PAM) on a precomputed (N, N) distance matrix.
+
+    ``restarts`` runs use seeds ``seed``, ``seed + 1``, ...: run 0 starts from BUILD
+    (``init="build"``) or random medoids, the others from random medoids, and the lowest
+    loss wins. FasterPAM visits the candidates in a permutation drawn from each run's seed
+    (``order="shuffled"``, like the ``kmedoids`` package with a ``random_state``) or in
+    item order (``"sequential"``, the package without one). ``medoids`` gives the initial
+    medoids of one run instead; ``tolerance`` is the relative tie margin of the loss
+    comparisons (default 1e-6; 0 compares strictly, as the package).
 
     >>> import numpy as np
     >>> x = np.array([0.0, 0.1, 5.0, 5.2]); d = np.abs(x[:, None] - x[None, :])
     >>> round(kmedoids(d, 2).loss, 12)
     0.3
     """
-    m, l, loss, it, db = _native.kmedoids(np.ascontiguousarray(d, dtype=np.float64), k, seed=seed, init=init, algorithm=algorithm)
+    if isinstance(medoids, (str, bytes)):
+        raise TypeError(f"medoids must be a sequence of item indices, not {type(medoids).__name__} {medoids!r}")
+    start = None if medoids is None else [int(m) for m in medoids]
+    m, l, loss, it, db = _native.kmedoids(
+        np.ascontiguousarray(d, dtype=np.float64),
+        k,
+        seed=seed,
+        init=init,
+        algorithm=algorithm,
+        restarts=restarts,
+        max_iter=max_iter,
+        order=order,
+        tolerance=tolerance,
+        medoids=start,
+    )
     return KMedoidsResult(m, l, loss, it, db)
 
 

@@ -877,8 +877,10 @@ fn silhouette(d: PyReadonlyArray2<'_, f64>, labels: Vec<usize>) -> PyResult<f64>
 type KMedoidsTuple = (Vec<usize>, Vec<usize>, f64, usize, f64);
 
 /// k-medoids on a precomputed matrix: (medoids, labels, loss, iterations, db_index).
+/// With `medoids`, one run from those initial medoids (`init` and `restarts` unused).
 #[pyfunction]
-#[pyo3(signature = (d, k, *, seed = 1, init = "build", algorithm = "fasterpam"))]
+#[pyo3(signature = (d, k, *, seed = 1, init = "build", algorithm = "fasterpam", restarts = 1, max_iter = 100, order = "shuffled", tolerance = None, medoids = None))]
+#[allow(clippy::too_many_arguments)]
 fn kmedoids(
     py: Python<'_>,
     d: PyReadonlyArray2<'_, f64>,
@@ -886,6 +888,11 @@ fn kmedoids(
     seed: u64,
     init: &str,
     algorithm: &str,
+    restarts: usize,
+    max_iter: usize,
+    order: &str,
+    tolerance: Option<f64>,
+    medoids: Option<Vec<usize>>,
 ) -> PyResult<KMedoidsTuple> {
     let m = matrix_of(&d)?;
     let init = match init {
@@ -897,11 +904,32 @@ fn kmedoids(
             )))
         }
     };
-    let p = bb::KMedoidsParams::new(k)
+    let order = match order {
+        "shuffled" => bb::KMedoidsOrder::Shuffled,
+        "sequential" => bb::KMedoidsOrder::Sequential,
+        s => {
+            return Err(value_err(format!(
+                "invalid order `{s}` (expected shuffled, sequential)"
+            )))
+        }
+    };
+    let mut p = bb::KMedoidsParams::new(k)
         .seed(seed)
         .init(init)
-        .algorithm(parse(algorithm)?);
-    let r = py.detach(|| p.fit(&m)).map_err(lib_err)?;
+        .algorithm(parse(algorithm)?)
+        .restarts(restarts)
+        .max_iter(max_iter)
+        .order(order);
+    if let Some(t) = tolerance {
+        p = p.tolerance(t);
+    }
+    let p = p.check().map_err(lib_err)?;
+    let r = py
+        .detach(|| match &medoids {
+            Some(start) => p.fit_from(&m, start),
+            None => p.fit(&m),
+        })
+        .map_err(lib_err)?;
     Ok((r.medoids, r.labels, r.loss, r.iterations, r.db_index))
 }
 

@@ -50,6 +50,18 @@ def test_errors_are_python_exceptions_with_the_library_message(tmp_path):
         bb.select(c, "greedy")
     with pytest.raises(ValueError, match="dimension|length"):
         bb.nnls(np.eye(3), np.ones(2))
+    x = np.array([0.0, 0.1, 5.0, 5.2])
+    d = np.abs(x[:, None] - x[None, :])
+    with pytest.raises(ValueError, match="order `bogus`"):
+        bb.kmedoids(d, 2, order="bogus")
+    with pytest.raises(ValueError, match="twice"):
+        bb.kmedoids(d, 2, medoids=[1, 1])
+    with pytest.raises(ValueError, match="expected 2 initial medoids"):
+        bb.kmedoids(d, 2, medoids=[1])
+    with pytest.raises(TypeError, match="not str"):
+        bb.kmedoids(d, 2, medoids="01")
+    with pytest.raises(ValueError, match="tolerance"):
+        bb.kmedoids(d, 2, tolerance=1.0)
 
 
 def test_progress_callable_and_flag(capsys):

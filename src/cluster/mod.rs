@@ -22,7 +22,7 @@ pub mod validity;
 
 pub use gcuk::{Gcuk, GcukParams, ValidGcukParams};
 pub use kmedoids::{
-    KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams, ValidKMedoidsParams,
+    KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsOrder, KMedoidsParams, ValidKMedoidsParams,
 };
 
 /// Default relative margin of the loss and fitness comparisons of the clustering
