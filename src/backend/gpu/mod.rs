@@ -61,9 +61,10 @@ pub const TEX_W: usize = 4096;
 /// Bytes of the packed texture of one batch of a tabulation on a software adapter
 /// ([`GpuContext::pack_chunk`]).
 const PACK_BUDGET: usize = 16 << 20;
-/// The same on a hardware GPU: fewer, larger transfers (two staging buffers of this size
-/// are in use while a tabulation streams).
-const PACK_BUDGET_HARDWARE: usize = 256 << 20;
+/// The same on a hardware GPU: large transfers, yet at least two chunks for a batch of a
+/// few dozen full-grid lobes, so that the device's copy of one overlaps the host's unpack
+/// of the other (two staging buffers of this size are kept while a tabulation streams).
+const PACK_BUDGET_HARDWARE: usize = 64 << 20;
 /// Texels of one lobe's separable beta table: one per (theta_h, theta_d) row pair,
 /// 90 x 90 (the alpha texel follows it).
 pub const NIJ: usize = crate::merl::grid::N_TH * crate::merl::grid::N_TD;
