@@ -4,7 +4,7 @@
 #
 #   scripts/gpu-bench.sh                 # builds the bench executables (not timed), runs them
 #   scripts/gpu-bench.sh --bin-dir DIR   # runs prebuilt, stripped executables from DIR:
-#                                        # distance tabulate fit nbrdf brdf-basis
+#                                        # distance tabulate fit nbrdf weighted brdf-basis
 #
 # What it prints:
 # * BRDF_it (`distance` bench): N = 100, 240, 1,000 on both back-ends (and whether the
@@ -14,6 +14,8 @@
 # * NBRDF: tabulation of the 100 MERL networks to the host, BRDF_it and Gram (needs
 #   ../shared/data/real/nbrdf/merl100);
 # * fit: Gram passes and batched PGD, 100,000 x 10;
+# * weighted fits: 10,000 NBRDF targets x 3 channels by a 12-material basis, per-target
+#   weights (`weighted` bench; the CPU back-end on 300 targets);
 # * `reproduce merl100 --no-acquisition` and `select --method greedy -k 12` end to end;
 # * the PyTorch peer (../shared/bench/torch_peer.py) when python3 has torch and a GPU.
 # Each part runs under a time limit, so that the whole stays within 5 minutes after the
@@ -27,9 +29,9 @@ if [ "${1:-}" = "--bin-dir" ]; then
     bin="$2"
 else
     cargo build --release --quiet
-    cargo bench --no-run --bench distance --bench tabulate --bench fit --bench nbrdf >/dev/null 2>&1
+    cargo bench --no-run --bench distance --bench tabulate --bench fit --bench nbrdf --bench weighted >/dev/null 2>&1
     bin="$(mktemp -d)"
-    for b in distance tabulate fit nbrdf; do
+    for b in distance tabulate fit nbrdf weighted; do
         cp "$(ls -t target/release/deps/$b-* | grep -v '\.d$' | head -1)" "$bin/$b"
     done
     cp target/release/brdf-basis "$bin/"
@@ -49,11 +51,12 @@ part() {
     [ $rc = 0 ] || echo "== stopped after ${limit} s or failed (exit $rc)"
     echo "== $(( ($(date +%s%N) - t0) / 1000000 )) ms"
 }
-part 90 env BENCH_SHAPES=1 BENCH_SHAPES_N="${BENCH_SHAPES_N:-240}" BENCH_N=100,240,1000 "$bin/distance"
-part 90 env BENCH_N=10000 BENCH_N_GPU_ONLY=0 BENCH_BACKENDS=gpu "$bin/distance"
+part 90 env BENCH_SHAPES="${BENCH_SHAPES:-1}" BENCH_SHAPES_N="${BENCH_SHAPES_N:-240}" BENCH_N=100,240,1000 "$bin/distance"
+[ "${BENCH_NO_10K:-}" = 1 ] || part 90 env BENCH_N=10000 BENCH_N_GPU_ONLY=0 BENCH_BACKENDS=gpu "$bin/distance"
 part 60 env BRDF_BASIS_GPU_TRACE=1 "$bin/tabulate"
 part 90 env BRDF_BASIS_PYTHON=/bin/false "$bin/nbrdf"
 part 60 "$bin/fit"
+part 90 env BENCH_T=10000 BENCH_T_CPU=300 "$bin/weighted"
 if [ -d "$shared/data/real/nbrdf/merl100" ]; then
     out="$(mktemp -d)"
     for be in gpu cpu; do

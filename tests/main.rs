@@ -37,4 +37,5 @@ mod selection;
 mod shaders;
 mod slurm;
 mod tiles;
+mod weighted;
 mod workflow;

@@ -9,6 +9,7 @@ pub mod blocks;
 pub mod cpu;
 pub mod gpu;
 mod open;
+pub mod weighted;
 
 pub use blocks::{PairOp, BLOCK};
 pub use open::{open, AutoBackend, BackendChoice, AUTO_ROUTES};
@@ -130,6 +131,19 @@ pub trait Backend: Send + Sync {
             PairOp::Dot,
             progress,
         )
+    }
+
+    /// Every target's weighted normal equations (SPEC 11) for a fit by `basis` plus the
+    /// Lambertian column, over `cells`, under `weight` ([`weighted`]). By default the f64
+    /// reference ([`weighted::reference`]); the GPU back-end runs its kernel.
+    fn weighted_systems(
+        &self,
+        basis: &[Lobe],
+        targets: &[Lobe],
+        cells: &CellSet,
+        weight: weighted::TargetWeight,
+    ) -> Result<weighted::WeightedSystems, BackendError> {
+        weighted::reference(self, basis, targets, cells, weight)
     }
 
     /// Batched accelerated projected-gradient NNLS for many targets sharing one Gram

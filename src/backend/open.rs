@@ -86,6 +86,16 @@ impl Backend for AutoBackend {
         }
     }
 
+    fn weighted_systems(
+        &self,
+        basis: &[Lobe],
+        targets: &[Lobe],
+        cells: &CellSet,
+        weight: crate::backend::weighted::TargetWeight,
+    ) -> Result<crate::backend::weighted::WeightedSystems, BackendError> {
+        self.gpu.weighted_systems(basis, targets, cells, weight)
+    }
+
     fn nnls_pgd(
         &self,
         batch: &crate::nnls::GramBatch<'_>,

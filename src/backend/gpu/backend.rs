@@ -17,6 +17,7 @@ pub struct GpuBackend {
     tab: TabulateKernel,
     pair: PairwiseKernel,
     pgd: super::pgd::PgdKernel,
+    weighted: super::weighted::WeightedKernel,
 }
 
 impl GpuBackend {
@@ -35,6 +36,7 @@ impl GpuBackend {
             tab,
             pair,
             pgd,
+            weighted: super::weighted::WeightedKernel::new(),
         })
     }
 
@@ -167,6 +169,25 @@ impl Backend for GpuBackend {
         Ok(self
             .pair
             .run(&self.ctx, lobes, cells, blocks, op, &plan, progress)?)
+    }
+
+    fn weighted_systems(
+        &self,
+        basis: &[Lobe],
+        targets: &[Lobe],
+        cells: &CellSet,
+        weight: crate::backend::weighted::TargetWeight,
+    ) -> Result<crate::backend::weighted::WeightedSystems, BackendError> {
+        let weight = weight.check()?;
+        Ok(self.weighted.run(
+            &self.ctx,
+            &self.tab,
+            || self.pair.neural_kernel(&self.ctx),
+            basis,
+            targets,
+            cells,
+            weight,
+        )?)
     }
 
     fn nnls_pgd(

@@ -12,6 +12,7 @@ pub mod pgd;
 mod readback;
 #[doc(hidden)]
 pub mod tabulate;
+pub mod weighted;
 
 pub use backend::GpuBackend;
 

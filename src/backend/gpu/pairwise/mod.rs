@@ -43,7 +43,7 @@ use crate::error::GpuError;
 use crate::merl::{CellSet, GridTables};
 use neural_rows::NeuralPass;
 use plan::table_rows;
-use reduce::DeviceSums;
+pub(crate) use reduce::DeviceSums;
 
 /// WGSL template of the kernel (see [`kernel_source`]).
 pub const SOURCE: &str = include_str!("../../../../shaders/pairwise.wgsl");

@@ -31,7 +31,7 @@ pub struct ReduceParams {
 }
 
 /// The device's f64 totals of every register block of one reduction (zeroed at creation).
-pub(super) struct DeviceSums {
+pub(crate) struct DeviceSums {
     pipeline: wgpu::ComputePipeline,
     sums: wgpu::Buffer,
     values: usize,
@@ -40,7 +40,7 @@ pub(super) struct DeviceSums {
 impl DeviceSums {
     /// Totals for `values` f64 on `ctx`, or `None` where the device has no f64 in shaders
     /// or they would not fit one binding (the host then adds the partials).
-    pub(super) fn new(
+    pub(crate) fn new(
         ctx: &GpuContext,
         pipeline: Option<wgpu::ComputePipeline>,
         values: usize,
@@ -60,7 +60,7 @@ impl DeviceSums {
 
     /// Records the addition of `count` register blocks' partials (`partial`, `lane_runs`
     /// lane-runs of `ss` values each per block) into the totals from block `first` on.
-    pub(super) fn encode(
+    pub(crate) fn encode(
         &self,
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
@@ -86,7 +86,7 @@ impl DeviceSums {
     }
 
     /// Submits `enc`, waits and reads the totals back.
-    pub(super) fn read(
+    pub(crate) fn read(
         &self,
         ctx: &GpuContext,
         enc: wgpu::CommandEncoder,
