@@ -24,7 +24,7 @@ pub const RUN_LEN: usize = 1024;
 /// Invocations (targets) per workgroup; keep in sync with the shader.
 const WORKGROUP: u32 = 64;
 /// Most bytes of a chunk's packed texture on a software adapter / a hardware GPU.
-const TEXTURE_BUDGET: [usize; 2] = [16 << 20, 256 << 20];
+const TEXTURE_BUDGET: [usize; 2] = [16 << 20, 1 << 30];
 
 /// Uniform parameters; keep in sync with `WeightedParams` in `shaders/weighted.wgsl`.
 #[repr(C)]
