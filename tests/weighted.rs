@@ -91,7 +91,7 @@ fn weighted_systems_by_hand() {
         )
         .expect("reference");
         // The half lobe tabulates to exactly half the lobe (a power of two).
-        let yt = CpuBackend::new().tabulate(&[half.clone()], &[c]).expect("tab")[0] as f64;
+        let yt = CpuBackend::new().tabulate(std::slice::from_ref(&half), &[c]).expect("tab")[0] as f64;
         assert_eq!(yt, y);
         let g = s.gram(0);
         assert!((g[3] - phi * v * v).abs() <= 1e-12 * g[3], "{w:?}");

@@ -6,7 +6,7 @@
 //! objective's weight ([`TargetWeight`]). One pass gives every target's system; an NNLS
 //! solve per target (SPEC 5's exact criterion with `W` in place of `w`) then fits it.
 //!
-//! [`reference`] is the CPU twin and the f64 reference: rows tabulated by a back-end in
+//! [`reference()`] is the CPU twin and the f64 reference: rows tabulated by a back-end in
 //! f32, every product and sum in f64. The GPU kernel (`shaders/weighted.wgsl`) sums runs of
 //! at most 1,024 cells in f32 and adds the runs in f64: its systems agree with the
 //! reference within [`WEIGHTED_TOLERANCE`].
@@ -15,7 +15,7 @@ use super::{Backend, Lobe};
 use crate::error::BackendError;
 use crate::merl::CellSet;
 
-/// The GPU kernel's agreement with [`reference`], relative, per value: f32 sums of at most
+/// The GPU kernel's agreement with [`reference()`], relative, per value: f32 sums of at most
 /// 1,024 non-negative terms (error below `1024 x 2^-24`, about 6.1e-5, in the worst case;
 /// about 1e-6 in practice) added in f64.
 pub const WEIGHTED_TOLERANCE: f64 = 1e-4;

@@ -183,7 +183,7 @@ impl WeightedKernel {
         let m = k + 1;
         let stride = WeightedSystems::stride_for(m);
         let mut values = vec![0f64; t_count * stride];
-        if t_count == 0 || cells.len() == 0 {
+        if t_count == 0 || cells.is_empty() {
             return Ok(WeightedSystems { columns: m, values });
         }
         let pipeline = self
