@@ -424,20 +424,20 @@ fn distance_matrix<'py>(
         .into_any())
 }
 
-fn indices(coll: &bb::Collection, names: Option<Vec<String>>) -> PyResult<Option<Vec<usize>>> {
-    names
-        .map(|v| {
-            v.iter()
-                .map(|n| coll.index_of(n.trim()))
-                .collect::<Result<Vec<_>, _>>()
-        })
-        .transpose()
-        .map_err(lib_err)
+/// The grid settings of a request (`mask`, `weighting`, `stride`).
+fn grid(mask: &str, weighting: &str, stride: usize) -> PyResult<bb::run::Grid> {
+    Ok(bb::run::Grid {
+        mask: parse(mask)?,
+        weighting: parse(weighting)?,
+        stride,
+    })
 }
 
-/// A basis selection as `brdf-basis select`: returns the `--json` text.
+/// A basis selection as `brdf-basis select`: returns the `--json` text. The keyword
+/// arguments are the fields of the library's `run::SelectRequest`, which makes every
+/// rule (one wording for the command line, Python and the library).
 #[pyfunction]
-#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = "fasterpam", population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
 fn select_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -446,7 +446,7 @@ fn select_json<'py>(
     k_min: Option<usize>,
     k_max: Option<usize>,
     runs: Option<usize>,
-    algorithm: &str,
+    algorithm: Option<&str>,
     population: Option<usize>,
     generations: Option<usize>,
     more_than: Option<usize>,
@@ -457,7 +457,7 @@ fn select_json<'py>(
     ga_generations: Option<usize>,
     ga_crossover: Option<f64>,
     ga_mutation: Option<f64>,
-    metric: &str,
+    metric: Option<&str>,
     mask: &str,
     weighting: &str,
     stride: usize,
@@ -466,144 +466,59 @@ fn select_json<'py>(
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
-    let ep = bb::experiment::ExperimentParams::default();
-    let search = |k: Option<usize>| -> PyResult<bb::SearchParams> {
-        let k = k.ok_or_else(|| {
-            value_err(format!(
-                "give the basis size k (method {method} chooses exactly k materials)"
-            ))
-        })?;
-        let mut sp = bb::SearchParams::new(k);
-        sp.candidates = indices(&coll, candidates.clone())?;
-        sp.targets = indices(&coll, targets.clone())?;
-        sp.init = indices(&coll, init.clone())?;
-        Ok(sp)
-    };
-    let clustering = matches!(method, "kmedoids" | "gcuk");
-    let error_driven = matches!(method, "greedy" | "swap" | "ga");
-    if !clustering && (k_min.is_some() || k_max.is_some()) {
-        return Err(value_err(format!(
-            "k_min and k_max apply to kmedoids and gcuk, not to method {method}"
-        )));
+    let mut req = bb::run::SelectRequest::new(parse(method)?);
+    req.k = k;
+    req.k_min = k_min;
+    req.k_max = k_max;
+    req.runs = runs.unwrap_or(req.runs);
+    if let Some(a) = algorithm {
+        req.algorithm = parse(a)?;
     }
-    if !error_driven && (candidates.is_some() || targets.is_some() || init.is_some()) {
-        return Err(value_err(format!(
-            "candidates, targets and init apply to greedy, swap and ga, not to method {method}"
-        )));
+    req.population = population.unwrap_or(req.population);
+    req.generations = generations.unwrap_or(req.generations);
+    req.more_than = more_than.unwrap_or(req.more_than);
+    req.candidates = candidates;
+    req.targets = targets;
+    req.init = init;
+    req.ga_population = ga_population;
+    req.ga_generations = ga_generations;
+    req.ga_crossover = ga_crossover;
+    req.ga_mutation = ga_mutation;
+    if let Some(m) = metric {
+        req.metric = parse(m)?;
     }
-    if method != "ga"
-        && (ga_population.is_some()
-            || ga_generations.is_some()
-            || ga_crossover.is_some()
-            || ga_mutation.is_some())
-    {
-        return Err(value_err(format!(
-            "the ga_* settings apply to method ga, not to {method}"
-        )));
-    }
-    let sm = match method {
-        "empirical" | "gcuk" if k.is_some() => {
-            return Err(value_err(format!(
-                "k does not apply to method {method} (it chooses the basis size itself)"
-            )))
-        }
-        "empirical" => bb::SelectMethod::Empirical {
-            more_than: more_than.unwrap_or(bb::EmpiricalParams::default().more_than),
-        },
-        "kmedoids" => {
-            if k.is_some() && (k_min.is_some() || k_max.is_some()) {
-                return Err(value_err("give either k or k_min/k_max, not both"));
-            }
-            let (lo, hi) = (k_min.unwrap_or(ep.k_min), k_max.unwrap_or(ep.k_max));
-            if k.is_none() && lo > hi {
-                return Err(lib_err(bb::cluster::ClusterError::EmptyKRange {
-                    k_min: lo,
-                    k_max: hi,
-                }));
-            }
-            bb::SelectMethod::KMedoids {
-                ks: k.map_or_else(|| (lo..=hi).collect(), |k| vec![k]),
-                runs: runs.unwrap_or(ep.runs),
-                algorithm: parse(algorithm)?,
-            }
-        }
-        "gcuk" => {
-            let d = bb::GcukParams::default();
-            bb::SelectMethod::Gcuk {
-                params: bb::GcukParams::default()
-                    .k_range(k_min.unwrap_or(d.k_min), k_max.unwrap_or(d.k_max))
-                    .population(population.unwrap_or(d.population))
-                    .generations(generations.unwrap_or(d.generations)),
-                runs: runs.unwrap_or(ep.runs),
-            }
-        }
-        "greedy" => bb::SelectMethod::Greedy(search(k)?),
-        "swap" => bb::SelectMethod::Swap(search(k)?),
-        "ga" => {
-            let d = bb::GaParams::default();
-            let mut gp = bb::GaParams::default()
-                .population(ga_population.unwrap_or(d.population))
-                .generations(ga_generations.unwrap_or(d.generations))
-                .crossover_prob(ga_crossover.unwrap_or(d.crossover_prob))
-                .seed(seed);
-            gp.mutation_prob = ga_mutation;
-            bb::SelectMethod::Ga(search(k)?, gp)
-        }
-        other => {
-            return Err(value_err(format!(
-                "invalid method `{other}` (expected empirical, kmedoids, gcuk, greedy, swap, ga)"
-            )))
-        }
-    };
-    let req = bb::SelectRequest {
-        method: sm,
-        metric: parse(metric)?,
-        mask: parse(mask)?,
-        weighting: parse(weighting)?,
-        stride,
-        seed,
-    };
+    req.grid = grid(mask, weighting, stride)?;
+    req.seed = seed;
+    req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
     let out = run_long(py, progress, method, |pr| {
-        bb::select(backend.as_ref(), &coll, &req, pr)
+        req.run(backend.as_ref(), &coll, pr)
     })?;
     Ok(out.to_json())
 }
 
-fn fit_params(
-    mask: &str,
-    weighting: &str,
-    stride: usize,
-    solver: &str,
-    gram: &str,
-) -> PyResult<bb::FitParams> {
-    Ok(bb::FitParams {
-        mask: parse(mask)?,
-        weighting: parse(weighting)?,
-        stride,
-        solver: match solver {
-            "exact" => bb::Solver::Exact,
-            "pgd" => bb::Solver::Pgd,
-            s => {
-                return Err(value_err(format!(
-                    "invalid solver `{s}` (expected exact, pgd)"
-                )))
-            }
-        },
-        gram: match gram {
-            "auto" => bb::GramMode::Auto,
-            "grid" => bb::GramMode::Grid,
-            s => {
-                return Err(value_err(format!(
-                    "invalid gram `{s}` (expected auto, grid)"
-                )))
-            }
-        },
-    })
+/// `solver`: `exact` or `pgd`.
+fn solver(s: &str) -> PyResult<bb::Solver> {
+    match s {
+        "exact" => Ok(bb::Solver::Exact),
+        "pgd" => Ok(bb::Solver::Pgd),
+        s => Err(value_err(format!(
+            "invalid solver `{s}` (expected exact, pgd)"
+        ))),
+    }
+}
+
+/// `gram`: `auto` or `grid`.
+fn gram_mode(s: &str) -> PyResult<bb::GramMode> {
+    match s {
+        "auto" => Ok(bb::GramMode::Auto),
+        "grid" => Ok(bb::GramMode::Grid),
+        s => Err(value_err(format!("invalid gram `{s}` (expected auto, grid)"))),
+    }
 }
 
 /// Fits `targets` (default: every material outside the basis) by `basis`: returns the
-/// JSON `brdf-basis fit --json` writes.
+/// JSON `brdf-basis fit --json` writes (the library's `run::FitRequest`).
 #[pyfunction]
 #[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", backend = "auto", progress = None))]
 fn fit_json<'py>(
@@ -620,75 +535,55 @@ fn fit_json<'py>(
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
-    let basis = indices(&coll, Some(basis))?.unwrap_or_default();
-    let targets = match indices(&coll, targets)? {
-        Some(t) => t,
-        None => (0..coll.len()).filter(|i| !basis.contains(i)).collect(),
+    let mut req = bb::run::FitRequest::new(basis);
+    req.targets = match targets {
+        Some(t) => bb::run::FitTargets::Named(t),
+        None => bb::run::FitTargets::AllOthers,
     };
-    let p = fit_params(mask, weighting, stride, solver, gram)?;
+    req.grid = grid(mask, weighting, stride)?;
+    req.solver = self::solver(solver)?;
+    req.gram = gram_mode(gram)?;
     let backend = open_backend(backend)?;
-    let fits = run_long(py, progress, "fit", |pr| {
-        Ok(bb::fit::fit(
-            backend.as_ref(),
-            &coll,
-            &basis,
-            &targets,
-            &p,
-            pr,
-        )?)
+    let fitted = run_long(py, progress, "fit", |pr| {
+        req.run(backend.as_ref(), &coll, pr)
     })?;
-    let file = bb::fit::file::FitFile::new(&coll, &basis, &fits, &p);
-    let text = serde_json::to_string_pretty(&file).map_err(|e| value_err(e.to_string()))?;
+    let text =
+        serde_json::to_string_pretty(&fitted.file).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
 }
 
 /// Plans where to measure a new material (SPEC 10), as `brdf-basis plan --json` on the
-/// evaluation-mask cell centres: returns the JSON text.
+/// evaluation-mask cell centres (the library's `run::PlanRequest`): returns the JSON text.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, n, *, criterion = "error", targets = None, candidates_per_step = 10_000, shortlist = 32, seed = 1, restarts = 1, backend = "auto", progress = None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = 1, restarts = None, backend = "auto", progress = None))]
 fn plan_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
     basis: Vec<String>,
     n: usize,
-    criterion: &str,
+    criterion: Option<&str>,
     targets: Option<Vec<String>>,
-    candidates_per_step: usize,
-    shortlist: usize,
+    candidates_per_step: Option<usize>,
+    shortlist: Option<usize>,
     seed: u64,
-    restarts: usize,
+    restarts: Option<usize>,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
-    let basis = indices(&coll, Some(basis))?.unwrap_or_default();
-    let targets = match indices(&coll, targets)? {
-        Some(t) => t,
-        None => (0..coll.len()).filter(|i| !basis.contains(i)).collect(),
-    };
-    let p = bb::acquire::PlanParams {
-        n,
-        criterion: parse(criterion)?,
-        candidates_per_step,
-        shortlist,
-        seed,
-        fit: bb::fit::FitParams::default(),
-        restarts,
-    };
+    let mut req = bb::run::PlanRequest::new(basis);
+    req.n = n;
+    if let Some(c) = criterion {
+        req.criterion = parse(c)?;
+    }
+    req.targets = targets;
+    req.candidates_per_step = candidates_per_step.unwrap_or(req.candidates_per_step);
+    req.shortlist = shortlist.unwrap_or(req.shortlist);
+    req.restarts = restarts.unwrap_or(req.restarts);
+    req.seed = seed;
+    req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
-    let plan = run_long(py, progress, "plan", |_| {
-        let all: Vec<usize> = basis.iter().chain(&targets).copied().collect();
-        let cands = bb::acquire::plan::cell_candidates(&coll, &all, &p.fit)?;
-        Ok(bb::plan_samples(
-            backend.as_ref(),
-            &coll,
-            &basis,
-            &targets,
-            &cands,
-            &p,
-        )?)
-    })?;
+    let plan = run_long(py, progress, "plan", |_| req.run(backend.as_ref(), &coll))?;
     let text = serde_json::to_string_pretty(&plan).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
 }
@@ -725,16 +620,17 @@ fn fit_samples<'py>(
     ))
 }
 
-/// K-fold cross-validation as `brdf-basis cv`: returns the `--json` text.
+/// K-fold cross-validation as `brdf-basis cv` (the library's `run::CvRequest`): returns
+/// the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, backend = "auto", progress = None))]
 fn cross_validate_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
     methods: Option<Vec<String>>,
     ks: Option<Vec<usize>>,
     folds: Option<usize>,
-    metric: &str,
+    metric: Option<&str>,
     mask: &str,
     weighting: &str,
     stride: usize,
@@ -747,58 +643,45 @@ fn cross_validate_json<'py>(
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
-    let d = bb::CvParams::default();
-    let g = bb::GaParams::default();
-    let methods = parse_list(methods, &d.methods)?;
-    let p = bb::CvParams {
-        methods,
-        ks: ks.unwrap_or_else(|| d.ks.clone()),
-        folds: folds.unwrap_or(d.folds),
-        seed,
-        objective: bb::ObjectiveParams::default()
-            .mask(parse(mask)?)
-            .weighting(parse(weighting)?)
-            .stride(stride),
-        metric: parse(metric)?,
-        runs: runs.unwrap_or(d.runs),
-        ga: bb::GaParams::default()
-            .population(ga_population.unwrap_or(g.population))
-            .generations(ga_generations.unwrap_or(g.generations))
-            .seed(seed),
-        render_size: render_size.unwrap_or(d.render_size),
-    };
-    let valid = p.check(coll.len()).map_err(lib_err)?;
+    let mut req = bb::run::CvRequest::default();
+    req.methods = parse_list(methods, &req.methods)?;
+    req.ks = ks.unwrap_or(req.ks);
+    req.folds = folds.unwrap_or(req.folds);
+    if let Some(m) = metric {
+        req.metric = parse(m)?;
+    }
+    req.grid = grid(mask, weighting, stride)?;
+    req.runs = runs.unwrap_or(req.runs);
+    req.ga_population = ga_population.unwrap_or(req.ga_population);
+    req.ga_generations = ga_generations.unwrap_or(req.ga_generations);
+    req.render_size = render_size.unwrap_or(req.render_size);
+    req.seed = seed;
+    req.check(coll.len()).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv", |pr| {
-        Ok(bb::select::cross_validate(
-            backend.as_ref(),
-            &coll,
-            &valid,
-            pr,
-        )?)
+        req.run(backend.as_ref(), &coll, pr)
     })?;
     let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
 }
 
-/// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition`: returns the
-/// `--json` text.
+/// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition` (the library's
+/// `run::AcquisitionRequest`): returns the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, k = 12, plans = None, ns = None, noises = None, folds = 5, candidates_per_step = 10_000, shortlist = 32, restarts = 1, render_size = 64, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
 fn acquisition_cv_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
     methods: Option<Vec<String>>,
-    k: usize,
+    k: Option<usize>,
     plans: Option<Vec<String>>,
     ns: Option<Vec<usize>>,
     noises: Option<Vec<f64>>,
-    folds: usize,
-    candidates_per_step: usize,
-    shortlist: usize,
-    restarts: usize,
-    render_size: u32,
+    folds: Option<usize>,
+    candidates_per_step: Option<usize>,
+    shortlist: Option<usize>,
+    restarts: Option<usize>,
+    render_size: Option<u32>,
     mask: &str,
     weighting: &str,
     stride: usize,
@@ -807,29 +690,23 @@ fn acquisition_cv_json<'py>(
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
-    let d = bb::AcqCvParams::default();
-    let methods = parse_list(methods, &d.methods)?;
-    let plans = parse_list(plans, &d.plans)?;
-    let p = bb::AcqCvParams {
-        methods,
-        k,
-        plans,
-        ns: ns.unwrap_or_else(|| d.ns.clone()),
-        noises: noises.unwrap_or_else(|| d.noises.clone()),
-        folds,
-        seed,
-        candidates_per_step,
-        shortlist,
-        restarts,
-        render_size,
-        objective: bb::ObjectiveParams::default()
-            .mask(parse(mask)?)
-            .weighting(parse(weighting)?)
-            .stride(stride),
-    };
+    let mut req = bb::run::AcquisitionRequest::default();
+    req.methods = parse_list(methods, &req.methods)?;
+    req.k = k.unwrap_or(req.k);
+    req.plans = parse_list(plans, &req.plans)?;
+    req.ns = ns.unwrap_or(req.ns);
+    req.noises = noises.unwrap_or(req.noises);
+    req.folds = folds.unwrap_or(req.folds);
+    req.candidates_per_step = candidates_per_step.unwrap_or(req.candidates_per_step);
+    req.shortlist = shortlist.unwrap_or(req.shortlist);
+    req.restarts = restarts.unwrap_or(req.restarts);
+    req.render_size = render_size.unwrap_or(req.render_size);
+    req.grid = grid(mask, weighting, stride)?;
+    req.seed = seed;
+    req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv --acquisition", |_| {
-        Ok(bb::acquisition_cv(backend.as_ref(), &coll, &p)?)
+        req.run(backend.as_ref(), &coll)
     })?;
     let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
