@@ -1,6 +1,6 @@
 //! One typed request per command: the one door through which the command line, the
-//! Python bindings and a host program reach `select`, `plan`, `fit`, `cv` and
-//! `cv --acquisition`.
+//! Python bindings and a host program reach `select`, `plan`, `fit`, `cv`,
+//! `cv --acquisition` and `reproduce`.
 //!
 //! A request's fields are the command's settings and its [`Default`] the documented
 //! defaults (the command line's `--help` shows the same values: its defaults are read from
@@ -33,12 +33,14 @@ mod acquisition;
 mod cv;
 mod fit;
 mod plan;
+mod reproduce;
 mod select;
 
 pub use acquisition::AcquisitionRequest;
 pub use cv::CvRequest;
 pub use fit::{FitOutput, FitRequest, FitTargets};
 pub use plan::PlanRequest;
+pub use reproduce::{ReproduceRequest, Reproduction};
 pub use select::{SelectMethod, SelectRequest};
 
 
