@@ -197,8 +197,16 @@ impl Reexports {
         for line in code.lines() {
             let t = line.trim_start();
             for kw in [
-                "fn ", "struct ", "enum ", "type ", "const ", "static ", "trait ", "mod ",
-                "union ", "macro_rules! ",
+                "fn ",
+                "struct ",
+                "enum ",
+                "type ",
+                "const ",
+                "static ",
+                "trait ",
+                "mod ",
+                "union ",
+                "macro_rules! ",
             ] {
                 let t = t
                     .trim_start_matches("pub(crate) ")
@@ -252,7 +260,10 @@ impl Reexports {
                     let name = match p.last() {
                         None => continue,
                         Some(_) if glob && rest.trim_end().ends_with("::*") => "*".to_string(),
-                        Some(last) => alias.get(last.as_str()).unwrap_or(&last.as_str()).to_string(),
+                        Some(last) => alias
+                            .get(last.as_str())
+                            .unwrap_or(&last.as_str())
+                            .to_string(),
                     };
                     if target != *here {
                         self.names.insert((here.clone(), name), target);
@@ -282,10 +293,11 @@ impl Reexports {
             return m;
         };
         let own = self.defines(&m, name);
-        let next = self
-            .names
-            .get(&(m.clone(), name.clone()))
-            .or_else(|| (!own).then(|| self.names.get(&(m.clone(), "*".into()))).flatten());
+        let next = self.names.get(&(m.clone(), name.clone())).or_else(|| {
+            (!own)
+                .then(|| self.names.get(&(m.clone(), "*".into())))
+                .flatten()
+        });
         match next {
             Some(t) if *t != m => {
                 let mut f = t.clone();
@@ -517,7 +529,10 @@ fn the_cycle_check_sees_through_a_parents_pub_use() {
         "io/mod.rs",
         "pub mod npy;\npub mod saved;\npub use saved::MatrixFileError;\n",
     );
-    put("io/npy.rs", "use super::MatrixFileError;\npub fn read() {}\n");
+    put(
+        "io/npy.rs",
+        "use super::MatrixFileError;\npub fn read() {}\n",
+    );
     put(
         "io/saved.rs",
         "use super::npy::read;\npub enum MatrixFileError {}\n",
@@ -541,9 +556,18 @@ fn the_cycle_check_sees_through_a_parents_pub_use() {
     assert!(import_cycles(src).is_empty());
     // Through a glob re-export at the root (`crate::Result` is `api`'s): io using it and
     // api using io is a cycle io <-> api.
-    put("io/saved.rs", "use super::npy::read;\nfn f() -> crate::Result<()> {}\n");
-    put("api.rs", "pub type Result<T> = T;\nuse crate::io::npy::read;\n");
+    put(
+        "io/saved.rs",
+        "use super::npy::read;\nfn f() -> crate::Result<()> {}\n",
+    );
+    put(
+        "api.rs",
+        "pub type Result<T> = T;\nuse crate::io::npy::read;\n",
+    );
     let cycles = import_cycles(src);
     assert_eq!(cycles.len(), 1, "{cycles:?}");
-    assert!(cycles[0].starts_with("cycle between api, io:"), "{cycles:?}");
+    assert!(
+        cycles[0].starts_with("cycle between api, io:"),
+        "{cycles:?}"
+    );
 }

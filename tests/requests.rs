@@ -6,8 +6,7 @@
 
 use crate::common::bin_cpu;
 use brdf_basis::run::{
-    AcquisitionRequest, CvRequest, FitRequest, FitTargets, PlanRequest, SelectMethod,
-    SelectRequest,
+    AcquisitionRequest, CvRequest, FitRequest, FitTargets, PlanRequest, SelectMethod, SelectRequest,
 };
 use brdf_basis::{Collection, CpuBackend, Criterion};
 
@@ -50,7 +49,10 @@ fn plan_nielsen_is_refused_the_same_way_by_every_door() {
     req.criterion = Criterion::Nielsen;
     let lib = req.check().unwrap_err().to_string();
     assert_eq!(cli, lib);
-    assert!(lib.starts_with("--criterion nielsen: the peer baseline"), "{lib}");
+    assert!(
+        lib.starts_with("--criterion nielsen: the peer baseline"),
+        "{lib}"
+    );
     let coll = Collection::embedded_default();
     let run = req.run(&CpuBackend::new(), &coll).unwrap_err().to_string();
     assert_eq!(run, lib);
@@ -61,7 +63,13 @@ fn plan_nielsen_is_refused_the_same_way_by_every_door() {
 #[test]
 fn select_rules_are_the_requests() {
     let cli = cli_error(&[
-        "select", "--method", "gcuk", "-k", "5", "--json", "{dir}/g.json",
+        "select",
+        "--method",
+        "gcuk",
+        "-k",
+        "5",
+        "--json",
+        "{dir}/g.json",
     ]);
     let mut req = SelectRequest::new(SelectMethod::Gcuk);
     req.k = Some(5);
@@ -100,7 +108,10 @@ fn fit_refuses_a_target_given_twice() {
     let mut req = FitRequest::new(vec!["polished-gold".into()]);
     req.targets = FitTargets::Named(vec!["matte-white-paint".into(), "matte-white-paint".into()]);
     let coll = Collection::embedded_default();
-    let lib = req.run(&CpuBackend::new(), &coll, &|_, _| {}).unwrap_err().to_string();
+    let lib = req
+        .run(&CpuBackend::new(), &coll, &|_, _| {})
+        .unwrap_err()
+        .to_string();
     assert_eq!(cli, lib);
     assert!(lib.contains("is given twice"), "{lib}");
 }
@@ -112,18 +123,33 @@ fn cli_defaults_are_the_requests() {
     let help = String::from_utf8_lossy(&o.stdout);
     let d = PlanRequest::new(Vec::new());
     assert!(help.contains(&format!("[default: {}]", d.n)), "{help}");
-    assert!(help.contains(&format!("[default: {}]", d.candidates_per_step)), "{help}");
+    assert!(
+        help.contains(&format!("[default: {}]", d.candidates_per_step)),
+        "{help}"
+    );
     // The lists' defaults are written in the help text: they must be the request's.
     let o = bin_cpu().args(["cv", "--help"]).output().expect("help");
-    let help = String::from_utf8_lossy(&o.stdout).split_whitespace().collect::<Vec<_>>().join(" ");
+    let help = String::from_utf8_lossy(&o.stdout)
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
     let a = AcquisitionRequest::default();
     let join = |v: Vec<String>| v.join(",");
     for list in [
         join(a.plans.iter().map(|p| p.as_str().to_string()).collect()),
         join(a.ns.iter().map(|n| n.to_string()).collect()),
         join(a.noises.iter().map(|n| n.to_string()).collect()),
-        join(CvRequest::default().ks.iter().map(|n| n.to_string()).collect()),
+        join(
+            CvRequest::default()
+                .ks
+                .iter()
+                .map(|n| n.to_string())
+                .collect(),
+        ),
     ] {
-        assert!(help.contains(&format!("[default: {list}]")), "{list}: {help}");
+        assert!(
+            help.contains(&format!("[default: {list}]")),
+            "{list}: {help}"
+        );
     }
 }

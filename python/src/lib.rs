@@ -389,7 +389,8 @@ fn mask<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
 // Distances, selection, fits, cross-validation
 // ---------------------------------------------------------------------------------------
 
-/// The distance matrix (N, N), float64, as `brdf-basis distance` writes it.
+/// The distance matrix (N, N), float64, as `brdf-basis distance` writes it (the library's
+/// `run::DistanceRequest`).
 #[pyfunction]
 #[pyo3(signature = (collection, *, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, backend = "auto", progress = None))]
 fn distance_matrix<'py>(
@@ -403,20 +404,16 @@ fn distance_matrix<'py>(
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let coll = coll_of(collection);
-    let p = bb::DistanceParams::default()
-        .metric(parse(metric)?)
-        .mask(parse(mask)?)
-        .weighting(parse(weighting)?)
-        .stride(stride);
-    let valid = p.check(&coll).map_err(lib_err)?;
+    let mut req = bb::run::DistanceRequest::default();
+    req.metric = parse(metric)?;
+    req.grid = grid(mask, weighting, stride)?;
+    let valid = req.params(&coll).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let d = run_long(py, progress, "distances", |pr| {
-        Ok(bb::distance::distance_matrix(
-            backend.as_ref(),
-            &coll,
-            &valid,
-            pr,
-        )?)
+        match req.run(backend.as_ref(), &coll, &valid, pr)? {
+            bb::run::DistanceOutput::Matrix(d) => Ok(d),
+            _ => unreachable!("a request without a tile computes the whole matrix"),
+        }
     })?;
     let n = coll.len();
     Ok(PyArray1::from_slice(py, d.as_full())
@@ -513,7 +510,9 @@ fn gram_mode(s: &str) -> PyResult<bb::GramMode> {
     match s {
         "auto" => Ok(bb::GramMode::Auto),
         "grid" => Ok(bb::GramMode::Grid),
-        s => Err(value_err(format!("invalid gram `{s}` (expected auto, grid)"))),
+        s => Err(value_err(format!(
+            "invalid gram `{s}` (expected auto, grid)"
+        ))),
     }
 }
 
@@ -547,8 +546,7 @@ fn fit_json<'py>(
     let fitted = run_long(py, progress, "fit", |pr| {
         req.run(backend.as_ref(), &coll, pr)
     })?;
-    let text =
-        serde_json::to_string_pretty(&fitted.file).map_err(|e| value_err(e.to_string()))?;
+    let text = serde_json::to_string_pretty(&fitted.file).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
 }
 
@@ -604,8 +602,7 @@ fn fit_samples<'py>(
 ) -> PyResult<(Bound<'py, PyAny>, [f64; 3], f64, f64, usize, f64)> {
     let coll = coll_of(collection);
     let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
-    let f = bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref())
-        .map_err(lib_err)?;
+    let f = bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref()).map_err(lib_err)?;
     let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
     let coefficients = numpy::PyArray1::from_vec(py, flat)
         .reshape([f.coefficients.len(), 3])?

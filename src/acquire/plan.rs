@@ -37,9 +37,9 @@
 
 use super::eval::material_at;
 use super::linalg::{condition_number, sym_eigen};
+pub use super::plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
 use super::samples::Sample;
 use super::AcquireError;
-pub use super::plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
 use crate::backend::cpu::CpuBackend;
 use crate::backend::Backend;
 use crate::collection::{Collection, MaterialData};

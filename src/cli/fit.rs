@@ -8,8 +8,8 @@ use brdf_basis::fit::export::{
 };
 use brdf_basis::fit::file::FitFile;
 use brdf_basis::fit::{FitParams, GramMode, Solver};
-use brdf_basis::run::{FitRequest, FitTargets};
 use brdf_basis::merl::write_binary_to;
+use brdf_basis::run::{FitRequest, FitTargets};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `fit`.

@@ -139,7 +139,9 @@ fn run_into(
 ) -> anyhow::Result<Vec<PathBuf>> {
     let backend = super::backend(g)?;
     let bars = StageBars::new(g);
-    let r = req.run(backend.as_ref(), coll, params, &|s, d, t| bars.update(s, d, t))?;
+    let r = req.run(backend.as_ref(), coll, params, &|s, d, t| {
+        bars.update(s, d, t)
+    })?;
     bars.finish();
     let e = r.experiment;
 

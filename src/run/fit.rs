@@ -97,7 +97,9 @@ impl FitRequest {
             }
         }
         if targets.is_empty() {
-            refuse!("--all-others: every material of the collection is in the basis; nothing to fit");
+            refuse!(
+                "--all-others: every material of the collection is in the basis; nothing to fit"
+            );
         }
         Ok((basis, targets))
     }

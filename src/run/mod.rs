@@ -1,5 +1,5 @@
 //! One typed request per command: the one door through which the command line, the
-//! Python bindings and a host program reach `select`, `plan`, `fit`, `cv`,
+//! Python bindings and a host program reach `distance`, `select`, `plan`, `fit`, `cv`,
 //! `cv --acquisition` and `reproduce`.
 //!
 //! A request's fields are the command's settings and its [`Default`] the documented
@@ -31,6 +31,7 @@
 
 mod acquisition;
 mod cv;
+mod distance;
 mod fit;
 mod plan;
 mod reproduce;
@@ -38,11 +39,11 @@ mod select;
 
 pub use acquisition::AcquisitionRequest;
 pub use cv::CvRequest;
+pub use distance::{DistanceOutput, DistanceRequest};
 pub use fit::{FitOutput, FitRequest, FitTargets};
 pub use plan::PlanRequest;
 pub use reproduce::{ReproduceRequest, Reproduction};
 pub use select::{SelectMethod, SelectRequest};
-
 
 use crate::collection::Collection;
 use crate::merl::{Mask, Weighting};
@@ -90,7 +91,10 @@ pub fn indices_of(coll: &Collection, names: &[String]) -> crate::Result<Vec<usiz
 }
 
 /// `indices_of` for an optional list (`None` stays `None`).
-fn optional_indices(coll: &Collection, names: Option<&[String]>) -> crate::Result<Option<Vec<usize>>> {
+fn optional_indices(
+    coll: &Collection,
+    names: Option<&[String]>,
+) -> crate::Result<Option<Vec<usize>>> {
     names.map(|n| indices_of(coll, n)).transpose()
 }
 

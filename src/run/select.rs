@@ -2,11 +2,11 @@
 //! or saved), or by fitting error (SPEC 8).
 
 use super::{optional_indices, refuse, Grid};
-use crate::error::RequestError;
 use crate::backend::{Backend, Progress};
 use crate::cluster::{ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsParams};
 use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
+use crate::error::RequestError;
 use crate::experiment::ExperimentParams;
 use crate::fit::FitParams;
 use crate::select::output::ErrorDrivenOutput;
@@ -244,8 +244,7 @@ impl SelectRequest {
                 refuse!("give the basis size with -k K (greedy, swap and ga choose exactly k materials)");
             }
             if m != SelectMethod::Ga {
-                if let Some((_, flag)) = self.ga_settings().into_iter().find(|(given, _)| *given)
-                {
+                if let Some((_, flag)) = self.ga_settings().into_iter().find(|(given, _)| *given) {
                     refuse!("{flag} applies to --method ga, not to {m}");
                 }
             }
@@ -319,22 +318,27 @@ impl SelectRequest {
                     .map_err(|e| range(e.to_string(), flags.into()))?;
                 if let Some(&k) = ks.iter().find(|&&k| k > n) {
                     let e = ClusterError::KOutOfRange { k, n };
-                    return Err(
-                        range(e.to_string(), format!("{flags}; the collection has {n} materials"))
-                            .into(),
-                    );
+                    return Err(range(
+                        e.to_string(),
+                        format!("{flags}; the collection has {n} materials"),
+                    )
+                    .into());
                 }
             }
             SelectMethod::Gcuk => {
                 let p = self.gcuk_params().map_err(|e| {
-                    range(e.to_string(), format!("{flags}, --population and --generations"))
+                    range(
+                        e.to_string(),
+                        format!("{flags}, --population and --generations"),
+                    )
                 })?;
                 if p.k_max > n {
                     let e = ClusterError::KMaxTooLarge { k_max: p.k_max, n };
-                    return Err(
-                        range(e.to_string(), format!("{flags}; the collection has {n} materials"))
-                            .into(),
-                    );
+                    return Err(range(
+                        e.to_string(),
+                        format!("{flags}; the collection has {n} materials"),
+                    )
+                    .into());
                 }
             }
             _ => {}
