@@ -24,7 +24,7 @@
 //! requests in [`run`]: the one door through which the command line and the Python
 //! bindings reach them (their settings, documented defaults, every rule in one wording,
 //! and the typed output). Acquisition (SPEC 10: where to measure a new material, fits
-//! from samples) is [`acquire`], with [`plan_samples`], [`fit_from_arrays`] and
+//! from samples) is [`acquire`], with [`plan_samples()`], [`fit_from_arrays`] and
 //! [`acquisition_cv`] at the root.
 //!
 //! ```
