@@ -6,10 +6,9 @@ use brdf_basis::fit::diagnostics::MAX_WARNINGS;
 use brdf_basis::fit::export::{
     combination_grid, export_file_names, export_index_csv, EXPORT_INDEX,
 };
-use brdf_basis::fit::file::FitFile;
 use brdf_basis::fit::{FitParams, GramMode, Solver};
 use brdf_basis::merl::write_binary_to;
-use brdf_basis::run::{FitRequest, FitTargets};
+use brdf_basis::run::{FitRequest, FitSamplesRequest, FitTargets};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `fit`.
@@ -66,6 +65,22 @@ impl FitArgs {
         r.grid = self.grid.grid();
         r.solver = self.solver;
         r.gram = self.gram;
+        r
+    }
+}
+
+impl FitArgs {
+    /// The request these flags make with `--samples`.
+    pub fn samples_request(&self, g: &Global) -> FitSamplesRequest {
+        let path = self
+            .samples
+            .clone()
+            .expect("samples_request is called with --samples");
+        let mut r = FitSamplesRequest::new(self.basis.clone(), path);
+        r.grid = self.grid.grid();
+        r.solver = self.solver;
+        r.gram = self.gram;
+        r.seed = g.seed;
         r
     }
 }
@@ -228,58 +243,28 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 /// JSON (the `fit` schema with `samples` and `fitted_from`; residual and MAE on the
 /// samples) and, with `--export`, the whole reconstruction as a MERL `.binary`.
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
-    use brdf_basis::acquire::{fit, plan, read_samples};
-    let path = a
-        .samples
-        .clone()
-        .expect("run_samples is called with --samples");
+    let req = a.samples_request(g);
     let mut out_plan = OutputPlan::new(&a.collection);
     out_plan.file(&a.json, "--json")?;
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "samples".into());
+    let stem = req.target_name();
     let files = export_file_names(&[stem.as_str()]);
     if let Some(dir) = &a.export {
         plan_export(&mut out_plan, dir, &files)?;
     }
     let mut out = out_plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let basis: Vec<usize> = a
-        .basis
-        .iter()
-        .map(|n| coll.index_of(n.trim()))
-        .collect::<Result<_, _>>()?;
-    let samples = read_samples(&path)?;
-    let sf = fit::fit_samples(&coll, &basis, &samples)?;
-    let d = &sf.determination;
-    let more = d.columns.saturating_sub(d.rank.min(d.samples)).max(3);
-    let hint = if d.rank < d.columns || d.condition > fit::WARN_CONDITION {
-        plan::suggest(&coll, &basis, &samples, more, g.seed)?
-    } else {
-        String::new()
-    };
-    for w in fit::determination_warnings(d, fit::WARN_CONDITION, &hint) {
+    let fitted = req.run(&coll)?;
+    for w in &fitted.warnings {
         eprintln!("warning: {w}");
     }
-    let p = FitParams {
-        mask: a.grid.mask,
-        weighting: a.grid.weighting,
-        stride: a.grid.stride,
-        solver: a.solver,
-        gram: a.gram,
-    };
-    let tf = sf.target_fit(&stem);
+    let (basis, tf, d) = (&fitted.basis, &fitted.target, &fitted.fit.determination);
     if let Some(dir) = &a.export {
-        let rgb = combination_grid(&coll, &basis, &tf);
+        let rgb = combination_grid(&coll, basis, tf);
         out.stage(&dir.join(&files[0]), |w| write_binary_to(w, &rgb))?;
         let index = export_index_csv(&[stem.as_str()], &files)?;
         out.stage(&dir.join(EXPORT_INDEX), |w| w.write_all(&index))?;
     }
-    let mut file = FitFile::new(&coll, &basis, std::slice::from_ref(&tf), &p);
-    file.samples = Some(samples.len());
-    file.fitted_from = Some(path.display().to_string());
-    let text = serde_json::to_string_pretty(&file)?;
+    let text = serde_json::to_string_pretty(&fitted.file)?;
     out.stage(&a.json, |w| {
         w.write_all(text.as_bytes())?;
         w.write_all(b"\n")
@@ -288,11 +273,11 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     println!(
         "wrote {} ({} samples, rank {} of {}, condition number {}, relative residual on the samples {})",
         a.json.display(),
-        samples.len(),
+        fitted.samples,
         d.rank,
         d.columns,
         brdf_basis::stats::num(d.condition),
-        brdf_basis::stats::num(sf.relative_residual)
+        brdf_basis::stats::num(fitted.fit.relative_residual)
     );
     if let Some(dir) = &a.export {
         for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {

@@ -1,12 +1,14 @@
 //! `fit`: materials of the collection as non-negative combinations of a basis.
 
 use super::{all_others, indices_of, refuse, Grid};
+use crate::acquire::SampleFit;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::diagnostics::fit_warnings;
 use crate::fit::file::FitFile;
 use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit};
 use crate::Result;
+use std::path::PathBuf;
 
 /// The materials `fit` fits.
 #[derive(Clone, Debug, PartialEq, Eq, Default)]
@@ -122,6 +124,109 @@ impl FitRequest {
         Ok(FitOutput {
             basis,
             fits,
+            file,
+            warnings,
+        })
+    }
+}
+
+/// `brdf-basis fit --samples`: a new material fitted from its measured samples (SPEC 10),
+/// with the defaults of `fit --help`.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct FitSamplesRequest {
+    /// `--basis` (no default).
+    pub basis: Vec<String>,
+    /// `--samples`: a samples CSV or an ASTM E1392 `.astm` file; the target is named after
+    /// its stem.
+    pub samples: PathBuf,
+    /// `--mask`, `--weighting`, `--stride` (recorded in the JSON).
+    pub grid: Grid,
+    /// `--solver` (recorded in the JSON).
+    pub solver: Solver,
+    /// `--gram` (recorded in the JSON).
+    pub gram: GramMode,
+    /// `--seed`: of the directions suggested when the samples do not determine the fit.
+    pub seed: u64,
+}
+
+/// What `fit --samples` computes.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct FitSamplesOutput {
+    /// Basis (collection indices, in column order).
+    pub basis: Vec<usize>,
+    /// The target's name (the samples file's stem).
+    pub name: String,
+    /// Number of samples.
+    pub samples: usize,
+    /// The fit from the samples, with the determination of the sampled design.
+    pub fit: SampleFit,
+    /// The fit as a collection target's (for `--export`).
+    pub target: TargetFit,
+    /// What `fit --json` writes (the `fit` schema with `samples` and `fitted_from`).
+    pub file: FitFile,
+    /// Samples too few or a design ill-conditioned, in words, with where to measure next.
+    pub warnings: Vec<String>,
+}
+
+impl FitSamplesRequest {
+    /// The defaults with `basis` and the samples file.
+    pub fn new(basis: Vec<String>, samples: PathBuf) -> Self {
+        let d = FitParams::default();
+        Self {
+            basis,
+            samples,
+            grid: Grid::default(),
+            solver: d.solver,
+            gram: d.gram,
+            seed: 1,
+        }
+    }
+
+    /// The target's name: the samples file's stem (`samples` when it has none).
+    pub fn target_name(&self) -> String {
+        self.samples
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "samples".into())
+    }
+
+    /// Reads the samples and fits them by the basis of `coll`.
+    ///
+    /// # Errors
+    /// An unknown material, an unreadable or invalid samples file, a failed fit.
+    pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
+        use crate::acquire::{fit as afit, plan, read_samples};
+        let basis = indices_of(coll, &self.basis)?;
+        let samples = read_samples(&self.samples)?;
+        let sf = afit::fit_samples(coll, &basis, &samples)?;
+        let d = &sf.determination;
+        let more = d.columns.saturating_sub(d.rank.min(d.samples)).max(3);
+        let hint = if d.rank < d.columns || d.condition > afit::WARN_CONDITION {
+            plan::suggest(coll, &basis, &samples, more, self.seed)?
+        } else {
+            String::new()
+        };
+        let warnings = afit::determination_warnings(d, afit::WARN_CONDITION, &hint);
+        let p = FitParams {
+            mask: self.grid.mask,
+            weighting: self.grid.weighting,
+            stride: self.grid.stride,
+            solver: self.solver,
+            gram: self.gram,
+        };
+        let name = self.target_name();
+        let target = sf.target_fit(&name);
+        let mut file = FitFile::new(coll, &basis, std::slice::from_ref(&target), &p);
+        file.samples = Some(samples.len());
+        file.fitted_from = Some(self.samples.display().to_string());
+        Ok(FitSamplesOutput {
+            basis,
+            name,
+            samples: samples.len(),
+            fit: sf,
+            target,
             file,
             warnings,
         })

@@ -40,7 +40,7 @@ mod select;
 pub use acquisition::AcquisitionRequest;
 pub use cv::CvRequest;
 pub use distance::{DistanceOutput, DistanceRequest};
-pub use fit::{FitOutput, FitRequest, FitTargets};
+pub use fit::{FitOutput, FitRequest, FitSamplesOutput, FitSamplesRequest, FitTargets};
 pub use plan::PlanRequest;
 pub use reproduce::{ReproduceRequest, Reproduction};
 pub use select::{SelectMethod, SelectRequest};
