@@ -75,6 +75,9 @@ pub enum Error {
     /// A selection result file.
     #[error(transparent)]
     SelectFile(#[from] crate::select::output::SelectFileError),
+    /// A command's request refused before any work ([`crate::run`]).
+    #[error(transparent)]
+    Request(#[from] crate::error::RequestError),
     /// Fitting materials by a basis.
     #[error(transparent)]
     Fit(#[from] crate::fit::FitError),
@@ -249,8 +252,8 @@ pub fn cross_validate(backend: &dyn Backend, coll: &Collection, p: &CvParams) ->
 
 // ---------------------------------------------------------------------------------------
 // What a host in another language needs beyond the stages above (the Python bindings in
-// `python/`): the command line's `tabulate` and `select` as functions, a dense NNLS, and a
-// progress callback on the long stages.
+// `python/`): the command line's `tabulate` as a function, a dense NNLS, and a progress
+// callback on the long stages. The commands themselves are requests: [`crate::run`].
 // ---------------------------------------------------------------------------------------
 
 pub use crate::backend::Progress;
@@ -384,183 +387,6 @@ pub fn nnls_dense(a: &[f64], rows: usize, cols: usize, b: &[f64]) -> Result<Nnls
         &problem,
         &crate::nnls::lawson_hanson::LhParams::default(),
     )?)
-}
-
-/// A method of [`select`] with its settings (those of `brdf-basis select`).
-#[derive(Debug, Clone)]
-#[non_exhaustive]
-pub enum SelectMethod {
-    /// The paper's Algorithm 1: materials contributing to more than `more_than` fits.
-    Empirical {
-        /// Threshold (the command line's `--more-than`).
-        more_than: usize,
-    },
-    /// Seeded k-medoids runs per k on the distance matrix.
-    KMedoids {
-        /// The basis sizes.
-        ks: Vec<usize>,
-        /// Runs per k (seeds `seed`, `seed + 1`, ...).
-        runs: usize,
-        /// FasterPAM or PAM.
-        algorithm: KMedoidsAlgorithm,
-    },
-    /// GCUK runs on the distance matrix.
-    Gcuk {
-        /// k range, population, generations.
-        params: GcukParams,
-        /// Runs (seeds `seed`, `seed + 1`, ...).
-        runs: usize,
-    },
-    /// Greedy forward selection by fitting error.
-    Greedy(SearchParams),
-    /// Swap refinement by fitting error.
-    Swap(SearchParams),
-    /// The genetic algorithm by fitting error (its seed is `GaParams::seed`).
-    Ga(SearchParams, GaParams),
-}
-
-/// What [`select`] runs: the method, the grid cells, the clustering metric and the seed.
-#[derive(Debug, Clone)]
-pub struct SelectRequest {
-    /// The method and its settings.
-    pub method: SelectMethod,
-    /// Distance of the clustering methods.
-    pub metric: Metric,
-    /// Grid cells.
-    pub mask: Mask,
-    /// Cell weights.
-    pub weighting: Weighting,
-    /// Grid sub-sampling stride (1 = full grid).
-    pub stride: usize,
-    /// Seed of the stochastic methods (the command line's `--seed`).
-    pub seed: u64,
-}
-
-/// Runs a basis selection as `brdf-basis select` does and returns what it writes
-/// ([`SelectOutput::to_json`] is the `--json` file). `progress(done, total)` is called
-/// from the working threads.
-///
-/// # Errors
-/// The parameters' errors before any work (k out of range, zero runs, ...), then the
-/// stages' errors.
-pub fn select(
-    backend: &dyn Backend,
-    coll: &Collection,
-    req: &SelectRequest,
-    progress: Progress<'_>,
-) -> Result<SelectOutput> {
-    use crate::cluster::ClusterError;
-    use crate::select::output::ErrorDrivenOutput;
-    use crate::select::runs::{gcuk_runs, kmedoids_runs, named_runs};
-    let fingerprint = Some(coll.fingerprint());
-    let n = coll.len();
-    let objective_of = || {
-        ObjectiveParams::default()
-            .mask(req.mask)
-            .weighting(req.weighting)
-            .stride(req.stride)
-            .check()
-    };
-    let error_driven =
-        |sp: &SearchParams,
-         run: &dyn Fn(&Objective, &crate::select::ValidSearchParams) -> Result<Selection>|
-         -> Result<SelectOutput> {
-            let vsp = sp.check(&coll.names())?;
-            let obj = Objective::new(backend, coll, &objective_of()?, progress)?;
-            Ok(SelectOutput::ErrorDriven(ErrorDrivenOutput {
-                selection: run(&obj, &vsp)?,
-                collection_fingerprint: fingerprint.clone(),
-            }))
-        };
-    let matrix = || -> Result<DistanceMatrix> {
-        let dp = DistanceParams::default()
-            .metric(req.metric)
-            .mask(req.mask)
-            .weighting(req.weighting)
-            .stride(req.stride)
-            .check(coll)?;
-        Ok(crate::distance::distance_matrix(
-            backend, coll, &dp, progress,
-        )?)
-    };
-    let metric = req.metric.to_string();
-    match &req.method {
-        SelectMethod::Empirical { more_than } => {
-            let p = EmpiricalParams {
-                fit: FitParams {
-                    mask: req.mask,
-                    weighting: req.weighting,
-                    stride: req.stride,
-                    ..Default::default()
-                },
-                more_than: *more_than,
-            };
-            let e = crate::select::empirical(backend, coll, &p, progress)?;
-            Ok(SelectOutput::Empirical(
-                crate::select::EmpiricalOutput::new(&e, *more_than, fingerprint)?,
-            ))
-        }
-        SelectMethod::KMedoids {
-            ks,
-            runs,
-            algorithm,
-        } => {
-            if *runs == 0 {
-                return Err(ClusterError::ZeroRuns.into());
-            }
-            for &k in ks {
-                KMedoidsParams::new(k).algorithm(*algorithm).check()?;
-                if k > n {
-                    return Err(ClusterError::KOutOfRange { k, n }.into());
-                }
-            }
-            let d = matrix()?;
-            let r = kmedoids_runs(&d, ks, *runs, req.seed, *algorithm, progress)?;
-            Ok(SelectOutput::Clustering(
-                crate::select::ClusteringOutput::new(
-                    "kmedoids",
-                    Some(algorithm.to_string()),
-                    &metric,
-                    named_runs(&d, &r)?,
-                    fingerprint,
-                )?,
-            ))
-        }
-        SelectMethod::Gcuk { params, runs } => {
-            if *runs == 0 {
-                return Err(ClusterError::ZeroRuns.into());
-            }
-            let vp = params.check()?;
-            if params.k_max > n {
-                return Err(ClusterError::KMaxTooLarge {
-                    k_max: params.k_max,
-                    n,
-                }
-                .into());
-            }
-            let d = matrix()?;
-            let r = gcuk_runs(&d, &vp, *runs, req.seed, progress)?;
-            Ok(SelectOutput::Clustering(
-                crate::select::ClusteringOutput::new(
-                    "gcuk",
-                    None,
-                    &metric,
-                    named_runs(&d, &r)?,
-                    fingerprint,
-                )?,
-            ))
-        }
-        SelectMethod::Greedy(sp) => {
-            error_driven(sp, &|o, v| Ok(crate::select::greedy(o, v, progress)?))
-        }
-        SelectMethod::Swap(sp) => {
-            error_driven(sp, &|o, v| Ok(crate::select::swap(o, v, progress)?))
-        }
-        SelectMethod::Ga(sp, gp) => {
-            let vgp = gp.check()?;
-            error_driven(sp, &|o, v| Ok(crate::select::ga(o, v, &vgp, progress)?))
-        }
-    }
 }
 
 /// Fits a new material from samples given as arrays (SPEC 10): per sample the angles
@@ -730,40 +556,6 @@ mod tests {
         assert!(matches!(
             nnls_dense(&[f64::NAN], 1, 1, &[1.0]),
             Err(Error::Nnls(_))
-        ));
-    }
-
-    /// `select` runs the facade's stages: greedy through it is `select_greedy`.
-    #[test]
-    fn select_is_the_stage_functions() {
-        let cpu = CpuBackend::new();
-        let coll = Collection::embedded_default();
-        let req = SelectRequest {
-            method: SelectMethod::Greedy(SearchParams::new(3)),
-            metric: Metric::BrdfIt,
-            mask: Mask::Evaluation,
-            weighting: Weighting::Uniform,
-            stride: 8,
-            seed: 1,
-        };
-        let out = select(&cpu, &coll, &req, &|_, _| {}).unwrap();
-        let obj = objective(&cpu, &coll, &ObjectiveParams::default().stride(8)).unwrap();
-        let g = select_greedy(&obj, &SearchParams::new(3)).unwrap();
-        match out {
-            SelectOutput::ErrorDriven(e) => assert_eq!(e.selection, g),
-            other => panic!("{other:?}"),
-        }
-        let req = SelectRequest {
-            method: SelectMethod::KMedoids {
-                ks: vec![coll.len() + 1],
-                runs: 1,
-                algorithm: KMedoidsAlgorithm::default(),
-            },
-            ..req
-        };
-        assert!(matches!(
-            select(&cpu, &coll, &req, &|_, _| {}),
-            Err(Error::Cluster(_))
         ));
     }
 }

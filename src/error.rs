@@ -558,3 +558,35 @@ pub enum OutputError {
         message: String,
     },
 }
+
+/// A command's request ([`crate::run`]) refused before any work: settings that do not go together, or do not fit
+/// the collection. Every front door reports it with this wording.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RequestError {
+    /// Settings that do not go together; the message names them (by their command-line
+    /// flags) and says what to give instead.
+    #[error("{0}")]
+    Settings(String),
+    /// A setting out of its range, as a stage's own check words it, with the settings to
+    /// look at (`hint`).
+    #[error("{command}: {cause} ({hint})")]
+    Range {
+        /// The command.
+        command: &'static str,
+        /// The stage's message.
+        cause: String,
+        /// The settings to check (and, where it matters, the collection's size).
+        hint: String,
+    },
+    /// A name that is not a method, criterion or other choice of the command.
+    #[error("invalid {what} `{value}` (expected {expected})")]
+    Unknown {
+        /// What was parsed.
+        what: &'static str,
+        /// The value given.
+        value: String,
+        /// The accepted spellings.
+        expected: &'static str,
+    },
+}

@@ -20,7 +20,12 @@
 //! so the host uses the wgpu this crate is built against without pinning it
 //! (`examples/embed.rs` opens its own device and hands it over).
 //!
-//! Acquisition (choosing which materials to measure next) is not part of the crate yet.
+//! The commands themselves (`select`, `plan`, `fit`, `cv`, `cv --acquisition`) are typed
+//! requests in [`run`]: the one door through which the command line and the Python
+//! bindings reach them (their settings, documented defaults, every rule in one wording,
+//! and the typed output). Acquisition (SPEC 10: where to measure a new material, fits
+//! from samples) is [`acquire`], with [`plan_samples()`], [`fit_from_arrays`] and
+//! [`acquisition_cv`] at the root.
 //!
 //! ```
 //! use brdf_basis::{CpuBackend, Collection, DistanceParams, FitParams, KMedoidsParams};
@@ -77,6 +82,7 @@ pub mod npy_format;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod rgl;
+pub mod run;
 pub mod select;
 pub mod separable;
 pub mod stats;

@@ -8,6 +8,12 @@
 //! children, and a child using its ancestors, are containment, not cycles. Any strongly
 //! connected set of two or more siblings is a cycle and fails the test, each edge named
 //! with the file and the path that makes it.
+//!
+//! A path through a re-export counts as a use of the module that defines the item: when
+//! `io/mod.rs` says `pub use saved::MatrixFileError`, `super::MatrixFileError` in
+//! `io/npy.rs` is an edge `npy -> saved`, not a use of the parent (so a cycle hidden
+//! behind a parent's `pub use` is found). Re-exports are followed through chains and
+//! globs (`pub use api::*`, for a name the module does not define itself).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -116,8 +122,14 @@ fn paths_at(rest: &str) -> Vec<Vec<String>> {
 /// Every module path `code` in module `here` refers to through `crate::` or `super::`,
 /// resolved against the known module files (the longest known prefix), with the path as
 /// written.
-fn references(code: &str, here: &ModPath, modules: &BTreeSet<ModPath>) -> Vec<(ModPath, String)> {
+fn references(
+    code: &str,
+    here: &ModPath,
+    modules: &BTreeSet<ModPath>,
+    reexports: &Reexports,
+) -> Vec<(ModPath, String)> {
     let mut out = Vec::new();
+    let inline = inline_modules(code);
     for key in ["crate::", "super::"] {
         let mut from = 0;
         while let Some(i) = code[from..].find(key) {
@@ -129,7 +141,15 @@ fn references(code: &str, here: &ModPath, modules: &BTreeSet<ModPath>) -> Vec<(M
             let (base, mut rest, lead) = if key == "crate::" {
                 (Vec::new(), &code[from..], key.to_string())
             } else {
+                // Inside an inline module (`mod tests { use super::x; }`) `super` is the
+                // file's own module.
                 let mut b = here.clone();
+                b.extend(
+                    inline
+                        .iter()
+                        .filter(|m| m.1.contains(&at))
+                        .map(|m| m.0.clone()),
+                );
                 b.pop();
                 let (mut r, mut lead) = (&code[from..], key.to_string());
                 while let Some(t) = r.strip_prefix("super::") {
@@ -145,15 +165,185 @@ fn references(code: &str, here: &ModPath, modules: &BTreeSet<ModPath>) -> Vec<(M
             for p in paths_at(rest) {
                 let mut full = base.clone();
                 full.extend(p.iter().cloned());
-                let mut m = full.clone();
-                while !m.is_empty() && !modules.contains(&m) {
-                    m.pop();
-                }
+                let m = reexports.resolve(known_prefix(&full, modules), &full);
                 out.push((m, format!("{lead}{}", p.join("::"))));
             }
         }
     }
     out
+}
+
+/// The inline modules of `code` (`mod name { ... }`), each with the byte range of its body.
+fn inline_modules(code: &str) -> Vec<(String, std::ops::Range<usize>)> {
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(i) = code[from..].find("mod ") {
+        let at = from + i;
+        from = at + 4;
+        if at > 0 && !code[..at].ends_with(char::is_whitespace) {
+            continue;
+        }
+        let rest = &code[from..];
+        let end = rest.find(|c: char| !is_ident(c)).unwrap_or(rest.len());
+        let name = &rest[..end];
+        let Some(body) = rest[end..].trim_start().strip_prefix('{') else {
+            continue; // `mod name;`
+        };
+        let open = code.len() - body.len();
+        let mut depth = 1usize;
+        let mut close = code.len();
+        for (j, c) in body.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        close = open + j;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        out.push((name.to_string(), open..close));
+    }
+    out
+}
+
+/// The longest prefix of `full` that is a known module.
+fn known_prefix(full: &[String], modules: &BTreeSet<ModPath>) -> ModPath {
+    let mut m = full.to_vec();
+    while !m.is_empty() && !modules.contains(&m) {
+        m.pop();
+    }
+    m
+}
+
+/// The re-exports of every module: `(module, name) -> the module the name comes from`
+/// (`"*"` for a glob), and the names each module defines itself.
+#[derive(Default)]
+struct Reexports {
+    names: BTreeMap<(ModPath, String), ModPath>,
+    defined: BTreeMap<ModPath, BTreeSet<String>>,
+}
+
+impl Reexports {
+    /// Records the `pub use` (and `pub(crate) use`) statements and the item definitions of
+    /// `code`, the text of module `here`.
+    fn scan(&mut self, code: &str, here: &ModPath, modules: &BTreeSet<ModPath>) {
+        for line in code.lines() {
+            let t = line.trim_start();
+            for kw in [
+                "fn ",
+                "struct ",
+                "enum ",
+                "type ",
+                "const ",
+                "static ",
+                "trait ",
+                "mod ",
+                "union ",
+                "macro_rules! ",
+            ] {
+                let t = t
+                    .trim_start_matches("pub(crate) ")
+                    .trim_start_matches("pub(super) ")
+                    .trim_start_matches("pub ");
+                if let Some(rest) = t.strip_prefix(kw) {
+                    let end = rest.find(|c: char| !is_ident(c)).unwrap_or(rest.len());
+                    if end > 0 {
+                        let set = self.defined.entry(here.clone()).or_default();
+                        set.insert(rest[..end].to_string());
+                    }
+                }
+            }
+        }
+        for kw in ["pub use ", "pub(crate) use "] {
+            let mut from = 0;
+            while let Some(i) = code[from..].find(kw) {
+                let at = from + i;
+                from = at + kw.len();
+                if at > 0 && !code[..at].ends_with(char::is_whitespace) {
+                    continue;
+                }
+                let stmt = &code[from..from + code[from..].find(';').unwrap_or(0)];
+                // `X as Y`: the name is the alias.
+                let words: Vec<&str> = stmt
+                    .split(|c: char| !is_ident(c))
+                    .filter(|w| !w.is_empty())
+                    .collect();
+                let alias: BTreeMap<&str, &str> = words
+                    .windows(3)
+                    .filter(|w| w[1] == "as")
+                    .map(|w| (w[0], w[2]))
+                    .collect();
+                let (mut base, mut rest) = (here.clone(), stmt.trim_start());
+                if let Some(r) = rest.strip_prefix("crate::") {
+                    base.clear();
+                    rest = r;
+                } else if let Some(r) = rest.strip_prefix("self::") {
+                    rest = r;
+                } else {
+                    while let Some(r) = rest.strip_prefix("super::") {
+                        base.pop();
+                        rest = r;
+                    }
+                }
+                let glob = rest.trim_end().ends_with('*');
+                for p in paths_at(rest) {
+                    let mut full = base.clone();
+                    full.extend(p.iter().cloned());
+                    let target = known_prefix(&full, modules);
+                    let name = match p.last() {
+                        None => continue,
+                        Some(_) if glob && rest.trim_end().ends_with("::*") => "*".to_string(),
+                        Some(last) => alias
+                            .get(last.as_str())
+                            .unwrap_or(&last.as_str())
+                            .to_string(),
+                    };
+                    if target != *here {
+                        self.names.insert((here.clone(), name), target);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Whether module `m`'s own file defines `name`.
+    fn defines(&self, m: &ModPath, name: &str) -> bool {
+        self.defined.get(m).is_some_and(|d| d.contains(name))
+    }
+
+    /// The module that defines what `full` names, starting from its longest known module
+    /// prefix `m`: through the re-exports of `m` (and of their targets, at most 8 deep).
+    fn resolve(&self, m: ModPath, full: &[String]) -> ModPath {
+        self.resolve_from(m, full, 8)
+    }
+
+    /// [`Self::resolve`] with a depth budget for chains of re-exports.
+    fn resolve_from(&self, m: ModPath, full: &[String], depth: usize) -> ModPath {
+        if depth == 0 {
+            return m;
+        }
+        let Some(name) = full.get(m.len()) else {
+            return m;
+        };
+        let own = self.defines(&m, name);
+        let next = self.names.get(&(m.clone(), name.clone())).or_else(|| {
+            (!own)
+                .then(|| self.names.get(&(m.clone(), "*".into())))
+                .flatten()
+        });
+        match next {
+            Some(t) if *t != m => {
+                let mut f = t.clone();
+                f.extend(full[m.len()..].iter().cloned());
+                self.resolve_from(t.clone(), &f, depth - 1)
+            }
+            _ => m,
+        }
+    }
 }
 
 /// Strongly connected components (Tarjan) of a small graph given as adjacency sets.
@@ -236,12 +426,19 @@ fn import_cycles(src: &Path) -> Vec<String> {
         })
         .collect();
     let modules: BTreeSet<ModPath> = files.iter().map(|(_, m)| m.clone()).collect();
+    let codes: Vec<String> = files
+        .iter()
+        .map(|(p, _)| strip_comments(&std::fs::read_to_string(p).expect("read")))
+        .collect();
+    let mut reexports = Reexports::default();
+    for ((_, here), code) in files.iter().zip(&codes) {
+        reexports.scan(code, here, &modules);
+    }
     // Per parent module: sibling graph and the evidence for each edge.
     type Edges = BTreeMap<(String, String), BTreeSet<String>>;
     let mut by_parent: BTreeMap<ModPath, Edges> = BTreeMap::new();
-    for (path, here) in &files {
-        let code = strip_comments(&std::fs::read_to_string(path).expect("read"));
-        for (target, written) in references(&code, here, &modules) {
+    for ((path, here), code) in files.iter().zip(&codes) {
+        for (target, written) in references(code, here, &modules, &reexports) {
             let common = here.iter().zip(&target).take_while(|(a, b)| a == b).count();
             if common == here.len() || common == target.len() {
                 continue; // itself, an ancestor or a descendant
@@ -350,4 +547,72 @@ fn the_cycle_check_finds_a_planted_cycle_and_ignores_containment() {
     assert!(cycles[0].starts_with("cycle between b, c:"), "{cycles:?}");
     put("c.rs", "pub struct X;\n");
     assert!(import_cycles(src).is_empty());
+}
+
+#[test]
+fn the_cycle_check_sees_through_a_parents_pub_use() {
+    let d = crate::common::tmp();
+    let src = d.path();
+    let put = |rel: &str, text: &str| {
+        let p = src.join(rel);
+        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
+        std::fs::write(&p, text).expect("write");
+    };
+    // The shape of the old io::npy <-> io::saved cycle: the error type defined in one child
+    // and re-exported by the parent, the other child using it through the parent.
+    put("lib.rs", "mod api;\npub use api::*;\npub mod io;\n");
+    put("api.rs", "pub type Result<T> = T;\n");
+    put(
+        "io/mod.rs",
+        "pub mod npy;\npub mod saved;\npub use saved::MatrixFileError;\n",
+    );
+    put(
+        "io/npy.rs",
+        "use super::MatrixFileError;\npub fn read() {}\n",
+    );
+    put(
+        "io/saved.rs",
+        "use super::npy::read;\npub enum MatrixFileError {}\n",
+    );
+    let cycles = import_cycles(src);
+    assert_eq!(cycles.len(), 1, "{cycles:?}");
+    assert!(
+        cycles[0].starts_with("cycle between io::npy, io::saved:"),
+        "{cycles:?}"
+    );
+    assert!(
+        cycles[0].contains("io::npy -> io::saved (src/io/npy.rs uses super::MatrixFileError)"),
+        "{cycles:?}"
+    );
+    // The type moved to the parent: a child using its parent is no cycle. Nor is an
+    // inline test module's `super::read` (the file's own module, which imports `read`
+    // from its child), even with a glob re-export at the root and `api` using `io`.
+    put(
+        "io/mod.rs",
+        "pub mod npy;\npub mod saved;\npub enum MatrixFileError {}\nuse npy::*;\n\
+         #[cfg(test)]\nmod tests {\n    use super::read;\n}\n",
+    );
+    put("io/saved.rs", "use super::npy::read;\n");
+    put(
+        "api.rs",
+        "pub type Result<T> = T;\nuse crate::io::npy::read;\n",
+    );
+    let cycles = import_cycles(src);
+    assert!(cycles.is_empty(), "{cycles:?}");
+    // Through a glob re-export at the root (`crate::Result` is `api`'s): io using it and
+    // api using io is a cycle io <-> api.
+    put(
+        "io/saved.rs",
+        "use super::npy::read;\nfn f() -> crate::Result<()> {}\n",
+    );
+    put(
+        "api.rs",
+        "pub type Result<T> = T;\nuse crate::io::npy::read;\n",
+    );
+    let cycles = import_cycles(src);
+    assert_eq!(cycles.len(), 1, "{cycles:?}");
+    assert!(
+        cycles[0].starts_with("cycle between api, io:"),
+        "{cycles:?}"
+    );
 }

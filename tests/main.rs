@@ -29,6 +29,7 @@ mod nbrdf;
 mod nbrdf_gpu;
 mod outputs;
 mod reproduce;
+mod requests;
 mod rgl;
 mod saved_matrix;
 mod scale;

@@ -164,7 +164,7 @@ pub struct AcqCv {
     /// Candidates examined per plan step.
     pub candidates_per_step: usize,
     /// Greedy paths of each error plan.
-    #[serde(default = "super::plan::one")]
+    #[serde(default = "super::plan_types::one")]
     pub restarts: usize,
     /// Per method, plan, n and noise.
     pub results: Vec<AcqResult>,

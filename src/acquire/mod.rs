@@ -19,12 +19,14 @@ pub mod fit;
 pub mod linalg;
 pub mod nielsen;
 pub mod plan;
+mod plan_types;
 pub mod samples;
 
 pub use cv::{acquisition_cv, AcqCv, AcqCvParams};
 pub use eval::material_at;
 pub use fit::{fit_samples, SampleFit, SampleFitParams};
-pub use plan::{plan, Candidate, Criterion, Plan, PlanParams, PlannedSample};
+pub use plan::plan;
+pub use plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
 pub use samples::{read_samples, Sample};
 
 use std::path::PathBuf;

@@ -3,8 +3,19 @@
 use super::Global;
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::distance::Metric;
-use brdf_basis::select::{cross_validate, CvMethod, CvParams, GaParams, ObjectiveParams};
+use brdf_basis::run::{AcquisitionRequest, CvRequest};
+use brdf_basis::select::CvMethod;
 use std::path::PathBuf;
+
+/// The requests' defaults, for `--help`.
+fn defaults() -> CvRequest {
+    CvRequest::default()
+}
+
+/// The acquisition request's defaults, for `--help`.
+fn acq() -> AcquisitionRequest {
+    AcquisitionRequest::default()
+}
 
 /// Arguments of `cv`.
 #[derive(clap::Args, Debug)]
@@ -22,25 +33,25 @@ pub struct CvArgs {
     #[arg(short = 'k', value_delimiter = ',')]
     pub k: Vec<usize>,
     /// Number of folds.
-    #[arg(long, default_value_t = CvParams::default().folds)]
+    #[arg(long, default_value_t = defaults().folds)]
     pub folds: usize,
     /// Distance of the clustering methods: brdf-it or euclidean.
-    #[arg(long, default_value_t = CvParams::default().metric)]
+    #[arg(long, default_value_t = defaults().metric)]
     pub metric: Metric,
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
     /// k-medoids restarts and GCUK runs per fold.
-    #[arg(long, default_value_t = CvParams::default().runs)]
+    #[arg(long, default_value_t = defaults().runs)]
     pub runs: usize,
     /// ga: population size.
-    #[arg(long, default_value_t = GaParams::default().population)]
+    #[arg(long, default_value_t = defaults().ga_population)]
     pub ga_population: usize,
     /// ga: generations.
-    #[arg(long, default_value_t = GaParams::default().generations)]
+    #[arg(long, default_value_t = defaults().ga_generations)]
     pub ga_generations: usize,
     /// Render size in pixels for the image errors.
-    #[arg(long, default_value_t = CvParams::default().render_size)]
+    #[arg(long, default_value_t = defaults().render_size)]
     pub render_size: u32,
     /// Output JSON.
     #[arg(long)]
@@ -54,31 +65,95 @@ pub struct CvArgs {
     pub acquisition: bool,
     /// --acquisition: plan criteria, comma-separated (error, condition, random, nielsen:
     /// the peer baseline of Nielsen et al. 2015 with its own PCA, plan and ridge
-    /// reconstruction, at most 500 candidates per step).
-    #[arg(long, value_delimiter = ',', default_value = "error,condition,random")]
+    /// reconstruction, at most 500 candidates per step) [default: error,condition,random].
+    #[arg(long, value_enum, value_delimiter = ',')]
     pub plans: Vec<brdf_basis::acquire::Criterion>,
-    /// --acquisition: sample counts, comma-separated.
-    #[arg(short = 'n', value_delimiter = ',', default_value = "5,10,20")]
+    /// --acquisition: sample counts, comma-separated [default: 5,10,20].
+    #[arg(short = 'n', value_delimiter = ',')]
     pub n: Vec<usize>,
-    /// --acquisition: relative noise levels of the simulated measurements.
-    #[arg(long, value_delimiter = ',', default_value = "0,0.02")]
+    /// --acquisition: relative noise levels of the simulated measurements, comma-separated
+    /// [default: 0,0.02].
+    #[arg(long, value_delimiter = ',')]
     pub noise: Vec<f64>,
     /// --acquisition: candidates examined per plan step (0: all).
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = acq().candidates_per_step)]
     pub candidates_per_step: usize,
     /// --acquisition: error plans fit this many screened candidates exactly per step (0:
     /// every examined candidate).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = acq().shortlist)]
     pub shortlist: usize,
     /// --acquisition: error plans compare this many seeded greedy paths, each examining
-    /// its share of --candidates-per-step, and keep the lowest final training score.
-    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=64))]
+    /// its share of --candidates-per-step, and keep the lowest final training score (1 to 64).
+    #[arg(long, default_value_t = acq().restarts)]
     pub restarts: usize,
     /// --acquisition: also write the figure (held-out mean rho against n, one line per
     /// plan, log scale; below it the renders of one held-out material: target, dense fit,
     /// reconstructions from each n by the first plan) as this PNG.
     #[arg(long)]
     pub figure: Option<PathBuf>,
+}
+
+/// `--methods`, parsed (`None` when not given).
+fn methods(a: &CvArgs) -> anyhow::Result<Option<Vec<CvMethod>>> {
+    if a.methods.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(
+        a.methods
+            .iter()
+            .map(|m| m.trim().parse())
+            .collect::<Result<_, _>>()?,
+    ))
+}
+
+impl CvArgs {
+    /// The `cv` request these flags make.
+    pub fn request(&self, g: &Global) -> anyhow::Result<CvRequest> {
+        let mut r = CvRequest::default();
+        if let Some(m) = methods(self)? {
+            r.methods = m;
+        }
+        if !self.k.is_empty() {
+            r.ks = self.k.clone();
+        }
+        r.folds = self.folds;
+        r.metric = self.metric;
+        r.grid = self.grid.grid();
+        r.runs = self.runs;
+        r.ga_population = self.ga_population;
+        r.ga_generations = self.ga_generations;
+        r.render_size = self.render_size;
+        r.seed = g.seed;
+        Ok(r)
+    }
+
+    /// The `cv --acquisition` request these flags make (the first `-k` is the basis size).
+    pub fn acquisition_request(&self, g: &Global) -> anyhow::Result<AcquisitionRequest> {
+        let mut r = AcquisitionRequest::default();
+        if let Some(m) = methods(self)? {
+            r.methods = m;
+        }
+        if let Some(&k) = self.k.first() {
+            r.k = k;
+        }
+        if !self.plans.is_empty() {
+            r.plans = self.plans.clone();
+        }
+        if !self.n.is_empty() {
+            r.ns = self.n.clone();
+        }
+        if !self.noise.is_empty() {
+            r.noises = self.noise.clone();
+        }
+        r.folds = self.folds;
+        r.candidates_per_step = self.candidates_per_step;
+        r.shortlist = self.shortlist;
+        r.restarts = self.restarts;
+        r.render_size = self.render_size;
+        r.grid = self.grid.grid();
+        r.seed = g.seed;
+        Ok(r)
+    }
 }
 
 /// Runs the cross-validation.
@@ -94,40 +169,11 @@ pub fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     }
     let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let d = CvParams::default();
-    let methods: Vec<CvMethod> = if a.methods.is_empty() {
-        d.methods.clone()
-    } else {
-        a.methods
-            .iter()
-            .map(|m| m.trim().parse())
-            .collect::<Result<_, _>>()?
-    };
-    let p = CvParams {
-        methods,
-        ks: if a.k.is_empty() {
-            d.ks.clone()
-        } else {
-            a.k.clone()
-        },
-        folds: a.folds,
-        seed: g.seed,
-        objective: ObjectiveParams::default()
-            .mask(a.grid.mask)
-            .weighting(a.grid.weighting)
-            .stride(a.grid.stride),
-        metric: a.metric,
-        runs: a.runs,
-        ga: GaParams::default()
-            .population(a.ga_population)
-            .generations(a.ga_generations)
-            .seed(g.seed),
-        render_size: a.render_size,
-    }
-    .check(coll.len())?;
+    let req = a.request(g)?;
+    req.check(coll.len())?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "cv");
-    let res = cross_validate(backend.as_ref(), &coll, &p, &|d, t| {
+    let res = req.run(backend.as_ref(), &coll, &|d, t| {
         pb.set_length(t);
         pb.set_position(d);
     })?;
@@ -152,7 +198,8 @@ pub fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
 
 /// `cv --acquisition` (SPEC 10).
 fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
-    use brdf_basis::acquire::{acquisition_cv, AcqCvParams};
+    let req = a.acquisition_request(g)?;
+    req.check()?;
     let mut plan = OutputPlan::new(&a.collection);
     plan.file(&a.json, "--json")?;
     if let Some(m) = &a.markdown {
@@ -163,34 +210,9 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     }
     let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let methods: Vec<CvMethod> = if a.methods.is_empty() {
-        vec![CvMethod::Greedy]
-    } else {
-        a.methods
-            .iter()
-            .map(|m| m.trim().parse())
-            .collect::<Result<_, _>>()?
-    };
-    let p = AcqCvParams {
-        methods,
-        k: a.k.first().copied().unwrap_or(12),
-        plans: a.plans.clone(),
-        ns: a.n.clone(),
-        noises: a.noise.clone(),
-        folds: a.folds,
-        seed: g.seed,
-        candidates_per_step: a.candidates_per_step,
-        shortlist: a.shortlist,
-        restarts: a.restarts,
-        render_size: a.render_size,
-        objective: ObjectiveParams::default()
-            .mask(a.grid.mask)
-            .weighting(a.grid.weighting)
-            .stride(a.grid.stride),
-    };
     let backend = super::backend(g)?;
     let t0 = std::time::Instant::now();
-    let res = acquisition_cv(backend.as_ref(), &coll, &p)?;
+    let res = req.run(backend.as_ref(), &coll)?;
     let secs = t0.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&res)?;
     out.stage(&a.json, |w| {

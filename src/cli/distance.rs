@@ -2,11 +2,10 @@
 
 use super::Global;
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::distance::{
-    distance_matrix_banded, distance_tile, DistanceParams, LobeKind, Metric, DEFAULT_BAND_ROWS,
-};
+use brdf_basis::distance::{LobeKind, Metric};
 use brdf_basis::io::saved::{csv_bytes, stage_npy_with_sidecar, stage_tile};
 use brdf_basis::io::sidecar::{sidecar_path, MatrixSettings};
+use brdf_basis::run::{DistanceOutput, DistanceRequest};
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
@@ -29,7 +28,7 @@ pub struct DistanceArgs {
     /// Collection(s): analytic .csv, .binary file or directory (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// brdf-it (the paper's Eq. 5) or euclidean (on F0, n).
-    #[arg(long, default_value = "brdf-it")]
+    #[arg(long, default_value_t = DistanceRequest::default().metric)]
     pub metric: Metric,
     /// Grid cells and weights.
     #[command(flatten)]
@@ -43,21 +42,32 @@ pub struct DistanceArgs {
     pub tile: Option<String>,
     /// Materials per back-end call of the banded computation (a multiple of 4): bounds the
     /// memory of a call and changes no value; tiles merge only with tiles of the same value.
-    #[arg(long, default_value_t = DEFAULT_BAND_ROWS)]
+    #[arg(long, default_value_t = DistanceRequest::default().band_rows)]
     pub band_rows: usize,
     /// Output: .npy (float64 N x N, with a .names.json sidecar) or .csv.
     #[arg(long)]
     pub out: PathBuf,
 }
 
-/// Parses `I/N`.
+/// Parses `I/N` (the range is the request's rule).
 fn parse_tile(s: &str) -> anyhow::Result<(usize, usize)> {
-    let parsed = s
-        .split_once('/')
-        .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)));
-    match parsed {
-        Some((i, n)) if i >= 1 && i <= n => Ok((i, n)),
-        _ => anyhow::bail!("--tile `{s}`: expected I/N with 1 <= I <= N (e.g. --tile 3/8)"),
+    s.split_once('/')
+        .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)))
+        .ok_or_else(|| {
+            anyhow::anyhow!("--tile `{s}`: expected I/N with 1 <= I <= N (e.g. --tile 3/8)")
+        })
+}
+
+impl DistanceArgs {
+    /// The request these flags make.
+    pub fn request(&self) -> anyhow::Result<DistanceRequest> {
+        let mut r = DistanceRequest::default();
+        r.metric = self.metric;
+        r.grid = self.grid.grid();
+        r.lobe = self.lobe;
+        r.band_rows = self.band_rows;
+        r.tile = self.tile.as_deref().map(parse_tile).transpose()?;
+        Ok(r)
     }
 }
 
@@ -67,11 +77,11 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     if ext != "npy" && ext != "csv" {
         anyhow::bail!("{}: output must end in .npy or .csv", a.out.display());
     }
-    let tile = a.tile.as_deref().map(parse_tile).transpose()?;
-    if tile.is_some() && ext != "npy" {
+    let req = a.request()?;
+    if req.tile.is_some() && ext != "npy" {
         anyhow::bail!("{}: a tile (--tile) is written as .npy", a.out.display());
     }
-    brdf_basis::distance::band::check_band_rows(a.band_rows)?;
+    req.check()?;
     // Every output path before the work (the sidecar too: it replaces only a sidecar).
     let mut plan = OutputPlan::new(&a.collection);
     if ext == "npy" {
@@ -81,16 +91,7 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     }
     let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let mut p = DistanceParams::default()
-        .metric(a.metric)
-        .mask(a.grid.mask)
-        .weighting(a.grid.weighting)
-        .stride(a.grid.stride);
-    p.lobe = a.lobe;
-    let p = p.check(&coll)?;
-    if let Some((i, n)) = tile {
-        brdf_basis::distance::band::tile_rows(coll.len(), i, n)?;
-    }
+    let p = req.params(&coll)?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "distance");
     let progress = |done, total| {
@@ -99,38 +100,34 @@ pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     };
     let settings = MatrixSettings::of(&p, a.band_rows);
     let n = coll.len();
-    if let Some((i, count)) = tile {
-        let t = distance_tile(
-            backend.as_ref(),
-            &coll,
-            &p,
-            a.band_rows,
-            i,
-            count,
-            &progress,
-        )?;
-        pb.finish_and_clear();
-        stage_tile(
-            &mut out,
-            &a.out,
-            &t,
-            &coll.names(),
-            &settings,
-            &coll.fingerprint(),
-        )?;
-        out.commit()?;
-        println!(
-            "wrote {} (tile {i}/{count}: rows {}..{} of {n} x {n} {})",
-            a.out.display(),
-            t.rows.start,
-            t.rows.end,
-            p.metric()
-        );
-        println!("wrote {}", sidecar_path(&a.out).display());
-        return Ok(());
-    }
-    let d = distance_matrix_banded(backend.as_ref(), &coll, &p, a.band_rows, &progress)?;
+    let computed = req.run(backend.as_ref(), &coll, &p, &progress)?;
     pb.finish_and_clear();
+    let d = match computed {
+        DistanceOutput::Matrix(d) => d,
+        DistanceOutput::Tile(t) => {
+            stage_tile(
+                &mut out,
+                &a.out,
+                &t,
+                &coll.names(),
+                &settings,
+                &coll.fingerprint(),
+            )?;
+            out.commit()?;
+            println!(
+                "wrote {} (tile {}/{}: rows {}..{} of {n} x {n} {})",
+                a.out.display(),
+                t.index,
+                t.count,
+                t.rows.start,
+                t.rows.end,
+                p.metric()
+            );
+            println!("wrote {}", sidecar_path(&a.out).display());
+            return Ok(());
+        }
+        _ => unreachable!("distance computes a matrix or a tile"),
+    };
     if ext == "npy" {
         stage_npy_with_sidecar(&mut out, &a.out, &d, &settings, &coll.fingerprint())?;
     } else {

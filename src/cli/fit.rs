@@ -2,13 +2,13 @@
 
 use super::Global;
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::fit::diagnostics::{fit_warnings, MAX_WARNINGS};
+use brdf_basis::fit::diagnostics::MAX_WARNINGS;
 use brdf_basis::fit::export::{
     combination_grid, export_file_names, export_index_csv, EXPORT_INDEX,
 };
-use brdf_basis::fit::file::FitFile;
-use brdf_basis::fit::{fit, FitParams, GramMode, Solver};
+use brdf_basis::fit::{FitParams, GramMode, Solver};
 use brdf_basis::merl::write_binary_to;
+use brdf_basis::run::{FitRequest, FitSamplesRequest, FitTargets};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `fit`.
@@ -32,10 +32,10 @@ pub struct FitArgs {
     #[command(flatten)]
     pub grid: super::GridArgs,
     /// NNLS solver.
-    #[arg(long, value_enum, default_value_t = Solver::Exact)]
+    #[arg(long, value_enum, default_value_t = FitParams::default().solver)]
     pub solver: Solver,
     /// How Gram matrices are computed.
-    #[arg(long, value_enum, default_value_t = GramMode::Auto)]
+    #[arg(long, value_enum, default_value_t = FitParams::default().gram)]
     pub gram: GramMode,
     /// Output JSON.
     #[arg(long)]
@@ -52,22 +52,50 @@ pub struct FitArgs {
     pub samples: Option<PathBuf>,
 }
 
+impl FitArgs {
+    /// The request these flags make (`fit` without `--samples`): neither `--targets` nor
+    /// `--all-others` is an empty target list, which the request refuses.
+    pub fn request(&self) -> FitRequest {
+        let mut r = FitRequest::new(self.basis.clone());
+        r.targets = if self.all_others {
+            FitTargets::AllOthers
+        } else {
+            FitTargets::Named(self.targets.clone())
+        };
+        r.grid = self.grid.grid();
+        r.solver = self.solver;
+        r.gram = self.gram;
+        r
+    }
+}
+
+impl FitArgs {
+    /// The request these flags make with `--samples`.
+    pub fn samples_request(&self, g: &Global) -> FitSamplesRequest {
+        let path = self
+            .samples
+            .clone()
+            .expect("samples_request is called with --samples");
+        let mut r = FitSamplesRequest::new(self.basis.clone(), path);
+        r.grid = self.grid.grid();
+        r.solver = self.solver;
+        r.gram = self.gram;
+        r.seed = g.seed;
+        r
+    }
+}
+
 /// Runs the fits.
 pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     if a.samples.is_some() {
         return run_samples(g, a);
     }
+    let req = a.request();
     // Output paths before the work: a typo costs no computation.
     let mut plan = OutputPlan::new(&a.collection);
     plan.file(&a.json, "--json")?;
     let coll = super::load_collection(&a.collection)?;
-    let basis: Vec<usize> = a
-        .basis
-        .iter()
-        .map(|n| coll.index_of(n.trim()))
-        .collect::<Result<_, _>>()?;
-    let targets = targets_of(&a, &coll, &basis)?;
-    let (solver, gram) = (a.solver, a.gram);
+    let (_, targets) = req.indices(&coll)?;
     if let Some(dir) = &a.export {
         let names: Vec<&str> = targets
             .iter()
@@ -76,21 +104,15 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         plan_export(&mut plan, dir, &export_file_names(&names))?;
     }
     let mut out = plan.into_set()?;
-    let p = FitParams {
-        mask: a.grid.mask,
-        weighting: a.grid.weighting,
-        stride: a.grid.stride,
-        solver,
-        gram,
-    };
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "gram");
-    let fits = fit(backend.as_ref(), &coll, &basis, &targets, &p, &|d, t| {
+    let fitted = req.run(backend.as_ref(), &coll, &|d, t| {
         pb.set_length(t);
         pb.set_position(d);
     })?;
     pb.finish_and_clear();
-    let warnings = fit_warnings(&coll, &basis, &targets, &fits);
+    let (basis, fits) = (&fitted.basis, &fitted.fits);
+    let warnings = &fitted.warnings;
     for w in warnings.iter().take(MAX_WARNINGS) {
         eprintln!("warning: {w}");
     }
@@ -106,7 +128,7 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let files = export_file_names(&names);
     if let Some(dir) = &a.export {
         for (f, file) in fits.iter().zip(&files) {
-            let rgb = combination_grid(&coll, &basis, f);
+            let rgb = combination_grid(&coll, basis, f);
             out.stage(&dir.join(file), |w| write_binary_to(w, &rgb))?;
         }
         let index = export_index_csv(&names, &files)?;
@@ -119,51 +141,19 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
             }
         }
     }
-    let text = serde_json::to_string_pretty(&FitFile::new(&coll, &basis, &fits, &p))?;
+    let text = serde_json::to_string_pretty(&fitted.file)?;
     out.stage(&a.json, |w| {
         w.write_all(text.as_bytes())?;
         w.write_all(b"\n")
     })?;
     out.commit()?;
-    println!("{}", summary(&a.json, &fits));
+    println!("{}", summary(&a.json, fits));
     if let Some(dir) = &a.export {
         for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
             println!("wrote {}", dir.join(file).display());
         }
     }
     Ok(())
-}
-
-/// The targets of `fit`: `--targets` (each once) or `--all-others`, never empty.
-fn targets_of(
-    a: &FitArgs,
-    coll: &brdf_basis::collection::Collection,
-    basis: &[usize],
-) -> anyhow::Result<Vec<usize>> {
-    let targets: Vec<usize> = if a.all_others {
-        (0..coll.len()).filter(|i| !basis.contains(i)).collect()
-    } else if a.targets.is_empty() {
-        anyhow::bail!("give --targets X,Y or --all-others");
-    } else {
-        a.targets
-            .iter()
-            .map(|n| coll.index_of(n.trim()))
-            .collect::<Result<_, _>>()?
-    };
-    for (i, &t) in targets.iter().enumerate() {
-        if targets[..i].contains(&t) {
-            anyhow::bail!(
-                "--targets: material `{}` is given twice",
-                brdf_basis::error::short_name(&coll.materials()[t].name)
-            );
-        }
-    }
-    if targets.is_empty() {
-        anyhow::bail!(
-            "--all-others: every material of the collection is in the basis; nothing to fit"
-        );
-    }
-    Ok(targets)
 }
 
 /// `wrote FILE (N targets, mean MAE .., mean relative residual .., mean relative MAE ..)`,
@@ -253,58 +243,28 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 /// JSON (the `fit` schema with `samples` and `fitted_from`; residual and MAE on the
 /// samples) and, with `--export`, the whole reconstruction as a MERL `.binary`.
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
-    use brdf_basis::acquire::{fit, plan, read_samples};
-    let path = a
-        .samples
-        .clone()
-        .expect("run_samples is called with --samples");
+    let req = a.samples_request(g);
     let mut out_plan = OutputPlan::new(&a.collection);
     out_plan.file(&a.json, "--json")?;
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "samples".into());
+    let stem = req.target_name();
     let files = export_file_names(&[stem.as_str()]);
     if let Some(dir) = &a.export {
         plan_export(&mut out_plan, dir, &files)?;
     }
     let mut out = out_plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let basis: Vec<usize> = a
-        .basis
-        .iter()
-        .map(|n| coll.index_of(n.trim()))
-        .collect::<Result<_, _>>()?;
-    let samples = read_samples(&path)?;
-    let sf = fit::fit_samples(&coll, &basis, &samples)?;
-    let d = &sf.determination;
-    let more = d.columns.saturating_sub(d.rank.min(d.samples)).max(3);
-    let hint = if d.rank < d.columns || d.condition > fit::WARN_CONDITION {
-        plan::suggest(&coll, &basis, &samples, more, g.seed)?
-    } else {
-        String::new()
-    };
-    for w in fit::determination_warnings(d, fit::WARN_CONDITION, &hint) {
+    let fitted = req.run(&coll)?;
+    for w in &fitted.warnings {
         eprintln!("warning: {w}");
     }
-    let p = FitParams {
-        mask: a.grid.mask,
-        weighting: a.grid.weighting,
-        stride: a.grid.stride,
-        solver: a.solver,
-        gram: a.gram,
-    };
-    let tf = sf.target_fit(&stem);
+    let (basis, tf, d) = (&fitted.basis, &fitted.target, &fitted.fit.determination);
     if let Some(dir) = &a.export {
-        let rgb = combination_grid(&coll, &basis, &tf);
+        let rgb = combination_grid(&coll, basis, tf);
         out.stage(&dir.join(&files[0]), |w| write_binary_to(w, &rgb))?;
         let index = export_index_csv(&[stem.as_str()], &files)?;
         out.stage(&dir.join(EXPORT_INDEX), |w| w.write_all(&index))?;
     }
-    let mut file = FitFile::new(&coll, &basis, std::slice::from_ref(&tf), &p);
-    file.samples = Some(samples.len());
-    file.fitted_from = Some(path.display().to_string());
-    let text = serde_json::to_string_pretty(&file)?;
+    let text = serde_json::to_string_pretty(&fitted.file)?;
     out.stage(&a.json, |w| {
         w.write_all(text.as_bytes())?;
         w.write_all(b"\n")
@@ -313,11 +273,11 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     println!(
         "wrote {} ({} samples, rank {} of {}, condition number {}, relative residual on the samples {})",
         a.json.display(),
-        samples.len(),
+        fitted.samples,
         d.rank,
         d.columns,
         brdf_basis::stats::num(d.condition),
-        brdf_basis::stats::num(sf.relative_residual)
+        brdf_basis::stats::num(fitted.fit.relative_residual)
     );
     if let Some(dir) = &a.export {
         for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {

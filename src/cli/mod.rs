@@ -10,7 +10,6 @@ pub mod plot;
 pub mod render;
 pub mod reproduce;
 pub mod select;
-pub mod select_error;
 pub mod tabulate;
 
 use brdf_basis::atomic::OutputPlan;
@@ -61,6 +60,17 @@ pub struct GridArgs {
     /// Use every s-th cell on each grid axis (1 = full grid; larger for quick runs; 1..=90).
     #[arg(long, default_value_t = 1, value_parser = parse_stride)]
     pub stride: usize,
+}
+
+impl GridArgs {
+    /// The flags as a request's [`brdf_basis::run::Grid`].
+    pub fn grid(&self) -> brdf_basis::run::Grid {
+        brdf_basis::run::Grid {
+            mask: self.mask,
+            weighting: self.weighting,
+            stride: self.stride,
+        }
+    }
 }
 
 /// `--stride`: 1 (the full grid) to 90 (one cell per axis).

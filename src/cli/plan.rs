@@ -1,11 +1,16 @@
 //! `brdf-basis plan`: where to measure a new material (SPEC 10).
 
 use super::Global;
-use brdf_basis::acquire::plan::{cell_candidates, plan, plan_csv, Candidate};
-use brdf_basis::acquire::{read_samples, Criterion, PlanParams};
+use brdf_basis::acquire::plan::plan_csv;
+use brdf_basis::acquire::Criterion;
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::fit::FitParams;
+use brdf_basis::run::PlanRequest;
 use std::path::PathBuf;
+
+/// The request's defaults, for `--help`.
+fn defaults() -> PlanRequest {
+    PlanRequest::new(Vec::new())
+}
 
 /// Arguments of `plan`.
 #[derive(clap::Args, Debug)]
@@ -19,13 +24,13 @@ pub struct PlanArgs {
     #[arg(long, value_delimiter = ',', required = true)]
     pub basis: Vec<String>,
     /// Samples to plan.
-    #[arg(short = 'n', default_value_t = 20)]
+    #[arg(short = 'n', default_value_t = defaults().n)]
     pub n: usize,
     /// error (greedy on the mean training score), condition (greedy on the condition
     /// number of the sampled design) or random. (`nielsen`, the peer baseline, has its own
     /// reconstructor, which `fit --samples` does not run: `cv --acquisition --plans nielsen`
     /// compares it.)
-    #[arg(long, value_enum, default_value_t = Criterion::Error)]
+    #[arg(long, value_enum, default_value_t = defaults().criterion)]
     pub criterion: Criterion,
     /// Training materials, comma-separated [default: every material outside the basis].
     #[arg(long, value_delimiter = ',')]
@@ -36,15 +41,15 @@ pub struct PlanArgs {
     #[arg(long)]
     pub candidates: Option<PathBuf>,
     /// Candidates examined per step (0: all).
-    #[arg(long, default_value_t = PlanParams::default().candidates_per_step)]
+    #[arg(long, default_value_t = defaults().candidates_per_step)]
     pub candidates_per_step: usize,
     /// error: screened candidates fitted exactly per step (0: all examined).
-    #[arg(long, default_value_t = PlanParams::default().shortlist)]
+    #[arg(long, default_value_t = defaults().shortlist)]
     pub shortlist: usize,
-    /// error: seeded greedy paths sharing the candidates of each step, the one of the
+    /// error: seeded greedy paths (1 to 64) sharing the candidates of each step, the one of the
     /// lowest final training score kept (the plan's prefixes are its shorter plans; a run
     /// at a smaller -n may choose another path).
-    #[arg(long, default_value_t = PlanParams::default().restarts, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=64))]
+    #[arg(long, default_value_t = defaults().restarts)]
     pub restarts: usize,
     /// Output CSV: the samples-file header and one row per sample, in the order chosen.
     #[arg(long)]
@@ -54,13 +59,26 @@ pub struct PlanArgs {
     pub json: Option<PathBuf>,
 }
 
+impl PlanArgs {
+    /// The request these flags make.
+    pub fn request(&self, g: &Global) -> PlanRequest {
+        let mut r = PlanRequest::new(self.basis.clone());
+        r.targets = (!self.targets.is_empty()).then(|| self.targets.clone());
+        r.candidates = self.candidates.clone();
+        r.n = self.n;
+        r.criterion = self.criterion;
+        r.candidates_per_step = self.candidates_per_step;
+        r.shortlist = self.shortlist;
+        r.restarts = self.restarts;
+        r.seed = g.seed;
+        r
+    }
+}
+
 /// Plans the samples.
 pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
-    if a.criterion == Criterion::Nielsen {
-        anyhow::bail!(
-            "--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random (SPEC-cli), and `cv --acquisition --plans nielsen` compares the baseline"
-        );
-    }
+    let req = a.request(g);
+    req.check()?;
     let mut op = OutputPlan::new(&a.collection);
     op.file(&a.out, "--out")?;
     if let Some(j) = &a.json {
@@ -68,47 +86,9 @@ pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     }
     let mut out = op.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let basis: Vec<usize> = a
-        .basis
-        .iter()
-        .map(|n| coll.index_of(n.trim()))
-        .collect::<Result<_, _>>()?;
-    let targets: Vec<usize> = if a.targets.is_empty() {
-        (0..coll.len()).filter(|i| !basis.contains(i)).collect()
-    } else {
-        a.targets
-            .iter()
-            .map(|n| coll.index_of(n.trim()))
-            .collect::<Result<_, _>>()?
-    };
-    let fit = FitParams::default();
-    let cands: Vec<Candidate> = match &a.candidates {
-        Some(p) => read_samples(p)?
-            .into_iter()
-            .map(|s| Candidate {
-                wi: s.wi,
-                wo: s.wo,
-                cell: None,
-            })
-            .collect(),
-        None => {
-            let mut all = basis.clone();
-            all.extend_from_slice(&targets);
-            cell_candidates(&coll, &all, &fit)?
-        }
-    };
     let backend = super::backend(g)?;
-    let p = PlanParams {
-        n: a.n,
-        criterion: a.criterion,
-        candidates_per_step: a.candidates_per_step,
-        shortlist: a.shortlist,
-        seed: g.seed,
-        fit,
-        restarts: a.restarts,
-    };
     let t0 = std::time::Instant::now();
-    let pl = plan(backend.as_ref(), &coll, &basis, &targets, &cands, &p)?;
+    let pl = req.run(backend.as_ref(), &coll)?;
     let secs = t0.elapsed().as_secs_f64();
     let csv = plan_csv(&pl);
     out.stage(&a.out, |w| w.write_all(csv.as_bytes()))?;

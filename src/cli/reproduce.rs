@@ -7,12 +7,17 @@ use super::Global;
 use anyhow::Context;
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::eval::image_error::DisplayParams;
-use brdf_basis::experiment::bases::read_paper_bases;
 use brdf_basis::experiment::layout;
-use brdf_basis::experiment::report::{AcquisitionReport, ReportContext};
-use brdf_basis::experiment::{run as run_experiment, ExperimentParams, Stage, StageTiming};
+use brdf_basis::experiment::report::ReportContext;
+use brdf_basis::experiment::{Stage, StageTiming};
+use brdf_basis::run::ReproduceRequest;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The request's defaults, for `--help`.
+fn defaults() -> ReproduceRequest {
+    ReproduceRequest::default()
+}
 
 /// Arguments of `reproduce`.
 #[derive(clap::Args, Debug)]
@@ -31,22 +36,22 @@ pub struct ReproduceArgs {
     #[arg(long)]
     pub force: bool,
     /// Runs per clustering configuration (paper: 30).
-    #[arg(long, default_value_t = ExperimentParams::default().runs)]
+    #[arg(long, default_value_t = defaults().runs)]
     pub runs: usize,
     /// Grid stride for distances and fits (1 = full grid).
-    #[arg(long, default_value_t = ExperimentParams::default().stride)]
+    #[arg(long, default_value_t = defaults().stride)]
     pub stride: usize,
     /// Smallest k of k-medoids and GCUK (paper: 5).
-    #[arg(long, default_value_t = ExperimentParams::default().k_min)]
+    #[arg(long, default_value_t = defaults().k_min)]
     pub k_min: usize,
     /// Largest k of k-medoids (paper: 12).
-    #[arg(long, default_value_t = ExperimentParams::default().k_max)]
+    #[arg(long, default_value_t = defaults().k_max)]
     pub k_max: usize,
     /// GCUK k_max (paper: 20).
-    #[arg(long, default_value_t = ExperimentParams::default().gcuk_k_max)]
+    #[arg(long, default_value_t = defaults().gcuk_k_max)]
     pub gcuk_k_max: usize,
     /// Render size in pixels for the image errors.
-    #[arg(long, default_value_t = ExperimentParams::default().render_size)]
+    #[arg(long, default_value_t = defaults().render_size)]
     pub render_size: u32,
     /// Material shown in full-size renders, heatmaps and lobe plots (default: alum-bronze
     /// when it is evaluated, else a moderately glossy analytic target with a visible body,
@@ -57,10 +62,10 @@ pub struct ReproduceArgs {
     #[arg(long)]
     pub paper_bases: Option<PathBuf>,
     /// Folds of the cross-validation of every selection method (0: none).
-    #[arg(long, default_value_t = ExperimentParams::default().cv_folds)]
+    #[arg(long, default_value_t = defaults().cv_folds)]
     pub cv_folds: usize,
     /// k-medoids restarts and GCUK runs per fold in the cross-validation.
-    #[arg(long, default_value_t = ExperimentParams::default().cv_runs)]
+    #[arg(long, default_value_t = defaults().cv_runs)]
     pub cv_runs: usize,
     /// Leave out the bases chosen by fitting error (greedy, swap).
     #[arg(long)]
@@ -72,9 +77,31 @@ pub struct ReproduceArgs {
     pub no_acquisition: bool,
 }
 
+impl ReproduceArgs {
+    /// The request these flags make.
+    pub fn request(&self, g: &Global) -> ReproduceRequest {
+        let mut r = ReproduceRequest::default();
+        r.runs = self.runs;
+        r.stride = self.stride;
+        r.k_min = self.k_min;
+        r.k_max = self.k_max;
+        r.gcuk_k_max = self.gcuk_k_max;
+        r.render_size = self.render_size;
+        r.showcase = self.showcase.clone();
+        r.paper_bases = self.paper_bases.clone();
+        r.cv_folds = self.cv_folds;
+        r.cv_runs = self.cv_runs;
+        r.selection = !self.no_selection;
+        r.acquisition = !self.no_acquisition;
+        r.seed = g.seed;
+        r
+    }
+}
+
 /// Runs everything.
 pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     let started = Instant::now();
+    let req = a.request(g);
     // The output tree before any work: a new directory (its parent exists), an empty one,
     // or with --force one holding only an earlier run's files; writable.
     let mut plan = OutputPlan::new(&a.collection);
@@ -83,30 +110,11 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     }
     plan.tree(&a.out, "--out", a.force, layout::is_output)?;
     let coll = super::load_collection(&a.collection)?;
-    let paper_bases = match &a.paper_bases {
-        Some(p) => read_paper_bases(p, &coll)?,
-        None => vec![],
-    };
-    let params = ExperimentParams {
-        runs: a.runs,
-        stride: a.stride,
-        k_min: a.k_min,
-        k_max: a.k_max,
-        gcuk_k_max: a.gcuk_k_max,
-        render_size: a.render_size,
-        showcase: a.showcase.clone(),
-        seed: g.seed,
-        paper_bases,
-        error_driven: !a.no_selection,
-        cv_folds: a.cv_folds,
-        cv_runs: a.cv_runs,
-        ..Default::default()
-    }
-    .check(&coll)?;
+    let params = req.check(&coll)?;
     brdf_basis::plot::font()?; // an unusable BRDF_BASIS_FONT is refused before any work
     let mut out = plan.into_set()?;
     let root = out.tree_root(&a.out)?;
-    let written = run_into(g, &coll, &params, &root, !a.no_acquisition)?;
+    let written = run_into(g, &req, &coll, &params, &root)?;
     out.commit()?;
     for f in &written {
         println!("wrote {}", a.out.join(f).display());
@@ -124,24 +132,18 @@ pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
 /// returns the files written, relative to it.
 fn run_into(
     g: &Global,
+    req: &ReproduceRequest,
     coll: &brdf_basis::collection::Collection,
     params: &brdf_basis::experiment::ValidExperimentParams,
     root: &Path,
-    acquisition: bool,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let backend = super::backend(g)?;
     let bars = StageBars::new(g);
-    let e = run_experiment(backend.as_ref(), coll, params, &|s, d, t| {
+    let r = req.run(backend.as_ref(), coll, params, &|s, d, t| {
         bars.update(s, d, t)
     })?;
     bars.finish();
-    let t_acq = Instant::now();
-    let acq = if acquisition {
-        Some(run_acquisition(g, backend.as_ref(), coll, params.params())?)
-    } else {
-        None
-    };
-    let acq_seconds = t_acq.elapsed().as_secs_f64();
+    let e = r.experiment;
 
     let t_files = Instant::now();
     let scale = brdf_basis::plot::showcase::common_scale(
@@ -150,10 +152,10 @@ fn run_into(
     )?;
     let mut written = layout::write_files(&e, root, scale)?;
     let mut ctx = ReportContext::default();
-    if let Some(a) = acq {
+    if let Some(a) = r.acquisition {
         ctx.timings.push(StageTiming {
             stage: "acquisition".into(),
-            seconds: acq_seconds,
+            seconds: r.acquisition_seconds,
         });
         if a.skipped.is_none() {
             brdf_basis::io::json::write_json(&root.join(layout::ACQUISITION), &a.cv)?;
@@ -186,87 +188,6 @@ fn run_into(
     });
     written.extend(layout::write_summary_and_report(&e, &ctx, root)?);
     Ok(written)
-}
-
-/// The acquisition cross-validation of the report (SPEC 10), with settings kept modest:
-/// `--cv-folds` folds, greedy bases of k = 12 (fewer when the training folds are small),
-/// plans error, condition, random and nielsen, n = 5, 10, 20, noise 0 and 2%, the run's
-/// grid stride, renders of at most 64 px; on collections of more than 40 materials 2,000
-/// candidates per plan step (10,000 otherwise), a grid stride of at least 2 and noise 0
-/// only.
-fn run_acquisition(
-    g: &Global,
-    backend: &dyn brdf_basis::backend::Backend,
-    coll: &brdf_basis::collection::Collection,
-    p: &ExperimentParams,
-) -> anyhow::Result<AcquisitionReport> {
-    use brdf_basis::acquire::{acquisition_cv, AcqCvParams, Criterion};
-    let n = coll.len();
-    let skip = |why: String| AcquisitionReport {
-        cv: brdf_basis::acquire::AcqCv {
-            folds: vec![],
-            seed: g.seed,
-            select: brdf_basis::acquire::cv::AcqSelect {
-                method: String::new(),
-                k: 0,
-            },
-            k: 0,
-            candidates_per_step: 0,
-            restarts: 1,
-            results: vec![],
-            collection_fingerprint: coll.fingerprint(),
-            showcase: None,
-        },
-        settings: String::new(),
-        skipped: Some(why),
-    };
-    if p.cv_folds < 2 {
-        return Ok(skip("no cross-validation folds (--cv-folds 0)".into()));
-    }
-    let train = n - n.div_ceil(p.cv_folds);
-    let k = 12.min(train.saturating_sub(1));
-    if k == 0 {
-        return Ok(skip(format!(
-            "{n} materials in {} folds leave no training material outside a basis",
-            p.cv_folds
-        )));
-    }
-    // Big collections: fewer candidates per step, every other cell on each axis, no
-    // noisy repeat (the noise-free table is the comparison).
-    let big = n > 40;
-    let per_step = if big { 2_000 } else { 10_000 };
-    let stride = if big { p.stride.max(2) } else { p.stride };
-    let ap = AcqCvParams {
-        k,
-        plans: vec![
-            Criterion::Error,
-            Criterion::Condition,
-            Criterion::Random,
-            Criterion::Nielsen,
-        ],
-        folds: p.cv_folds,
-        seed: g.seed,
-        candidates_per_step: per_step,
-        render_size: p.render_size.min(64),
-        objective: brdf_basis::select::ObjectiveParams::default().stride(stride),
-        noises: if big { vec![0.0] } else { vec![0.0, 0.02] },
-        ..AcqCvParams::default()
-    };
-    let settings = format!(
-        "{} folds, greedy k = {k}, plans error, condition, random, nielsen; n = {}; noise {}; {} candidates per plan step (nielsen: 500, as published); grid stride {}; {} px renders",
-        ap.folds,
-        ap.ns.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(", "),
-        ap.noises.iter().map(|v| format!("{}%", v * 100.0)).collect::<Vec<_>>().join(", "),
-        per_step,
-        stride,
-        ap.render_size
-    );
-    let cv = acquisition_cv(backend, coll, &ap)?;
-    Ok(AcquisitionReport {
-        cv,
-        settings,
-        skipped: None,
-    })
 }
 
 /// One progress bar per stage.

@@ -2,6 +2,7 @@
 //! sidecar of a saved matrix ([`sidecar`]), saved matrices written and loaded with their
 //! checks ([`saved`]), tile merging ([`merge`]), read-only memory maps ([`mmap`]), JSON and images.
 
+mod error;
 pub mod image;
 pub mod json;
 pub mod merge;
@@ -10,4 +11,4 @@ pub mod npy;
 pub mod saved;
 pub mod sidecar;
 
-pub use saved::MatrixFileError;
+pub use error::MatrixFileError;

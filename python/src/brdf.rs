@@ -1,0 +1,138 @@
+//! BRDFs (`Brdf`), the sphere renderer of SPEC 7 and the image error.
+
+use crate::*;
+
+/// A BRDF `f(wi, wo) -> RGB` in a local frame with the normal on +z: an analytic
+/// material, a measured one (MERL lookup), or a fitted combination.
+#[pyclass(frozen, module = "brdf_basis._native", name = "Brdf")]
+pub(crate) struct Brdf {
+    pub(crate) f: bb::eval::shade::BrdfFn,
+    pub(crate) label: String,
+}
+
+#[pymethods]
+impl Brdf {
+    /// The BRDF of material `name` of `collection`.
+    #[staticmethod]
+    fn material(collection: &Bound<'_, Collection>, name: &str) -> PyResult<Self> {
+        let coll = coll_of(collection);
+        let m = coll.get(name).map_err(lib_err)?;
+        Ok(Self {
+            f: bb::eval::shade::material_brdf(&m.data),
+            label: name.to_string(),
+        })
+    }
+
+    /// The fitted combination of `target` read from a `fit` JSON file.
+    #[staticmethod]
+    fn fitted(collection: &Bound<'_, Collection>, fit: PathBuf, target: &str) -> PyResult<Self> {
+        let coll = coll_of(collection);
+        let f = bb::fit::file::FitFile::combination_from(&fit, &coll, target).map_err(lib_err)?;
+        Ok(Self {
+            f,
+            label: format!("fit of {target} ({})", fit.display()),
+        })
+    }
+
+    /// Evaluates at one pair of directions (3 floats each): (r, g, b).
+    fn eval1(&self, wi: [f64; 3], wo: [f64; 3]) -> (f64, f64, f64) {
+        let v = (self.f)(wi, wo);
+        (v[0], v[1], v[2])
+    }
+
+    /// Evaluates at arrays of directions, shape (..., 3) each: returns (..., 3) float64.
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        wi: PyReadonlyArrayDyn<'py, f64>,
+        wo: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let shape = wi.shape().to_vec();
+        if shape != wo.shape() || shape.last() != Some(&3) {
+            return Err(value_err(format!(
+                "wi and wo must have the same shape (..., 3), got {:?} and {:?}",
+                shape,
+                wo.shape()
+            )));
+        }
+        let a: Vec<f64> = wi.as_array().iter().copied().collect();
+        let b: Vec<f64> = wo.as_array().iter().copied().collect();
+        let f = &self.f;
+        let out = py.detach(|| {
+            let mut out = vec![0f64; a.len()];
+            for ((o, x), y) in out.chunks_mut(3).zip(a.chunks(3)).zip(b.chunks(3)) {
+                o.copy_from_slice(&f([x[0], x[1], x[2]], [y[0], y[1], y[2]]));
+            }
+            out
+        });
+        Ok(PyArray1::from_vec(py, out).reshape(shape)?.into_any())
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Brdf({})", self.label)
+    }
+}
+
+/// The sphere of SPEC 7 (orthographic from +z, one directional light from
+/// `light = (theta, phi)` degrees): linear radiance, shape (size, size, 3) float32, row 0
+/// at the top (what `brdf-basis render --out` writes).
+#[pyfunction]
+#[pyo3(signature = (brdf, *, size = 256, light = (45.0, 45.0)))]
+pub(crate) fn render<'py>(
+    py: Python<'py>,
+    brdf: &Bound<'py, Brdf>,
+    size: u32,
+    light: (f64, f64),
+) -> PyResult<Bound<'py, PyAny>> {
+    let p = bb::eval::render::RenderParams::default()
+        .with_size(size)
+        .with_light(light.0, light.1);
+    let f = &brdf.get().f;
+    let img = py
+        .detach(|| bb::eval::render::render_sphere(&p, f))
+        .map_err(lib_err)?;
+    let s = size as usize;
+    Ok(img.data.to_pyarray(py).reshape([s, s, 3])?.into_any())
+}
+
+pub(crate) fn image_of(a: &PyReadonlyArrayDyn<'_, f32>) -> PyResult<bb::eval::render::Image> {
+    let sh = a.shape();
+    if sh.len() != 3 || sh[2] != 3 {
+        return Err(value_err(format!(
+            "an image has shape (height, width, 3), got {sh:?}"
+        )));
+    }
+    let (h, w) = (sh[0] as u32, sh[1] as u32);
+    Ok(bb::eval::render::Image {
+        width: w,
+        height: h,
+        data: a.as_array().iter().copied().collect(),
+        mask: bb::eval::render::sphere_mask(w, h),
+    })
+}
+
+/// Normalised image error of SPEC 7 between two sphere renders (float32 arrays
+/// (size, size, 3)): the mean over sphere pixels and channels of |a - b| after the
+/// display mapping (exposure, gamma, clamp).
+#[pyfunction]
+#[pyo3(signature = (a, b, *, exposure = 0.0, gamma = 2.2))]
+pub(crate) fn image_error(
+    a: PyReadonlyArrayDyn<'_, f32>,
+    b: PyReadonlyArrayDyn<'_, f32>,
+    exposure: f64,
+    gamma: f64,
+) -> PyResult<f64> {
+    let d = bb::eval::image_error::DisplayParams::default()
+        .with_exposure(exposure)
+        .with_gamma(gamma);
+    d.check().map_err(lib_err)?;
+    bb::eval::image_error::normalized_image_error(&image_of(&a)?, &image_of(&b)?, &d)
+        .map_err(lib_err)
+}
+
+/// The name of the back-end `backend` opens (`cpu (2 threads, avx2)`, `gpu: ...`).
+#[pyfunction]
+#[pyo3(signature = (backend = "auto"))]
+pub(crate) fn backend_name(backend: &str) -> PyResult<String> {
+    Ok(open_backend(backend)?.name())
+}

@@ -1,0 +1,327 @@
+//! The commands (distance, select, fit, plan, cv, cv --acquisition): keyword arguments
+//! translated into the library's requests (`brdf_basis::run`), results as the JSON text
+//! the command line writes.
+
+#![allow(clippy::too_many_arguments)]
+
+use crate::*;
+
+/// The distance matrix (N, N), float64, as `brdf-basis distance` writes it (the library's
+/// `run::DistanceRequest`).
+#[pyfunction]
+#[pyo3(signature = (collection, *, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, backend = "auto", progress = None))]
+pub(crate) fn distance_matrix<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    metric: &str,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let coll = coll_of(collection);
+    let mut req = bb::run::DistanceRequest::default();
+    req.metric = parse(metric)?;
+    req.grid = grid(mask, weighting, stride)?;
+    let valid = req.params(&coll).map_err(py_err)?;
+    let backend = open_backend(backend)?;
+    let d = run_long(py, progress, "distances", |pr| {
+        match req.run(backend.as_ref(), &coll, &valid, pr)? {
+            bb::run::DistanceOutput::Matrix(d) => Ok(d),
+            _ => unreachable!("a request without a tile computes the whole matrix"),
+        }
+    })?;
+    let n = coll.len();
+    Ok(PyArray1::from_slice(py, d.as_full())
+        .reshape([n, n])?
+        .into_any())
+}
+
+/// The grid settings of a request (`mask`, `weighting`, `stride`).
+pub(crate) fn grid(mask: &str, weighting: &str, stride: usize) -> PyResult<bb::run::Grid> {
+    Ok(bb::run::Grid {
+        mask: parse(mask)?,
+        weighting: parse(weighting)?,
+        stride,
+    })
+}
+
+/// A basis selection as `brdf-basis select`: returns the `--json` text. The keyword
+/// arguments are the fields of the library's `run::SelectRequest`, which makes every
+/// rule (one wording for the command line, Python and the library).
+#[pyfunction]
+#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+pub(crate) fn select_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    method: &str,
+    k: Option<usize>,
+    k_min: Option<usize>,
+    k_max: Option<usize>,
+    runs: Option<usize>,
+    algorithm: Option<&str>,
+    population: Option<usize>,
+    generations: Option<usize>,
+    more_than: Option<usize>,
+    candidates: Option<Vec<String>>,
+    targets: Option<Vec<String>>,
+    init: Option<Vec<String>>,
+    ga_population: Option<usize>,
+    ga_generations: Option<usize>,
+    ga_crossover: Option<f64>,
+    ga_mutation: Option<f64>,
+    metric: Option<&str>,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    seed: u64,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let mut req = bb::run::SelectRequest::new(parse(method)?);
+    req.k = k;
+    req.k_min = k_min;
+    req.k_max = k_max;
+    req.runs = runs.unwrap_or(req.runs);
+    if let Some(a) = algorithm {
+        req.algorithm = parse(a)?;
+    }
+    req.population = population.unwrap_or(req.population);
+    req.generations = generations.unwrap_or(req.generations);
+    req.more_than = more_than.unwrap_or(req.more_than);
+    req.candidates = candidates;
+    req.targets = targets;
+    req.init = init;
+    req.ga_population = ga_population;
+    req.ga_generations = ga_generations;
+    req.ga_crossover = ga_crossover;
+    req.ga_mutation = ga_mutation;
+    if let Some(m) = metric {
+        req.metric = parse(m)?;
+    }
+    req.grid = grid(mask, weighting, stride)?;
+    req.seed = seed;
+    req.check().map_err(py_err)?;
+    let backend = open_backend(backend)?;
+    let out = run_long(py, progress, method, |pr| {
+        req.run(backend.as_ref(), &coll, pr)
+    })?;
+    Ok(out.to_json())
+}
+
+/// `solver`: `exact` or `pgd`.
+pub(crate) fn solver(s: &str) -> PyResult<bb::Solver> {
+    match s {
+        "exact" => Ok(bb::Solver::Exact),
+        "pgd" => Ok(bb::Solver::Pgd),
+        s => Err(value_err(format!(
+            "invalid solver `{s}` (expected exact, pgd)"
+        ))),
+    }
+}
+
+/// `gram`: `auto` or `grid`.
+pub(crate) fn gram_mode(s: &str) -> PyResult<bb::GramMode> {
+    match s {
+        "auto" => Ok(bb::GramMode::Auto),
+        "grid" => Ok(bb::GramMode::Grid),
+        s => Err(value_err(format!(
+            "invalid gram `{s}` (expected auto, grid)"
+        ))),
+    }
+}
+
+/// Fits `targets` (default: every material outside the basis) by `basis`: returns the
+/// JSON `brdf-basis fit --json` writes (the library's `run::FitRequest`).
+#[pyfunction]
+#[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", backend = "auto", progress = None))]
+pub(crate) fn fit_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    basis: Vec<String>,
+    targets: Option<Vec<String>>,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    solver: &str,
+    gram: &str,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let mut req = bb::run::FitRequest::new(basis);
+    req.targets = match targets {
+        Some(t) => bb::run::FitTargets::Named(t),
+        None => bb::run::FitTargets::AllOthers,
+    };
+    req.grid = grid(mask, weighting, stride)?;
+    req.solver = self::solver(solver)?;
+    req.gram = gram_mode(gram)?;
+    let backend = open_backend(backend)?;
+    let fitted = run_long(py, progress, "fit", |pr| {
+        req.run(backend.as_ref(), &coll, pr)
+    })?;
+    let text = serde_json::to_string_pretty(&fitted.file).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}
+
+/// Plans where to measure a new material (SPEC 10), as `brdf-basis plan --json` on the
+/// evaluation-mask cell centres (the library's `run::PlanRequest`): returns the JSON text.
+#[pyfunction]
+#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = 1, restarts = None, backend = "auto", progress = None))]
+pub(crate) fn plan_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    basis: Vec<String>,
+    n: usize,
+    criterion: Option<&str>,
+    targets: Option<Vec<String>>,
+    candidates_per_step: Option<usize>,
+    shortlist: Option<usize>,
+    seed: u64,
+    restarts: Option<usize>,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let mut req = bb::run::PlanRequest::new(basis);
+    req.n = n;
+    if let Some(c) = criterion {
+        req.criterion = parse(c)?;
+    }
+    req.targets = targets;
+    req.candidates_per_step = candidates_per_step.unwrap_or(req.candidates_per_step);
+    req.shortlist = shortlist.unwrap_or(req.shortlist);
+    req.restarts = restarts.unwrap_or(req.restarts);
+    req.seed = seed;
+    req.check().map_err(py_err)?;
+    let backend = open_backend(backend)?;
+    let plan = run_long(py, progress, "plan", |_| req.run(backend.as_ref(), &coll))?;
+    let text = serde_json::to_string_pretty(&plan).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}
+
+/// Fits a new material from samples (SPEC 10): `angles` (n, 4) in degrees
+/// `theta_i, phi_i, theta_o, phi_o`, `rgb` (n, 3), optional `sigma` (n, 3). Returns
+/// `(coefficients (1 + k, 3), residual (3), mae, relative_residual, rank, condition)`.
+#[pyfunction]
+#[pyo3(signature = (collection, basis, angles, rgb, sigma = None))]
+#[allow(clippy::type_complexity)]
+pub(crate) fn fit_samples<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    basis: Vec<String>,
+    angles: Vec<[f64; 4]>,
+    rgb: Vec<[f64; 3]>,
+    sigma: Option<Vec<[f64; 3]>>,
+) -> PyResult<(Bound<'py, PyAny>, [f64; 3], f64, f64, usize, f64)> {
+    let coll = coll_of(collection);
+    let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
+    let f = bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref()).map_err(lib_err)?;
+    let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
+    let coefficients = numpy::PyArray1::from_vec(py, flat)
+        .reshape([f.coefficients.len(), 3])?
+        .into_any();
+    Ok((
+        coefficients,
+        f.residual,
+        f.mae,
+        f.relative_residual,
+        f.determination.rank,
+        f.determination.condition,
+    ))
+}
+
+/// K-fold cross-validation as `brdf-basis cv` (the library's `run::CvRequest`): returns
+/// the `--json` text.
+#[pyfunction]
+#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, backend = "auto", progress = None))]
+pub(crate) fn cross_validate_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    methods: Option<Vec<String>>,
+    ks: Option<Vec<usize>>,
+    folds: Option<usize>,
+    metric: Option<&str>,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    runs: Option<usize>,
+    ga_population: Option<usize>,
+    ga_generations: Option<usize>,
+    render_size: Option<u32>,
+    seed: u64,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let mut req = bb::run::CvRequest::default();
+    req.methods = parse_list(methods, &req.methods)?;
+    req.ks = ks.unwrap_or(req.ks);
+    req.folds = folds.unwrap_or(req.folds);
+    if let Some(m) = metric {
+        req.metric = parse(m)?;
+    }
+    req.grid = grid(mask, weighting, stride)?;
+    req.runs = runs.unwrap_or(req.runs);
+    req.ga_population = ga_population.unwrap_or(req.ga_population);
+    req.ga_generations = ga_generations.unwrap_or(req.ga_generations);
+    req.render_size = render_size.unwrap_or(req.render_size);
+    req.seed = seed;
+    req.check(coll.len()).map_err(py_err)?;
+    let backend = open_backend(backend)?;
+    let res = run_long(py, progress, "cv", |pr| {
+        req.run(backend.as_ref(), &coll, pr)
+    })?;
+    let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}
+
+/// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition` (the library's
+/// `run::AcquisitionRequest`): returns the `--json` text.
+#[pyfunction]
+#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+pub(crate) fn acquisition_cv_json<'py>(
+    py: Python<'py>,
+    collection: &Bound<'py, Collection>,
+    methods: Option<Vec<String>>,
+    k: Option<usize>,
+    plans: Option<Vec<String>>,
+    ns: Option<Vec<usize>>,
+    noises: Option<Vec<f64>>,
+    folds: Option<usize>,
+    candidates_per_step: Option<usize>,
+    shortlist: Option<usize>,
+    restarts: Option<usize>,
+    render_size: Option<u32>,
+    mask: &str,
+    weighting: &str,
+    stride: usize,
+    seed: u64,
+    backend: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<String> {
+    let coll = coll_of(collection);
+    let mut req = bb::run::AcquisitionRequest::default();
+    req.methods = parse_list(methods, &req.methods)?;
+    req.k = k.unwrap_or(req.k);
+    req.plans = parse_list(plans, &req.plans)?;
+    req.ns = ns.unwrap_or(req.ns);
+    req.noises = noises.unwrap_or(req.noises);
+    req.folds = folds.unwrap_or(req.folds);
+    req.candidates_per_step = candidates_per_step.unwrap_or(req.candidates_per_step);
+    req.shortlist = shortlist.unwrap_or(req.shortlist);
+    req.restarts = restarts.unwrap_or(req.restarts);
+    req.render_size = render_size.unwrap_or(req.render_size);
+    req.grid = grid(mask, weighting, stride)?;
+    req.seed = seed;
+    req.check().map_err(py_err)?;
+    let backend = open_backend(backend)?;
+    let res = run_long(py, progress, "cv --acquisition", |_| {
+        req.run(backend.as_ref(), &coll)
+    })?;
+    let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
+    Ok(text + "\n")
+}

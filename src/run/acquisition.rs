@@ -1,0 +1,101 @@
+//! `cv --acquisition`: acquisition cross-validation (SPEC 10).
+
+use super::{check_restarts, Grid};
+use crate::acquire::{acquisition_cv, AcqCv, AcqCvParams, Criterion};
+use crate::backend::Backend;
+use crate::collection::Collection;
+use crate::select::{CvMethod, ObjectiveParams};
+use crate::Result;
+
+/// `brdf-basis cv --acquisition`: its settings, with the defaults of `cv --help`
+/// ([`AcqCvParams::default`]).
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct AcquisitionRequest {
+    /// `--methods`: selection methods of the bases.
+    pub methods: Vec<CvMethod>,
+    /// `-k`: the basis size.
+    pub k: usize,
+    /// `--plans`: plan criteria (`nielsen`: the peer baseline with its own reconstruction).
+    pub plans: Vec<Criterion>,
+    /// `-n`: sample counts.
+    pub ns: Vec<usize>,
+    /// `--noise`: relative noise levels of the simulated measurements.
+    pub noises: Vec<f64>,
+    /// `--folds`.
+    pub folds: usize,
+    /// `--candidates-per-step` (0: all).
+    pub candidates_per_step: usize,
+    /// `--shortlist`: exact fits per step of the error plans (0: every examined one).
+    pub shortlist: usize,
+    /// `--restarts`: seeded greedy paths of the error plans, 1 to 64.
+    pub restarts: usize,
+    /// `--render-size`.
+    pub render_size: u32,
+    /// `--mask`, `--weighting`, `--stride`.
+    pub grid: Grid,
+    /// `--seed`.
+    pub seed: u64,
+}
+
+impl Default for AcquisitionRequest {
+    fn default() -> Self {
+        let d = AcqCvParams::default();
+        Self {
+            methods: d.methods,
+            k: d.k,
+            plans: d.plans,
+            ns: d.ns,
+            noises: d.noises,
+            folds: d.folds,
+            candidates_per_step: d.candidates_per_step,
+            shortlist: d.shortlist,
+            restarts: d.restarts,
+            render_size: d.render_size,
+            grid: Grid::default(),
+            seed: d.seed,
+        }
+    }
+}
+
+impl AcquisitionRequest {
+    /// The library's parameters.
+    fn params(&self) -> AcqCvParams {
+        AcqCvParams {
+            methods: self.methods.clone(),
+            k: self.k,
+            plans: self.plans.clone(),
+            ns: self.ns.clone(),
+            noises: self.noises.clone(),
+            folds: self.folds,
+            seed: self.seed,
+            candidates_per_step: self.candidates_per_step,
+            shortlist: self.shortlist,
+            restarts: self.restarts,
+            render_size: self.render_size,
+            objective: ObjectiveParams::default()
+                .mask(self.grid.mask)
+                .weighting(self.grid.weighting)
+                .stride(self.grid.stride),
+        }
+    }
+
+    /// The rules of the settings that need no collection (1 to 64 restarts); the others
+    /// (folds, k, plans, n, noise) are checked by [`Self::run`] before any work.
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError`] naming the setting.
+    pub fn check(&self) -> Result<()> {
+        check_restarts(self.restarts)
+    }
+
+    /// Runs the acquisition cross-validation on `coll` and returns what
+    /// `cv --acquisition --json` writes (its [`AcqCv::markdown`] is `--markdown`).
+    ///
+    /// # Errors
+    /// The settings' errors before any work, then the stages' errors.
+    pub fn run(&self, backend: &dyn Backend, coll: &Collection) -> Result<AcqCv> {
+        self.check()?;
+        Ok(acquisition_cv(backend, coll, &self.params())?)
+    }
+}

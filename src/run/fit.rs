@@ -1,0 +1,234 @@
+//! `fit`: materials of the collection as non-negative combinations of a basis.
+
+use super::{all_others, indices_of, refuse, Grid};
+use crate::acquire::SampleFit;
+use crate::backend::{Backend, Progress};
+use crate::collection::Collection;
+use crate::fit::diagnostics::fit_warnings;
+use crate::fit::file::FitFile;
+use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit};
+use crate::Result;
+use std::path::PathBuf;
+
+/// The materials `fit` fits.
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub enum FitTargets {
+    /// `--all-others`: every material outside the basis (the default of the library and
+    /// of Python; the command line asks for it by name).
+    #[default]
+    AllOthers,
+    /// `--targets`: these materials, each once.
+    Named(Vec<String>),
+}
+
+/// `brdf-basis fit` (without `--samples`): its settings, with the defaults of
+/// `fit --help` ([`FitParams::default`]).
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct FitRequest {
+    /// `--basis` (no default).
+    pub basis: Vec<String>,
+    /// `--targets` or `--all-others`.
+    pub targets: FitTargets,
+    /// `--mask`, `--weighting`, `--stride`.
+    pub grid: Grid,
+    /// `--solver`.
+    pub solver: Solver,
+    /// `--gram`.
+    pub gram: GramMode,
+}
+
+/// What `fit` computes: the fits, the JSON file, and the warnings on targets the basis
+/// cannot represent.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct FitOutput {
+    /// Basis (collection indices, in column order).
+    pub basis: Vec<usize>,
+    /// One fit per target, in target order.
+    pub fits: Vec<TargetFit>,
+    /// What `fit --json` writes.
+    pub file: FitFile,
+    /// Targets this basis cannot represent, in words ([`fit_warnings`]).
+    pub warnings: Vec<String>,
+}
+
+impl FitRequest {
+    /// The defaults with `basis`.
+    pub fn new(basis: Vec<String>) -> Self {
+        let d = FitParams::default();
+        Self {
+            basis,
+            targets: FitTargets::default(),
+            grid: Grid::default(),
+            solver: d.solver,
+            gram: d.gram,
+        }
+    }
+
+    /// The library's parameters.
+    pub fn params(&self) -> FitParams {
+        FitParams {
+            mask: self.grid.mask,
+            weighting: self.grid.weighting,
+            stride: self.grid.stride,
+            solver: self.solver,
+            gram: self.gram,
+        }
+    }
+
+    /// The basis and target indices in `coll`: targets each once, never empty.
+    ///
+    /// # Errors
+    /// An unknown material, a target given twice, no target left.
+    pub fn indices(&self, coll: &Collection) -> Result<(Vec<usize>, Vec<usize>)> {
+        let basis = indices_of(coll, &self.basis)?;
+        let targets = match &self.targets {
+            FitTargets::AllOthers => all_others(coll, &basis),
+            FitTargets::Named(names) if names.is_empty() => {
+                refuse!("give --targets X,Y or --all-others")
+            }
+            FitTargets::Named(names) => indices_of(coll, names)?,
+        };
+        for (i, &t) in targets.iter().enumerate() {
+            if targets[..i].contains(&t) {
+                refuse!(
+                    "--targets: material `{}` is given twice",
+                    crate::error::short_name(&coll.materials()[t].name)
+                );
+            }
+        }
+        if targets.is_empty() {
+            refuse!(
+                "--all-others: every material of the collection is in the basis; nothing to fit"
+            );
+        }
+        Ok((basis, targets))
+    }
+
+    /// Fits the targets on `backend` and returns the fits and the `--json` file.
+    ///
+    /// # Errors
+    /// As [`Self::indices`], then the fit's errors.
+    pub fn run(
+        &self,
+        backend: &dyn Backend,
+        coll: &Collection,
+        progress: Progress<'_>,
+    ) -> Result<FitOutput> {
+        let (basis, targets) = self.indices(coll)?;
+        let p = self.params();
+        let fits = fit(backend, coll, &basis, &targets, &p, progress)?;
+        let warnings = fit_warnings(coll, &basis, &targets, &fits);
+        let file = FitFile::new(coll, &basis, &fits, &p);
+        Ok(FitOutput {
+            basis,
+            fits,
+            file,
+            warnings,
+        })
+    }
+}
+
+/// `brdf-basis fit --samples`: a new material fitted from its measured samples (SPEC 10),
+/// with the defaults of `fit --help`.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct FitSamplesRequest {
+    /// `--basis` (no default).
+    pub basis: Vec<String>,
+    /// `--samples`: a samples CSV or an ASTM E1392 `.astm` file; the target is named after
+    /// its stem.
+    pub samples: PathBuf,
+    /// `--mask`, `--weighting`, `--stride` (recorded in the JSON).
+    pub grid: Grid,
+    /// `--solver` (recorded in the JSON).
+    pub solver: Solver,
+    /// `--gram` (recorded in the JSON).
+    pub gram: GramMode,
+    /// `--seed`: of the directions suggested when the samples do not determine the fit.
+    pub seed: u64,
+}
+
+/// What `fit --samples` computes.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct FitSamplesOutput {
+    /// Basis (collection indices, in column order).
+    pub basis: Vec<usize>,
+    /// The target's name (the samples file's stem).
+    pub name: String,
+    /// Number of samples.
+    pub samples: usize,
+    /// The fit from the samples, with the determination of the sampled design.
+    pub fit: SampleFit,
+    /// The fit as a collection target's (for `--export`).
+    pub target: TargetFit,
+    /// What `fit --json` writes (the `fit` schema with `samples` and `fitted_from`).
+    pub file: FitFile,
+    /// Samples too few or a design ill-conditioned, in words, with where to measure next.
+    pub warnings: Vec<String>,
+}
+
+impl FitSamplesRequest {
+    /// The defaults with `basis` and the samples file.
+    pub fn new(basis: Vec<String>, samples: PathBuf) -> Self {
+        let d = FitParams::default();
+        Self {
+            basis,
+            samples,
+            grid: Grid::default(),
+            solver: d.solver,
+            gram: d.gram,
+            seed: 1,
+        }
+    }
+
+    /// The target's name: the samples file's stem (`samples` when it has none).
+    pub fn target_name(&self) -> String {
+        self.samples
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "samples".into())
+    }
+
+    /// Reads the samples and fits them by the basis of `coll`.
+    ///
+    /// # Errors
+    /// An unknown material, an unreadable or invalid samples file, a failed fit.
+    pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
+        use crate::acquire::{fit as afit, plan, read_samples};
+        let basis = indices_of(coll, &self.basis)?;
+        let samples = read_samples(&self.samples)?;
+        let sf = afit::fit_samples(coll, &basis, &samples)?;
+        let d = &sf.determination;
+        let more = d.columns.saturating_sub(d.rank.min(d.samples)).max(3);
+        let hint = if d.rank < d.columns || d.condition > afit::WARN_CONDITION {
+            plan::suggest(coll, &basis, &samples, more, self.seed)?
+        } else {
+            String::new()
+        };
+        let warnings = afit::determination_warnings(d, afit::WARN_CONDITION, &hint);
+        let p = FitParams {
+            mask: self.grid.mask,
+            weighting: self.grid.weighting,
+            stride: self.grid.stride,
+            solver: self.solver,
+            gram: self.gram,
+        };
+        let name = self.target_name();
+        let target = sf.target_fit(&name);
+        let mut file = FitFile::new(coll, &basis, std::slice::from_ref(&target), &p);
+        file.samples = Some(samples.len());
+        file.fitted_from = Some(self.samples.display().to_string());
+        Ok(FitSamplesOutput {
+            basis,
+            name,
+            samples: samples.len(),
+            fit: sf,
+            target,
+            file,
+            warnings,
+        })
+    }
+}

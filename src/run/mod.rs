@@ -1,0 +1,113 @@
+//! One typed request per command: the one door through which the command line, the
+//! Python bindings and a host program reach `distance`, `select`, `plan`, `fit`, `cv`,
+//! `cv --acquisition` and `reproduce`.
+//!
+//! A request's fields are the command's settings and its [`Default`] the documented
+//! defaults (the command line's `--help` shows the same values: its defaults are read from
+//! here). `check` makes every rule a combination of settings can break, in one wording
+//! (settings are named by their command-line flags; Python's keyword arguments are the
+//! same names with underscores); `run` checks again, makes the rules that need the
+//! collection (names, sizes) before any work, does the work and returns the typed output
+//! the command writes. Front ends only translate their arguments into a request and
+//! write its output.
+//!
+//! ```
+//! use brdf_basis::run::{PlanRequest, SelectRequest, SelectMethod};
+//! use brdf_basis::{Collection, CpuBackend};
+//! # fn main() -> brdf_basis::Result<()> {
+//! let coll = Collection::embedded_default();
+//! let mut req = SelectRequest::new(SelectMethod::Greedy);
+//! req.k = Some(3);
+//! req.grid.stride = 8;
+//! let out = req.run(&CpuBackend::new(), &coll, &|_, _| {})?;
+//! assert!(out.to_json().contains("\"method\": \"greedy\""));
+//! // A rule every door makes: a `nielsen` plan is not one `fit --samples` can use.
+//! let mut plan = PlanRequest::new(vec!["polished-gold".into()]);
+//! plan.criterion = brdf_basis::Criterion::Nielsen;
+//! assert!(plan.check().is_err());
+//! # Ok(())
+//! # }
+//! ```
+
+mod acquisition;
+mod cv;
+mod distance;
+mod fit;
+mod plan;
+mod reproduce;
+mod select;
+
+pub use acquisition::AcquisitionRequest;
+pub use cv::CvRequest;
+pub use distance::{DistanceOutput, DistanceRequest};
+pub use fit::{FitOutput, FitRequest, FitSamplesOutput, FitSamplesRequest, FitTargets};
+pub use plan::PlanRequest;
+pub use reproduce::{ReproduceRequest, Reproduction};
+pub use select::{SelectMethod, SelectRequest};
+
+use crate::collection::Collection;
+use crate::merl::{Mask, Weighting};
+
+/// Which grid cells a command reduces over and how they are weighted: the
+/// `--mask`, `--weighting` and `--stride` of `distance`, `select`, `fit` and `cv`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Grid {
+    /// Grid cells (default: the evaluation mask).
+    pub mask: Mask,
+    /// Cell weights (default: uniform, the paper's Eq. 5).
+    pub weighting: Weighting,
+    /// Every `stride`-th cell on each grid axis (default 1: the full grid).
+    pub stride: usize,
+}
+
+impl Default for Grid {
+    fn default() -> Self {
+        Self {
+            mask: Mask::Evaluation,
+            weighting: Weighting::Uniform,
+            stride: 1,
+        }
+    }
+}
+
+/// `Err(RequestError::Settings(..))` with a formatted message.
+macro_rules! refuse {
+    ($($arg:tt)*) => {
+        return Err(crate::error::RequestError::Settings(format!($($arg)*)).into())
+    };
+}
+pub(crate) use refuse;
+
+/// Collection indices of `names` (surrounding spaces ignored), in order.
+///
+/// # Errors
+/// [`crate::error::CollectionError`] for an empty or unknown name (the message suggests
+/// close names).
+pub fn indices_of(coll: &Collection, names: &[String]) -> crate::Result<Vec<usize>> {
+    Ok(names
+        .iter()
+        .map(|n| coll.index_of(n.trim()))
+        .collect::<Result<_, _>>()?)
+}
+
+/// `indices_of` for an optional list (`None` stays `None`).
+fn optional_indices(
+    coll: &Collection,
+    names: Option<&[String]>,
+) -> crate::Result<Option<Vec<usize>>> {
+    names.map(|n| indices_of(coll, n)).transpose()
+}
+
+/// Every material of `coll` outside `basis`, in collection order (the default targets of
+/// `fit --all-others` and `plan`).
+pub fn all_others(coll: &Collection, basis: &[usize]) -> Vec<usize> {
+    (0..coll.len()).filter(|i| !basis.contains(i)).collect()
+}
+
+/// Restarts of an `error` plan: 1 to 64 (`plan --restarts`, `cv --acquisition --restarts`).
+fn check_restarts(restarts: usize) -> crate::Result<()> {
+    if !(1..=64).contains(&restarts) {
+        refuse!("--restarts {restarts}: give 1 to 64 seeded greedy paths");
+    }
+    Ok(())
+}

@@ -1,0 +1,495 @@
+//! `select`: a basis by the paper's Algorithm 1, by clustering a distance matrix (computed
+//! or saved), or by fitting error (SPEC 8).
+
+use super::{optional_indices, refuse, Grid};
+use crate::backend::{Backend, Progress};
+use crate::cluster::{ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsParams};
+use crate::collection::Collection;
+use crate::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
+use crate::error::RequestError;
+use crate::experiment::ExperimentParams;
+use crate::fit::FitParams;
+use crate::select::output::ErrorDrivenOutput;
+use crate::select::runs::{gcuk_runs, kmedoids_runs, named_runs};
+use crate::select::{
+    ClusteringOutput, EmpiricalOutput, EmpiricalParams, GaParams, Objective, ObjectiveParams,
+    SearchParams, SelectOutput,
+};
+use crate::Result;
+use std::path::{Path, PathBuf};
+
+/// A selection method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SelectMethod {
+    /// The paper's Algorithm 1 (leave-one-out contributions).
+    Empirical,
+    /// k-medoids on the distance matrix, seeded runs per k.
+    Kmedoids,
+    /// GCUK (genetic clustering for unknown k) on the distance matrix.
+    Gcuk,
+    /// Greedy forward selection by fitting error (SPEC 8).
+    Greedy,
+    /// Swap refinement of the greedy basis by fitting error (SPEC 8).
+    Swap,
+    /// Genetic algorithm over k-subsets by fitting error.
+    Ga,
+}
+
+impl SelectMethod {
+    /// Every method, in the order the help lists them.
+    pub const ALL: [SelectMethod; 6] = [
+        SelectMethod::Empirical,
+        SelectMethod::Kmedoids,
+        SelectMethod::Gcuk,
+        SelectMethod::Greedy,
+        SelectMethod::Swap,
+        SelectMethod::Ga,
+    ];
+
+    /// The spelling (`--method`, the output's `method`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SelectMethod::Empirical => "empirical",
+            SelectMethod::Kmedoids => "kmedoids",
+            SelectMethod::Gcuk => "gcuk",
+            SelectMethod::Greedy => "greedy",
+            SelectMethod::Swap => "swap",
+            SelectMethod::Ga => "ga",
+        }
+    }
+
+    /// k-medoids or GCUK: a method on a distance matrix.
+    pub fn clustering(self) -> bool {
+        matches!(self, SelectMethod::Kmedoids | SelectMethod::Gcuk)
+    }
+
+    /// greedy, swap or ga: a method by fitting error.
+    pub fn error_driven(self) -> bool {
+        matches!(
+            self,
+            SelectMethod::Greedy | SelectMethod::Swap | SelectMethod::Ga
+        )
+    }
+}
+
+impl std::fmt::Display for SelectMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for SelectMethod {
+    type Err = RequestError;
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|m| m.as_str() == s)
+            .ok_or_else(|| RequestError::Unknown {
+                what: "method",
+                value: s.to_string(),
+                expected: "empirical, kmedoids, gcuk, greedy, swap, ga",
+            })
+    }
+}
+
+/// `brdf-basis select`: its settings, with the defaults of `select --help`.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct SelectRequest {
+    /// `--method`.
+    pub method: SelectMethod,
+    /// `-k`: the basis size of kmedoids (instead of `--k-min..--k-max`), greedy, swap and ga.
+    pub k: Option<usize>,
+    /// `--k-min`: smallest k of the k-medoids range (default 5) or GCUK's k_min (default 5).
+    pub k_min: Option<usize>,
+    /// `--k-max`: largest k of the k-medoids range (default 12) or GCUK's k_max (default 20).
+    pub k_max: Option<usize>,
+    /// `--runs`: runs per k (k-medoids) or GCUK runs, seeds `seed`, `seed + 1`, ...
+    pub runs: usize,
+    /// `--algorithm`: the k-medoids local search.
+    pub algorithm: KMedoidsAlgorithm,
+    /// `--population`: GCUK population.
+    pub population: usize,
+    /// `--generations`: GCUK generations.
+    pub generations: usize,
+    /// `--more-than`: empirical, a material enters the basis when it contributes to more
+    /// than this many fits.
+    pub more_than: usize,
+    /// `--candidates`: greedy, swap, ga: materials that may enter the basis (`None`: all).
+    pub candidates: Option<Vec<String>>,
+    /// `--targets`: greedy, swap, ga: materials the basis must represent (`None`: all).
+    pub targets: Option<Vec<String>>,
+    /// `--init`: swap's starting basis, or one individual of the GA's first population.
+    pub init: Option<Vec<String>>,
+    /// `--ga-population` (default 40).
+    pub ga_population: Option<usize>,
+    /// `--ga-generations` (default 60).
+    pub ga_generations: Option<usize>,
+    /// `--ga-crossover` (default 0.9).
+    pub ga_crossover: Option<f64>,
+    /// `--ga-mutation`: per-gene mutation probability (default 1/k).
+    pub ga_mutation: Option<f64>,
+    /// `--metric`: distance of the clustering methods (with a CSV `distances`: the label
+    /// of the matrix's metric).
+    pub metric: Metric,
+    /// `--mask`, `--weighting`, `--stride`.
+    pub grid: Grid,
+    /// `--seed`.
+    pub seed: u64,
+    /// `--distances`: cluster this saved matrix (a `.npy` written by `distance`, read with
+    /// its sidecar, or a `.csv`) instead of computing one ([`SelectRequest::run_saved`]).
+    pub distances: Option<PathBuf>,
+}
+
+impl SelectRequest {
+    /// The defaults with `method`.
+    pub fn new(method: SelectMethod) -> Self {
+        let e = ExperimentParams::default();
+        let g = GcukParams::default();
+        Self {
+            method,
+            k: None,
+            k_min: None,
+            k_max: None,
+            runs: e.runs,
+            algorithm: KMedoidsAlgorithm::default(),
+            population: g.population,
+            generations: g.generations,
+            more_than: EmpiricalParams::default().more_than,
+            candidates: None,
+            targets: None,
+            init: None,
+            ga_population: None,
+            ga_generations: None,
+            ga_crossover: None,
+            ga_mutation: None,
+            metric: Metric::BrdfIt,
+            grid: Grid::default(),
+            seed: 1,
+            distances: None,
+        }
+    }
+
+    /// The error-driven settings given, in flag order.
+    fn error_settings(&self) -> impl Iterator<Item = &'static str> + '_ {
+        [
+            (self.candidates.is_some(), "--candidates"),
+            (self.targets.is_some(), "--targets"),
+            (self.init.is_some(), "--init"),
+        ]
+        .into_iter()
+        .chain(self.ga_settings())
+        .filter(|(given, _)| *given)
+        .map(|(_, flag)| flag)
+    }
+
+    fn ga_settings(&self) -> [(bool, &'static str); 4] {
+        [
+            (self.ga_population.is_some(), "--ga-population"),
+            (self.ga_generations.is_some(), "--ga-generations"),
+            (self.ga_crossover.is_some(), "--ga-crossover"),
+            (self.ga_mutation.is_some(), "--ga-mutation"),
+        ]
+    }
+
+    /// Refuses the settings that do not apply to the method (or to `distances`), so that
+    /// none is ignored without a word.
+    ///
+    /// # Errors
+    /// [`RequestError`] naming the setting.
+    pub fn check(&self) -> Result<()> {
+        let m = self.method;
+        let range = self.k_min.is_some() || self.k_max.is_some();
+        if self.k.is_some() && m == SelectMethod::Gcuk {
+            refuse!("-k does not apply to --method gcuk: GCUK chooses k itself within --k-min..--k-max (give --k-min K --k-max K to fix it)");
+        }
+        if self.k.is_some() && m == SelectMethod::Empirical {
+            refuse!("-k does not apply to --method empirical: its basis is every material contributing to more than --more-than fits");
+        }
+        if self.k.is_some() && range {
+            refuse!("give either -k or --k-min/--k-max, not both");
+        }
+        if !m.clustering() && range {
+            refuse!("--k-min and --k-max apply to kmedoids and gcuk, not to --method {m}");
+        }
+        if !m.error_driven() {
+            if let Some(flag) = self.error_settings().next() {
+                refuse!("{flag} applies to greedy, swap and ga, not to --method {m}");
+            }
+        }
+        if let Some(path) = &self.distances {
+            if !m.clustering() {
+                refuse!("--distances clusters a saved matrix: it needs --method kmedoids or gcuk, not {m}");
+            }
+            // A CSV matrix has no sidecar: --metric labels it.
+            let npy = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+            let g = &self.grid;
+            let d = Grid::default();
+            for (given, flag) in [
+                (npy && self.metric != Metric::BrdfIt, "--metric"),
+                (g.stride != d.stride, "--stride"),
+                (g.mask != d.mask, "--mask"),
+                (g.weighting != d.weighting, "--weighting"),
+            ] {
+                if given {
+                    refuse!("{flag} does not apply with --distances: the saved matrix was computed with its own settings (a .npy's sidecar records them)");
+                }
+            }
+        }
+        if m.error_driven() {
+            if self.k.is_none() {
+                refuse!("give the basis size with -k K (greedy, swap and ga choose exactly k materials)");
+            }
+            if m != SelectMethod::Ga {
+                if let Some((_, flag)) = self.ga_settings().into_iter().find(|(given, _)| *given) {
+                    refuse!("{flag} applies to --method ga, not to {m}");
+                }
+            }
+            if m == SelectMethod::Greedy && self.init.is_some() {
+                refuse!("--init applies to swap and ga, not to greedy");
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses a collection given with `distances` (a saved matrix is clustered
+    /// without one); `collection`: whether one is given.
+    ///
+    /// # Errors
+    /// [`RequestError`].
+    pub fn check_source(&self, collection: bool) -> Result<()> {
+        if self.distances.is_some() && collection {
+            refuse!("--distances clusters a saved matrix: give no COLLECTION with it");
+        }
+        Ok(())
+    }
+
+    /// The k values of a k-medoids selection, checked.
+    fn kmedoids_ks(&self) -> std::result::Result<Vec<usize>, ClusterError> {
+        if self.runs == 0 {
+            return Err(ClusterError::ZeroRuns);
+        }
+        let d = ExperimentParams::default();
+        let ks: Vec<usize> = match self.k {
+            Some(k) => vec![k],
+            None => {
+                let (k_min, k_max) = (self.k_min.unwrap_or(d.k_min), self.k_max.unwrap_or(d.k_max));
+                if k_min > k_max {
+                    return Err(ClusterError::EmptyKRange { k_min, k_max });
+                }
+                (k_min..=k_max).collect()
+            }
+        };
+        for &k in &ks {
+            KMedoidsParams::new(k).algorithm(self.algorithm).check()?;
+        }
+        Ok(ks)
+    }
+
+    /// The GCUK parameters, checked.
+    fn gcuk_params(&self) -> std::result::Result<GcukParams, ClusterError> {
+        if self.runs == 0 {
+            return Err(ClusterError::ZeroRuns);
+        }
+        let d = GcukParams::default();
+        let p = GcukParams::default()
+            .k_range(self.k_min.unwrap_or(d.k_min), self.k_max.unwrap_or(d.k_max))
+            .population(self.population)
+            .generations(self.generations);
+        p.check()?;
+        Ok(p)
+    }
+
+    /// The clustering settings against `n` materials, before any long work.
+    fn check_clustering(&self, n: usize) -> Result<()> {
+        let flags = "check --runs, -k, --k-min and --k-max";
+        let range = |cause: String, hint: String| RequestError::Range {
+            command: "select",
+            cause,
+            hint,
+        };
+        match self.method {
+            SelectMethod::Kmedoids => {
+                let ks = self
+                    .kmedoids_ks()
+                    .map_err(|e| range(e.to_string(), flags.into()))?;
+                if let Some(&k) = ks.iter().find(|&&k| k > n) {
+                    let e = ClusterError::KOutOfRange { k, n };
+                    return Err(range(
+                        e.to_string(),
+                        format!("{flags}; the collection has {n} materials"),
+                    )
+                    .into());
+                }
+            }
+            SelectMethod::Gcuk => {
+                let p = self.gcuk_params().map_err(|e| {
+                    range(
+                        e.to_string(),
+                        format!("{flags}, --population and --generations"),
+                    )
+                })?;
+                if p.k_max > n {
+                    let e = ClusterError::KMaxTooLarge { k_max: p.k_max, n };
+                    return Err(range(
+                        e.to_string(),
+                        format!("{flags}; the collection has {n} materials"),
+                    )
+                    .into());
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The GA settings: the library's defaults ([`GaParams::default`]) with those given.
+    fn ga_params(&self) -> GaParams {
+        let d = GaParams::default();
+        let mut gp = GaParams::default()
+            .population(self.ga_population.unwrap_or(d.population))
+            .generations(self.ga_generations.unwrap_or(d.generations))
+            .crossover_prob(self.ga_crossover.unwrap_or(d.crossover_prob))
+            .seed(self.seed);
+        gp.mutation_prob = self.ga_mutation;
+        gp
+    }
+
+    /// Runs the selection on `coll` (not with `distances`: see [`Self::run_saved`]) and
+    /// returns what `select --json` writes ([`SelectOutput::to_json`]). `progress(done,
+    /// total)` is called from the working threads, per stage.
+    ///
+    /// # Errors
+    /// [`RequestError`] and the parameters' errors before any work (k out of range, an
+    /// unknown material, ...), then the stages' errors.
+    pub fn run(
+        &self,
+        backend: &dyn Backend,
+        coll: &Collection,
+        progress: Progress<'_>,
+    ) -> Result<SelectOutput> {
+        self.check()?;
+        self.check_source(true)?;
+        let fingerprint = Some(coll.fingerprint());
+        if self.method.error_driven() {
+            return self.run_error_driven(backend, coll, fingerprint, progress);
+        }
+        self.check_clustering(coll.len())?;
+        let g = &self.grid;
+        if self.method == SelectMethod::Empirical {
+            let p = EmpiricalParams {
+                fit: FitParams {
+                    mask: g.mask,
+                    weighting: g.weighting,
+                    stride: g.stride,
+                    ..Default::default()
+                },
+                more_than: self.more_than,
+            };
+            let e = crate::select::empirical(backend, coll, &p, progress)?;
+            return Ok(SelectOutput::Empirical(EmpiricalOutput::new(
+                &e,
+                self.more_than,
+                fingerprint,
+            )?));
+        }
+        let dp = DistanceParams::default()
+            .metric(self.metric)
+            .mask(g.mask)
+            .weighting(g.weighting)
+            .stride(g.stride)
+            .check(coll)?;
+        let d = distance_matrix(backend, coll, &dp, progress)?;
+        self.cluster(&d, &self.metric.to_string(), fingerprint, progress)
+    }
+
+    /// Clusters the saved matrix `distances` (kmedoids or gcuk; no collection, no
+    /// back-end): the metric and fingerprint are the sidecar's (a CSV: `metric`, none).
+    ///
+    /// # Errors
+    /// As [`Self::run`], and the matrix file's errors.
+    pub fn run_saved(&self, progress: Progress<'_>) -> Result<SelectOutput> {
+        self.check()?;
+        let Some(path) = &self.distances else {
+            refuse!("run_saved clusters a saved matrix: give --distances FILE");
+        };
+        self.cluster_saved(path, progress)
+    }
+
+    fn cluster_saved(&self, path: &Path, progress: Progress<'_>) -> Result<SelectOutput> {
+        let saved = crate::io::saved::load_saved_matrix(path)?;
+        self.check_clustering(saved.matrix.names().len())?;
+        let (metric, fingerprint) = match &saved.sidecar {
+            Some(s) => (
+                s.settings.metric.to_string(),
+                Some(s.collection_fingerprint.clone()),
+            ),
+            None => (self.metric.to_string(), None),
+        };
+        self.cluster(&saved.matrix, &metric, fingerprint, progress)
+    }
+
+    /// k-medoids or GCUK runs on `d`.
+    fn cluster(
+        &self,
+        d: &DistanceMatrix,
+        metric: &str,
+        fingerprint: Option<String>,
+        progress: Progress<'_>,
+    ) -> Result<SelectOutput> {
+        let (runs, algorithm) = if self.method == SelectMethod::Kmedoids {
+            let ks = self.kmedoids_ks()?;
+            let runs = kmedoids_runs(d, &ks, self.runs, self.seed, self.algorithm, progress)?;
+            (runs, Some(self.algorithm.to_string()))
+        } else {
+            let p = self.gcuk_params()?.check()?;
+            (gcuk_runs(d, &p, self.runs, self.seed, progress)?, None)
+        };
+        let named = named_runs(d, &runs)?;
+        Ok(SelectOutput::Clustering(ClusteringOutput::new(
+            self.method.as_str(),
+            algorithm,
+            metric,
+            named,
+            fingerprint,
+        )?))
+    }
+
+    /// greedy, swap or ga (the settings checked).
+    fn run_error_driven(
+        &self,
+        backend: &dyn Backend,
+        coll: &Collection,
+        fingerprint: Option<String>,
+        progress: Progress<'_>,
+    ) -> Result<SelectOutput> {
+        let Some(k) = self.k else {
+            unreachable!("check() refuses greedy, swap and ga without k")
+        };
+        let mut sp = SearchParams::new(k);
+        sp.candidates = optional_indices(coll, self.candidates.as_deref())?;
+        sp.targets = optional_indices(coll, self.targets.as_deref())?;
+        sp.init = optional_indices(coll, self.init.as_deref())?;
+        let vsp = sp.check(&coll.names())?;
+        let vgp = self.ga_params().check()?;
+        let g = &self.grid;
+        let op = ObjectiveParams::default()
+            .mask(g.mask)
+            .weighting(g.weighting)
+            .stride(g.stride)
+            .check()?;
+        let obj = Objective::new(backend, coll, &op, progress)?;
+        let selection = match self.method {
+            SelectMethod::Greedy => crate::select::greedy(&obj, &vsp, progress)?,
+            SelectMethod::Swap => crate::select::swap(&obj, &vsp, progress)?,
+            _ => crate::select::ga(&obj, &vsp, &vgp, progress)?,
+        };
+        Ok(SelectOutput::ErrorDriven(ErrorDrivenOutput {
+            selection,
+            collection_fingerprint: fingerprint,
+        }))
+    }
+}
