@@ -916,3 +916,82 @@ fn plan_replaces_its_earlier_output_and_leaves_nothing_else() {
         text(&o.stderr)
     );
 }
+
+/// Issue 36, N1-N3: an output that names a file the command reads besides the collection
+/// (plan's candidates, fit's samples), under another spelling too, or that would add a
+/// file the collection reads to an input directory, is refused before any work, and the
+/// inputs stay byte-identical.
+#[test]
+fn outputs_never_replace_candidates_samples_or_files_of_an_input_directory() {
+    let dir = workdir();
+    let d = dir.path();
+    let coll = write(d, "c.csv", CSV);
+    let samples = write(
+        d,
+        "s.csv",
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,20,180,0.1,0.1,0.1\n30,0,40,180,0.2,0.2,0.2\n",
+    );
+    let before = |p: &Path| std::fs::read(p).expect("input");
+    let refused = |args: &[&str], input: &Path, noun: &str| {
+        let keep = before(input);
+        let o = bin_quiet().current_dir(d).args(args).output().expect("run");
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert!(err.contains(noun), "{args:?}: {err}");
+        assert_eq!(before(input), keep, "{args:?} changed {}", input.display());
+    };
+    let c = coll.to_str().expect("utf-8");
+    // N1: plan's candidates file, as --out and --json, under two spellings.
+    for out in ["s.csv", "./s.csv"] {
+        refused(
+            &["plan", c, "--basis", "m1,m2", "-n", "2", "--candidates", "s.csv", "--out", out],
+            &samples,
+            "candidates file",
+        );
+        refused(
+            &[
+                "plan", c, "--basis", "m1,m2", "-n", "2", "--candidates", "s.csv", "--out",
+                "p.csv", "--json", out,
+            ],
+            &samples,
+            "candidates file",
+        );
+    }
+    // N2: fit --samples writing its JSON over the samples file.
+    for out in ["s.csv", "./s.csv"] {
+        refused(
+            &["fit", c, "--basis", "m1,m2", "--samples", "s.csv", "--json", out],
+            &samples,
+            "samples file",
+        );
+    }
+    // N3: a .npy (or .bsdf, .binary) written into an input directory the collection reads.
+    let cdir = d.join("coll");
+    std::fs::create_dir(&cdir).expect("dir");
+    for m in ["m1", "m2"] {
+        let o = bin_quiet()
+            .current_dir(d)
+            .args(["tabulate", c, "--material", m, "--out", &format!("coll/{m}.binary")])
+            .output()
+            .expect("tabulate");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let snap = snapshot(&cdir);
+    for out in ["coll/d.npy", "coll/../coll/d.NPY", "./coll/e.npy"] {
+        let o = bin_quiet()
+            .current_dir(d)
+            .args(["distance", "coll", "--out", out])
+            .output()
+            .expect("distance");
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(!o.status.success() && err.contains("input collection directory"), "{out}: {err}");
+        assert_eq!(snapshot(&cdir), snap, "{out} changed the directory");
+    }
+    // Beside the directory, the same command is fine.
+    let o = bin_quiet()
+        .current_dir(d)
+        .args(["distance", "coll", "--out", "d.npy"])
+        .output()
+        .expect("distance");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -107,15 +107,20 @@ impl OutputPlan {
                     ),
                 ));
             }
-            // A directory collection reads every `.binary` file in it.
+            // A directory collection reads every `.binary`, `.bsdf` and `.npy` file in it
+            // (a `.npy` outside a neural BRDF set makes the directory unreadable).
+            let read_kind = k.extension().and_then(|e| e.to_str()).and_then(|e| {
+                ["binary", "bsdf", "npy"]
+                    .into_iter()
+                    .find(|x| e.eq_ignore_ascii_case(x))
+            });
             let in_dir = i.dir
-                && out_parent.is_some_and(|d| Some(d) == i.canonical.as_deref() || d == i.key)
-                && k.extension().is_some_and(|e| e == "binary");
-            if in_dir {
+                && out_parent.is_some_and(|d| Some(d) == i.canonical.as_deref() || d == i.key);
+            if let (true, Some(ext)) = (in_dir, read_kind) {
                 return Err(refused(
                     path,
                     format!(
-                        "{flag} would write a .binary into the input collection directory {} (replacing or adding a material)",
+                        "{flag} would write a .{ext} into the input collection directory {} (the collection reads every .binary, .bsdf and .npy file there: this would replace or add a material, or make the directory unreadable)",
                         i.shown.display()
                     ),
                 ));

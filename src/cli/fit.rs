@@ -245,6 +245,9 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let req = a.samples_request(g);
     let mut out_plan = OutputPlan::new(&a.collection);
+    for (path, noun) in req.input_files() {
+        out_plan.input_named(&path, noun);
+    }
     out_plan.file(&a.json, "--json")?;
     let stem = req.target_name();
     let files = export_file_names(&[stem.as_str()]);

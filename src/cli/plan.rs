@@ -80,6 +80,9 @@ pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     let req = a.request(g);
     req.check()?;
     let mut op = OutputPlan::new(&a.collection);
+    for (path, noun) in req.input_files() {
+        op.input_named(&path, noun);
+    }
     op.file(&a.out, "--out")?;
     if let Some(j) = &a.json {
         op.file(j, "--json")?;

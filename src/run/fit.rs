@@ -171,6 +171,12 @@ pub struct FitSamplesOutput {
 }
 
 impl FitSamplesRequest {
+    /// The files this request reads besides the collection, with what they are called in
+    /// messages: the output layer refuses any output that names one of them.
+    pub fn input_files(&self) -> Vec<(PathBuf, &'static str)> {
+        vec![(self.samples.clone(), "samples file")]
+    }
+
     /// The defaults with `basis` and the samples file.
     pub fn new(basis: Vec<String>, samples: PathBuf) -> Self {
         let d = FitParams::default();

@@ -36,6 +36,15 @@ pub struct PlanRequest {
 }
 
 impl PlanRequest {
+    /// The files this request reads besides the collection, with what they are called in
+    /// messages: the output layer refuses any output that names one of them.
+    pub fn input_files(&self) -> Vec<(PathBuf, &'static str)> {
+        self.candidates
+            .iter()
+            .map(|c| (c.clone(), "candidates file"))
+            .collect()
+    }
+
     /// The defaults with `basis`.
     pub fn new(basis: Vec<String>) -> Self {
         let d = PlanParams::default();
