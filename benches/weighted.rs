@@ -32,14 +32,24 @@ fn channel_lobes(nets: &[Arc<Nbrdf>], c: usize) -> Vec<Lobe> {
 }
 
 /// The three channels' systems of `targets` nets by the first 12; wall seconds.
-fn run(b: &dyn Backend, nets: &[Arc<Nbrdf>], t: usize, cells: &CellSet) -> (f64, Vec<WeightedSystems>) {
+fn run(
+    b: &dyn Backend,
+    nets: &[Arc<Nbrdf>],
+    t: usize,
+    cells: &CellSet,
+) -> (f64, Vec<WeightedSystems>) {
     let targets: Vec<Arc<Nbrdf>> = (0..t).map(|i| nets[i % nets.len()].clone()).collect();
     let w = TargetWeight::Relative { eps: 0.01 };
     let start = Instant::now();
     let out = (0..3)
         .map(|c| {
-            b.weighted_systems(&channel_lobes(&nets[..12], c), &channel_lobes(&targets, c), cells, w)
-                .expect("weighted systems")
+            b.weighted_systems(
+                &channel_lobes(&nets[..12], c),
+                &channel_lobes(&targets, c),
+                cells,
+                w,
+            )
+            .expect("weighted systems")
         })
         .collect();
     (start.elapsed().as_secs_f64(), out)
@@ -48,7 +58,10 @@ fn run(b: &dyn Backend, nets: &[Arc<Nbrdf>], t: usize, cells: &CellSet) -> (f64,
 fn main() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real/nbrdf/merl100");
     if !dir.exists() {
-        println!("weighted bench: {} is missing; nothing measured", dir.display());
+        println!(
+            "weighted bench: {} is missing; nothing measured",
+            dir.display()
+        );
         return;
     }
     let coll = Collection::load(&dir).expect("merl100");
@@ -62,7 +75,12 @@ fn main() {
         .collect();
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 1);
     let which = std::env::var("BENCH_BACKENDS").unwrap_or_default();
-    let env_n = |k: &str, d: usize| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+    let env_n = |k: &str, d: usize| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
     let mut cpu_out = None;
     if which != "gpu" {
         let cpu = CpuBackend::new();
@@ -79,7 +97,14 @@ fn main() {
     if which != "cpu" {
         match GpuBackend::new() {
             Ok(g) => {
-                let t = env_n("BENCH_T", if g.context().is_software() { 100 } else { 10_000 });
+                let t = env_n(
+                    "BENCH_T",
+                    if g.context().is_software() {
+                        100
+                    } else {
+                        10_000
+                    },
+                );
                 let _ = run(&g, &nets, 100.min(t), &cells);
                 let (s, out) = run(&g, &nets, t, &cells);
                 println!(

@@ -63,8 +63,7 @@ fn cpu_and_gpu_brdf_it_of_the_ngan_table_agree_by_the_contract() {
     let Some(g) = gpu("cpu_and_gpu_brdf_it_of_the_ngan_table_agree_by_the_contract") else {
         return;
     };
-    let Some(ngan) =
-        ngan_or_skip("cpu_and_gpu_brdf_it_of_the_ngan_table_agree_by_the_contract")
+    let Some(ngan) = ngan_or_skip("cpu_and_gpu_brdf_it_of_the_ngan_table_agree_by_the_contract")
     else {
         return;
     };
@@ -106,11 +105,7 @@ fn every_kernel_shape_sums_in_the_canonical_order() {
     }
 }
 
-fn shapes_against_cpu(
-    g: &brdf_basis::backend::gpu::GpuBackend,
-    coll: &Collection,
-    kind: LobeKind,
-) {
+fn shapes_against_cpu(g: &brdf_basis::backend::gpu::GpuBackend, coll: &Collection, kind: LobeKind) {
     let lobes = brdf_basis::distance::lobes(coll, kind);
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 3);
     let ctx = g.context();

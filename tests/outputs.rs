@@ -944,14 +944,35 @@ fn outputs_never_replace_candidates_samples_or_files_of_an_input_directory() {
     // N1: plan's candidates file, as --out and --json, under two spellings.
     for out in ["s.csv", "./s.csv"] {
         refused(
-            &["plan", c, "--basis", "m1,m2", "-n", "2", "--candidates", "s.csv", "--out", out],
+            &[
+                "plan",
+                c,
+                "--basis",
+                "m1,m2",
+                "-n",
+                "2",
+                "--candidates",
+                "s.csv",
+                "--out",
+                out,
+            ],
             &samples,
             "candidates file",
         );
         refused(
             &[
-                "plan", c, "--basis", "m1,m2", "-n", "2", "--candidates", "s.csv", "--out",
-                "p.csv", "--json", out,
+                "plan",
+                c,
+                "--basis",
+                "m1,m2",
+                "-n",
+                "2",
+                "--candidates",
+                "s.csv",
+                "--out",
+                "p.csv",
+                "--json",
+                out,
             ],
             &samples,
             "candidates file",
@@ -960,7 +981,16 @@ fn outputs_never_replace_candidates_samples_or_files_of_an_input_directory() {
     // N2: fit --samples writing its JSON over the samples file.
     for out in ["s.csv", "./s.csv"] {
         refused(
-            &["fit", c, "--basis", "m1,m2", "--samples", "s.csv", "--json", out],
+            &[
+                "fit",
+                c,
+                "--basis",
+                "m1,m2",
+                "--samples",
+                "s.csv",
+                "--json",
+                out,
+            ],
             &samples,
             "samples file",
         );
@@ -971,7 +1001,14 @@ fn outputs_never_replace_candidates_samples_or_files_of_an_input_directory() {
     for m in ["m1", "m2"] {
         let o = bin_quiet()
             .current_dir(d)
-            .args(["tabulate", c, "--material", m, "--out", &format!("coll/{m}.binary")])
+            .args([
+                "tabulate",
+                c,
+                "--material",
+                m,
+                "--out",
+                &format!("coll/{m}.binary"),
+            ])
             .output()
             .expect("tabulate");
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -984,7 +1021,10 @@ fn outputs_never_replace_candidates_samples_or_files_of_an_input_directory() {
             .output()
             .expect("distance");
         let err = String::from_utf8_lossy(&o.stderr).to_string();
-        assert!(!o.status.success() && err.contains("input collection directory"), "{out}: {err}");
+        assert!(
+            !o.status.success() && err.contains("input collection directory"),
+            "{out}: {err}"
+        );
         assert_eq!(snapshot(&cdir), snap, "{out} changed the directory");
     }
     // Beside the directory, the same command is fine.

@@ -16,12 +16,9 @@ fn module_with(
     let full = kernel_source(src);
     let m = naga::front::wgsl::parse_str(&full)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&full)));
-    let info = naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        caps,
-    )
-    .validate(&m)
-    .unwrap_or_else(|e| panic!("validation: {e:?}"));
+    let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
+        .validate(&m)
+        .unwrap_or_else(|e| panic!("validation: {e:?}"));
     (m, info)
 }
 

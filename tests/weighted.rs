@@ -24,7 +24,14 @@ fn rows() -> (Vec<Lobe>, Vec<Lobe>) {
         lobe(0.1, 0.7, 0.2, 60.0),
     ];
     let mut targets: Vec<Lobe> = (0..9)
-        .map(|i| lobe(0.05 * i as f32, 0.4, 0.03 + 0.1 * i as f32, 3.0 * 4f32.powi(i)))
+        .map(|i| {
+            lobe(
+                0.05 * i as f32,
+                0.4,
+                0.03 + 0.1 * i as f32,
+                3.0 * 4f32.powi(i),
+            )
+        })
         .collect();
     for i in [1, 4, 7] {
         targets.push(measured_lobe(&targets[i], None));
@@ -33,7 +40,10 @@ fn rows() -> (Vec<Lobe>, Vec<Lobe>) {
 }
 
 fn assert_close(what: &str, got: &WeightedSystems, want: &WeightedSystems) {
-    assert_eq!((got.columns, got.values.len()), (want.columns, want.values.len()));
+    assert_eq!(
+        (got.columns, got.values.len()),
+        (want.columns, want.values.len())
+    );
     let rel = max_rel(&got.values, &want.values, 1e-30);
     eprintln!("{what}: GPU vs f64 reference max relative difference {rel:.1e}");
     assert!(
@@ -76,7 +86,10 @@ fn weighted_systems_by_hand() {
     let half = lobe(0.0, 0.5, 0.1, 40.0);
     for (w, phi) in [
         (TargetWeight::L2, 1.0),
-        (TargetWeight::Relative { eps: 0.01 }, 1.0 / ((y + 0.01) * (y + 0.01))),
+        (
+            TargetWeight::Relative { eps: 0.01 },
+            1.0 / ((y + 0.01) * (y + 0.01)),
+        ),
         (TargetWeight::Log, {
             let ci = cos_theta_i(c as usize).max(0.0);
             (ci / (1.0 + y * ci)).powi(2)
@@ -91,7 +104,9 @@ fn weighted_systems_by_hand() {
         )
         .expect("reference");
         // The half lobe tabulates to exactly half the lobe (a power of two).
-        let yt = CpuBackend::new().tabulate(std::slice::from_ref(&half), &[c]).expect("tab")[0] as f64;
+        let yt = CpuBackend::new()
+            .tabulate(std::slice::from_ref(&half), &[c])
+            .expect("tab")[0] as f64;
         assert_eq!(yt, y);
         let g = s.gram(0);
         assert!((g[3] - phi * v * v).abs() <= 1e-12 * g[3], "{w:?}");
@@ -112,8 +127,8 @@ fn cos_theta_i_is_the_incoming_cosine_of_the_merl_convention() {
     // phi_d = 90 degrees: cos theta_h cos theta_d (the in-plane term vanishes).
     let (i, j, k) = (40, 20, 89);
     let cell = (i * N_TD + j) * N_PD + k;
-    let want = theta_h(i).cos() * theta_d(j).cos()
-        - theta_h(i).sin() * theta_d(j).sin() * phi_d(k).cos();
+    let want =
+        theta_h(i).cos() * theta_d(j).cos() - theta_h(i).sin() * theta_d(j).sin() * phi_d(k).cos();
     assert!((cos_theta_i(cell) - want).abs() < 1e-15);
     assert!(phi_d(k).cos().abs() < 0.01);
 }
@@ -131,7 +146,9 @@ fn gpu_weighted_systems_match_the_f64_reference() {
         TargetWeight::Log,
     ] {
         let want = reference(&CpuBackend::new(), &basis, &targets, &cells, w).expect("cpu");
-        let got = g.weighted_systems(&basis, &targets, &cells, w).expect("gpu");
+        let got = g
+            .weighted_systems(&basis, &targets, &cells, w)
+            .expect("gpu");
         assert_close(&format!("{w:?}"), &got, &want);
         // The CPU back-end's own method is the reference.
         let cpu = CpuBackend::new()

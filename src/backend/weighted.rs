@@ -62,9 +62,11 @@ impl TargetWeight {
     /// Checks `eps` (finite, positive).
     pub fn check(self) -> Result<Self, BackendError> {
         match self {
-            TargetWeight::Relative { eps } if !(eps.is_finite() && eps > 0.0) => Err(
-                BackendError::Invalid(format!("the relative objective's eps must be a positive number, not {eps}")),
-            ),
+            TargetWeight::Relative { eps } if !(eps.is_finite() && eps > 0.0) => {
+                Err(BackendError::Invalid(format!(
+                    "the relative objective's eps must be a positive number, not {eps}"
+                )))
+            }
             w => Ok(w),
         }
     }

@@ -38,12 +38,8 @@ impl PackedStream {
     /// A stream on `ctx`'s cached staging buffers (taken out of the cache, so that
     /// concurrent streams never share them; [`Self::finish`] puts them back).
     pub(crate) fn new(ctx: &GpuContext) -> Self {
-        let slots = std::mem::take(
-            &mut *ctx
-                .stream_staging
-                .lock()
-                .unwrap_or_else(|e| e.into_inner()),
-        );
+        let slots =
+            std::mem::take(&mut *ctx.stream_staging.lock().unwrap_or_else(|e| e.into_inner()));
         Self {
             slots,
             next: 0,

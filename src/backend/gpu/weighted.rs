@@ -186,9 +186,9 @@ impl WeightedKernel {
         if t_count == 0 || cells.is_empty() {
             return Ok(WeightedSystems { columns: m, values });
         }
-        let pipeline = self
-            .pipelines
-            .get(k, || ctx.pipeline(&format!("weighted (K = {k})"), &kernel_source(k)))?;
+        let pipeline = self.pipelines.get(k, || {
+            ctx.pipeline(&format!("weighted (K = {k})"), &kernel_source(k))
+        })?;
         let rows: Vec<&Lobe> = basis.iter().chain(targets).collect();
         let layout = KindLayout::new(&rows);
         let blocks = layout.blocks[2].max(1);
@@ -209,7 +209,9 @@ impl WeightedKernel {
             chunk,
             wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         );
-        let view = target.texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let view = target
+            .texture
+            .create_view(&wgpu::TextureViewDescriptor::default());
         // Analytic tables (blocks from 0), neural weights (blocks from the layout's second).
         let mut analytic: Vec<Option<LobeParams>> = layout
             .analytic

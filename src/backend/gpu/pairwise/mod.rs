@@ -31,8 +31,8 @@ mod reduce;
 mod shape;
 
 pub use plan::{covering_blocks, PairPlan, PlanLimits, RowLayout};
-pub use shape::{kernel_source, KernelShape, TILED_SOURCE};
 pub use reduce::{ReduceParams, SOURCE as REDUCE_SOURCE};
+pub use shape::{kernel_source, KernelShape, TILED_SOURCE};
 
 use super::neural::NeuralKernel;
 use super::tabulate::separable_texels;
@@ -489,7 +489,12 @@ fn dispatch_groups(
         );
         if let Some(d) = pass.device_sums {
             let ss = pass.side * pass.side;
-            d.encode(ctx, &mut enc, pass.partial, (off, count, ss, pass.per_block / 4 / ss));
+            d.encode(
+                ctx,
+                &mut enc,
+                pass.partial,
+                (off, count, ss, pass.per_block / 4 / ss),
+            );
             last = Some(ctx.submit(std::mem::replace(&mut enc, ctx.encoder()))?);
             continue;
         }
