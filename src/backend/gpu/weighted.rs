@@ -223,7 +223,7 @@ impl WeightedKernel {
             .collect();
         analytic.resize(analytic.len().div_ceil(4) * 4, None);
         let prepared = tab.prepare_packed(ctx, &analytic);
-        let neural_pass = match layout.neural.is_empty() {
+        let mut neural_pass = match layout.neural.is_empty() {
             true => None,
             false => {
                 let kernel = neural()?;
@@ -235,11 +235,9 @@ impl WeightedKernel {
                 Some((kernel, prepared, NeuralCells::new(ctx, chunk)))
             }
         };
-        let mut neural_pass = neural_pass;
-        let row_of: Vec<u32> = layout.row.clone();
         let row_buf = ctx.storage_init(
             "weighted rows",
-            bytemuck::cast_slice(&row_of),
+            bytemuck::cast_slice(&layout.row),
             wgpu::BufferUsages::empty(),
         );
         let cell_buf = ctx.storage("weighted cells", (chunk * 8) as u64);
