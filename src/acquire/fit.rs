@@ -178,6 +178,7 @@ impl SampleFit {
             mae: self.mae,
             relative_residual: self.relative_residual,
             relative_mae: 0.0,
+            objective_residual: self.relative_residual,
             kkt: self.kkt,
             iterations: self.iterations,
         }

@@ -35,7 +35,78 @@ pub enum TargetWeight {
     Log,
 }
 
+/// The objectives by name (SPEC 11), as the command line and Python give them; `eps` is
+/// given apart ([`ObjectiveKind::weight`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum ObjectiveKind {
+    /// L2 on raw reflectance (SPEC 5, the paper's).
+    L2,
+    /// Relative: weights `1 / (f + eps)^2`.
+    Relative,
+    /// Log: weights `(c / (1 + f c))^2`.
+    Log,
+}
+
+impl ObjectiveKind {
+    /// Every objective.
+    pub const ALL: [ObjectiveKind; 3] = [
+        ObjectiveKind::L2,
+        ObjectiveKind::Relative,
+        ObjectiveKind::Log,
+    ];
+
+    /// The objective with `eps` (used by `relative` only).
+    pub fn weight(self, eps: f64) -> TargetWeight {
+        match self {
+            ObjectiveKind::L2 => TargetWeight::L2,
+            ObjectiveKind::Relative => TargetWeight::Relative { eps },
+            ObjectiveKind::Log => TargetWeight::Log,
+        }
+    }
+
+    /// The name on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            ObjectiveKind::L2 => "l2",
+            ObjectiveKind::Relative => "relative",
+            ObjectiveKind::Log => "log",
+        }
+    }
+}
+
+impl std::str::FromStr for ObjectiveKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        ObjectiveKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| format!("objective `{s}`: give l2, relative or log"))
+    }
+}
+
 impl TargetWeight {
+    /// SPEC 11's default `eps` of `relative`, in the reflectance units of SPEC 2.
+    pub const DEFAULT_EPS: f64 = 0.01;
+
+    /// The objective's kind.
+    pub fn kind(self) -> ObjectiveKind {
+        match self {
+            TargetWeight::L2 => ObjectiveKind::L2,
+            TargetWeight::Relative { .. } => ObjectiveKind::Relative,
+            TargetWeight::Log => ObjectiveKind::Log,
+        }
+    }
+
+    /// `eps` of `relative` (`None` for the others).
+    pub fn eps(self) -> Option<f64> {
+        match self {
+            TargetWeight::Relative { eps } => Some(eps),
+            _ => None,
+        }
+    }
+
     /// `phi(y)` at a cell whose incoming cosine is `cos_i`, in f64.
     pub fn phi(self, y: f64, cos_i: f64) -> f64 {
         let y = y.max(0.0);

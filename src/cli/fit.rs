@@ -37,6 +37,13 @@ pub struct FitArgs {
     /// How Gram matrices are computed.
     #[arg(long, value_enum, default_value_t = FitParams::default().gram)]
     pub gram: GramMode,
+    /// The fit objective.
+    #[command(flatten)]
+    pub objective: super::ObjectiveArgs,
+    /// Skip the appearance metrics (log-RMSE; image error, CIEDE2000 and FLIP of renders
+    /// under four lights) that are otherwise computed for every fit.
+    #[arg(long)]
+    pub no_appearance: bool,
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
@@ -65,6 +72,8 @@ impl FitArgs {
         r.grid = self.grid.grid();
         r.solver = self.solver;
         r.gram = self.gram;
+        r.objective = self.objective.weight();
+        r.appearance = !self.no_appearance;
         r
     }
 }
@@ -81,6 +90,7 @@ impl FitArgs {
         r.solver = self.solver;
         r.gram = self.gram;
         r.seed = g.seed;
+        r.objective = self.objective.weight();
         r
     }
 }
@@ -148,6 +158,9 @@ pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     })?;
     out.commit()?;
     println!("{}", summary(&a.json, fits));
+    if let Some(line) = appearance_summary(&fitted.appearance) {
+        println!("{line}");
+    }
     if let Some(dir) = &a.export {
         for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
             println!("wrote {}", dir.join(file).display());
@@ -173,6 +186,29 @@ fn summary(json: &Path, fits: &[brdf_basis::fit::TargetFit]) -> String {
         mean_of(|f| f.relative_residual),
         mean_of(|f| f.relative_mae)
     )
+}
+
+/// `appearance: mean log-RMSE .., under the four lights mean image error .., CIEDE2000 ..,
+/// FLIP ..` (`None` without appearance metrics).
+fn appearance_summary(a: &[brdf_basis::eval::appearance::Appearance]) -> Option<String> {
+    use brdf_basis::eval::appearance::Appearance;
+    if a.is_empty() {
+        return None;
+    }
+    let mean_of = |v: fn(&Appearance) -> f64| {
+        brdf_basis::stats::num(brdf_basis::stats::mean(
+            &a.iter().map(v).collect::<Vec<_>>(),
+        ))
+    };
+    Some(format!(
+        "appearance: mean log-RMSE {}; under the four lights mean image error {}, CIEDE2000 {}, FLIP {} (paper's light: image error {}, FLIP {})",
+        mean_of(|x| x.log_rmse),
+        mean_of(|x| x.mean_image_error),
+        mean_of(|x| x.mean_ciede2000),
+        mean_of(|x| x.mean_flip),
+        mean_of(|x| x.paper_light().image_error),
+        mean_of(|x| x.paper_light().flip),
+    ))
 }
 
 /// Plans `--export DIR` with the export file names `files`: DIR (created if missing),

@@ -73,6 +73,27 @@ impl GridArgs {
     }
 }
 
+/// The fit objective (SPEC 11): `--objective` and `--eps` (shared by `fit`, `select`,
+/// `plan` and `cv`).
+#[derive(Args, Debug, Clone)]
+pub struct ObjectiveArgs {
+    /// What a fit minimises: l2 (raw reflectance, the paper's), relative (weights
+    /// 1 / (f + eps)^2: every cell counts by its relative error, so the diffuse body is not
+    /// given up for the highlight) or log (an L2 in log(1 + f cos theta_i)).
+    #[arg(long, value_enum, default_value_t = brdf_basis::run::DEFAULT_OBJECTIVE.kind())]
+    pub objective: brdf_basis::fit::ObjectiveKind,
+    /// eps of `--objective relative`, in MERL reflectance units (> 0).
+    #[arg(long, default_value_t = brdf_basis::fit::TargetWeight::DEFAULT_EPS)]
+    pub eps: f64,
+}
+
+impl ObjectiveArgs {
+    /// The objective these flags give.
+    pub fn weight(&self) -> brdf_basis::fit::TargetWeight {
+        self.objective.weight(self.eps)
+    }
+}
+
 /// `--stride`: 1 (the full grid) to 90 (one cell per axis).
 fn parse_stride(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {

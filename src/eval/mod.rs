@@ -1,5 +1,7 @@
 //! Evaluation: renders and error metrics.
 
+pub mod appearance;
+pub mod color;
 pub mod image_error;
 pub mod render;
 pub mod shade;

@@ -279,6 +279,7 @@ fn fit_all(
                 mae: 0.0,
                 relative_residual: 0.0,
                 relative_mae: 0.0,
+                objective_residual: 0.0,
                 kkt: [0.0; 3],
                 iterations: [0; 3],
             })
@@ -345,6 +346,7 @@ fn fit_all(
                 } else {
                     0.0
                 };
+                f.objective_residual = f.relative_residual;
                 f.relative_mae = if target_l1 > 0.0 {
                     3.0 * f.mae / target_l1
                 } else {

@@ -112,6 +112,13 @@ pub struct FitTarget {
     /// Solver iterations per channel (diagnostic; optional on input).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iterations: Option<[usize; 3]>,
+    /// Relative residual under the objective's weights (SPEC 11's `rho_W`; optional on
+    /// input).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub objective_residual: Option<f64>,
+    /// The appearance metrics of the fit (SPEC 11; optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<crate::eval::appearance::Appearance>,
 }
 
 /// A `fit` JSON file.
@@ -140,6 +147,12 @@ pub struct FitFile {
     /// `fit --samples`: the samples file fitted from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fitted_from: Option<String>,
+    /// The fit objective (SPEC 11): `l2`, `relative` or `log` (absent in older files: `l2`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub objective: Option<String>,
+    /// `eps` of the `relative` objective.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eps: Option<f64>,
 }
 
 impl FitTarget {
@@ -157,6 +170,8 @@ impl FitTarget {
             residual: f.residual,
             kkt: Some(f.kkt),
             iterations: Some(f.iterations),
+            objective_residual: Some(f.objective_residual),
+            appearance: None,
         }
     }
 
@@ -187,6 +202,8 @@ impl FitFile {
             mask: p.mask.to_string(),
             samples: None,
             fitted_from: None,
+            objective: Some(p.objective.kind().name().into()),
+            eps: p.objective.eps(),
         }
     }
 

@@ -8,6 +8,7 @@
 //! are computed on the grid in f64.
 
 use crate::backend::cpu::CpuBackend;
+pub use crate::backend::weighted::{ObjectiveKind, TargetWeight};
 use crate::backend::{Backend, Lobe, LobeParams, Progress};
 use crate::collection::{Collection, MaterialData};
 use crate::error::BackendError;
@@ -17,6 +18,7 @@ use crate::separable::{CellMoments, SeparableLobe};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
 
+pub mod appearance;
 pub mod diagnostics;
 pub mod export;
 pub mod file;
@@ -120,6 +122,8 @@ pub struct FitParams {
     pub solver: Solver,
     /// Gram mode.
     pub gram: GramMode,
+    /// The fit objective (SPEC 11): `l2` (SPEC 5, the paper's) or per-target weights.
+    pub objective: TargetWeight,
 }
 
 impl Default for FitParams {
@@ -130,6 +134,7 @@ impl Default for FitParams {
             stride: 1,
             solver: Solver::Exact,
             gram: GramMode::Auto,
+            objective: TargetWeight::L2,
         }
     }
 }
@@ -151,6 +156,9 @@ pub struct TargetFit {
     /// `mae` divided by the weighted mean of |target| over the mask (averaged over the
     /// channels likewise): above 1 the fit is further from the target than the zero BRDF.
     pub relative_mae: f64,
+    /// Relative residual under the objective's weights `W` (SPEC 11's `rho_W`):
+    /// `sum_c sum_s W r^2 / sum_c sum_s W b^2`; equal to `relative_residual` for `l2`.
+    pub objective_residual: f64,
     /// Largest scaled KKT violation per channel.
     pub kkt: [f64; 3],
     /// Solver iterations per channel.
@@ -573,10 +581,15 @@ pub fn fit(
             mae: 0.0,
             relative_residual: 0.0,
             relative_mae: 0.0,
+            objective_residual: 0.0,
             kkt: [0.0; 3],
             iterations: [0; 3],
         })
         .collect();
+    let weight = p.objective.check()?;
+    let weighted = weight != TargetWeight::L2;
+    // Per target, the objective's sums `sum_c sum_s W r^2` and `sum_c sum_s W b^2`.
+    let mut objective_sums = vec![[0.0f64; 2]; targets.len()];
     let cpu = CpuBackend::new();
     let all_analytic = all
         .iter()
@@ -586,16 +599,25 @@ pub fn fit(
     let mut target_norms = vec![0.0; targets.len()];
     let mut target_l1 = vec![0.0; targets.len()];
     for c in 0..3 {
-        let ChannelGram {
-            gram: g,
-            h: hs,
-            bb: bbs,
-        } = channel_gram(backend, coll, basis, targets, &cells, c, p.gram, progress)?;
-        target_norms
-            .iter_mut()
-            .zip(&bbs)
-            .for_each(|(n, &b)| *n += b);
-        let sols = solve_channel(backend, m, &g, &hs, &bbs, p.solver)?;
+        let sols = if weighted {
+            let ws = weighted_channel(backend, coll, basis, targets, &cells, c, weight)?;
+            for (o, s) in objective_sums.iter_mut().zip(&ws) {
+                o[0] += s.objective;
+                o[1] += s.yy;
+            }
+            ws.into_iter().map(|s| s.solution).collect()
+        } else {
+            let ChannelGram {
+                gram: g,
+                h: hs,
+                bb: bbs,
+            } = channel_gram(backend, coll, basis, targets, &cells, c, p.gram, progress)?;
+            target_norms
+                .iter_mut()
+                .zip(&bbs)
+                .for_each(|(n, &b)| *n += b);
+            solve_channel(backend, m, &g, &hs, &bbs, p.solver)?
+        };
         let errs = grid_errors(
             coll,
             basis,
@@ -606,8 +628,18 @@ pub fn fit(
             c,
             &cpu,
         );
-        for (((f, s), e), tl1) in fits.iter_mut().zip(&sols).zip(errs).zip(&mut target_l1) {
+        for ((((f, s), e), tl1), tn) in fits
+            .iter_mut()
+            .zip(&sols)
+            .zip(errs)
+            .zip(&mut target_l1)
+            .zip(&mut target_norms)
+        {
             *tl1 += e.l1;
+            if weighted {
+                // The l2 path takes `sum_s w_s b^2` from the Gram pass; here, from the grid.
+                *tn += e.energy;
+            }
             for (k, &a) in s.x.iter().enumerate() {
                 f.coefficients[k][c] = a;
             }
@@ -617,14 +649,74 @@ pub fn fit(
             f.iterations[c] = s.iterations;
         }
     }
-    for (f, &norm) in fits.iter_mut().zip(&target_norms) {
+    for ((f, &norm), o) in fits.iter_mut().zip(&target_norms).zip(&objective_sums) {
         let sq: f64 = f.residual.iter().map(|r| r * r).sum();
         f.relative_residual = if norm > 0.0 { sq / norm } else { 0.0 };
+        f.objective_residual = if !weighted {
+            f.relative_residual
+        } else if o[1] > 0.0 {
+            (o[0] / o[1]).max(0.0)
+        } else {
+            0.0
+        };
     }
     for (f, &l1) in fits.iter_mut().zip(&target_l1) {
         f.relative_mae = if l1 > 0.0 { 3.0 * f.mae / l1 } else { 0.0 };
     }
     Ok(fits)
+}
+
+/// One target's fit of one channel under a weighted objective.
+pub(crate) struct WeightedFit {
+    /// The exact NNLS solution of its weighted system.
+    pub(crate) solution: NnlsSolution,
+    /// Its objective `sum_s W r^2` (from the system: `x' G x - 2 x' r + yy`, at least 0).
+    pub(crate) objective: f64,
+    /// `sum_s W b^2`.
+    pub(crate) yy: f64,
+}
+
+/// Every target's fit of channel `c` under the per-target weights `weight` (SPEC 11): the
+/// back-end's weighted systems ([`Backend::weighted_systems`]: one pass for every target),
+/// then an exact Lawson-Hanson solve per target.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn weighted_channel(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cells: &CellSet,
+    c: usize,
+    weight: TargetWeight,
+) -> Result<Vec<WeightedFit>, FitError> {
+    let lobe = |i: usize| channel_lobe(&coll.materials()[i].data, c);
+    let basis_lobes: Vec<Lobe> = basis.iter().map(|&i| lobe(i)).collect();
+    let target_lobes: Vec<Lobe> = targets.iter().map(|&i| lobe(i)).collect();
+    let sys = backend.weighted_systems(&basis_lobes, &target_lobes, cells, weight)?;
+    let m = basis.len() + 1;
+    let lh = lawson_hanson::LhParams::default();
+    targets
+        .par_iter()
+        .enumerate()
+        .map(|(t, &ti)| {
+            let g = sys.gram(t);
+            let (h, yy) = (sys.rhs(t), sys.yy(t));
+            if !yy.is_finite() || h.iter().chain(&g).any(|v| !v.is_finite()) {
+                return Err(FitError::NonFinite {
+                    material: coll.materials()[ti].name.clone(),
+                    channel: c,
+                });
+            }
+            let problem = crate::nnls::GramProblem::new(m, &g, h, yy)?;
+            let solution = lawson_hanson::solve(&problem, &lh)?;
+            let objective = problem.objective(&solution.x)?.max(0.0);
+            Ok(WeightedFit {
+                solution,
+                objective,
+                yy,
+            })
+        })
+        .collect()
 }
 
 /// Grid errors of one channel's fit of one target.
@@ -635,6 +727,8 @@ pub(crate) struct ChannelErrors {
     pub(crate) mae: f64,
     /// `sum_s w_s |b_s|` (the target's own weighted L1 norm).
     pub(crate) l1: f64,
+    /// `sum_s w_s b_s^2` (the target's weighted energy).
+    pub(crate) energy: f64,
 }
 
 /// The errors of channel `c` of every target's fit `sols` on the grid, in f64: from the
@@ -678,6 +772,7 @@ fn grid_errors(
                         residual: e.squared.sqrt(),
                         mae: e.absolute,
                         l1: zero.absolute,
+                        energy: zero.squared,
                     }
                 })
                 .collect()
@@ -709,18 +804,20 @@ fn grid_errors(
 /// non-zero coefficient; dropping a `0 * col` term changes no bit of a sum of finite
 /// values (it adds a zero), so both give the same MAE.
 pub(crate) fn cell_errors(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64]) -> ChannelErrors {
-    let (mut sq, mut ab, mut l1) = (0.0, 0.0, 0.0);
+    let (mut sq, mut ab, mut l1, mut energy) = (0.0, 0.0, 0.0, 0.0);
     for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
         let fitv: f64 = cols.iter().zip(x).map(|(col, &a)| a * col[i]).sum();
         let r = fitv - bv;
         sq += w * r * r;
         ab += w * r.abs();
         l1 += w * bv.abs();
+        energy += w * bv * bv;
     }
     ChannelErrors {
         residual: sq.sqrt(),
         mae: ab,
         l1,
+        energy,
     }
 }
 

@@ -4,9 +4,10 @@ use super::{all_others, indices_of, refuse, Grid};
 use crate::acquire::SampleFit;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
+use crate::eval::appearance::Appearance;
 use crate::fit::diagnostics::fit_warnings;
 use crate::fit::file::FitFile;
-use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit};
+use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit, TargetWeight};
 use crate::Result;
 use std::path::PathBuf;
 
@@ -36,6 +37,11 @@ pub struct FitRequest {
     pub solver: Solver,
     /// `--gram`.
     pub gram: GramMode,
+    /// `--objective` and `--eps` (SPEC 11).
+    pub objective: TargetWeight,
+    /// The appearance metrics of every fit (SPEC 11: log-RMSE, and image error, CIEDE2000
+    /// and FLIP under four lights); `--no-appearance` turns them off.
+    pub appearance: bool,
 }
 
 /// What `fit` computes: the fits, the JSON file, and the warnings on targets the basis
@@ -51,6 +57,9 @@ pub struct FitOutput {
     pub file: FitFile,
     /// Targets this basis cannot represent, in words ([`fit_warnings`]).
     pub warnings: Vec<String>,
+    /// The appearance metrics of every fit (target order); empty without
+    /// [`FitRequest::appearance`].
+    pub appearance: Vec<Appearance>,
 }
 
 impl FitRequest {
@@ -63,6 +72,8 @@ impl FitRequest {
             grid: Grid::default(),
             solver: d.solver,
             gram: d.gram,
+            objective: super::DEFAULT_OBJECTIVE,
+            appearance: true,
         }
     }
 
@@ -74,6 +85,7 @@ impl FitRequest {
             stride: self.grid.stride,
             solver: self.solver,
             gram: self.gram,
+            objective: self.objective,
         }
     }
 
@@ -118,14 +130,27 @@ impl FitRequest {
     ) -> Result<FitOutput> {
         let (basis, targets) = self.indices(coll)?;
         let p = self.params();
+        p.objective.check()?;
         let fits = fit(backend, coll, &basis, &targets, &p, progress)?;
         let warnings = fit_warnings(coll, &basis, &targets, &fits);
-        let file = FitFile::new(coll, &basis, &fits, &p);
+        let appearance = if self.appearance {
+            let mut all = basis.clone();
+            all.extend_from_slice(&targets);
+            let cells = crate::fit::fit_cells(coll, &all, &p)?;
+            crate::fit::appearance::appearance(coll, &basis, &targets, &fits, &cells)?
+        } else {
+            Vec::new()
+        };
+        let mut file = FitFile::new(coll, &basis, &fits, &p);
+        for (t, a) in file.targets.iter_mut().zip(&appearance) {
+            t.appearance = Some(a.clone());
+        }
         Ok(FitOutput {
             basis,
             fits,
             file,
             warnings,
+            appearance,
         })
     }
 }
@@ -148,6 +173,9 @@ pub struct FitSamplesRequest {
     pub gram: GramMode,
     /// `--seed`: of the directions suggested when the samples do not determine the fit.
     pub seed: u64,
+    /// `--objective` and `--eps` (SPEC 11: each sample weighted by the objective's weight
+    /// at its measured value, times `1 / sigma^2`).
+    pub objective: TargetWeight,
 }
 
 /// What `fit --samples` computes.
@@ -187,6 +215,7 @@ impl FitSamplesRequest {
             solver: d.solver,
             gram: d.gram,
             seed: 1,
+            objective: super::DEFAULT_OBJECTIVE,
         }
     }
 
@@ -221,6 +250,7 @@ impl FitSamplesRequest {
             stride: self.grid.stride,
             solver: self.solver,
             gram: self.gram,
+            objective: self.objective,
         };
         let name = self.target_name();
         let target = sf.target_fit(&name);

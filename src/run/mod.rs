@@ -46,7 +46,13 @@ pub use reproduce::{ReproduceRequest, Reproduction};
 pub use select::{SelectMethod, SelectRequest};
 
 use crate::collection::Collection;
+use crate::fit::TargetWeight;
 use crate::merl::{Mask, Weighting};
+
+/// The fit objective of `fit`, `fit --samples`, `select`, `plan` and `cv` when none is
+/// given (SPEC 11; README "Appearance" gives the measurement that chose it). `reproduce`
+/// keeps `l2` where it reproduces the paper.
+pub const DEFAULT_OBJECTIVE: TargetWeight = TargetWeight::L2;
 
 /// Which grid cells a command reduces over and how they are weighted: the
 /// `--mask`, `--weighting` and `--stride` of `distance`, `select`, `fit` and `cv`.

@@ -1,0 +1,215 @@
+//! Appearance metrics of a fit (SPEC 11): log-RMSE on the grid, and on renders under four
+//! lights the normalised image error (SPEC 7), the mean CIEDE2000 difference and the mean
+//! LDR FLIP.
+//!
+//! Conventions, where SPEC 11 leaves a choice:
+//! * renders are SPEC 7's sphere at [`RENDER_SIZE`]^2 pixels, displayed with exposure 0 and
+//!   gamma 2.2, clamped; the display values are taken as sRGB for CIELAB
+//!   ([`super::color`]) and quantised to 8 bits for FLIP (what an LDR FLIP compares);
+//! * CIEDE2000 and FLIP are averaged over the sphere's pixels (the background is black in
+//!   both images; FLIP's error map is computed on the whole image, so that its filters see
+//!   the sphere's silhouette, and then averaged over the sphere);
+//! * FLIP is NVIDIA's implementation (the `nv-flip` crate, the bindings wgpu's own tests
+//!   use) at [`FLIP_PIXELS_PER_DEGREE`];
+//! * log-RMSE is the root of the weighted mean (cell weights of the fit mask; with uniform
+//!   weights, the plain mean over cells) over cells and channels of
+//!   `(log(1 + max(fhat, 0) c) - log(1 + max(f, 0) c))^2`, `c = max(cos theta_i, 0)`.
+
+use super::color::{ciede2000, srgb_to_lab};
+use super::image_error::{normalized_image_error, DisplayParams};
+use super::render::{Image, RenderError};
+
+/// The lights of SPEC 11, `(theta, phi)` in degrees; the first is the paper's (SPEC 7).
+pub const LIGHTS: [(f64, f64); 4] = [(45.0, 45.0), (0.0, 0.0), (60.0, 180.0), (75.0, 270.0)];
+
+/// Render size of the appearance metrics (pixels per side).
+pub const RENDER_SIZE: u32 = 256;
+
+/// FLIP's viewing condition (SPEC 11): 67 pixels per degree (FLIP's default: a 0.7 m
+/// distance to a 0.7 m wide 4K monitor).
+pub const FLIP_PIXELS_PER_DEGREE: f32 = 67.0;
+
+/// The image metrics of one render of a fit against the render of its target.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LightScores {
+    /// The light's polar angle, degrees.
+    pub theta: f64,
+    /// The light's azimuth, degrees.
+    pub phi: f64,
+    /// Normalised image error (SPEC 7), in `[0, 1]`.
+    pub image_error: f64,
+    /// Mean CIEDE2000 difference over the sphere's pixels.
+    pub ciede2000: f64,
+    /// Mean LDR FLIP over the sphere's pixels, in `[0, 1]`.
+    pub flip: f64,
+}
+
+/// Every appearance metric of one fit: log-RMSE, and per light and averaged over the lights
+/// the image metrics.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Appearance {
+    /// log-RMSE on the grid.
+    pub log_rmse: f64,
+    /// Per light of [`LIGHTS`] (the paper's light first).
+    pub lights: Vec<LightScores>,
+    /// Mean over the lights of the image error.
+    pub mean_image_error: f64,
+    /// Mean over the lights of the mean CIEDE2000.
+    pub mean_ciede2000: f64,
+    /// Mean over the lights of the mean FLIP.
+    pub mean_flip: f64,
+}
+
+impl Appearance {
+    /// The metrics from the log-RMSE and the per-light scores (means over the lights).
+    pub fn new(log_rmse: f64, lights: Vec<LightScores>) -> Self {
+        let n = lights.len().max(1) as f64;
+        let mean = |g: fn(&LightScores) -> f64| lights.iter().map(g).sum::<f64>() / n;
+        Self {
+            log_rmse,
+            mean_image_error: mean(|l| l.image_error),
+            mean_ciede2000: mean(|l| l.ciede2000),
+            mean_flip: mean(|l| l.flip),
+            lights,
+        }
+    }
+
+    /// The scores under the paper's light (45, 45).
+    pub fn paper_light(&self) -> &LightScores {
+        &self.lights[0]
+    }
+}
+
+/// The display value of every channel of every pixel (SPEC 7's mapping).
+fn display_values(img: &Image, d: &DisplayParams) -> Vec<f64> {
+    img.data.iter().map(|&v| d.map(f64::from(v))).collect()
+}
+
+/// Mean CIEDE2000 over the sphere's pixels between the display-mapped renders `a` and `b`.
+pub fn mean_ciede2000(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
+    // Same sizes and masks, and at least one sphere pixel: the image error's checks.
+    normalized_image_error(a, b, d)?;
+    let (da, db) = (display_values(a, d), display_values(b, d));
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (i, &on) in a.mask.iter().enumerate() {
+        if on {
+            let pa = [da[3 * i], da[3 * i + 1], da[3 * i + 2]];
+            let pb = [db[3 * i], db[3 * i + 1], db[3 * i + 2]];
+            sum += ciede2000(srgb_to_lab(pa), srgb_to_lab(pb));
+            n += 1;
+        }
+    }
+    Ok(sum / n as f64)
+}
+
+/// Mean LDR FLIP over the sphere's pixels between the 8-bit display images of `reference`
+/// and `test` (NVIDIA's FLIP through the `nv-flip` crate).
+pub fn mean_flip(reference: &Image, test: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
+    normalized_image_error(reference, test, d)?;
+    let to8 = |img: &Image| {
+        let bytes: Vec<u8> = img.data.iter().map(|&v| d.map_u8(f64::from(v))).collect();
+        nv_flip::FlipImageRgb8::with_data(img.width, img.height, &bytes)
+    };
+    let map = nv_flip::flip(to8(reference), to8(test), FLIP_PIXELS_PER_DEGREE).to_vec();
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (&e, &on) in map.iter().zip(&reference.mask) {
+        if on {
+            sum += f64::from(e);
+            n += 1;
+        }
+    }
+    Ok(sum / n as f64)
+}
+
+/// The image metrics of `test` against `reference`, rendered under the light `(theta, phi)`.
+pub fn light_scores(
+    reference: &Image,
+    test: &Image,
+    (theta, phi): (f64, f64),
+) -> Result<LightScores, RenderError> {
+    let d = DisplayParams::default();
+    Ok(LightScores {
+        theta,
+        phi,
+        image_error: normalized_image_error(reference, test, &d)?,
+        ciede2000: mean_ciede2000(reference, test, &d)?,
+        flip: mean_flip(reference, test, &d)?,
+    })
+}
+
+/// Running sums of the log-RMSE: add cells with [`LogSums::add`], then [`LogSums::value`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LogSums {
+    /// `sum_s w_s (log(1 + max(fhat, 0) c) - log(1 + max(f, 0) c))^2` over cells and channels.
+    pub squared: f64,
+    /// `sum_s w_s` over cells and channels.
+    pub weight: f64,
+}
+
+impl LogSums {
+    /// Adds one cell and channel: fitted value `fit`, target value `target`, cell weight `w`
+    /// and incoming cosine `cos_i`.
+    #[inline]
+    pub fn add(&mut self, fit: f64, target: f64, w: f64, cos_i: f64) {
+        let c = cos_i.max(0.0);
+        let d = (fit.max(0.0) * c).ln_1p() - (target.max(0.0) * c).ln_1p();
+        self.squared += w * d * d;
+        self.weight += w;
+    }
+
+    /// Adds another set of sums.
+    pub fn merge(&mut self, o: &LogSums) {
+        self.squared += o.squared;
+        self.weight += o.weight;
+    }
+
+    /// The log-RMSE (0 with no cell).
+    pub fn value(&self) -> f64 {
+        if self.weight > 0.0 {
+            (self.squared / self.weight).sqrt()
+        } else {
+            0.0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::render::{render_sphere, RenderParams};
+
+    fn render(rgb: [f64; 3], light: (f64, f64)) -> Image {
+        let p = RenderParams::default()
+            .with_size(64)
+            .with_light(light.0, light.1);
+        render_sphere(&p, &move |_, _| rgb).unwrap()
+    }
+
+    #[test]
+    fn equal_renders_score_zero_and_a_hue_shift_scores_more_than_a_small_grey_change() {
+        let a = render([0.1, 0.2, 0.6], LIGHTS[0]);
+        let s = light_scores(&a, &a, LIGHTS[0]).unwrap();
+        assert_eq!((s.image_error, s.ciede2000, s.flip), (0.0, 0.0, 0.0));
+        let hue = render([0.6, 0.2, 0.1], LIGHTS[0]);
+        let grey = render([0.11, 0.21, 0.61], LIGHTS[0]);
+        let h = light_scores(&a, &hue, LIGHTS[0]).unwrap();
+        let g = light_scores(&a, &grey, LIGHTS[0]).unwrap();
+        assert!(h.ciede2000 > 10.0 * g.ciede2000, "{h:?} {g:?}");
+        assert!(h.flip > 5.0 * g.flip && h.flip <= 1.0, "{h:?} {g:?}");
+    }
+
+    #[test]
+    fn log_rmse_of_a_constant_factor_is_the_log_of_its_effect() {
+        let mut s = LogSums::default();
+        // fit e - 1 against 0 at c = 1: log(e) - log(1) = 1 on every cell.
+        for _ in 0..10 {
+            s.add(std::f64::consts::E - 1.0, 0.0, 0.1, 1.0);
+        }
+        assert!((s.value() - 1.0).abs() < 1e-12);
+        // A negative fit counts as 0; a cell below the horizon compares nothing.
+        let mut t = LogSums::default();
+        t.add(-5.0, 0.0, 1.0, 0.5);
+        t.add(3.0, 1.0, 1.0, -0.2);
+        assert_eq!(t.value(), 0.0);
+    }
+}
