@@ -27,6 +27,7 @@ mod measured;
 mod merl100_f64;
 mod nbrdf;
 mod nbrdf_gpu;
+mod objectives;
 mod outputs;
 mod reproduce;
 mod requests;

@@ -53,6 +53,13 @@ pub struct CvArgs {
     /// Render size in pixels for the image errors.
     #[arg(long, default_value_t = defaults().render_size)]
     pub render_size: u32,
+    /// The fit objective of the selection and the held-out fits.
+    #[command(flatten)]
+    pub objective: super::ObjectiveArgs,
+    /// Skip the appearance metrics of the held-out fits (renders at 256 x 256 under four
+    /// lights: image error, CIEDE2000, FLIP).
+    #[arg(long)]
+    pub no_appearance: bool,
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
@@ -124,11 +131,19 @@ impl CvArgs {
         r.ga_generations = self.ga_generations;
         r.render_size = self.render_size;
         r.seed = g.seed;
+        r.objective = self.objective.weight();
+        r.appearance = !self.no_appearance;
         Ok(r)
     }
 
     /// The `cv --acquisition` request these flags make (the first `-k` is the basis size).
     pub fn acquisition_request(&self, g: &Global) -> anyhow::Result<AcquisitionRequest> {
+        if self.objective.weight() != brdf_basis::fit::TargetWeight::L2 {
+            anyhow::bail!(
+                "--acquisition: --objective {} is not supported yet (plans and fits from samples use l2); give --objective l2",
+                self.objective.objective.name()
+            );
+        }
         let mut r = AcquisitionRequest::default();
         if let Some(m) = methods(self)? {
             r.methods = m;
@@ -189,6 +204,13 @@ pub fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     }
     out.commit()?;
     print!("{}", res.table_markdown());
+    if let Some(t) = res.appearance_markdown() {
+        println!(
+            "appearance of the held-out fits (objective {}):",
+            res.objective
+        );
+        print!("{t}");
+    }
     println!("wrote {}", a.json.display());
     if let Some(m) = &a.markdown {
         println!("wrote {}", m.display());

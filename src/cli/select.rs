@@ -33,6 +33,9 @@ pub struct SelectArgs {
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
+    /// greedy, swap, ga: the fit objective whose shared weights score a basis.
+    #[command(flatten)]
+    pub objective: super::ObjectiveArgs,
     /// kmedoids, greedy, swap, ga: the basis size (kmedoids: instead of --k-min..--k-max).
     #[arg(short = 'k')]
     pub k: Option<usize>,
@@ -126,6 +129,7 @@ impl SelectArgs {
         r.grid = self.grid.grid();
         r.seed = g.seed;
         r.distances = self.distances.clone();
+        r.objective = self.objective.weight();
         r
     }
 }

@@ -32,6 +32,11 @@ pub struct CvRequest {
     pub render_size: u32,
     /// `--seed`.
     pub seed: u64,
+    /// `--objective` and `--eps` (SPEC 11): the selection's shared weights and the
+    /// held-out fits' per-target weights.
+    pub objective: crate::fit::TargetWeight,
+    /// The appearance metrics of the held-out fits (`--no-appearance` turns them off).
+    pub appearance: bool,
 }
 
 impl Default for CvRequest {
@@ -49,6 +54,8 @@ impl Default for CvRequest {
             ga_generations: g.generations,
             render_size: d.render_size,
             seed: d.seed,
+            objective: super::DEFAULT_OBJECTIVE,
+            appearance: d.appearance,
         }
     }
 }
@@ -64,7 +71,8 @@ impl CvRequest {
             objective: ObjectiveParams::default()
                 .mask(self.grid.mask)
                 .weighting(self.grid.weighting)
-                .stride(self.grid.stride),
+                .stride(self.grid.stride)
+                .objective(self.objective),
             metric: self.metric,
             runs: self.runs,
             ga: GaParams::default()
@@ -72,6 +80,7 @@ impl CvRequest {
                 .generations(self.ga_generations)
                 .seed(self.seed),
             render_size: self.render_size,
+            appearance: self.appearance,
         }
     }
 

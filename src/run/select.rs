@@ -140,6 +140,10 @@ pub struct SelectRequest {
     /// `--distances`: cluster this saved matrix (a `.npy` written by `distance`, read with
     /// its sidecar, or a `.csv`) instead of computing one ([`SelectRequest::run_saved`]).
     pub distances: Option<PathBuf>,
+    /// `--objective` and `--eps` (SPEC 11): greedy, swap and ga score bases under the
+    /// objective's shared weights. The clustering methods work on distances, and
+    /// `empirical` on its leave-one-out `l2` fits: the objective does not change them.
+    pub objective: crate::fit::TargetWeight,
 }
 
 impl SelectRequest {
@@ -168,6 +172,7 @@ impl SelectRequest {
             grid: Grid::default(),
             seed: 1,
             distances: None,
+            objective: super::DEFAULT_OBJECTIVE,
         }
     }
 
@@ -480,6 +485,7 @@ impl SelectRequest {
             .mask(g.mask)
             .weighting(g.weighting)
             .stride(g.stride)
+            .objective(self.objective)
             .check()?;
         let obj = Objective::new(backend, coll, &op, progress)?;
         let selection = match self.method {

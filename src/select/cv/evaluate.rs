@@ -4,81 +4,189 @@ use rayon::prelude::*;
 
 use super::super::objective::Objective;
 use super::super::SelectionError;
-use super::{CvMethodResult, CvTest, HeldOut};
+use super::{AppearanceMeans, CvMethodResult, CvTest, HeldOut};
 use crate::backend::cpu::CpuBackend;
-use crate::backend::Lobe;
+use crate::backend::{Backend, Lobe};
 use crate::collection::{Collection, MaterialData};
+use crate::eval::appearance::{light_scores, Appearance, LogSums, LIGHTS, RENDER_SIZE};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{material_brdf, PixelBrdfs};
-use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, LAMBERTIAN};
+use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, TargetWeight, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
 use crate::stats::{mean, median, StatsError};
 
-/// What the held-out materials are evaluated with: the objective, the grid MAE and renders
-/// of every material (SPEC 7: light (45, 45)).
+/// The renders of the appearance metrics (SPEC 11): per light, the pixel table of every
+/// material and the render of every material.
+struct LightRenders {
+    rp: RenderParams,
+    pixels: PixelBrdfs,
+    originals: Vec<Image>,
+}
+
+/// What the held-out materials are evaluated with: the objective, the grid MAE and
+/// log-RMSE, renders of every material (SPEC 7: light (45, 45)) and, with appearance
+/// metrics, renders under SPEC 11's four lights.
 pub(crate) struct Evaluator<'a> {
+    backend: &'a dyn Backend,
+    coll: &'a Collection,
     obj: &'a Objective,
+    fp: FitParams,
     grid: GridEval<'a>,
     pixels: PixelBrdfs,
     rp: RenderParams,
     display: DisplayParams,
     originals: Vec<Image>,
+    lights: Vec<LightRenders>,
 }
 
 impl<'a> Evaluator<'a> {
-    /// Renders every material once (`render_size` pixels).
+    /// Renders every material once (`render_size` pixels), and with `appearance` under
+    /// the four lights at SPEC 11's size.
     pub fn new(
+        backend: &'a dyn Backend,
         coll: &'a Collection,
         obj: &'a Objective,
         fp: &FitParams,
         render_size: u32,
+        appearance: bool,
     ) -> Result<Self, SelectionError> {
+        let renders = |rp: &RenderParams| -> Result<Vec<Image>, SelectionError> {
+            (0..coll.len())
+                .map(|t| {
+                    Ok(render_sphere(
+                        rp,
+                        &material_brdf(&coll.materials()[t].data),
+                    )?)
+                })
+                .collect()
+        };
         let rp = RenderParams::default()
             .with_size(render_size)
             .with_light(45.0, 45.0);
-        let originals: Vec<Image> = (0..coll.len())
-            .map(|t| render_sphere(&rp, &material_brdf(&coll.materials()[t].data)))
-            .collect::<Result<_, _>>()?;
+        let originals = renders(&rp)?;
+        let lights = if appearance {
+            LIGHTS
+                .iter()
+                .map(|&(th, ph)| {
+                    let rp = RenderParams::default()
+                        .with_size(RENDER_SIZE)
+                        .with_light(th, ph);
+                    Ok(LightRenders {
+                        pixels: PixelBrdfs::new(coll, &rp)?,
+                        originals: renders(&rp)?,
+                        rp,
+                    })
+                })
+                .collect::<Result<Vec<_>, SelectionError>>()?
+        } else {
+            Vec::new()
+        };
         Ok(Self {
+            backend,
+            coll,
             obj,
+            fp: fp.clone(),
             grid: GridEval::new(coll, fp),
             pixels: PixelBrdfs::new(coll, &rp)?,
             rp,
             display: DisplayParams::default(),
             originals,
+            lights,
         })
     }
 
-    /// The held-out material `t` of fold `f` fitted by `basis`, its MAE left at 0 (see
-    /// [`Self::methods`]), and the fit's coefficients.
+    /// The held-out material `t` of fold `f` with its fit (`rho`, `objective_rho` and the
+    /// coefficients; MAE and log-RMSE left at 0, see [`Self::methods`]): its renders.
     fn held_out(
         &self,
         basis: &[usize],
         f: usize,
         t: usize,
-    ) -> Result<(HeldOut, Vec<[f64; 3]>), SelectionError> {
-        let fit = self.obj.fit(basis, t)?;
-        let img = render_sphere(&self.rp, &self.pixels.combination(basis, &fit.coefficients))?;
-        Ok((
-            HeldOut {
-                material: self.obj.names()[t].clone(),
-                fold: f,
-                rho: fit.rho,
-                mae: 0.0,
-                image_error: normalized_image_error(&self.originals[t], &img, &self.display)?,
-            },
-            fit.coefficients,
-        ))
+        rho: f64,
+        objective_rho: f64,
+        coefficients: &[[f64; 3]],
+    ) -> Result<HeldOut, SelectionError> {
+        let img = render_sphere(&self.rp, &self.pixels.combination(basis, coefficients))?;
+        let appearance = if self.lights.is_empty() {
+            None
+        } else {
+            let scores = self
+                .lights
+                .iter()
+                .zip(LIGHTS)
+                .map(|(l, light)| {
+                    let img = render_sphere(&l.rp, &l.pixels.combination(basis, coefficients))?;
+                    Ok(light_scores(&l.originals[t], &img, light)?)
+                })
+                .collect::<Result<Vec<_>, SelectionError>>()?;
+            Some(Appearance::new(0.0, scores))
+        };
+        Ok(HeldOut {
+            material: self.obj.names()[t].clone(),
+            fold: f,
+            rho,
+            mae: 0.0,
+            image_error: normalized_image_error(&self.originals[t], &img, &self.display)?,
+            objective_rho,
+            log_rmse: 0.0,
+            appearance,
+        })
+    }
+
+    /// The coefficients, `rho` and `rho_W` of every run's fit (`runs`: (fold, method, k,
+    /// target), the targets of one (fold, method, k) consecutive). `l2`: from the
+    /// objective's Gram form, run by run. `relative` and `log`: the per-target weighted
+    /// fits of [`crate::fit::fit`], one call (one weighted-systems pass of the back-end) per
+    /// (fold, method, k), `rho` on the grid.
+    #[allow(clippy::type_complexity)]
+    fn fits(
+        &self,
+        runs: &[(usize, usize, usize, usize)],
+        bases: &[Vec<Vec<Vec<usize>>>],
+    ) -> Result<Vec<(f64, f64, Vec<[f64; 3]>)>, SelectionError> {
+        if self.fp.objective == TargetWeight::L2 {
+            return runs
+                .par_iter()
+                .map(|&(f, m, k, t)| {
+                    let fit = self.obj.fit(&bases[m][k][f], t)?;
+                    Ok((fit.rho, fit.rho, fit.coefficients))
+                })
+                .collect();
+        }
+        let mut out = Vec::with_capacity(runs.len());
+        let mut i = 0;
+        while i < runs.len() {
+            let (f, m, k, _) = runs[i];
+            let j = i + runs[i..]
+                .iter()
+                .take_while(|r| (r.0, r.1, r.2) == (f, m, k))
+                .count();
+            let targets: Vec<usize> = runs[i..j].iter().map(|r| r.3).collect();
+            let fits = crate::fit::fit(
+                self.backend,
+                self.coll,
+                &bases[m][k][f],
+                &targets,
+                &self.fp,
+                &|_, _| {},
+            )?;
+            out.extend(
+                fits.into_iter()
+                    .map(|tf| (tf.relative_residual, tf.objective_residual, tf.coefficients)),
+            );
+            i = j;
+        }
+        Ok(out)
     }
 
     /// Every method at every k (`bases[m][k][f]`: the basis of method `methods[m]` at
     /// `ks[k]` in fold `f`): every held-out material of every fold, with means and
-    /// medians; results in method order, then k order. The grid MAE of all the fits
-    /// (every fold, method and k, every held-out material) comes from one pass over the
-    /// grid ([`GridEval::maes`]: each material tabulated once per block of cells, however
-    /// many folds it serves in).
+    /// medians; results in method order, then k order. The grid MAE and log-RMSE of all
+    /// the fits (every fold, method and k, every held-out material) come from one pass
+    /// over the grid ([`GridEval::sums`]: each material tabulated once per block of cells,
+    /// however many folds it serves in).
     pub fn methods(
         &self,
         methods: &[&str],
@@ -96,23 +204,31 @@ impl<'a> Evaluator<'a> {
                 })
             })
             .collect();
-        let fits: Vec<(HeldOut, Vec<[f64; 3]>)> = runs
+        let coefs = self.fits(&runs, bases)?;
+        let fits: Vec<HeldOut> = runs
             .par_iter()
-            .map(|&(f, m, k, t)| self.held_out(&bases[m][k][f], f, t))
+            .zip(&coefs)
+            .map(|(&(f, m, k, t), (rho, rho_w, coef))| {
+                self.held_out(&bases[m][k][f], f, t, *rho, *rho_w, coef)
+            })
             .collect::<Result<_, _>>()?;
         let jobs: Vec<MaeJob<'_>> = runs
             .iter()
-            .zip(&fits)
-            .map(|(&(f, m, k, t), (_, coef))| MaeJob {
+            .zip(&coefs)
+            .map(|(&(f, m, k, t), (_, _, coef))| MaeJob {
                 basis: &bases[m][k][f],
                 target: t,
                 coef,
             })
             .collect();
-        let maes = self.grid.maes(&jobs);
+        let sums = self.grid.sums(&jobs);
         drop(jobs);
-        for ((&(_, m, k, _), (mut h, _)), mae) in runs.iter().zip(fits).zip(maes) {
+        for ((&(_, m, k, _), mut h), (mae, log_rmse)) in runs.iter().zip(fits).zip(sums) {
             h.mae = mae;
+            h.log_rmse = log_rmse;
+            if let Some(a) = &mut h.appearance {
+                a.log_rmse = log_rmse;
+            }
             held[m][k].push(h);
         }
         let names = self.obj.names();
@@ -121,6 +237,7 @@ impl<'a> Evaluator<'a> {
             for (k, held_out) in per_k.into_iter().enumerate() {
                 let col = |g: fn(&HeldOut) -> f64| held_out.iter().map(g).collect::<Vec<f64>>();
                 let (rho, mae, img) = (col(|h| h.rho), col(|h| h.mae), col(|h| h.image_error));
+                let appearance = appearance_means(&held_out);
                 out.push(CvMethodResult {
                     method: methods[m].into(),
                     k: ks[k],
@@ -134,12 +251,33 @@ impl<'a> Evaluator<'a> {
                     median_mae: median(&mae),
                     mean_image_error: mean(&img),
                     median_image_error: median(&img),
+                    mean_log_rmse: mean(&col(|h| h.log_rmse)),
+                    appearance,
                     held_out,
                 });
             }
         }
         Ok(out)
     }
+}
+
+/// Means (and medians) over held-out materials of their appearance metrics; `None` when
+/// they were not computed.
+pub(crate) fn appearance_means(held: &[HeldOut]) -> Option<AppearanceMeans> {
+    let a: Vec<&Appearance> = held.iter().filter_map(|h| h.appearance.as_ref()).collect();
+    if a.is_empty() || a.len() != held.len() {
+        return None;
+    }
+    let col = |g: &dyn Fn(&Appearance) -> f64| a.iter().map(|x| g(x)).collect::<Vec<f64>>();
+    Some(AppearanceMeans {
+        image_error_paper_light: mean(&col(&|x| x.paper_light().image_error)),
+        image_error: mean(&col(&|x| x.mean_image_error)),
+        median_image_error: median(&col(&|x| x.mean_image_error)),
+        ciede2000: mean(&col(&|x| x.mean_ciede2000)),
+        flip_paper_light: mean(&col(&|x| x.paper_light().flip)),
+        flip: mean(&col(&|x| x.mean_flip)),
+        median_flip: median(&col(&|x| x.mean_flip)),
+    })
 }
 
 /// Paired two-sided Wilcoxon signed-rank tests between every two methods at each k of
@@ -252,10 +390,36 @@ impl<'a> GridEval<'a> {
         if let Some(mom) = &self.moments {
             return jobs.par_iter().map(|j| self.analytic_mae(mom, j)).collect();
         }
-        cell_sums::<false>(&self.cpu, self.coll, &self.cells, jobs)
+        cell_sums::<false, false>(&self.cpu, self.coll, &self.cells, jobs)
             .iter()
             .map(|s| s.iter().fold(0.0, |mae, e| mae + e.absolute / 3.0))
             .collect()
+    }
+
+    /// The MAE ([`Self::maes`], the same bits) and the log-RMSE (SPEC 11) of every job, in
+    /// job order: one pass over the cells (the MAE of an analytic collection from its
+    /// moments).
+    pub(crate) fn sums(&self, jobs: &[MaeJob<'_>]) -> Vec<(f64, f64)> {
+        let cells = cell_sums::<false, true>(&self.cpu, self.coll, &self.cells, jobs);
+        let logs = cells.iter().map(|s| {
+            let mut l = LogSums::default();
+            s.iter().for_each(|e| l.merge(&e.log));
+            l.value()
+        });
+        match &self.moments {
+            Some(mom) => jobs
+                .par_iter()
+                .map(|j| self.analytic_mae(mom, j))
+                .collect::<Vec<f64>>()
+                .into_iter()
+                .zip(logs)
+                .collect(),
+            None => cells
+                .iter()
+                .map(|s| s.iter().fold(0.0, |mae, e| mae + e.absolute / 3.0))
+                .zip(logs)
+                .collect(),
+        }
     }
 
     /// [`Self::mae`] from the separable cell moments (every material analytic).
@@ -294,6 +458,8 @@ pub(crate) struct CellSums {
     pub absolute: f64,
     /// `sum_s w_s |b_s|`.
     pub target: f64,
+    /// The log-RMSE's sums (SPEC 11), when asked for.
+    pub log: LogSums,
 }
 
 /// The three channels of material `m` at `cells`, in f64: the values
@@ -316,7 +482,7 @@ fn material_values(cpu: &CpuBackend, coll: &Collection, m: usize, cells: &[u32])
 /// sums are formed (the fits' errors, `fit::fit`); else only the columns with a non-zero
 /// coefficient (the others add exact zeros: the same bits) and only `absolute` (the
 /// cross-validation's MAE).
-pub(crate) fn cell_sums<const ALL: bool>(
+pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
     cpu: &CpuBackend,
     coll: &Collection,
     cells: &CellSet,
@@ -347,6 +513,14 @@ pub(crate) fn cell_sums<const ALL: bool>(
         .zip(cells.weights.chunks(block_cells))
     {
         let lambert = cpu.values_f64(&LAMBERTIAN, block);
+        let cos_i: Vec<f64> = if LOG {
+            block
+                .iter()
+                .map(|&c| crate::backend::weighted::cos_theta_i(c as usize))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let values: Vec<[Vec<f64>; 3]> = needed
             .par_iter()
             .map(|&m| material_values(cpu, coll, m, block))
@@ -389,6 +563,9 @@ pub(crate) fn cell_sums<const ALL: bool>(
                         if ALL {
                             e.target += w * bv.abs();
                         }
+                        if LOG {
+                            e.log.add(fit[c * len + i], bv, w, cos_i[i]);
+                        }
                     }
                 }
             },
@@ -415,6 +592,9 @@ mod tests {
                     rho: x,
                     mae: x,
                     image_error: x,
+                    objective_rho: x,
+                    log_rmse: x,
+                    appearance: None,
                 })
                 .collect(),
             mean_rho: mean(v),
@@ -423,6 +603,8 @@ mod tests {
             median_mae: median(v),
             mean_image_error: mean(v),
             median_image_error: median(v),
+            mean_log_rmse: mean(v),
+            appearance: None,
         }
     }
 

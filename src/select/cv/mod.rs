@@ -49,6 +49,16 @@ pub struct HeldOut {
     pub mae: f64,
     /// Normalised image error (SPEC 7).
     pub image_error: f64,
+    /// Relative residual under the objective's per-target weights (SPEC 11's `rho_W`;
+    /// `rho` for `l2`).
+    #[serde(default)]
+    pub objective_rho: f64,
+    /// log-RMSE (SPEC 11) on the grid.
+    #[serde(default)]
+    pub log_rmse: f64,
+    /// The image metrics under the four lights of SPEC 11 (absent when not asked for).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<crate::eval::appearance::Appearance>,
 }
 
 /// Results of one method at one k.
@@ -74,6 +84,32 @@ pub struct CvMethodResult {
     pub mean_image_error: f64,
     /// Median held-out image error.
     pub median_image_error: f64,
+    /// Mean held-out log-RMSE.
+    #[serde(default)]
+    pub mean_log_rmse: f64,
+    /// Mean over held-out materials of the image metrics averaged over the four lights
+    /// (absent without appearance metrics).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<AppearanceMeans>,
+}
+
+/// Means over held-out materials of the appearance metrics (SPEC 11).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AppearanceMeans {
+    /// Image error under the paper's light (45, 45) at SPEC 11's render size.
+    pub image_error_paper_light: f64,
+    /// Image error, mean over the four lights.
+    pub image_error: f64,
+    /// Median over held-out materials of the four-light image error.
+    pub median_image_error: f64,
+    /// CIEDE2000, mean over the four lights.
+    pub ciede2000: f64,
+    /// FLIP under the paper's light.
+    pub flip_paper_light: f64,
+    /// FLIP, mean over the four lights.
+    pub flip: f64,
+    /// Median over held-out materials of the four-light FLIP.
+    pub median_flip: f64,
 }
 
 /// Paired Wilcoxon signed-rank tests between two methods at one k.
@@ -112,6 +148,12 @@ pub struct CvResult {
     pub mask: String,
     /// Weighting.
     pub weighting: String,
+    /// The fit objective (SPEC 11).
+    #[serde(default = "l2_name")]
+    pub objective: String,
+    /// `eps` of the `relative` objective.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eps: Option<f64>,
     /// [`Collection::fingerprint`] of the collection cross-validated.
     pub collection_fingerprint: String,
 }
@@ -137,14 +179,33 @@ pub fn cross_validate(
     } else {
         None
     };
-    cross_validate_with(coll, &obj, dist.as_ref(), p, progress)
+    cross_validate_on(backend, coll, &obj, dist.as_ref(), p, progress)
+}
+
+fn l2_name() -> String {
+    "l2".into()
+}
+
+/// [`cross_validate_with`] on the CPU back-end (the held-out fits of a weighted objective
+/// go through a back-end: [`cross_validate_on`] names it).
+pub fn cross_validate_with(
+    coll: &Collection,
+    obj: &Objective,
+    dist: Option<&DistanceMatrix>,
+    vp: &ValidCvParams,
+    progress: Progress<'_>,
+) -> Result<CvResult, SelectionError> {
+    let cpu = crate::backend::cpu::CpuBackend::new();
+    cross_validate_on(&cpu, coll, obj, dist, vp, progress)
 }
 
 /// Runs the cross-validation with a given objective (of `coll`) and distance matrix (of
 /// `coll`; needed only by the clustering methods): the fold bases ([`folds`]), then every
-/// held-out material by every basis and the paired tests ([`evaluate`]).
+/// held-out material by every basis and the paired tests ([`evaluate`]); the weighted
+/// held-out fits of `relative` and `log` run on `backend`.
 /// `progress(done, total)` counts (fold, method, k) selections.
-pub fn cross_validate_with(
+pub fn cross_validate_on(
+    backend: &dyn Backend,
     coll: &Collection,
     obj: &Objective,
     dist: Option<&DistanceMatrix>,
@@ -166,7 +227,14 @@ pub fn cross_validate_with(
     }
     let folds = make_folds(n, p.folds, p.seed);
     let bases = folds::fold_bases(obj, dist, &folds, vp, progress)?;
-    let eval = evaluate::Evaluator::new(coll, obj, &p.objective.fit_params(), p.render_size)?;
+    let eval = evaluate::Evaluator::new(
+        backend,
+        coll,
+        obj,
+        &p.objective.fit_params(),
+        p.render_size,
+        p.appearance,
+    )?;
     let methods: Vec<&str> = p.methods.iter().map(|m| m.name()).collect();
     let results = eval.methods(&methods, &p.ks, &folds, &bases)?;
     let tests = evaluate::paired_tests(&p.ks, &results)?;
@@ -181,6 +249,8 @@ pub fn cross_validate_with(
         tests,
         mask: p.objective.mask.to_string(),
         weighting: p.objective.weighting.to_string(),
+        objective: p.objective.objective.kind().name().into(),
+        eps: p.objective.objective.eps(),
         collection_fingerprint: coll.fingerprint(),
     })
 }

@@ -103,6 +103,9 @@ pub struct CvParams {
     pub ga: GaParams,
     /// Render size for the image errors, `>= 1` (default 64).
     pub render_size: u32,
+    /// The appearance metrics of every held-out fit (SPEC 11: renders at 256 x 256 under
+    /// four lights, CIEDE2000 and FLIP; default on).
+    pub appearance: bool,
 }
 
 impl Default for CvParams {
@@ -124,6 +127,7 @@ impl Default for CvParams {
             runs: 10,
             ga: GaParams::default(),
             render_size: 64,
+            appearance: true,
         }
     }
 }

@@ -12,13 +12,19 @@ impl CvResult {
         let n: usize = self.folds.iter().map(Vec::len).sum();
         let _ = writeln!(
             s,
-            "Cross-validation over materials: {} folds, {n} held-out materials, seed {}, {} mask, {} weights.\n",
+            "Cross-validation over materials: {} folds, {n} held-out materials, seed {}, {} mask, {} weights, objective {}{}.\n",
             self.folds.len(),
             self.seed,
             self.mask,
-            self.weighting
+            self.weighting,
+            self.objective,
+            self.eps.map(|e| format!(" (eps {})", num(e))).unwrap_or_default()
         );
         s.push_str(&self.table_markdown());
+        if let Some(t) = self.appearance_markdown() {
+            s.push_str("\nAppearance of the held-out fits (SPEC 11): log-RMSE on the grid; renders at 256 x 256, image error (exposure 0, gamma 2.2), CIEDE2000 and FLIP (67 ppd) averaged over the sphere, under the paper's light (45, 45) and averaged over the four lights:\n\n");
+            s.push_str(&t);
+        }
         s.push_str("\nPaired Wilcoxon signed-rank tests (two-sided p) on the held-out values:\n\n");
         s.push_str("| a | b | k | p (rho) | p (MAE) | p (image error) | a better / b better (rho) |\n|---|---|---|---|---|---|---|\n");
         for t in &self.tests {
@@ -36,6 +42,35 @@ impl CvResult {
             );
         }
         s
+    }
+
+    /// The appearance table of [`CvResult::markdown`] (`None` without appearance metrics):
+    /// per method and k, the means of log-RMSE and of the image metrics.
+    pub fn appearance_markdown(&self) -> Option<String> {
+        if self.results.iter().all(|r| r.appearance.is_none()) {
+            return None;
+        }
+        let mut s = String::from(
+            "| method | k | log-RMSE | image error (45, 45) | image error (4 lights) | median | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        );
+        for r in &self.results {
+            let Some(a) = &r.appearance else { continue };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                r.method,
+                r.k,
+                num(r.mean_log_rmse),
+                num(a.image_error_paper_light),
+                num(a.image_error),
+                num(a.median_image_error),
+                num(a.ciede2000),
+                num(a.flip_paper_light),
+                num(a.flip),
+                num(a.median_flip)
+            );
+        }
+        Some(s)
     }
 
     /// Only the method x k table of [`CvResult::markdown`].

@@ -19,7 +19,8 @@
 
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
-use crate::fit::{fit_cells, CollectionGrams, FitParams, GramMode};
+use crate::fit::{fit_cells, CollectionGrams, FitParams, GramMode, TargetWeight};
+use crate::merl::CellSet;
 use crate::merl::{Mask, Weighting};
 use crate::nnls::incremental::{self, ChanState, Cosine};
 use crate::nnls::NnlsError;
@@ -45,6 +46,10 @@ pub struct ObjectiveParams {
     pub stride: usize,
     /// Gram mode (default auto).
     pub gram: GramMode,
+    /// The fit objective (SPEC 11; default `l2`, SPEC 8's). Under `relative` or `log` the
+    /// Gram matrices carry SPEC 11's shared weights per channel ([`shared_weights`]) and
+    /// the reported fits (cross-validation's held-out fits) use the per-target weights.
+    pub objective: TargetWeight,
 }
 
 impl Default for ObjectiveParams {
@@ -54,6 +59,7 @@ impl Default for ObjectiveParams {
             weighting: Weighting::Uniform,
             stride: 1,
             gram: GramMode::Auto,
+            objective: TargetWeight::L2,
         }
     }
 }
@@ -79,6 +85,11 @@ impl ObjectiveParams {
         self.gram = g;
         self
     }
+    /// Sets the fit objective.
+    pub fn objective(mut self, o: TargetWeight) -> Self {
+        self.objective = o;
+        self
+    }
     /// Validates: `1 <= stride <= 90`.
     pub fn check(&self) -> Result<ValidObjectiveParams, SelectionError> {
         if self.stride == 0 || self.stride > 90 {
@@ -87,6 +98,9 @@ impl ObjectiveParams {
                 value: self.stride.to_string(),
                 expected: "an integer in 1..=90",
             });
+        }
+        if let Err(e) = self.objective.check() {
+            return Err(SelectionError::Fit(e.into()));
         }
         Ok(ValidObjectiveParams(self.clone()))
     }
@@ -97,6 +111,7 @@ impl ObjectiveParams {
             weighting: self.weighting,
             stride: self.stride,
             gram: self.gram,
+            objective: self.objective,
             ..FitParams::default()
         }
     }
@@ -111,6 +126,72 @@ impl ValidObjectiveParams {
     pub fn params(&self) -> &ObjectiveParams {
         &self.0
     }
+}
+
+/// Bytes of tabulated values [`shared_weights`] holds at once.
+const SHARED_WEIGHT_BLOCK_BYTES: usize = 256 << 20;
+
+/// SPEC 11's shared weights of an objective over `cells`, one cell set per channel:
+/// `W_c(s) = w_s phi(m_c(s), s)` with `m_c(s)` the median over the collection's materials
+/// of `f_c(s)` (the mean of the two middle values for an even count), normalised to sum 1
+/// (the scale of the weights changes no fit and no relative residual). The materials are
+/// tabulated by `backend` (f32) block by block of cells.
+pub fn shared_weights(
+    backend: &dyn Backend,
+    coll: &Collection,
+    cells: &CellSet,
+    weight: TargetWeight,
+) -> Result<[CellSet; 3], SelectionError> {
+    let lobes = crate::fit::collection_lobes(coll);
+    let n = coll.len();
+    let block = (SHARED_WEIGHT_BLOCK_BYTES / (4 * n.max(1))).clamp(256, 1 << 16);
+    let mut out: [CellSet; 3] = std::array::from_fn(|_| cells.clone());
+    for (c, o) in out.iter_mut().enumerate() {
+        let mats = &lobes[c][1..];
+        let mut at = 0;
+        for cc in cells.cells.chunks(block) {
+            let v = backend
+                .tabulate(mats, cc)
+                .map_err(crate::fit::FitError::from)?;
+            let len = cc.len();
+            let w: Vec<f64> = (0..len)
+                .into_par_iter()
+                .map(|i| {
+                    let mut col: Vec<f32> = (0..n).map(|m| v[m * len + i]).collect();
+                    let med = median_f32(&mut col);
+                    let cos_i = crate::backend::weighted::cos_theta_i(cc[i] as usize);
+                    weight.phi(med, cos_i)
+                })
+                .collect();
+            for (ow, wv) in o.weights[at..at + len].iter_mut().zip(w) {
+                *ow *= wv;
+            }
+            at += len;
+        }
+        let total: f64 = o.weights.iter().sum();
+        if !(total.is_finite() && total > 0.0) {
+            return Err(SelectionError::InvalidParam {
+                name: "--objective",
+                value: format!("{} (channel {c})", weight.kind().name()),
+                expected: "shared weights with a positive finite sum over the fit cells",
+            });
+        }
+        o.weights.iter_mut().for_each(|w| *w /= total);
+    }
+    Ok(out)
+}
+
+/// The median of `v` (NaN-free, non-empty: the mean of the two middle values for an even
+/// length), in f64; reorders `v`.
+fn median_f32(v: &mut [f32]) -> f64 {
+    let n = v.len();
+    let cmp = |a: &f32, b: &f32| a.total_cmp(b);
+    let (_, &mut hi, _) = v.select_nth_unstable_by(n / 2, cmp);
+    if n % 2 == 1 {
+        return f64::from(hi);
+    }
+    let lo = v[..n / 2].iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    0.5 * (f64::from(lo) + f64::from(hi))
 }
 
 /// The SPEC 8 objective of a collection: cosine Gram matrices of all materials per channel.
@@ -159,7 +240,17 @@ impl Objective {
                 )),
             )));
         }
-        let grams = if CollectionGrams::needed(coll, p.gram) {
+        let grams = if p.objective != TargetWeight::L2 {
+            let weighted = shared_weights(backend, coll, &cells, p.objective)?;
+            let lobes = crate::fit::collection_lobes(coll);
+            let mut out: [Vec<f64>; 3] = Default::default();
+            for ((o, l), cw) in out.iter_mut().zip(lobes).zip(&weighted) {
+                *o = backend
+                    .gram(&l, cw, n + 1, progress)
+                    .map_err(crate::fit::FitError::from)?;
+            }
+            out
+        } else if CollectionGrams::needed(coll, p.gram) {
             CollectionGrams::over(backend, coll, &cells, progress)?
         } else {
             analytic_grams(coll, &cells)
