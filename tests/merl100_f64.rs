@@ -419,7 +419,14 @@ fn cv_held_out_rho_on_merl100_matches_an_f64_recomputation() {
         .arg("cv")
         .arg(tmp.path())
         .args(["-k", "3", "--folds", "4", "--stride", "2", "--runs", "2"])
-        .args(["--render-size", "16", "--json"])
+        .args([
+            "--render-size",
+            "16",
+            "--objective",
+            "l2",
+            "--no-appearance",
+            "--json",
+        ])
         .arg(&json)
         .output()
         .expect("cv runs");

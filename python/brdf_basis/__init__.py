@@ -48,6 +48,9 @@ from ._native import (  # noqa: E402
     backend_name,
     distance_matrix,
     image_error,
+    image_metrics,
+    ciede2000,
+    srgb_to_lab,
     mask,
     nnls,
     render,
@@ -73,6 +76,9 @@ __all__ = [
     "fit",
     "friedman",
     "image_error",
+    "image_metrics",
+    "ciede2000",
+    "srgb_to_lab",
     "kmedoids",
     "mann_whitney",
     "mask",
@@ -173,6 +179,18 @@ class FitResult:
     @property
     def mae(self) -> np.ndarray:
         return np.array([t.mae for t in self.targets])
+
+    @property
+    def objective(self) -> str:
+        """The fit objective (SPEC 11): ``l2``, ``relative`` or ``log``."""
+        return self.data.get("objective", "l2")
+
+    @property
+    def appearance(self) -> list:
+        """Per target, its appearance metrics (SPEC 11: ``log_rmse``, ``lights`` with the
+        image error, CIEDE2000 and FLIP under each of the four lights, and their means), or
+        ``None`` when the fit was made with ``appearance=False``."""
+        return [t.get("appearance") for t in self.data["targets"]]
 
     def to_json(self) -> str:
         """The JSON text, as the command line writes it."""

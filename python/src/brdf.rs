@@ -130,6 +130,39 @@ pub(crate) fn image_error(
         .map_err(lib_err)
 }
 
+/// CIEDE2000 colour difference of two CIELAB colours (SPEC 11; `k_L = k_C = k_H = 1`).
+#[pyfunction]
+pub(crate) fn ciede2000(lab1: [f64; 3], lab2: [f64; 3]) -> f64 {
+    bb::eval::color::ciede2000(lab1, lab2)
+}
+
+/// CIELAB (D65) of an sRGB-encoded colour in [0, 1]^3 (SPEC 11's conversion).
+#[pyfunction]
+pub(crate) fn srgb_to_lab(rgb: [f64; 3]) -> [f64; 3] {
+    bb::eval::color::srgb_to_lab(rgb)
+}
+
+/// The image metrics of SPEC 11 between two sphere renders `reference` and `test`
+/// (float32 (size, size, 3), linear): a dict with `image_error`, `ciede2000` (mean over
+/// the sphere's pixels) and `flip` (mean LDR FLIP over the sphere's pixels, NVIDIA's
+/// implementation at 67 pixels per degree), all after SPEC 7's display mapping (exposure
+/// 0, gamma 2.2, clamped).
+#[pyfunction]
+pub(crate) fn image_metrics(
+    reference: PyReadonlyArrayDyn<'_, f32>,
+    test: PyReadonlyArrayDyn<'_, f32>,
+) -> PyResult<std::collections::BTreeMap<&'static str, f64>> {
+    let (a, b) = (image_of(&reference)?, image_of(&test)?);
+    let s = bb::eval::appearance::light_scores(&a, &b, (f64::NAN, f64::NAN)).map_err(lib_err)?;
+    Ok([
+        ("image_error", s.image_error),
+        ("ciede2000", s.ciede2000),
+        ("flip", s.flip),
+    ]
+    .into_iter()
+    .collect())
+}
+
 /// The name of the back-end `backend` opens (`cpu (2 threads, avx2)`, `gpu: ...`).
 #[pyfunction]
 #[pyo3(signature = (backend = "auto"))]

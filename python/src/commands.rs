@@ -51,7 +51,7 @@ pub(crate) fn grid(mask: &str, weighting: &str, stride: usize) -> PyResult<bb::r
 /// arguments are the fields of the library's `run::SelectRequest`, which makes every
 /// rule (one wording for the command line, Python and the library).
 #[pyfunction]
-#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = 0.01, backend = "auto", progress = None))]
 pub(crate) fn select_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -76,6 +76,8 @@ pub(crate) fn select_json<'py>(
     weighting: &str,
     stride: usize,
     seed: u64,
+    objective: Option<&str>,
+    eps: f64,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -103,6 +105,7 @@ pub(crate) fn select_json<'py>(
     }
     req.grid = grid(mask, weighting, stride)?;
     req.seed = seed;
+    req.objective = objective_of(objective, eps)?;
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
     let out = run_long(py, progress, method, |pr| {
@@ -112,6 +115,16 @@ pub(crate) fn select_json<'py>(
 }
 
 /// `solver`: `exact` or `pgd`.
+/// The fit objective (SPEC 11) of `objective=` and `eps=`: `None` is the default
+/// objective (`relative`) with `eps`.
+pub(crate) fn objective_of(objective: Option<&str>, eps: f64) -> PyResult<bb::fit::TargetWeight> {
+    let kind = match objective {
+        Some(o) => o.parse::<bb::fit::ObjectiveKind>().map_err(value_err)?,
+        None => bb::run::DEFAULT_OBJECTIVE.kind(),
+    };
+    kind.weight(eps).check().map_err(|e| value_err(e.to_string()))
+}
+
 pub(crate) fn solver(s: &str) -> PyResult<bb::Solver> {
     match s {
         "exact" => Ok(bb::Solver::Exact),
@@ -136,7 +149,7 @@ pub(crate) fn gram_mode(s: &str) -> PyResult<bb::GramMode> {
 /// Fits `targets` (default: every material outside the basis) by `basis`: returns the
 /// JSON `brdf-basis fit --json` writes (the library's `run::FitRequest`).
 #[pyfunction]
-#[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", backend = "auto", progress = None))]
+#[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", objective = None, eps = 0.01, appearance = true, backend = "auto", progress = None))]
 pub(crate) fn fit_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -147,6 +160,9 @@ pub(crate) fn fit_json<'py>(
     stride: usize,
     solver: &str,
     gram: &str,
+    objective: Option<&str>,
+    eps: f64,
+    appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -159,6 +175,8 @@ pub(crate) fn fit_json<'py>(
     req.grid = grid(mask, weighting, stride)?;
     req.solver = self::solver(solver)?;
     req.gram = gram_mode(gram)?;
+    req.objective = objective_of(objective, eps)?;
+    req.appearance = appearance;
     let backend = open_backend(backend)?;
     let fitted = run_long(py, progress, "fit", |pr| {
         req.run(backend.as_ref(), &coll, pr)
@@ -237,7 +255,7 @@ pub(crate) fn fit_samples<'py>(
 /// K-fold cross-validation as `brdf-basis cv` (the library's `run::CvRequest`): returns
 /// the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, objective = None, eps = 0.01, appearance = true, backend = "auto", progress = None))]
 pub(crate) fn cross_validate_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -253,6 +271,9 @@ pub(crate) fn cross_validate_json<'py>(
     ga_generations: Option<usize>,
     render_size: Option<u32>,
     seed: u64,
+    objective: Option<&str>,
+    eps: f64,
+    appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -270,6 +291,8 @@ pub(crate) fn cross_validate_json<'py>(
     req.ga_generations = ga_generations.unwrap_or(req.ga_generations);
     req.render_size = render_size.unwrap_or(req.render_size);
     req.seed = seed;
+    req.objective = objective_of(objective, eps)?;
+    req.appearance = appearance;
     req.check(coll.len()).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv", |pr| {

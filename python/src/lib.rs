@@ -140,6 +140,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mann_whitney_json, m)?)?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(image_error, m)?)?;
+    m.add_function(wrap_pyfunction!(image_metrics, m)?)?;
+    m.add_function(wrap_pyfunction!(ciede2000, m)?)?;
+    m.add_function(wrap_pyfunction!(srgb_to_lab, m)?)?;
     m.add_function(wrap_pyfunction!(backend_name, m)?)?;
     Ok(())
 }

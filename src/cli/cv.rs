@@ -138,12 +138,7 @@ impl CvArgs {
 
     /// The `cv --acquisition` request these flags make (the first `-k` is the basis size).
     pub fn acquisition_request(&self, g: &Global) -> anyhow::Result<AcquisitionRequest> {
-        if self.objective.weight() != brdf_basis::fit::TargetWeight::L2 {
-            anyhow::bail!(
-                "--acquisition: --objective {} is not supported yet (plans and fits from samples use l2); give --objective l2",
-                self.objective.objective.name()
-            );
-        }
+        self.objective.l2_only("cv --acquisition")?;
         let mut r = AcquisitionRequest::default();
         if let Some(m) = methods(self)? {
             r.methods = m;

@@ -80,7 +80,7 @@ impl FitArgs {
 
 impl FitArgs {
     /// The request these flags make with `--samples`.
-    pub fn samples_request(&self, g: &Global) -> FitSamplesRequest {
+    pub fn samples_request(&self, g: &Global) -> anyhow::Result<FitSamplesRequest> {
         let path = self
             .samples
             .clone()
@@ -90,8 +90,8 @@ impl FitArgs {
         r.solver = self.solver;
         r.gram = self.gram;
         r.seed = g.seed;
-        r.objective = self.objective.weight();
-        r
+        r.objective = self.objective.l2_only("fit --samples")?;
+        Ok(r)
     }
 }
 
@@ -279,7 +279,7 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 /// JSON (the `fit` schema with `samples` and `fitted_from`; residual and MAE on the
 /// samples) and, with `--export`, the whole reconstruction as a MERL `.binary`.
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
-    let req = a.samples_request(g);
+    let req = a.samples_request(g)?;
     let mut out_plan = OutputPlan::new(&a.collection);
     for (path, noun) in req.input_files() {
         out_plan.input_named(&path, noun);

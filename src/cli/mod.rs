@@ -77,20 +77,41 @@ impl GridArgs {
 /// `plan` and `cv`).
 #[derive(Args, Debug, Clone)]
 pub struct ObjectiveArgs {
-    /// What a fit minimises: l2 (raw reflectance, the paper's), relative (weights
-    /// 1 / (f + eps)^2: every cell counts by its relative error, so the diffuse body is not
-    /// given up for the highlight) or log (an L2 in log(1 + f cos theta_i)).
-    #[arg(long, value_enum, default_value_t = brdf_basis::run::DEFAULT_OBJECTIVE.kind())]
-    pub objective: brdf_basis::fit::ObjectiveKind,
+    /// What a fit minimises: relative (weights 1 / (f + eps)^2: every cell counts by its
+    /// relative error, so the diffuse body is not given up for the highlight), l2 (raw
+    /// reflectance, the paper's) or log (an L2 in log(1 + f cos theta_i)) [default:
+    /// relative; fits from samples and acquisition: l2].
+    #[arg(long, value_enum)]
+    pub objective: Option<brdf_basis::fit::ObjectiveKind>,
     /// eps of `--objective relative`, in MERL reflectance units (> 0).
     #[arg(long, default_value_t = brdf_basis::fit::TargetWeight::DEFAULT_EPS)]
     pub eps: f64,
 }
 
 impl ObjectiveArgs {
-    /// The objective these flags give.
+    /// The objective these flags give (the default objective when none is given).
     pub fn weight(&self) -> brdf_basis::fit::TargetWeight {
-        self.objective.weight(self.eps)
+        match self.objective {
+            Some(k) => k.weight(self.eps),
+            None => match brdf_basis::run::DEFAULT_OBJECTIVE {
+                brdf_basis::fit::TargetWeight::Relative { .. } => {
+                    brdf_basis::fit::TargetWeight::Relative { eps: self.eps }
+                }
+                w => w,
+            },
+        }
+    }
+
+    /// `l2` unless another objective is given, which is refused with `what`'s name: the
+    /// commands whose fits from samples do not take objectives yet.
+    pub fn l2_only(&self, what: &str) -> anyhow::Result<brdf_basis::fit::TargetWeight> {
+        match self.objective {
+            None | Some(brdf_basis::fit::ObjectiveKind::L2) => Ok(brdf_basis::fit::TargetWeight::L2),
+            Some(k) => anyhow::bail!(
+                "{what}: --objective {} is not supported yet (fits from samples minimise l2); leave --objective out or give l2",
+                k.name()
+            ),
+        }
     }
 }
 

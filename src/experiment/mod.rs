@@ -536,6 +536,8 @@ pub fn run(
                 .seed(p.seed)
                 .runs(p.cv_runs)
                 .objective(ObjectiveParams::default().stride(p.stride))
+                // reproduce keeps the paper's l2 and its timing: no appearance renders here.
+                .appearance(false)
                 .check(coll.len())?;
             // The clustering methods run on the BRDF_it (uniform) matrix, as the paper's.
             let d = metrics

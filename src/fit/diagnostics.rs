@@ -2,7 +2,7 @@
 //! basis, an unphysical albedo, a fit about as far from its target as a black material,
 //! or one that explains little of it.
 
-use super::TargetFit;
+use super::{TargetFit, TargetWeight};
 use crate::collection::Collection;
 use crate::error::short_name;
 use crate::stats::num;
@@ -21,12 +21,15 @@ pub const MAX_WARNINGS: usize = 8;
 /// Diffuse albedo above which a fitted combination is reported as unphysical.
 pub const WARN_ALBEDO: f64 = 1.0;
 
-/// Warnings about a fit that ran but whose numbers may mean little.
+/// Warnings about a fit that ran but whose numbers may mean little. A fit is judged by
+/// its own objective: `l2` fits by their relative MAE and relative residual, `relative`
+/// and `log` fits by their relative residual under the objective's weights (`rho_W`).
 pub fn fit_warnings(
     coll: &Collection,
     basis: &[usize],
     targets: &[usize],
     fits: &[TargetFit],
+    objective: TargetWeight,
 ) -> Vec<String> {
     let mut w = Vec::new();
     for &t in targets {
@@ -63,7 +66,14 @@ pub fn fit_warnings(
                 continue;
             }
         }
-        if f.relative_mae > WARN_RELATIVE_MAE {
+        if objective != TargetWeight::L2 {
+            if f.objective_residual > WARN_RELATIVE_RESIDUAL {
+                w.push(format!(
+                    "the fit of `{}` explains little of it under the `{}` objective (relative residual under its weights {}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
+                    short_name(&f.material), objective.kind().name(), num(f.objective_residual)
+                ));
+            }
+        } else if f.relative_mae > WARN_RELATIVE_MAE {
             w.push(format!(
                 "the fit of `{}` is almost as far from it as a black material (relative MAE {}, relative residual {}): this basis cannot represent it",
                 short_name(&f.material), num(f.relative_mae), num(f.relative_residual)
@@ -90,6 +100,7 @@ mod tests {
             mae: 0.0,
             relative_residual,
             relative_mae,
+            objective_residual: relative_residual,
             kkt: [0.0; 3],
             iterations: [0; 3],
         }
@@ -104,7 +115,7 @@ mod tests {
             target(&names[2], 0.61234, 0.3),
             target(&names[3], 0.9, 0.812345),
         ];
-        let w = fit_warnings(&coll, &[0], &[0, 1, 2, 3], &fits);
+        let w = fit_warnings(&coll, &[0], &[0, 1, 2, 3], &fits, TargetWeight::L2);
         assert_eq!(w.len(), 3, "{w:?}");
         assert!(w[0].contains("is in the basis"), "{}", w[0]);
         assert!(w[1].contains("relative residual 0.6123;"), "{}", w[1]);

@@ -132,7 +132,7 @@ impl FitRequest {
         let p = self.params();
         p.objective.check()?;
         let fits = fit(backend, coll, &basis, &targets, &p, progress)?;
-        let warnings = fit_warnings(coll, &basis, &targets, &fits);
+        let warnings = fit_warnings(coll, &basis, &targets, &fits, p.objective);
         let appearance = if self.appearance {
             let mut all = basis.clone();
             all.extend_from_slice(&targets);
@@ -173,8 +173,8 @@ pub struct FitSamplesRequest {
     pub gram: GramMode,
     /// `--seed`: of the directions suggested when the samples do not determine the fit.
     pub seed: u64,
-    /// `--objective` and `--eps` (SPEC 11: each sample weighted by the objective's weight
-    /// at its measured value, times `1 / sigma^2`).
+    /// `--objective`: `l2` only for now (SPEC 11's sample weights are not applied yet;
+    /// [`Self::run`] refuses any other).
     pub objective: TargetWeight,
 }
 
@@ -215,7 +215,7 @@ impl FitSamplesRequest {
             solver: d.solver,
             gram: d.gram,
             seed: 1,
-            objective: super::DEFAULT_OBJECTIVE,
+            objective: TargetWeight::L2,
         }
     }
 
@@ -233,6 +233,12 @@ impl FitSamplesRequest {
     /// An unknown material, an unreadable or invalid samples file, a failed fit.
     pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
         use crate::acquire::{fit as afit, plan, read_samples};
+        if self.objective != TargetWeight::L2 {
+            refuse!(
+                "fit --samples: --objective {} is not supported yet (fits from samples minimise l2)",
+                self.objective.kind().name()
+            );
+        }
         let basis = indices_of(coll, &self.basis)?;
         let samples = read_samples(&self.samples)?;
         let sf = afit::fit_samples(coll, &basis, &samples)?;

@@ -168,6 +168,11 @@ impl CvParams {
         self.render_size = s;
         self
     }
+    /// Sets whether the appearance metrics are computed.
+    pub fn appearance(mut self, a: bool) -> Self {
+        self.appearance = a;
+        self
+    }
 
     /// Validates against a collection of `n` materials: at least one method, each once;
     /// at least one k, each `>= 1` (`>= 2` with a clustering method) and at most the
