@@ -2,7 +2,7 @@
 
 use super::{all_others, check_restarts, indices_of, refuse};
 use crate::acquire::plan::{cell_candidates, plan, Candidate};
-use crate::acquire::{read_samples, Criterion, Plan, PlanParams};
+use crate::acquire::{read_candidates, Criterion, Plan, PlanParams};
 use crate::backend::Backend;
 use crate::collection::Collection;
 use crate::fit::FitParams;
@@ -102,13 +102,9 @@ impl PlanRequest {
         };
         let p = self.params();
         let cands: Vec<Candidate> = match &self.candidates {
-            Some(path) => read_samples(path)?
+            Some(path) => read_candidates(path)?
                 .into_iter()
-                .map(|s| Candidate {
-                    wi: s.wi,
-                    wo: s.wo,
-                    cell: None,
-                })
+                .map(|(wi, wo)| Candidate { wi, wo, cell: None })
                 .collect(),
             None => {
                 let all: Vec<usize> = basis.iter().chain(&targets).copied().collect();

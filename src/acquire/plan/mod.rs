@@ -166,7 +166,7 @@ pub fn plan(
     cands: &[Candidate],
     p: &PlanParams,
 ) -> Result<Plan, AcquireError> {
-    check(basis, targets, cands, p)?;
+    check(coll, basis, targets, cands, p)?;
     if p.criterion == Criterion::Nielsen {
         return super::nielsen::plan_criterion(coll, basis, targets, cands, p);
     }
@@ -204,6 +204,7 @@ pub fn plan(
 
 /// The parameters' checks of [`plan`].
 fn check(
+    coll: &Collection,
     basis: &[usize],
     targets: &[usize],
     cands: &[Candidate],
@@ -225,6 +226,24 @@ fn check(
             name: "n",
             value: p.n.to_string(),
             expected: "at least 1 and at most the number of candidates",
+        });
+    }
+    for (what, list) in [("basis", basis), ("targets", targets)] {
+        for (i, &x) in list.iter().enumerate() {
+            if list[..i].contains(&x) {
+                return Err(AcquireError::Duplicate {
+                    what,
+                    material: coll.materials()[x].name.clone(),
+                });
+            }
+        }
+    }
+    if !targets.is_empty() && targets.iter().all(|t| basis.contains(t)) {
+        // A target in the basis is fitted exactly by itself: its score is 0 whatever the
+        // samples, so a plan on these targets would be chosen on a zero objective.
+        return Err(AcquireError::NoTargetLeft {
+            basis: basis.len(),
+            targets: targets.len(),
         });
     }
     if p.criterion == Criterion::Error && targets.is_empty() {
