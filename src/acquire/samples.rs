@@ -256,13 +256,13 @@ fn read(path: &Path, purpose: Purpose) -> Result<Vec<Sample>, AcquireError> {
         },
         crate::error::CollectionError::NotRegular { kind, .. } => AcquireError::File {
             path: path.to_path_buf(),
-            message: format!("is {kind}, not a regular file; {what} is a regular .csv or .astm file"),
+            message: format!(
+                "is {kind}, not a regular file; {what} is a regular .csv or .astm file"
+            ),
         },
         crate::error::CollectionError::TooLarge { bytes, max, .. } => AcquireError::File {
             path: path.to_path_buf(),
-            message: format!(
-                "{bytes} bytes, larger than the {max} bytes {what} may have"
-            ),
+            message: format!("{bytes} bytes, larger than the {max} bytes {what} may have"),
         },
         other => AcquireError::File {
             path: path.to_path_buf(),
@@ -369,32 +369,32 @@ fn parse_csv_for(
             )
         })?;
     }
-    let (sig, sig_names): (Option<[usize; 3]>, [&'static str; 3]) = if purpose == Purpose::Candidates
-    {
-        (None, ["sigma"; 3])
-    } else {
-        match (col("sigma"), col("sigma_r"), col("sigma_g"), col("sigma_b")) {
-            (Some(_), Some(_), _, _) | (Some(_), _, Some(_), _) | (Some(_), _, _, Some(_)) => {
-                return Err(perr(
-                    1,
-                    Some("sigma"),
-                    "give either sigma or sigma_r,sigma_g,sigma_b, not both".into(),
-                ))
+    let (sig, sig_names): (Option<[usize; 3]>, [&'static str; 3]) =
+        if purpose == Purpose::Candidates {
+            (None, ["sigma"; 3])
+        } else {
+            match (col("sigma"), col("sigma_r"), col("sigma_g"), col("sigma_b")) {
+                (Some(_), Some(_), _, _) | (Some(_), _, Some(_), _) | (Some(_), _, _, Some(_)) => {
+                    return Err(perr(
+                        1,
+                        Some("sigma"),
+                        "give either sigma or sigma_r,sigma_g,sigma_b, not both".into(),
+                    ))
+                }
+                (Some(s), None, None, None) => (Some([s; 3]), ["sigma"; 3]),
+                (None, Some(r), Some(g), Some(b)) => {
+                    (Some([r, g, b]), ["sigma_r", "sigma_g", "sigma_b"])
+                }
+                (None, None, None, None) => (None, ["sigma"; 3]),
+                _ => {
+                    return Err(perr(
+                        1,
+                        Some("sigma_r"),
+                        "per-channel sigmas need all three columns sigma_r,sigma_g,sigma_b".into(),
+                    ))
+                }
             }
-            (Some(s), None, None, None) => (Some([s; 3]), ["sigma"; 3]),
-            (None, Some(r), Some(g), Some(b)) => {
-                (Some([r, g, b]), ["sigma_r", "sigma_g", "sigma_b"])
-            }
-            (None, None, None, None) => (None, ["sigma"; 3]),
-            _ => {
-                return Err(perr(
-                    1,
-                    Some("sigma_r"),
-                    "per-channel sigmas need all three columns sigma_r,sigma_g,sigma_b".into(),
-                ))
-            }
-        }
-    };
+        };
     let mut out = Vec::new();
     for (k, rec) in r.records().enumerate() {
         let line = k + 2;
@@ -449,7 +449,11 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
     parse_astm_for(bytes, path, Purpose::Samples)
 }
 
-fn parse_astm_for(bytes: &[u8], path: &Path, purpose: Purpose) -> Result<Vec<Sample>, AcquireError> {
+fn parse_astm_for(
+    bytes: &[u8],
+    path: &Path,
+    purpose: Purpose,
+) -> Result<Vec<Sample>, AcquireError> {
     let perr = |line: usize, column: Option<&str>, message: String| AcquireError::Parse {
         path: path.to_path_buf(),
         line,
@@ -503,8 +507,11 @@ fn parse_astm_for(bytes: &[u8], path: &Path, purpose: Purpose) -> Result<Vec<Sam
     };
     // Names as the file spells them (in messages); matched without case.
     let lower: Vec<String> = names.iter().map(|s| s.to_ascii_lowercase()).collect();
-    check_unique(path, vline, &lower, "variable")
-        .map_err(|e| with_column(e, |c| names[lower.iter().position(|l| l == c).unwrap_or(0)].clone()))?;
+    check_unique(path, vline, &lower, "variable").map_err(|e| {
+        with_column(e, |c| {
+            names[lower.iter().position(|l| l == c).unwrap_or(0)].clone()
+        })
+    })?;
     // One quantity under two of its names is as ambiguous as one name twice.
     let find = |alts: &[&str]| -> Result<Option<usize>, AcquireError> {
         let found: Vec<usize> = (0..lower.len())
@@ -531,7 +538,12 @@ fn parse_astm_for(bytes: &[u8], path: &Path, purpose: Purpose) -> Result<Vec<Sam
     let pi = find(&["phi_i"])?.ok_or_else(|| missing("phi_i"))?;
     let to = find(&["theta_s", "theta_o", "theta_r"])?.ok_or_else(|| missing("theta_s"))?;
     let po = find(&["phi_s", "phi_o", "phi_r"])?.ok_or_else(|| missing("phi_s"))?;
-    let (r, g, b, brdf) = (find(&["r"])?, find(&["g"])?, find(&["b"])?, find(&["brdf"])?);
+    let (r, g, b, brdf) = (
+        find(&["r"])?,
+        find(&["g"])?,
+        find(&["b"])?,
+        find(&["brdf"])?,
+    );
     let rgb_idx: Option<[usize; 3]> = match (r, g, b, brdf) {
         (Some(_), Some(_), Some(_), Some(v)) | (Some(_), _, _, Some(v)) => {
             return Err(perr(
