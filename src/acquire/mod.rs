@@ -25,7 +25,7 @@ pub mod samples;
 pub use cv::{acquisition_cv, AcqCv, AcqCvParams};
 pub use eval::material_at;
 pub use fit::{fit_samples, SampleFit, SampleFitParams};
-pub use plan::plan;
+pub use plan::{plan, plan_with_progress};
 pub use plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
 pub use samples::{read_candidates, read_samples, Sample};
 
