@@ -542,3 +542,100 @@ fn plan_refuses_targets_all_in_the_basis_and_duplicates() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// N7 and M2: `select --distances` reads a `.npy` in place from a memory map. A file
+/// rewritten in place (same size) or truncated while it is clustered ends in an error
+/// naming the file and the change, never in a result of the mixed matrix (old code: exit
+/// 0) or `SIGBUS` (old code: the process dies). The change is made from the clustering's
+/// progress callback, so it always lands inside the run; each case runs in a child
+/// process ([`matrix_change_child`]), so that a `SIGBUS` fails this test instead of
+/// killing the test binary.
+#[test]
+fn a_mapped_matrix_changed_while_clustered_is_refused() {
+    let exe = std::env::current_exe().expect("test binary");
+    for mode in ["none", "truncate", "rewrite"] {
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.args([
+            "--exact",
+            "audit2::matrix_change_child",
+            "--include-ignored",
+            "--nocapture",
+        ])
+        .env("AUDIT2_MATRIX_CHANGE", mode);
+        let o = output_within(&mut cmd, Duration::from_secs(300)).expect("child hangs");
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            o.status.success() && out.contains(&format!("CHILD-OK {mode}")),
+            "{mode}: {:?}\n{out}\n{}",
+            o.status,
+            stderr(&o)
+        );
+    }
+}
+
+/// The child of [`a_mapped_matrix_changed_while_clustered_is_refused`].
+#[test]
+#[ignore = "run by a_mapped_matrix_changed_while_clustered_is_refused in a child process"]
+fn matrix_change_child() {
+    use brdf_basis::run::{SelectMethod, SelectRequest};
+    use std::os::unix::fs::FileExt;
+    let Ok(mode) = std::env::var("AUDIT2_MATRIX_CHANGE") else {
+        return;
+    };
+    let dir = tmp();
+    let d = dir.path();
+    for (name, stride) in [("d.npy", "4"), ("e.npy", "5")] {
+        let o = bin_cpu()
+            .args(["distance", "--stride", stride, "--out"])
+            .arg(d.join(name))
+            .output()
+            .expect("distance");
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let path = d.join("d.npy");
+    let other = std::fs::read(d.join("e.npy")).expect("e.npy");
+    let len = std::fs::metadata(&path).expect("meta").len();
+    assert!(len > 5 * 4096 && other.len() as u64 == len, "{len}");
+    let mut req = SelectRequest::new(SelectMethod::Kmedoids);
+    req.k = Some(5);
+    req.runs = 40;
+    req.distances = Some(path.clone());
+    let changed = std::sync::atomic::AtomicBool::new(false);
+    let progress = |_: u64, _: u64| {
+        if changed.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            return;
+        }
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .expect("open");
+        match mode.as_str() {
+            "truncate" => f.set_len(4096).expect("truncate"),
+            "rewrite" => f.write_all_at(&other, 0).expect("rewrite"),
+            _ => {}
+        }
+    };
+    let r = req.run_saved(&progress);
+    assert!(
+        changed.load(std::sync::atomic::Ordering::SeqCst),
+        "no progress report"
+    );
+    match mode.as_str() {
+        "none" => {
+            r.expect("an unchanged file clusters");
+        }
+        m => {
+            let e = r.err().expect("a changed file is refused").to_string();
+            let want = if m == "truncate" {
+                "truncated"
+            } else {
+                "written to"
+            };
+            assert!(
+                e.contains("d.npy: changed while it was read") && e.contains(want),
+                "{m}: {e}"
+            );
+        }
+    }
+    println!("CHILD-OK {mode}");
+}
