@@ -625,7 +625,7 @@ fn matrix_change_child() {
             r.expect("an unchanged file clusters");
         }
         m => {
-            let e = r.err().expect("a changed file is refused").to_string();
+            let e = r.expect_err("a changed file is refused").to_string();
             let want = if m == "truncate" {
                 "truncated"
             } else {

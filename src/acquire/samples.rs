@@ -218,6 +218,9 @@ fn with_column(e: AcquireError, f: impl FnOnce(&str) -> String) -> AcquireError 
     }
 }
 
+/// An `(incoming, outgoing)` pair of unit directions.
+pub type DirectionPair = ([f64; 3], [f64; 3]);
+
 /// What a samples file is read for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Purpose {
@@ -237,7 +240,7 @@ pub fn read_samples(path: &Path) -> Result<Vec<Sample>, AcquireError> {
 /// ([`read_samples`]'s formats, columns and checks of the angles) whose values are
 /// ignored, so they may be missing (a `plan --out` CSV is a candidates file) or not
 /// numbers. Returns `(incoming, outgoing)` unit directions, at least one.
-pub fn read_candidates(path: &Path) -> Result<Vec<([f64; 3], [f64; 3])>, AcquireError> {
+pub fn read_candidates(path: &Path) -> Result<Vec<DirectionPair>, AcquireError> {
     Ok(read(path, Purpose::Candidates)?
         .into_iter()
         .map(|s| (s.wi, s.wo))
