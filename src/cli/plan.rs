@@ -36,8 +36,8 @@ pub struct PlanArgs {
     #[arg(long, value_delimiter = ',')]
     pub targets: Vec<String>,
     /// Directions the instrument can reach: a CSV with `theta_i,phi_i,theta_o,phi_o`
-    /// (degrees) and `r,g,b` columns (values ignored) [default: the cell centres of the
-    /// evaluation mask].
+    /// (degrees; other columns such as `r,g,b` are ignored, so a `--out` plan is one) or
+    /// an ASTM `.astm` file [default: the cell centres of the evaluation mask].
     #[arg(long)]
     pub candidates: Option<PathBuf>,
     /// Candidates examined per step (0: all).
