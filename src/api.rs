@@ -427,6 +427,11 @@ pub fn fit_from_arrays(
             )
         })
         .collect::<std::result::Result<_, _>>()?;
+    crate::acquire::samples::check_sigma_range(
+        std::path::Path::new("<arrays>"),
+        &samples,
+        ["sigma_r", "sigma_g", "sigma_b"],
+    )?;
     Ok(crate::acquire::fit_samples(coll, &b, &samples)?)
 }
 

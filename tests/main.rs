@@ -8,6 +8,7 @@
 mod common;
 
 mod acquisition;
+mod audit2;
 mod cli;
 mod collection;
 mod determinism;

@@ -285,7 +285,7 @@ def select(collection: Collection, method: str, k: Optional[int] = None, **optio
     >>> len(sel.basis)
     3
     """
-    return Selection.from_json(_native.select_json(collection, method, k=k, **options))
+    return Selection.from_json(_native.select_json(collection, method, k=k, **_name_options(options)))
 
 
 def fit(collection: Collection, basis: Sequence[str], targets: Optional[Sequence[str]] = None, **options) -> FitResult:
@@ -299,8 +299,8 @@ def fit(collection: Collection, basis: Sequence[str], targets: Optional[Sequence
     >>> r.coefficients.shape
     (1, 3, 3)
     """
-    t = None if targets is None else list(targets)
-    return FitResult.from_json(_native.fit_json(collection, list(basis), t, **options))
+    t = None if targets is None else _names(targets, "targets")
+    return FitResult.from_json(_native.fit_json(collection, _names(basis, "basis"), t, **options))
 
 
 @dataclass(frozen=True)
@@ -344,7 +344,7 @@ def plan(collection: Collection, basis: Sequence[str], n: int, **options) -> Pla
     >>> p.angles.shape
     (3, 4)
     """
-    text = _native.plan_json(collection, list(basis), n, **options)
+    text = _native.plan_json(collection, _names(basis, "basis"), n, **_name_options(options))
     d = _json.loads(text)
     return Plan(**{k: d[k] for k in Plan.__dataclass_fields__ if k != "_json"}, _json=text)
 
@@ -388,7 +388,7 @@ def acquisition_cv(collection: Collection, **options) -> AcquisitionCv:
     ``candidates_per_step``, ``shortlist``, ``render_size``, ``mask``, ``weighting``,
     ``stride``, ``seed``, ``backend``, ``progress``.
     """
-    text = _native.acquisition_cv_json(collection, **options)
+    text = _native.acquisition_cv_json(collection, **_name_options(options))
     d = _json.loads(text)
     return AcquisitionCv(**{k: d[k] for k in AcquisitionCv.__dataclass_fields__ if k != "_json"}, _json=text)
 
@@ -422,13 +422,46 @@ def fit_samples(collection: Collection, basis: Sequence[str], angles, rgb, sigma
     >>> bool(abs(r.coefficients[2] - 1).max() < 1e-6)
     True
     """
-    a = np.asarray(angles, dtype=np.float64).reshape(-1, 4)
-    y = np.asarray(rgb, dtype=np.float64).reshape(-1, 3)
-    s = None if sigma is None else [tuple(r) for r in np.asarray(sigma, dtype=np.float64).reshape(-1, 3)]
+    a = _rows(angles, 4, "angles", "theta_i, phi_i, theta_o, phi_o")
+    y = _rows(rgb, 3, "rgb", "r, g, b")
+    s = None if sigma is None else [tuple(r) for r in _rows(sigma, 3, "sigma", "sigma_r, sigma_g, sigma_b")]
     coef, res, mae, rel, rank, cond = _native.fit_samples(
-        collection, list(basis), [tuple(r) for r in a], [tuple(r) for r in y], s
+        collection, _names(basis, "basis"), [tuple(r) for r in a], [tuple(r) for r in y], s
     )
     return SampleFit(np.asarray(coef), tuple(res), mae, rel, rank, cond)
+
+
+def _rows(x, cols: int, what: str, columns: str) -> np.ndarray:
+    """``x`` as a float64 array of shape (n, cols), or a ValueError naming its shape: an
+    array is never reshaped, so a transposed one (channels first) is refused rather than
+    read as other samples."""
+    a = np.asarray(x, dtype=np.float64)
+    if a.ndim == 2 and a.shape[1] == cols:
+        return a
+    hint = ""
+    if a.ndim == 2 and a.shape[0] == cols:
+        hint = f" (it looks transposed: pass {what}.T)"
+    elif a.ndim == 1 and a.shape[0] == cols:
+        hint = f" (one sample: pass [{what}])"
+    raise ValueError(
+        f"{what} has shape {a.shape}; expected (n, {cols}): one row of {columns} per sample{hint}"
+    )
+
+
+def _names(x, what: str) -> list:
+    """``x`` as a list of material names; a single string is refused (it would be read
+    as a list of its characters)."""
+    if isinstance(x, (str, bytes)):
+        raise TypeError(f"{what} must be a list of material names, not the string {x!r}: pass [{x!r}]")
+    return list(x)
+
+
+def _name_options(options: dict) -> dict:
+    """Checks the options that take lists of names (or of methods, plans)."""
+    for k in ("targets", "candidates", "init", "methods", "plans"):
+        if isinstance(options.get(k), (str, bytes)):
+            _names(options[k], k)
+    return options
 
 
 def _dir(theta_deg: float, phi_deg: float) -> tuple:
@@ -444,7 +477,7 @@ def cross_validate(collection: Collection, **options) -> CvResult:
     ``weighting``, ``stride``, ``runs``, ``ga_population``, ``ga_generations``,
     ``render_size``, ``seed``, ``backend``, ``progress``.
     """
-    return CvResult.from_json(_native.cross_validate_json(collection, **options))
+    return CvResult.from_json(_native.cross_validate_json(collection, **_name_options(options)))
 
 
 def kmedoids(

@@ -216,7 +216,9 @@ pub(crate) fn plan_json<'py>(
     req.seed = seed;
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
-    let plan = run_long(py, progress, "plan", |_| req.run(backend.as_ref(), &coll))?;
+    let plan = run_long(py, progress, "plan", |pr| {
+        req.run_with_progress(backend.as_ref(), &coll, pr)
+    })?;
     let text = serde_json::to_string_pretty(&plan).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
 }

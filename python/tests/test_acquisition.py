@@ -99,3 +99,95 @@ def test_acquisition_cv_returns_the_json_content_and_runs_the_nielsen_baseline(t
     assert bb.acquisition_cv(c, **opts).results == r.results
     with pytest.raises(ValueError):
         bb.acquisition_cv(c, plans=["no-such-plan"])
+
+
+def test_fit_samples_refuses_arrays_of_the_wrong_shape():
+    """Audit 2, N8 and T17: arrays are checked, never reshaped: channels-first ``rgb``
+    (3, n) or angles (4, n) are refused with their shape, a 1-D row is refused, and a
+    string where a list of names is expected is refused instead of read as letters."""
+    c = bb.Collection.default()
+    fs = [bb.Brdf.material(c, n) for n in BASIS]
+    a = np.array([[10, 0, 20, 180], [30, 0, 40, 90], [50, 0, 10, 0], [0, 0, 60, 45], [20, 30, 25, 200], [40, 0, 35, 170]], float)
+    y = np.array([fs[1].eval1(_dir(*t[:2]), _dir(*t[2:])) for t in a])
+    r = bb.fit_samples(c, BASIS, a, y)
+    np.testing.assert_allclose(r.coefficients[2], [1, 1, 1], atol=1e-6)
+    with pytest.raises(ValueError, match=r"rgb has shape \(3, 6\); expected \(n, 3\).*rgb\.T"):
+        bb.fit_samples(c, BASIS, a, y.T)
+    with pytest.raises(ValueError, match=r"angles has shape \(4, 6\); expected \(n, 4\).*angles\.T"):
+        bb.fit_samples(c, BASIS, a.T, y)
+    with pytest.raises(ValueError, match=r"angles has shape \(4,\)"):
+        bb.fit_samples(c, BASIS, a[0], y[:1])
+    with pytest.raises(ValueError, match=r"sigma has shape \(3, 6\)"):
+        bb.fit_samples(c, BASIS, a, y, sigma=np.ones((3, 6)))
+    with pytest.raises(TypeError, match="basis must be a list of material names, not the string 'machined-iron'"):
+        bb.fit_samples(c, "machined-iron", a, y)
+    with pytest.raises(TypeError, match="basis must be a list"):
+        bb.fit(c, "polished-gold", stride=8)
+    with pytest.raises(TypeError, match="targets must be a list"):
+        bb.fit(c, BASIS, "polished-gold", stride=8)
+    with pytest.raises(TypeError, match="targets must be a list"):
+        bb.plan(c, BASIS, 2, targets="polished-gold")
+
+
+def test_fit_samples_out_of_range_is_a_value_error_not_a_panic():
+    """Audit 2, M1 and N6: values and sigmas beyond the fit's range raise ValueError
+    naming the row and column (not PanicException), and scaling every sigma by one
+    constant gives the same fit."""
+    c = bb.Collection.default()
+    a = np.array([[10, 0, 20, 180], [30, 0, 40, 90], [50, 0, 10, 0], [0, 0, 60, 45]], float)
+    y = np.full((4, 3), 0.1)
+    y[1, 0] = 1e300
+    with pytest.raises(ValueError, match="line 2, column `r`.*1e300 is beyond"):
+        bb.fit_samples(c, BASIS, a, y)
+    y = np.full((4, 3), 0.1)
+    s = np.ones((4, 3))
+    s[2, 1] = 1e-200
+    with pytest.raises(ValueError, match="line 1, column `sigma_r`.*1e200 times the smallest"):
+        bb.fit_samples(c, BASIS, a, y, sigma=s)
+    s = np.array([[1, 2, 3], [2, 1, 1], [1, 1, 0.5], [3, 1, 2]], float)
+    ref = bb.fit_samples(c, BASIS, a, y, sigma=s).coefficients
+    for k in (1e-200, 1e200):
+        np.testing.assert_allclose(bb.fit_samples(c, BASIS, a, y, sigma=s * k).coefficients, ref, rtol=1e-9, atol=1e-12)
+
+
+def test_plan_over_every_candidate_answers_ctrl_c_within_a_second():
+    """Audit 2, M3: ``plan`` with ``candidates_per_step=0, shortlist=0`` (minutes of work)
+    stops with KeyboardInterrupt within a second of SIGINT. Run in a child so that old code,
+    which ignored it, fails in 20 s instead of hanging the session."""
+    import signal
+    import sys
+    import time
+
+    code = (
+        "import brdf_basis as bb\n"
+        "c = bb.Collection.default()\n"
+        "try:\n"
+        f"    bb.plan(c, {BASIS!r}, 20, candidates_per_step=0, shortlist=0, backend='cpu',\n"
+        "            progress=lambda d, t: print('progress', d, t, flush=True))\n"
+        "    print('finished', flush=True)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', flush=True)\n"
+    )
+    import queue
+    import threading
+
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=os.environ.copy())
+    lines = queue.Queue()
+    reader = threading.Thread(target=lambda: [lines.put(l) for l in p.stdout], daemon=True)
+    reader.start()
+    try:
+        first = lines.get(timeout=20)
+        assert first.startswith("progress 0 20"), first
+        time.sleep(1.0)  # into the first step's exact fits of every candidate
+        t0 = time.time()
+        p.send_signal(signal.SIGINT)
+        p.wait(timeout=20)
+        took = time.time() - t0
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    reader.join(timeout=5)
+    out = "".join(lines.queue)
+    assert "interrupted" in out and "finished" not in out, out
+    assert took < 1.0, took

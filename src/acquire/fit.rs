@@ -1,5 +1,6 @@
 //! Fitting a material from its samples (SPEC 10): per channel c, with weights
-//! `w_s = 1 / sigma_s^2` (1 without sigma),
+//! `w_s = (sigma_min / sigma_s)^2` (the SPEC's `1 / sigma_s^2` scaled by the smallest
+//! sigma of the set, so that they neither underflow nor overflow; 1 without sigma),
 //!
 //! ```text
 //! minimise  sum_s w_s (a0 / pi + sum_b a_b f_b,c(s) - y_c(s))^2   subject to a >= 0
@@ -224,11 +225,13 @@ pub fn fit_samples(
         });
     }
     let d = Design::at_samples(coll, basis, samples)?;
-    Ok(fit_design(&d, samples))
+    fit_design(&d, samples)
 }
 
-/// [`fit_samples`] on a given design (rows at the samples, in order).
-pub fn fit_design(d: &Design, samples: &[Sample]) -> SampleFit {
+/// [`fit_samples`] on a given design (rows at the samples, in order). Samples validated
+/// as a samples file is ([`super::samples`]: values at most `MAX_VALUE`, sigmas at most
+/// `MAX_SIGMA_RATIO` apart) give a finite Gram problem; others may be refused by it.
+pub fn fit_design(d: &Design, samples: &[Sample]) -> Result<SampleFit, AcquireError> {
     let m = d.m;
     let n = samples.len();
     let mut out = SampleFit {
@@ -241,12 +244,11 @@ pub fn fit_design(d: &Design, samples: &[Sample]) -> SampleFit {
         determination: determination(n, m, &d.mean_rows()),
     };
     let (mut sq, mut energy) = (0.0, 0.0);
+    let floor = super::samples::sigma_floor(samples);
     for c in 0..3 {
         let y: Vec<f64> = samples.iter().map(|s| s.rgb[c]).collect();
-        let w: Vec<f64> = samples.iter().map(|s| s.weight(c)).collect();
-        // Validated samples and a finite design: the Gram problem is valid.
-        let sol = solve_rows(m, &d.rows[c], &y, &w)
-            .expect("validated samples give a finite, well-formed Gram problem");
+        let w: Vec<f64> = samples.iter().map(|s| s.weight(c, floor)).collect();
+        let sol = solve_rows(m, &d.rows[c], &y, &w)?;
         let (mut r2, mut ab, mut wsum) = (0.0, 0.0, 0.0);
         for ((row, &yv), &wv) in d.rows[c].chunks_exact(m).zip(&y).zip(&w) {
             let f: f64 = row.iter().zip(&sol.x).map(|(a, x)| a * x).sum();
@@ -265,7 +267,7 @@ pub fn fit_design(d: &Design, samples: &[Sample]) -> SampleFit {
         }
     }
     out.relative_residual = if energy > 0.0 { sq / energy } else { 0.0 };
-    out
+    Ok(out)
 }
 
 /// Warnings of a fit whose samples cannot determine it: fewer samples than columns, a

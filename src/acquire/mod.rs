@@ -25,9 +25,9 @@ pub mod samples;
 pub use cv::{acquisition_cv, AcqCv, AcqCvParams};
 pub use eval::material_at;
 pub use fit::{fit_samples, SampleFit, SampleFitParams};
-pub use plan::plan;
+pub use plan::{plan, plan_with_progress};
 pub use plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
-pub use samples::{read_samples, Sample};
+pub use samples::{read_candidates, read_samples, Sample};
 
 use std::path::PathBuf;
 
@@ -79,6 +79,15 @@ pub enum AcquireError {
         /// What is wrong.
         message: String,
     },
+    /// A samples or candidates file is unusable as a whole (not a regular file, too large,
+    /// not text, not ASTM).
+    #[error("{path}: {message}")]
+    File {
+        /// File.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// No sample to fit from.
     #[error("{what}: no sample: at least one measured direction pair is needed")]
     NoSamples {
@@ -94,6 +103,25 @@ pub enum AcquireError {
         value: String,
         /// What is expected.
         expected: &'static str,
+    },
+    /// Every training target of a plan is in its basis: each is fitted exactly by itself,
+    /// its score is 0 whatever the samples, and nothing is left to choose samples by.
+    #[error(
+        "a basis of {basis} materials holds all {targets} targets and leaves none to score (a basis material fits itself exactly, so its score is 0 at any samples): give --targets outside the basis, or leave --targets out to use every material outside the basis"
+    )]
+    NoTargetLeft {
+        /// Basis size.
+        basis: usize,
+        /// Number of targets.
+        targets: usize,
+    },
+    /// A material appears twice in a plan's basis or targets.
+    #[error("material `{}` appears twice in the {what}", crate::error::short_name(.material))]
+    Duplicate {
+        /// `basis` or `targets`.
+        what: &'static str,
+        /// The material.
+        material: String,
     },
     /// A fit failed.
     #[error(transparent)]

@@ -4,6 +4,18 @@
 //! Cornell layout: `KEY value` header lines, `VARS theta_i,phi_i,theta_s,phi_s,R,G,B`, then
 //! one comma-separated row per sample, angles in radians). Every value is validated; an
 //! error names the file, the line (the header is line 1) and the column.
+//!
+//! One reader serves the samples of `fit --samples` ([`read_samples`]) and the candidate
+//! directions of `plan --candidates` ([`read_candidates`]: the same files, whose values,
+//! if any, are ignored). Both refuse a header that names a column twice (which one holds
+//! the value?) and an ASTM `VARS` line that names one quantity twice, under the same or
+//! another of its names (`theta_s` and `theta_o`; `R,G,B` and `BRDF`).
+//!
+//! Range: a reflectance above [`MAX_VALUE`] and standard deviations more than
+//! [`MAX_SIGMA_RATIO`] apart are refused (the fit's weighted sums must stay finite and its
+//! weights above zero); the fit weights are `(sigma_min / sigma)^2`, the SPEC's
+//! `1 / sigma^2` scaled by the smallest sigma of the set, so scaling every sigma by one
+//! constant changes nothing.
 
 use super::eval::direction;
 use super::AcquireError;
@@ -11,6 +23,15 @@ use std::path::Path;
 
 /// Largest samples file read.
 pub const MAX_SAMPLES_BYTES: u64 = 256 << 20;
+
+/// Largest reflectance (or BRDF value) a sample may hold: the fit sums squares of weighted
+/// values over the samples, which must stay finite with room to spare (measured
+/// reflectances are below 1e6).
+pub const MAX_VALUE: f64 = 1e100;
+
+/// Largest ratio between the largest and the smallest standard deviation of a sample set:
+/// the weights `(sigma_min / sigma)^2` then stay at or above 1e-200, far from underflow.
+pub const MAX_SIGMA_RATIO: f64 = 1e100;
 
 /// One measured sample: a direction pair in the local frame and the RGB reflectance there
 /// (MERL scales applied, SPEC 2), with per-channel standard deviations.
@@ -29,9 +50,30 @@ pub struct Sample {
 }
 
 impl Sample {
-    /// Weight `1 / sigma^2` of channel `c` (1 without sigma).
-    pub fn weight(&self, c: usize) -> f64 {
-        self.sigma.map_or(1.0, |s| 1.0 / (s[c] * s[c]))
+    /// Weight of channel `c` in a set whose smallest standard deviation is `floor`
+    /// ([`sigma_floor`]): `(floor / sigma)^2`, the SPEC's `1 / sigma^2` scaled by
+    /// `floor^2` so that it never underflows or overflows (1 without sigma). Scaling every
+    /// sigma of the set by one constant leaves the weights unchanged.
+    pub fn weight(&self, c: usize, floor: f64) -> f64 {
+        self.sigma.map_or(1.0, |s| {
+            let r = floor / s[c];
+            r * r
+        })
+    }
+}
+
+/// The smallest standard deviation of `samples` (1 when none has sigma): the scale of
+/// [`Sample::weight`].
+pub fn sigma_floor(samples: &[Sample]) -> f64 {
+    let low = samples
+        .iter()
+        .filter_map(|s| s.sigma)
+        .flatten()
+        .fold(f64::INFINITY, f64::min);
+    if low.is_finite() {
+        low
+    } else {
+        1.0
     }
 }
 
@@ -52,6 +94,54 @@ pub fn sample_from_degrees(
         column: Some(col.to_string()),
         message,
     };
+    let (wi, wo) = directions_from_degrees(what, line, angles, names)?;
+    for (c, (&v, name)) in rgb.iter().zip(["r", "g", "b"]).enumerate() {
+        if !v.is_finite() || v < 0.0 {
+            return Err(err(
+                name,
+                format!("{v} is not a finite non-negative reflectance"),
+            ));
+        }
+        if v > MAX_VALUE {
+            return Err(err(
+                name,
+                format!(
+                    "{v:e} is beyond the largest reflectance the fit carries ({MAX_VALUE:e}); measured reflectances are far below it: check the file's units"
+                ),
+            ));
+        }
+        if let Some(s) = sigma {
+            if !s[c].is_finite() || s[c] <= 0.0 {
+                return Err(err(
+                    ["sigma_r", "sigma_g", "sigma_b"][c],
+                    format!("{} is not a positive standard deviation", s[c]),
+                ));
+            }
+        }
+    }
+    Ok(Sample {
+        wi,
+        wo,
+        rgb,
+        sigma,
+        line,
+    })
+}
+
+/// The unit directions of angles in degrees `[theta_i, phi_i, theta_o, phi_o]`, both
+/// above the horizon (`names` name the angles in errors).
+fn directions_from_degrees(
+    what: &Path,
+    line: usize,
+    angles: [f64; 4],
+    names: [&str; 4],
+) -> Result<([f64; 3], [f64; 3]), AcquireError> {
+    let err = |col: &str, message: String| AcquireError::Parse {
+        path: what.to_path_buf(),
+        line,
+        column: Some(col.to_string()),
+        message,
+    };
     for (k, (&a, name)) in angles.iter().zip(names).enumerate() {
         if !a.is_finite() {
             return Err(err(name, format!("{a} is not a finite angle")));
@@ -65,65 +155,182 @@ pub fn sample_from_degrees(
             ));
         }
     }
-    for (c, (&v, name)) in rgb.iter().zip(["r", "g", "b"]).enumerate() {
-        if !v.is_finite() || v < 0.0 {
-            return Err(err(
-                name,
-                format!("{v} is not a finite non-negative reflectance"),
-            ));
-        }
-        if let Some(s) = sigma {
-            if !s[c].is_finite() || s[c] <= 0.0 {
-                return Err(err(
-                    ["sigma_r", "sigma_g", "sigma_b"][c],
-                    format!("{} is not a positive standard deviation", s[c]),
-                ));
+    let [ti, pi, to, po] = angles.map(f64::to_radians);
+    Ok((direction(ti, pi), direction(to, po)))
+}
+
+/// Refuses standard deviations more than [`MAX_SIGMA_RATIO`] apart in `samples` read from
+/// `what`, naming the line and column of the largest (`columns`: the sigma columns, per
+/// channel, as the source names them).
+pub fn check_sigma_range(
+    what: &Path,
+    samples: &[Sample],
+    columns: [&str; 3],
+) -> Result<(), AcquireError> {
+    let mut low: Option<(f64, usize, usize)> = None;
+    let mut high: Option<(f64, usize, usize)> = None;
+    for s in samples {
+        for (c, &v) in s.sigma.iter().flatten().enumerate() {
+            if low.is_none_or(|l| v < l.0) {
+                low = Some((v, s.line, c));
+            }
+            if high.is_none_or(|h| v > h.0) {
+                high = Some((v, s.line, c));
             }
         }
     }
-    let [ti, pi, to, po] = angles.map(f64::to_radians);
-    Ok(Sample {
-        wi: direction(ti, pi),
-        wo: direction(to, po),
-        rgb,
-        sigma,
-        line,
+    let (Some(low), Some(high)) = (low, high) else {
+        return Ok(());
+    };
+    if high.0 / low.0 <= MAX_SIGMA_RATIO {
+        return Ok(());
+    }
+    Err(AcquireError::Parse {
+        path: what.to_path_buf(),
+        line: high.1,
+        column: Some(columns[high.2].to_string()),
+        message: format!(
+            "standard deviation {} is {:e} times the smallest, {} (line {}, column `{}`): the fit weights each sample by 1/sigma^2, and sigmas more than {MAX_SIGMA_RATIO:e} apart give weights it cannot carry; a sample this much less precise than the others adds nothing to the fit: leave it out",
+            crate::stats::num(high.0),
+            high.0 / low.0,
+            crate::stats::num(low.0),
+            low.1,
+            columns[low.2]
+        ),
     })
 }
 
+/// `e` with its column renamed by `f` (a parse error naming a column).
+fn with_column(e: AcquireError, f: impl FnOnce(&str) -> String) -> AcquireError {
+    match e {
+        AcquireError::Parse {
+            path,
+            line,
+            column: Some(c),
+            message,
+        } => AcquireError::Parse {
+            path,
+            line,
+            column: Some(f(&c)),
+            message,
+        },
+        e => e,
+    }
+}
+
+/// An `(incoming, outgoing)` pair of unit directions.
+pub type DirectionPair = ([f64; 3], [f64; 3]);
+
+/// What a samples file is read for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Purpose {
+    /// Measured samples: directions, values and optional sigmas, all validated.
+    Samples,
+    /// Candidate directions: the angles only; values, if any, are ignored.
+    Candidates,
+}
+
 /// Reads a samples file: `.astm` as ASTM E1392, anything else as the CSV of SPEC 10.
-/// At least one sample is required.
+/// At least one sample is required, and sigmas at most [`MAX_SIGMA_RATIO`] apart.
 pub fn read_samples(path: &Path) -> Result<Vec<Sample>, AcquireError> {
+    read(path, Purpose::Samples)
+}
+
+/// Reads the candidate directions of `plan --candidates`: a samples file
+/// ([`read_samples`]'s formats, columns and checks of the angles) whose values are
+/// ignored, so they may be missing (a `plan --out` CSV is a candidates file) or not
+/// numbers. Returns `(incoming, outgoing)` unit directions, at least one.
+pub fn read_candidates(path: &Path) -> Result<Vec<DirectionPair>, AcquireError> {
+    Ok(read(path, Purpose::Candidates)?
+        .into_iter()
+        .map(|s| (s.wi, s.wo))
+        .collect())
+}
+
+fn read(path: &Path, purpose: Purpose) -> Result<Vec<Sample>, AcquireError> {
+    let what = match purpose {
+        Purpose::Samples => "a samples file",
+        Purpose::Candidates => "a candidates file",
+    };
     let bytes = crate::collection::read_regular(path, MAX_SAMPLES_BYTES).map_err(|e| match e {
         crate::error::CollectionError::Io { source, .. } => AcquireError::Io {
             path: path.to_path_buf(),
             source,
         },
-        other => AcquireError::Parse {
+        crate::error::CollectionError::NotRegular { kind, .. } => AcquireError::File {
             path: path.to_path_buf(),
-            line: 0,
-            column: None,
+            message: format!(
+                "is {kind}, not a regular file; {what} is a regular .csv or .astm file"
+            ),
+        },
+        crate::error::CollectionError::TooLarge { bytes, max, .. } => AcquireError::File {
+            path: path.to_path_buf(),
+            message: format!("{bytes} bytes, larger than the {max} bytes {what} may have"),
+        },
+        other => AcquireError::File {
+            path: path.to_path_buf(),
             message: other.to_string(),
         },
     })?;
     let astm = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("astm"));
-    let s = if astm {
-        parse_astm(&bytes, path)?
+    let (s, sigma_columns) = if astm {
+        (parse_astm_for(&bytes, path, purpose)?, None)
     } else {
-        parse_csv(&bytes, path)?
+        parse_csv_for(&bytes, path, purpose)?
     };
     if s.is_empty() {
         return Err(AcquireError::NoSamples {
             what: path.display().to_string(),
         });
     }
+    if let Some(columns) = sigma_columns {
+        check_sigma_range(path, &s, columns)?;
+    }
     Ok(s)
+}
+
+/// Refuses a header that names a column twice (`line`: the header's line; columns count
+/// from 1 in the message).
+fn check_unique(
+    path: &Path,
+    line: usize,
+    header: &[String],
+    what: &str,
+) -> Result<(), AcquireError> {
+    for (j, h) in header.iter().enumerate() {
+        if let Some(i) = header[..j].iter().position(|x| x == h) {
+            return Err(AcquireError::Parse {
+                path: path.to_path_buf(),
+                line,
+                column: Some(h.clone()),
+                message: format!(
+                    "appears twice ({what}s {} and {}); each {what} may appear once",
+                    i + 1,
+                    j + 1
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Parses the CSV of SPEC 10.
 pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError> {
+    let (s, columns) = parse_csv_for(bytes, path, Purpose::Samples)?;
+    if let Some(columns) = columns {
+        check_sigma_range(path, &s, columns)?;
+    }
+    Ok(s)
+}
+
+/// The CSV of SPEC 10 read for `purpose`, and the sigma columns per channel (if any).
+fn parse_csv_for(
+    bytes: &[u8],
+    path: &Path,
+    purpose: Purpose,
+) -> Result<(Vec<Sample>, Option<[&'static str; 3]>), AcquireError> {
     let perr = |line: usize, column: Option<&str>, message: String| AcquireError::Parse {
         path: path.to_path_buf(),
         line,
@@ -139,39 +346,56 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError>
         .iter()
         .map(str::to_string)
         .collect();
+    check_unique(path, 1, &header, "column")?;
     let col = |name: &str| header.iter().position(|h| h == name);
-    let required = ["theta_i", "phi_i", "theta_o", "phi_o", "r", "g", "b"];
+    let angles = ["theta_i", "phi_i", "theta_o", "phi_o"];
+    let required: &[&str] = match purpose {
+        Purpose::Samples => &["theta_i", "phi_i", "theta_o", "phi_o", "r", "g", "b"],
+        Purpose::Candidates => &angles,
+    };
     let mut idx = [0usize; 7];
     for (i, name) in required.iter().enumerate() {
         idx[i] = col(name).ok_or_else(|| {
             perr(
                 1,
                 Some(name),
-                format!(
-                    "missing column (required: {}; optional: sigma or sigma_r,sigma_g,sigma_b)",
-                    required.join(",")
-                ),
+                match purpose {
+                    Purpose::Samples => format!(
+                        "missing column (required: {}; optional: sigma or sigma_r,sigma_g,sigma_b)",
+                        required.join(",")
+                    ),
+                    Purpose::Candidates => format!(
+                        "missing column (required: {}; any other column, such as r,g,b, is ignored)",
+                        required.join(",")
+                    ),
+                },
             )
         })?;
     }
-    let sig: Option<[usize; 3]> =
-        match (col("sigma"), col("sigma_r"), col("sigma_g"), col("sigma_b")) {
-            (Some(_), Some(_), _, _) | (Some(_), _, Some(_), _) | (Some(_), _, _, Some(_)) => {
-                return Err(perr(
-                    1,
-                    Some("sigma"),
-                    "give either sigma or sigma_r,sigma_g,sigma_b, not both".into(),
-                ))
-            }
-            (Some(s), None, None, None) => Some([s; 3]),
-            (None, Some(r), Some(g), Some(b)) => Some([r, g, b]),
-            (None, None, None, None) => None,
-            _ => {
-                return Err(perr(
-                    1,
-                    Some("sigma_r"),
-                    "per-channel sigmas need all three columns sigma_r,sigma_g,sigma_b".into(),
-                ))
+    let (sig, sig_names): (Option<[usize; 3]>, [&'static str; 3]) =
+        if purpose == Purpose::Candidates {
+            (None, ["sigma"; 3])
+        } else {
+            match (col("sigma"), col("sigma_r"), col("sigma_g"), col("sigma_b")) {
+                (Some(_), Some(_), _, _) | (Some(_), _, Some(_), _) | (Some(_), _, _, Some(_)) => {
+                    return Err(perr(
+                        1,
+                        Some("sigma"),
+                        "give either sigma or sigma_r,sigma_g,sigma_b, not both".into(),
+                    ))
+                }
+                (Some(s), None, None, None) => (Some([s; 3]), ["sigma"; 3]),
+                (None, Some(r), Some(g), Some(b)) => {
+                    (Some([r, g, b]), ["sigma_r", "sigma_g", "sigma_b"])
+                }
+                (None, None, None, None) => (None, ["sigma"; 3]),
+                _ => {
+                    return Err(perr(
+                        1,
+                        Some("sigma_r"),
+                        "per-channel sigmas need all three columns sigma_r,sigma_g,sigma_b".into(),
+                    ))
+                }
             }
         };
     let mut out = Vec::new();
@@ -184,71 +408,156 @@ pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError>
                 .map_err(|_| perr(line, Some(&header[i]), format!("`{s}` is not a number")))
         };
         let a = [num(idx[0])?, num(idx[1])?, num(idx[2])?, num(idx[3])?];
-        let rgb = [num(idx[4])?, num(idx[5])?, num(idx[6])?];
-        let sigma = match sig {
-            Some(s) => Some([num(s[0])?, num(s[1])?, num(s[2])?]),
-            None => None,
+        let s = match purpose {
+            Purpose::Candidates => {
+                let (wi, wo) = directions_from_degrees(path, line, a, angles)?;
+                Sample {
+                    wi,
+                    wo,
+                    rgb: [0.0; 3],
+                    sigma: None,
+                    line,
+                }
+            }
+            Purpose::Samples => {
+                let rgb = [num(idx[4])?, num(idx[5])?, num(idx[6])?];
+                let sigma = match sig {
+                    Some(s) => Some([num(s[0])?, num(s[1])?, num(s[2])?]),
+                    None => None,
+                };
+                // A single `sigma` column is named as the file names it.
+                sample_from_degrees(path, line, a, rgb, sigma, angles).map_err(|e| {
+                    with_column(e, |c| {
+                        if c.starts_with("sigma_") && sig_names[0] == "sigma" {
+                            "sigma".to_string()
+                        } else {
+                            c.to_string()
+                        }
+                    })
+                })?
+            }
         };
-        let mut s = sample_from_degrees(
-            path,
-            line,
-            a,
-            rgb,
-            sigma,
-            ["theta_i", "phi_i", "theta_o", "phi_o"],
-        )?;
-        s.line = line;
         out.push(s);
     }
-    Ok(out)
+    Ok((out, sig.map(|_| sig_names)))
 }
 
 /// Parses an ASTM E1392 file in the Cornell layout: header lines `KEY value` up to
 /// `VARS name,name,...`, then one comma- (or blank-) separated row per sample. Variables:
 /// `theta_i`, `phi_i`, `theta_s` (or `theta_o`, `theta_r`), `phi_s` (or `phi_o`, `phi_r`)
-/// in radians, and `R,G,B` (or one `BRDF` value, used for all three channels).
+/// in radians, and `R,G,B` (or one `BRDF` value, used for all three channels); one
+/// quantity named twice (under one name or two) is refused. A `NUM_POINTS` header must
+/// match the rows, and no data row may precede `VARS`.
 pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError> {
+    parse_astm_for(bytes, path, Purpose::Samples)
+}
+
+fn parse_astm_for(
+    bytes: &[u8],
+    path: &Path,
+    purpose: Purpose,
+) -> Result<Vec<Sample>, AcquireError> {
     let perr = |line: usize, column: Option<&str>, message: String| AcquireError::Parse {
         path: path.to_path_buf(),
         line,
         column: column.map(str::to_string),
         message,
     };
-    let text =
-        std::str::from_utf8(bytes).map_err(|e| perr(0, None, format!("not UTF-8 text: {e}")))?;
+    let text = std::str::from_utf8(bytes).map_err(|e| AcquireError::File {
+        path: path.to_path_buf(),
+        message: format!("not UTF-8 text: {e}"),
+    })?;
+    let split = |t: &str| -> Vec<String> {
+        t.split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|s| !s.is_empty())
+            .map(str::to_string)
+            .collect()
+    };
     let mut lines = text.lines().enumerate();
     let mut vars: Option<(usize, Vec<String>)> = None;
+    let mut num_points: Option<(usize, usize)> = None;
     for (k, l) in lines.by_ref() {
         let t = l.trim();
         if let Some(rest) = t.strip_prefix("VARS") {
-            let names: Vec<String> = rest
-                .split(|c: char| c == ',' || c.is_whitespace())
-                .filter(|s| !s.is_empty())
-                .map(|s| s.to_ascii_lowercase())
-                .collect();
-            vars = Some((k + 1, names));
+            vars = Some((k + 1, split(rest)));
             break;
+        }
+        if let Some(rest) = t.strip_prefix("NUM_POINTS") {
+            let v = rest.trim();
+            let n = v.parse::<usize>().map_err(|_| {
+                perr(
+                    k + 1,
+                    None,
+                    format!("NUM_POINTS `{v}` is not a number of points"),
+                )
+            })?;
+            num_points = Some((k + 1, n));
+        }
+        let f = split(t);
+        if !f.is_empty() && f.iter().all(|x| x.parse::<f64>().is_ok()) {
+            return Err(perr(
+                k + 1,
+                None,
+                "a row of numbers before the `VARS` line: the variables must be named before the data".into(),
+            ));
         }
     }
     let Some((vline, names)) = vars else {
-        return Err(perr(
-            0,
-            None,
-            "no `VARS` line: not an ASTM E1392 file".into(),
-        ));
+        return Err(AcquireError::File {
+            path: path.to_path_buf(),
+            message: "no `VARS` line: not an ASTM E1392 file".into(),
+        });
     };
-    let find = |alts: &[&str]| names.iter().position(|n| alts.contains(&n.as_str()));
-    let ti = find(&["theta_i"])
-        .ok_or_else(|| perr(vline, Some("theta_i"), "missing variable".into()))?;
-    let pi =
-        find(&["phi_i"]).ok_or_else(|| perr(vline, Some("phi_i"), "missing variable".into()))?;
-    let to = find(&["theta_s", "theta_o", "theta_r"])
-        .ok_or_else(|| perr(vline, Some("theta_s"), "missing variable".into()))?;
-    let po = find(&["phi_s", "phi_o", "phi_r"])
-        .ok_or_else(|| perr(vline, Some("phi_s"), "missing variable".into()))?;
-    let rgb_idx: [usize; 3] = match (find(&["r"]), find(&["g"]), find(&["b"]), find(&["brdf"])) {
-        (Some(r), Some(g), Some(b), _) => [r, g, b],
-        (_, _, _, Some(v)) => [v; 3],
+    // Names as the file spells them (in messages); matched without case.
+    let lower: Vec<String> = names.iter().map(|s| s.to_ascii_lowercase()).collect();
+    check_unique(path, vline, &lower, "variable").map_err(|e| {
+        with_column(e, |c| {
+            names[lower.iter().position(|l| l == c).unwrap_or(0)].clone()
+        })
+    })?;
+    // One quantity under two of its names is as ambiguous as one name twice.
+    let find = |alts: &[&str]| -> Result<Option<usize>, AcquireError> {
+        let found: Vec<usize> = (0..lower.len())
+            .filter(|&i| alts.contains(&lower[i].as_str()))
+            .collect();
+        match found[..] {
+            [] => Ok(None),
+            [i] => Ok(Some(i)),
+            [i, j, ..] => Err(perr(
+                vline,
+                Some(&names[j]),
+                format!(
+                    "names the same quantity as `{}` (variables {} and {}): which one holds it? give one of {}",
+                    names[i],
+                    i + 1,
+                    j + 1,
+                    alts.join(", ")
+                ),
+            )),
+        }
+    };
+    let missing = |name: &str| perr(vline, Some(name), "missing variable".into());
+    let ti = find(&["theta_i"])?.ok_or_else(|| missing("theta_i"))?;
+    let pi = find(&["phi_i"])?.ok_or_else(|| missing("phi_i"))?;
+    let to = find(&["theta_s", "theta_o", "theta_r"])?.ok_or_else(|| missing("theta_s"))?;
+    let po = find(&["phi_s", "phi_o", "phi_r"])?.ok_or_else(|| missing("phi_s"))?;
+    let (r, g, b, brdf) = (
+        find(&["r"])?,
+        find(&["g"])?,
+        find(&["b"])?,
+        find(&["brdf"])?,
+    );
+    let rgb_idx: Option<[usize; 3]> = match (r, g, b, brdf) {
+        (Some(_), Some(_), Some(_), Some(v)) | (Some(_), _, _, Some(v)) => {
+            return Err(perr(
+                vline,
+                Some(&names[v]),
+                "give R,G,B or BRDF, not both: which one holds the value?".into(),
+            ))
+        }
+        (Some(r), Some(g), Some(b), None) => Some([r, g, b]),
+        (None, None, None, Some(v)) => Some([v; 3]),
+        _ if purpose == Purpose::Candidates => None,
         _ => {
             return Err(perr(
                 vline,
@@ -258,18 +567,17 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
         }
     };
     let mut out = Vec::new();
+    let mut last = vline;
     for (k, l) in lines {
         let t = l.trim();
         if t.is_empty() || t.starts_with('#') {
             continue;
         }
         let line = k + 1;
-        let f: Vec<&str> = t
-            .split(|c: char| c == ',' || c.is_whitespace())
-            .filter(|s| !s.is_empty())
-            .collect();
+        last = line;
+        let f = split(t);
         let num = |i: usize| -> Result<f64, AcquireError> {
-            let s = f.get(i).copied().unwrap_or("");
+            let s = f.get(i).map_or("", String::as_str);
             s.parse::<f64>()
                 .map_err(|_| perr(line, Some(&names[i]), format!("`{s}` is not a number")))
         };
@@ -283,15 +591,46 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
                 ));
             }
         }
-        let rgb = [num(rgb_idx[0])?, num(rgb_idx[1])?, num(rgb_idx[2])?];
-        out.push(sample_from_degrees(
-            path,
-            line,
-            rad.map(f64::to_degrees),
-            rgb,
-            None,
-            [&names[ti], &names[pi], &names[to], &names[po]].map(|s| s.as_str()),
-        )?);
+        let angle_names = [&names[ti], &names[pi], &names[to], &names[po]].map(|s| s.as_str());
+        out.push(match (purpose, rgb_idx) {
+            (Purpose::Samples, Some(v)) => sample_from_degrees(
+                path,
+                line,
+                rad.map(f64::to_degrees),
+                [num(v[0])?, num(v[1])?, num(v[2])?],
+                None,
+                angle_names,
+            )
+            .map_err(|e| {
+                with_column(e, |c| match ["r", "g", "b"].iter().position(|x| *x == c) {
+                    Some(k) => names[v[k]].clone(),
+                    None => c.to_string(),
+                })
+            })?,
+            _ => {
+                let (wi, wo) =
+                    directions_from_degrees(path, line, rad.map(f64::to_degrees), angle_names)?;
+                Sample {
+                    wi,
+                    wo,
+                    rgb: [0.0; 3],
+                    sigma: None,
+                    line,
+                }
+            }
+        });
+    }
+    if let Some((line, n)) = num_points {
+        if n != out.len() {
+            return Err(perr(
+                line,
+                None,
+                format!(
+                    "NUM_POINTS {n}, but the file has {} data rows (the last at line {last}): a truncated or padded file?",
+                    out.len()
+                ),
+            ));
+        }
     }
     Ok(out)
 }

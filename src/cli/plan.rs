@@ -36,8 +36,8 @@ pub struct PlanArgs {
     #[arg(long, value_delimiter = ',')]
     pub targets: Vec<String>,
     /// Directions the instrument can reach: a CSV with `theta_i,phi_i,theta_o,phi_o`
-    /// (degrees) and `r,g,b` columns (values ignored) [default: the cell centres of the
-    /// evaluation mask].
+    /// (degrees; other columns such as `r,g,b` are ignored, so a `--out` plan is one) or
+    /// an ASTM `.astm` file [default: the cell centres of the evaluation mask].
     #[arg(long)]
     pub candidates: Option<PathBuf>,
     /// Candidates examined per step (0: all).
@@ -91,7 +91,17 @@ pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     let coll = super::load_collection(&a.collection)?;
     let backend = super::backend(g)?;
     let t0 = std::time::Instant::now();
-    let pl = req.run(backend.as_ref(), &coll)?;
+    let pb = super::progress_bar(g, 1, "plan");
+    // Called per candidate: the bar (behind a lock) only when a step completes.
+    let shown = std::sync::atomic::AtomicU64::new(u64::MAX);
+    let progress = |done: u64, total: u64| {
+        if shown.swap(done, std::sync::atomic::Ordering::Relaxed) != done {
+            pb.set_length(total);
+            pb.set_position(done);
+        }
+    };
+    let pl = req.run_with_progress(backend.as_ref(), &coll, &progress)?;
+    pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let csv = plan_csv(&pl);
     out.stage(&a.out, |w| w.write_all(csv.as_bytes()))?;

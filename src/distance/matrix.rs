@@ -27,6 +27,13 @@ pub trait Distances {
 pub(crate) unsafe trait SharedValues: Send + Sync + std::fmt::Debug {
     /// The values, row-major.
     fn values(&self) -> &[f64];
+
+    /// Whether the source of the values is as it was when they were checked (a mapped
+    /// file: not written or truncated since, [`crate::io::mmap`]); the error says what
+    /// changed.
+    fn unchanged(&self) -> Result<(), String> {
+        Ok(())
+    }
 }
 
 /// Where a matrix's values are: its own vector, or a shared owner's stable slice.
@@ -130,6 +137,16 @@ impl DistanceMatrix {
                 ptr,
                 len,
             },
+        }
+    }
+
+    /// For values read in place from a memory-mapped file: whether the file is still as
+    /// it was when it was checked (same size, times and checksum, never truncated under
+    /// the mapping); the error says what changed. Always `Ok` for values of its own.
+    pub fn source_unchanged(&self) -> Result<(), String> {
+        match &self.data {
+            Values::Owned(_) => Ok(()),
+            Values::Shared { _owner, .. } => _owner.unchanged(),
         }
     }
 

@@ -44,6 +44,14 @@ pub enum MatrixFileError {
         /// Which check failed.
         what: String,
     },
+    /// A file changed while it was read (rewritten or truncated by another program).
+    #[error("{path}: changed while it was read ({message}); the result would mix the old and the new matrix, so it is refused: run again once nothing rewrites the file")]
+    Changed {
+        /// File.
+        path: PathBuf,
+        /// What changed.
+        message: String,
+    },
     /// Not square.
     #[error("{path}: the matrix is not square: {message}")]
     NotSquare {

@@ -312,7 +312,16 @@ pub fn map_npy_2d(path: &Path) -> Result<Option<MappedNpy2d>, MatrixFileError> {
         Err(_) => return Ok(None),
     };
     // The header's bytes are hashed; the values' bytes follow them to the end.
+    let mut values = values;
     hash.write(values.bytes());
+    // A file changed under the hashing would only show as a checksum mismatch: say so.
+    values
+        .unchanged_quick()
+        .map_err(|message| MatrixFileError::Changed {
+            path: path.to_path_buf(),
+            message,
+        })?;
+    values.set_checksum(hash.finish());
     Ok(Some(MappedNpy2d {
         rows: h.rows,
         cols: h.cols,

@@ -394,6 +394,12 @@ fn validate_mapped(
                 source,
             })?;
     }
+    values
+        .unchanged_quick()
+        .map_err(|message| MatrixFileError::Changed {
+            path: path.to_path_buf(),
+            message,
+        })?;
     Ok(DistanceMatrix::from_checked_shared(
         names,
         std::sync::Arc::new(values),

@@ -1,9 +1,9 @@
 //! `plan`: where to measure a new material (SPEC 10).
 
 use super::{all_others, check_restarts, indices_of, refuse};
-use crate::acquire::plan::{cell_candidates, plan, Candidate};
-use crate::acquire::{read_samples, Criterion, Plan, PlanParams};
-use crate::backend::Backend;
+use crate::acquire::plan::{cell_candidates, plan_with_progress, Candidate};
+use crate::acquire::{read_candidates, Criterion, Plan, PlanParams};
+use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::FitParams;
 use crate::Result;
@@ -94,6 +94,20 @@ impl PlanRequest {
     /// [`crate::error::RequestError`], an unknown material, an unreadable candidates file, then
     /// the plan's own errors.
     pub fn run(&self, backend: &dyn Backend, coll: &Collection) -> Result<Plan> {
+        self.run_with_progress(backend, coll, &|_, _| {})
+    }
+
+    /// [`Self::run`], reporting `progress(steps done, steps)` (every restart's steps); it
+    /// is called per candidate within a step too, so a caller can stop the plan from it.
+    ///
+    /// # Errors
+    /// As [`Self::run`].
+    pub fn run_with_progress(
+        &self,
+        backend: &dyn Backend,
+        coll: &Collection,
+        progress: Progress<'_>,
+    ) -> Result<Plan> {
         self.check()?;
         let basis = indices_of(coll, &self.basis)?;
         let targets = match &self.targets {
@@ -102,19 +116,17 @@ impl PlanRequest {
         };
         let p = self.params();
         let cands: Vec<Candidate> = match &self.candidates {
-            Some(path) => read_samples(path)?
+            Some(path) => read_candidates(path)?
                 .into_iter()
-                .map(|s| Candidate {
-                    wi: s.wi,
-                    wo: s.wo,
-                    cell: None,
-                })
+                .map(|(wi, wo)| Candidate { wi, wo, cell: None })
                 .collect(),
             None => {
                 let all: Vec<usize> = basis.iter().chain(&targets).copied().collect();
                 cell_candidates(coll, &all, &p.fit)?
             }
         };
-        Ok(plan(backend, coll, &basis, &targets, &cands, &p)?)
+        Ok(plan_with_progress(
+            backend, coll, &basis, &targets, &cands, &p, progress,
+        )?)
     }
 }

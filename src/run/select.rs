@@ -434,7 +434,20 @@ impl SelectRequest {
             ),
             None => (self.metric.to_string(), None),
         };
-        self.cluster(&saved.matrix, &metric, fingerprint, progress)
+        // A mapped matrix file rewritten or truncated while it is clustered (crate::io::mmap)
+        // is refused after the work, whatever the work made of the changed values (an
+        // error, or even a panic on values no check saw, is reported as the change).
+        let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            self.cluster(&saved.matrix, &metric, fingerprint, progress)
+        }));
+        if let Err(message) = saved.matrix.source_unchanged() {
+            return Err(crate::io::MatrixFileError::Changed {
+                path: path.to_path_buf(),
+                message,
+            }
+            .into());
+        }
+        out.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
     }
 
     /// k-medoids or GCUK runs on `d`.

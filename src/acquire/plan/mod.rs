@@ -87,6 +87,16 @@ pub(crate) fn values_at(
     mats: &[usize],
     cands: &[Candidate],
 ) -> Result<[Vec<Vec<f64>>; 3], AcquireError> {
+    values_at_ticking(coll, mats, cands, &|| {})
+}
+
+/// [`values_at`], calling `tick` once per material (a point where a caller may stop).
+pub(crate) fn values_at_ticking(
+    coll: &Collection,
+    mats: &[usize],
+    cands: &[Candidate],
+    tick: &(dyn Fn() + Sync),
+) -> Result<[Vec<Vec<f64>>; 3], AcquireError> {
     let mut out: [Vec<Vec<f64>>; 3] = Default::default();
     if let Some(cells) = cands.iter().map(|c| c.cell).collect::<Option<Vec<u32>>>() {
         let cpu = CpuBackend::new();
@@ -94,9 +104,12 @@ pub(crate) fn values_at(
         // whole lobes, which candidate subsets would only fill): the same values.
         let per: Vec<[Vec<f64>; 3]> = mats
             .par_iter()
-            .map(|&m| match &coll.materials()[m].data {
-                MaterialData::Neural(net) => cpu.neural_values_f64(net, &cells),
-                data => std::array::from_fn(|c| cpu.values_f64(&channel_lobe(data, c), &cells)),
+            .map(|&m| {
+                tick();
+                match &coll.materials()[m].data {
+                    MaterialData::Neural(net) => cpu.neural_values_f64(net, &cells),
+                    data => std::array::from_fn(|c| cpu.values_f64(&channel_lobe(data, c), &cells)),
+                }
             })
             .collect();
         for v in per {
@@ -110,6 +123,7 @@ pub(crate) fn values_at(
         *o = vec![vec![0.0; cands.len()]; mats.len()];
     }
     for (mi, &m) in mats.iter().enumerate() {
+        tick();
         for (k, cand) in cands.iter().enumerate() {
             let v = material_at(&coll.materials()[m], cand.wi, cand.wo)?;
             for c in 0..3 {
@@ -166,7 +180,22 @@ pub fn plan(
     cands: &[Candidate],
     p: &PlanParams,
 ) -> Result<Plan, AcquireError> {
-    check(basis, targets, cands, p)?;
+    plan_with_progress(backend, coll, basis, targets, cands, p, &|_, _| {})
+}
+
+/// [`plan`], reporting `progress(steps done, steps)` over every path's steps. It is called
+/// often within each step too (per candidate scored or fitted, with the same counts), so
+/// that a caller can stop a long plan from it (Python's Ctrl-C unwinds from it).
+pub fn plan_with_progress(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cands: &[Candidate],
+    p: &PlanParams,
+    progress: crate::backend::Progress<'_>,
+) -> Result<Plan, AcquireError> {
+    check(coll, basis, targets, cands, p)?;
     if p.criterion == Criterion::Nielsen {
         return super::nielsen::plan_criterion(coll, basis, targets, cands, p);
     }
@@ -176,7 +205,8 @@ pub fn plan(
         Some(Dense::new(backend, coll, basis, targets, &p.fit)?)
     };
     if p.restarts <= 1 || p.criterion != Criterion::Error || dense.is_none() {
-        return plan_path(coll, basis, targets, cands, p, dense.as_ref());
+        let steps = Steps::new(progress, 0, p.n as u64);
+        return plan_path(coll, basis, targets, cands, p, dense.as_ref(), &steps);
     }
     let per_path = if p.candidates_per_step == 0 {
         0
@@ -191,7 +221,8 @@ pub fn plan(
             restarts: 1,
             ..p.clone()
         };
-        let pl = plan_path(coll, basis, targets, cands, &pr, dense.as_ref())?;
+        let steps = Steps::new(progress, (r * p.n) as u64, (p.restarts * p.n) as u64);
+        let pl = plan_path(coll, basis, targets, cands, &pr, dense.as_ref(), &steps)?;
         let score = |q: &Plan| q.history.last().copied().unwrap_or(f64::INFINITY);
         if best.as_ref().is_none_or(|b| score(&pl) < score(b)) {
             best = Some(pl);
@@ -202,8 +233,32 @@ pub fn plan(
     Ok(best)
 }
 
+/// A path's place in the plan's progress: its steps start at `base` of `total`.
+pub(super) struct Steps<'a> {
+    progress: crate::backend::Progress<'a>,
+    base: u64,
+    total: u64,
+}
+
+impl<'a> Steps<'a> {
+    fn new(progress: crate::backend::Progress<'a>, base: u64, total: u64) -> Self {
+        Self {
+            progress,
+            base,
+            total,
+        }
+    }
+
+    /// Reports `step` steps of this path done (also a point where the caller may stop).
+    #[inline]
+    pub(super) fn at(&self, step: usize) {
+        (self.progress)(self.base + step as u64, self.total);
+    }
+}
+
 /// The parameters' checks of [`plan`].
 fn check(
+    coll: &Collection,
     basis: &[usize],
     targets: &[usize],
     cands: &[Candidate],
@@ -225,6 +280,24 @@ fn check(
             name: "n",
             value: p.n.to_string(),
             expected: "at least 1 and at most the number of candidates",
+        });
+    }
+    for (what, list) in [("basis", basis), ("targets", targets)] {
+        for (i, &x) in list.iter().enumerate() {
+            if list[..i].contains(&x) {
+                return Err(AcquireError::Duplicate {
+                    what,
+                    material: coll.materials()[x].name.clone(),
+                });
+            }
+        }
+    }
+    if !targets.is_empty() && targets.iter().all(|t| basis.contains(t)) {
+        // A target in the basis is fitted exactly by itself: its score is 0 whatever the
+        // samples, so a plan on these targets would be chosen on a zero objective.
+        return Err(AcquireError::NoTargetLeft {
+            basis: basis.len(),
+            targets: targets.len(),
         });
     }
     if p.criterion == Criterion::Error && targets.is_empty() {

@@ -13,6 +13,7 @@ pub(super) fn plan_path(
     cands: &[Candidate],
     p: &PlanParams,
     dense: Option<&Dense>,
+    steps: &Steps<'_>,
 ) -> Result<Plan, AcquireError> {
     let m = basis.len() + 1;
     let mut mats = basis.to_vec();
@@ -42,6 +43,7 @@ pub(super) fn plan_path(
     let mut cond_rows: Vec<f64> = Vec::new();
     let mut floors: Option<Vec<f64>> = None;
     for step in 0..p.n {
+        steps.at(step);
         // The candidates examined at this step: a seeded subset of the ones not chosen.
         let mut explore: Vec<usize> = Vec::new();
         let pool: Vec<usize> = match p.criterion {
@@ -76,7 +78,7 @@ pub(super) fn plan_path(
         } else {
             basis
         };
-        let vals = values_at(coll, scored, &sub)?;
+        let vals = values_at_ticking(coll, scored, &sub, &|| steps.at(step))?;
         let row = |c: usize, k: usize| -> [f64; 16] {
             let mut r = [0.0; 16];
             r[0] = FRAC_1_PI;
@@ -101,7 +103,13 @@ pub(super) fn plan_path(
                         condition_number(n0 + 1, m, &d)
                     }
                 };
-                let scores: Vec<f64> = (0..sub.len()).into_par_iter().map(score).collect();
+                let scores: Vec<f64> = (0..sub.len())
+                    .into_par_iter()
+                    .map(|k| {
+                        steps.at(step);
+                        score(k)
+                    })
+                    .collect();
                 argmin(&scores)
             }
             Criterion::Error => {
@@ -120,7 +128,10 @@ pub(super) fn plan_path(
                 let bound = Bound::by_excess(&current, floors);
                 let scores: Vec<f64> = (0..sub.len())
                     .into_par_iter()
-                    .map(|k| screen.score(&[row(0, k), row(1, k), row(2, k)], &ys(k)))
+                    .map(|k| {
+                        steps.at(step);
+                        screen.score(&[row(0, k), row(1, k), row(2, k)], &ys(k))
+                    })
                     .collect();
                 let mut ranked: Vec<usize> = (0..sub.len()).collect();
                 ranked.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]).then(a.cmp(&b)));
@@ -148,6 +159,7 @@ pub(super) fn plan_path(
                     ranked[1..]
                         .par_iter()
                         .map(|&k| {
+                            steps.at(step);
                             let beat = f64::from_bits(low.load(Ordering::Relaxed));
                             let e = exact_of(k, beat)?;
                             // Non-negative floats order as their bits.
@@ -186,6 +198,7 @@ pub(super) fn plan_path(
             history.push(mean_rho(d, &st.x));
         }
     }
+    steps.at(p.n);
     Ok(Plan {
         basis: basis
             .iter()
