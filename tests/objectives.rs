@@ -43,11 +43,12 @@ fn brute_force_nnls(cols: &[Vec<f64>], b: &[f64], w: &[f64]) -> f64 {
                 ok = false;
                 break;
             }
-            for r in 0..p {
+            let pivot = a[k].clone();
+            for (r, row) in a.iter_mut().enumerate() {
                 if r != k {
-                    let f = a[r][k] / a[k][k];
-                    for c in k..=p {
-                        a[r][c] -= f * a[k][c];
+                    let f = row[k] / pivot[k];
+                    for (v, pv) in row[k..].iter_mut().zip(&pivot[k..]) {
+                        *v -= f * pv;
                     }
                 }
             }

@@ -122,7 +122,9 @@ pub(crate) fn objective_of(objective: Option<&str>, eps: f64) -> PyResult<bb::fi
         Some(o) => o.parse::<bb::fit::ObjectiveKind>().map_err(value_err)?,
         None => bb::run::DEFAULT_OBJECTIVE.kind(),
     };
-    kind.weight(eps).check().map_err(|e| value_err(e.to_string()))
+    kind.weight(eps)
+        .check()
+        .map_err(|e| value_err(e.to_string()))
 }
 
 pub(crate) fn solver(s: &str) -> PyResult<bb::Solver> {

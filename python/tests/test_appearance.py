@@ -44,7 +44,7 @@ def test_flip_matches_flip_evaluator_over_the_sphere():
     flip = pytest.importorskip("flip_evaluator")
     c = bb.Collection.default()
     ref = bb.render(bb.Brdf.material(c, "polished-gold"), size=128)
-    test = bb.render(bb.Brdf.material(c, "polished-brass"), size=128)
+    test = bb.render(bb.Brdf.material(c, "gloss-red-enamel"), size=128)
     ours = bb.image_metrics(ref, test)
     a = _display_u8(ref).astype(np.float32) / 255.0
     b = _display_u8(test).astype(np.float32) / 255.0
