@@ -29,6 +29,13 @@ pub const RENDER_SIZE: u32 = 256;
 /// distance to a 0.7 m wide 4K monitor).
 pub const FLIP_PIXELS_PER_DEGREE: f32 = 67.0;
 
+/// SPEC 11's render of the light `(theta, phi)` (degrees): [`RENDER_SIZE`] pixels.
+pub fn render_params((theta, phi): (f64, f64)) -> super::render::RenderParams {
+    super::render::RenderParams::default()
+        .with_size(RENDER_SIZE)
+        .with_light(theta, phi)
+}
+
 /// The image metrics of one render of a fit against the render of its target.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LightScores {

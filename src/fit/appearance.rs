@@ -6,8 +6,8 @@ use super::{channel_lobe, combination_values, FitError, TargetFit};
 use crate::backend::cpu::CpuBackend;
 use crate::backend::weighted::cos_theta_i;
 use crate::collection::Collection;
-use crate::eval::appearance::{light_scores, Appearance, LogSums, LIGHTS, RENDER_SIZE};
-use crate::eval::render::{render_sphere, Image, RenderParams};
+use crate::eval::appearance::{light_scores, render_params, Appearance, LogSums, LIGHTS};
+use crate::eval::render::{render_sphere, Image};
 use crate::eval::shade::{combination_brdf, material_brdf};
 use crate::merl::CellSet;
 use rayon::prelude::*;
@@ -41,15 +41,13 @@ pub fn log_rmse(
     sums.value()
 }
 
-/// Renders of material `m` under the four lights ([`LIGHTS`], [`RENDER_SIZE`]).
+/// Renders of material `m` under the four lights ([`LIGHTS`], [`crate::eval::appearance::RENDER_SIZE`]).
 pub fn material_renders(coll: &Collection, m: usize) -> Result<Vec<Image>, FitError> {
     let brdf = material_brdf(&coll.materials()[m].data);
     LIGHTS
         .iter()
         .map(|&(th, ph)| {
-            let rp = RenderParams::default()
-                .with_size(RENDER_SIZE)
-                .with_light(th, ph);
+            let rp = render_params((th, ph));
             render_sphere(&rp, &brdf).map_err(render_error)
         })
         .collect()
@@ -80,9 +78,7 @@ pub fn appearance(
                 .iter()
                 .zip(&originals)
                 .map(|(&(th, ph), orig)| {
-                    let rp = RenderParams::default()
-                        .with_size(RENDER_SIZE)
-                        .with_light(th, ph);
+                    let rp = render_params((th, ph));
                     let img = render_sphere(&rp, &brdf).map_err(render_error)?;
                     light_scores(orig, &img, (th, ph)).map_err(render_error)
                 })

@@ -8,7 +8,7 @@ use super::{AppearanceMeans, CvMethodResult, CvTest, HeldOut};
 use crate::backend::cpu::CpuBackend;
 use crate::backend::{Backend, Lobe};
 use crate::collection::{Collection, MaterialData};
-use crate::eval::appearance::{light_scores, Appearance, LogSums, LIGHTS, RENDER_SIZE};
+use crate::eval::appearance::{light_scores, render_params, Appearance, LogSums, LIGHTS};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{material_brdf, PixelBrdfs};
@@ -70,9 +70,7 @@ impl<'a> Evaluator<'a> {
             LIGHTS
                 .iter()
                 .map(|&(th, ph)| {
-                    let rp = RenderParams::default()
-                        .with_size(RENDER_SIZE)
-                        .with_light(th, ph);
+                    let rp = render_params((th, ph));
                     Ok(LightRenders {
                         pixels: PixelBrdfs::new(coll, &rp)?,
                         originals: renders(&rp)?,
