@@ -100,7 +100,10 @@ fn main() {
             let (f, t) = timed(|| {
                 let mut last = None;
                 for _ in 0..reps {
-                    last = Some(fit_samples(&coll, &basis, &samples).expect("fit"));
+                    last = Some(
+                        fit_samples(&coll, &basis, &samples, brdf_basis::fit::TargetWeight::L2)
+                            .expect("fit"),
+                    );
                 }
                 last.expect("one fit")
             });

@@ -399,6 +399,7 @@ pub fn fit_from_arrays(
     angles: &[[f64; 4]],
     rgb: &[[f64; 3]],
     sigma: Option<&[[f64; 3]]>,
+    objective: crate::fit::TargetWeight,
 ) -> Result<SampleFit> {
     let b: Vec<usize> = basis
         .iter()
@@ -432,7 +433,7 @@ pub fn fit_from_arrays(
         &samples,
         ["sigma_r", "sigma_g", "sigma_b"],
     )?;
-    Ok(crate::acquire::fit_samples(coll, &b, &samples)?)
+    Ok(crate::acquire::fit_samples(coll, &b, &samples, objective)?)
 }
 
 #[cfg(test)]

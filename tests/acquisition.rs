@@ -72,7 +72,7 @@ fn samples_of_an_exact_combination_give_its_coefficients() {
             }
         })
         .collect();
-    let f = fit_samples(&c, &basis, &samples).unwrap();
+    let f = fit_samples(&c, &basis, &samples, brdf_basis::fit::TargetWeight::L2).unwrap();
     for (k, row) in a.iter().enumerate() {
         for ch in 0..3 {
             let got = f.coefficients[k][ch];
@@ -128,7 +128,7 @@ fn samples_at_all_cell_centres_give_the_grid_fit() {
             }
         })
         .collect();
-    let f = fit_samples(&c, &basis, &samples).unwrap();
+    let f = fit_samples(&c, &basis, &samples, brdf_basis::fit::TargetWeight::L2).unwrap();
     for k in 0..4 {
         for ch in 0..3 {
             let (a, b) = (f.coefficients[k][ch], grid[0].coefficients[k][ch]);
@@ -349,6 +349,7 @@ fn acquisition_cv_runs_the_nielsen_baseline() {
         candidates_per_step: 300,
         render_size: 16,
         objective: brdf_basis::select::ObjectiveParams::default().stride(6),
+        appearance: false,
         ..AcqCvParams::default()
     };
     let r = acquisition_cv(&CpuBackend::new(), &c, &p).unwrap();

@@ -426,9 +426,16 @@ fn samples_beyond_the_fits_range_are_refused_not_panicked() {
     let angles = ANGLES.to_vec();
     let mut rgb = vec![[0.1, 0.12, 0.15]; ANGLES.len()];
     rgb[1] = [1e300, 0.1, 0.1];
-    let e = brdf_basis::fit_from_arrays(&c, &["plastic"], &angles, &rgb, None)
-        .expect_err("refused")
-        .to_string();
+    let e = brdf_basis::fit_from_arrays(
+        &c,
+        &["plastic"],
+        &angles,
+        &rgb,
+        None,
+        brdf_basis::fit::TargetWeight::L2,
+    )
+    .expect_err("refused")
+    .to_string();
     assert!(
         e.contains("line 2, column `r`") && e.contains("1e300"),
         "{e}"
@@ -461,8 +468,15 @@ fn scaling_every_sigma_by_one_constant_changes_nothing() {
     };
     let basis = ["plastic", "metal", "satin"];
     let fit = |scale: f64| {
-        brdf_basis::fit_from_arrays(&c, &basis, &angles, &rgb, Some(&sigma(scale)))
-            .unwrap_or_else(|e| panic!("scale {scale}: {e}"))
+        brdf_basis::fit_from_arrays(
+            &c,
+            &basis,
+            &angles,
+            &rgb,
+            Some(&sigma(scale)),
+            brdf_basis::fit::TargetWeight::L2,
+        )
+        .unwrap_or_else(|e| panic!("scale {scale}: {e}"))
     };
     let one = fit(1.0);
     assert!(

@@ -8,6 +8,7 @@
 mod common;
 
 mod acquisition;
+mod acquisition_objectives;
 mod audit2;
 mod cli;
 mod collection;

@@ -11,7 +11,7 @@ use brdf_basis::fit::{channel_lobe, fit, fit_cells, FitParams, TargetWeight, LAM
 /// every set of free columns (m <= 5): the unconstrained least squares on the set (normal
 /// equations in f64, Gaussian elimination with partial pivoting), kept when feasible. An
 /// active-set method's optimum is one of these; the smallest objective wins.
-fn brute_force_nnls(cols: &[Vec<f64>], b: &[f64], w: &[f64]) -> f64 {
+pub(crate) fn brute_force_nnls(cols: &[Vec<f64>], b: &[f64], w: &[f64]) -> f64 {
     let m = cols.len();
     let obj = |x: &[f64]| -> f64 {
         (0..b.len())

@@ -338,7 +338,9 @@ def plan(collection: Collection, basis: Sequence[str], n: int, **options) -> Pla
     Options: ``criterion`` (``error``, ``condition``, ``random``), ``targets`` (training
     materials; default every material outside ``basis``), ``candidates_per_step``,
     ``shortlist``, ``seed``, ``restarts`` (``error``: seeded greedy paths sharing each
-    step's candidates, the lowest final training score kept), ``backend``, ``progress``.
+    step's candidates, the lowest final training score kept), ``objective`` and ``eps``
+    (SPEC 11: the rows weighted by the objective's shared weights; default relative),
+    ``backend``, ``progress``.
 
     >>> p = plan(Collection.default(), ["polished-gold", "matte-white-paint"], 3, criterion="condition")
     >>> p.angles.shape
@@ -386,7 +388,9 @@ def acquisition_cv(collection: Collection, **options) -> AcquisitionCv:
     Options: ``methods`` (list), ``k``, ``plans`` (list of ``error``, ``condition``,
     ``random``, ``nielsen``), ``ns`` (list), ``noises`` (list), ``folds``,
     ``candidates_per_step``, ``shortlist``, ``render_size``, ``mask``, ``weighting``,
-    ``stride``, ``seed``, ``backend``, ``progress``.
+    ``stride``, ``seed``, ``objective`` and ``eps`` (SPEC 11; default relative),
+    ``appearance`` (log-RMSE, image error, CIEDE2000 and FLIP under four lights of every
+    reconstruction; default True), ``backend``, ``progress``.
     """
     text = _native.acquisition_cv_json(collection, **_name_options(options))
     d = _json.loads(text)
@@ -408,11 +412,15 @@ class SampleFit:
     condition: float
 
 
-def fit_samples(collection: Collection, basis: Sequence[str], angles, rgb, sigma=None) -> SampleFit:
+def fit_samples(
+    collection: Collection, basis: Sequence[str], angles, rgb, sigma=None, *, objective=None, eps=0.01
+) -> SampleFit:
     """Fits a new material from its samples (SPEC 10): ``angles`` (n, 4) in degrees
     ``theta_i, phi_i, theta_o, phi_o``, ``rgb`` (n, 3) reflectance in MERL units,
     optional ``sigma`` (n, 3) standard deviations. Non-negative per channel, with the
-    Lambertian term, as ``brdf-basis fit --samples``.
+    Lambertian term, as ``brdf-basis fit --samples``. ``objective`` (``"l2"``,
+    ``"relative"`` with ``eps``, ``"log"``; ``None``: the default, relative) weights each
+    sample by the objective's weight at its measured value (SPEC 11).
 
     >>> c = Collection.default(); b = ["polished-gold", "matte-white-paint"]
     >>> f = Brdf.material(c, "matte-white-paint")
@@ -426,7 +434,7 @@ def fit_samples(collection: Collection, basis: Sequence[str], angles, rgb, sigma
     y = _rows(rgb, 3, "rgb", "r, g, b")
     s = None if sigma is None else [tuple(r) for r in _rows(sigma, 3, "sigma", "sigma_r, sigma_g, sigma_b")]
     coef, res, mae, rel, rank, cond = _native.fit_samples(
-        collection, _names(basis, "basis"), [tuple(r) for r in a], [tuple(r) for r in y], s
+        collection, _names(basis, "basis"), [tuple(r) for r in a], [tuple(r) for r in y], s, objective, eps
     )
     return SampleFit(np.asarray(coef), tuple(res), mae, rel, rank, cond)
 

@@ -190,7 +190,7 @@ pub(crate) fn fit_json<'py>(
 /// Plans where to measure a new material (SPEC 10), as `brdf-basis plan --json` on the
 /// evaluation-mask cell centres (the library's `run::PlanRequest`): returns the JSON text.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = 1, restarts = None, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = 1, restarts = None, objective = None, eps = 0.01, backend = "auto", progress = None))]
 pub(crate) fn plan_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -202,11 +202,14 @@ pub(crate) fn plan_json<'py>(
     shortlist: Option<usize>,
     seed: u64,
     restarts: Option<usize>,
+    objective: Option<&str>,
+    eps: f64,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
     let mut req = bb::run::PlanRequest::new(basis);
+    req.objective = objective_of(objective, eps)?;
     req.n = n;
     if let Some(c) = criterion {
         req.criterion = parse(c)?;
@@ -229,8 +232,8 @@ pub(crate) fn plan_json<'py>(
 /// `theta_i, phi_i, theta_o, phi_o`, `rgb` (n, 3), optional `sigma` (n, 3). Returns
 /// `(coefficients (1 + k, 3), residual (3), mae, relative_residual, rank, condition)`.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, angles, rgb, sigma = None))]
-#[allow(clippy::type_complexity)]
+#[pyo3(signature = (collection, basis, angles, rgb, sigma = None, objective = None, eps = 0.01))]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub(crate) fn fit_samples<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -238,10 +241,13 @@ pub(crate) fn fit_samples<'py>(
     angles: Vec<[f64; 4]>,
     rgb: Vec<[f64; 3]>,
     sigma: Option<Vec<[f64; 3]>>,
+    objective: Option<&str>,
+    eps: f64,
 ) -> PyResult<(Bound<'py, PyAny>, [f64; 3], f64, f64, usize, f64)> {
     let coll = coll_of(collection);
     let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
-    let f = bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref()).map_err(lib_err)?;
+    let w = objective_of(objective, eps)?;
+    let f = bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref(), w).map_err(lib_err)?;
     let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
     let coefficients = numpy::PyArray1::from_vec(py, flat)
         .reshape([f.coefficients.len(), 3])?
@@ -309,7 +315,7 @@ pub(crate) fn cross_validate_json<'py>(
 /// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition` (the library's
 /// `run::AcquisitionRequest`): returns the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = 0.01, appearance = true, backend = "auto", progress = None))]
 pub(crate) fn acquisition_cv_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -327,11 +333,16 @@ pub(crate) fn acquisition_cv_json<'py>(
     weighting: &str,
     stride: usize,
     seed: u64,
+    objective: Option<&str>,
+    eps: f64,
+    appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
     let mut req = bb::run::AcquisitionRequest::default();
+    req.objective = objective_of(objective, eps)?;
+    req.appearance = appearance;
     req.methods = parse_list(methods, &req.methods)?;
     req.k = k.unwrap_or(req.k);
     req.plans = parse_list(plans, &req.plans)?;

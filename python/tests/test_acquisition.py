@@ -191,3 +191,36 @@ def test_plan_over_every_candidate_answers_ctrl_c_within_a_second():
     out = "".join(lines.queue)
     assert "interrupted" in out and "finished" not in out, out
     assert took < 1.0, took
+
+
+@pytest.mark.parametrize("objective", ["l2", "relative", "log"])
+def test_fit_samples_under_an_objective_is_scipys_weighted_nnls(objective):
+    """SPEC 11: a fit from samples weights each sample by the objective's weight at its
+    measured value; scipy's NNLS on the square-root-weighted system is the peer."""
+    from scipy.optimize import nnls
+
+    c = bb.Collection.default()
+    fs = [bb.Brdf.material(c, n) for n in BASIS]
+    target = bb.Brdf.material(c, "polished-gold")
+    rng = np.random.default_rng(3)
+    angles = np.column_stack([
+        rng.uniform(0, 80, 15), rng.uniform(-180, 180, 15),
+        rng.uniform(0, 80, 15), rng.uniform(-180, 180, 15),
+    ])
+    wis = [_dir(*a[:2]) for a in angles]
+    y = np.array([target.eval1(wi, _dir(*a[2:])) for wi, a in zip(wis, angles)])
+    r = bb.fit_samples(c, BASIS, angles, y, objective=objective, eps=0.01)
+    cos = np.array([w[2] for w in wis])
+    for ch in range(3):
+        a = np.column_stack(
+            [np.full(len(angles), 1 / np.pi)]
+            + [[f.eval1(wi, _dir(*t[2:]))[ch] for wi, t in zip(wis, angles)] for f in fs]
+        )
+        yc = np.maximum(y[:, ch], 0)
+        w = {"l2": np.ones_like(yc), "relative": 1 / (yc + 0.01) ** 2, "log": (cos / (1 + yc * cos)) ** 2}[objective]
+        sw = np.sqrt(w)
+        x, _ = nnls(a * sw[:, None], y[:, ch] * sw)
+        obj = lambda v: float(np.sum(w * (a @ v - y[:, ch]) ** 2))
+        scale = float(np.sum(w * y[:, ch] ** 2))
+        assert obj(r.coefficients[:, ch]) <= obj(x) + 1e-9 * scale, (objective, ch)
+        np.testing.assert_allclose(r.coefficients[:, ch], x, rtol=1e-4, atol=1e-6 * np.abs(x).max())

@@ -8,7 +8,7 @@
 //! renders (SPEC 7: light (45, 45)). The dense rho of the same basis (fit on the whole mask)
 //! is its limit.
 
-use super::fit::solve_rows;
+use super::fit::{solve_rows_toward, RIDGE_STRENGTHS};
 use super::nielsen::{nielsen_per_step, NielsenModel, ETA};
 use super::plan::{
     cell_candidates, plan, values_at, Candidate, Criterion, Dense, PlanParams, PlannedSample,
@@ -18,13 +18,15 @@ use crate::backend::cpu::CpuBackend;
 use crate::backend::Backend;
 use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceParams};
+use crate::eval::appearance::{Appearance, LogSums};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, PixelBrdfs};
-use crate::fit::fit_cells;
+use crate::fit::{fit_cells, FitParams, TargetWeight};
 use crate::nnls::{lawson_hanson, GramProblem};
-use crate::select::cv::evaluate::{GridEval, MaeJob};
+use crate::select::cv::evaluate::{means_of, GridEval, LightRenders, MaeJob};
 use crate::select::cv::folds::fold_bases;
+use crate::select::cv::AppearanceMeans;
 use crate::select::{make_folds, CvMethod, CvParams, Objective, ObjectiveParams};
 use crate::stats::{mean, median};
 use rand::SeedableRng;
@@ -58,8 +60,17 @@ pub struct AcqCvParams {
     pub restarts: usize,
     /// Render size of the image errors.
     pub render_size: u32,
-    /// Fit mask, weighting, stride.
+    /// Fit mask, weighting, stride and the objective (SPEC 11): the fold bases are
+    /// chosen under its shared weights, plans weigh their rows by them, every fit (from
+    /// samples and dense) minimises it.
     pub objective: ObjectiveParams,
+    /// Appearance metrics (SPEC 11: log-RMSE, and image error, CIEDE2000 and FLIP under
+    /// the four lights) of every reconstruction, the `nielsen` baseline's included.
+    pub appearance: bool,
+    /// Fits from samples with a ridge toward the training materials' mean coefficients,
+    /// its strength chosen per fold, plan and n on the training materials
+    /// ([`choose_ridge`]); `false`: plain NNLS.
+    pub ridge: bool,
 }
 
 impl Default for AcqCvParams {
@@ -77,6 +88,8 @@ impl Default for AcqCvParams {
             restarts: 1,
             render_size: 64,
             objective: ObjectiveParams::default(),
+            appearance: true,
+            ridge: true,
         }
     }
 }
@@ -100,6 +113,12 @@ pub struct AcqHeldOut {
     pub dense_mae: f64,
     /// Image error of the dense fit's render.
     pub dense_image_error: f64,
+    /// Appearance metrics of the reconstruction (SPEC 11), when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<Appearance>,
+    /// Appearance metrics of the dense fit, when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dense_appearance: Option<Appearance>,
 }
 
 /// One (method, plan, n, noise).
@@ -139,6 +158,22 @@ pub struct AcqResult {
     pub mean_dense_mae: f64,
     /// Mean image error of the dense fits.
     pub mean_dense_image_error: f64,
+    /// The ridge strength of the fits from samples per fold ([`choose_ridge`]; empty for
+    /// `nielsen` and without a ridge).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ridge: Vec<f64>,
+    /// Mean log-RMSE (SPEC 11), when the appearance metrics were computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_log_rmse: Option<f64>,
+    /// Means of the image metrics under the four lights, when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<AppearanceMeans>,
+    /// Mean log-RMSE of the dense fits, when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_dense_log_rmse: Option<f64>,
+    /// Means of the dense fits' image metrics, when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dense_appearance: Option<AppearanceMeans>,
 }
 
 /// The selection of the fold bases.
@@ -166,6 +201,9 @@ pub struct AcqCv {
     /// Greedy paths of each error plan.
     #[serde(default = "super::plan_types::one")]
     pub restarts: usize,
+    /// The objective of the fits and plans (SPEC 11; `l2` in files written before).
+    #[serde(default = "super::plan_types::l2_name")]
+    pub objective: String,
     /// Per method, plan, n and noise.
     pub results: Vec<AcqResult>,
     /// Collection fingerprint.
@@ -205,8 +243,15 @@ type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
 type Rec = (usize, usize, usize, usize, [Vec<f64>; 3]);
 
 /// One fold's basis (names), the samples of the showcase's plan (empty unless it is
-/// the first method's first plan, not nielsen) and its rows per plan, n and noise.
-type FoldRows = (Vec<String>, Vec<Candidate>, Vec<Vec<Vec<Cell>>>);
+/// the first method's first plan, not nielsen), its rows per plan, n and noise, the
+/// ridge strength per plan and n and the ridge's prior mean.
+type FoldRows = (
+    Vec<String>,
+    Vec<Candidate>,
+    Vec<Vec<Vec<Cell>>>,
+    Vec<Vec<Option<f64>>>,
+    Option<[Vec<f64>; 3]>,
+);
 
 /// Runs the acquisition cross-validation (module docs).
 ///
@@ -244,7 +289,16 @@ pub fn acquisition_cv(
         ..CvParams::default()
     }
     .check(n)?;
-    let fp = p.objective.fit_params();
+    // The objective's fits and plans; the scores (rho, MAE: SPEC 10) are l2's.
+    let fp_obj = p.objective.fit_params();
+    let weight = fp_obj
+        .objective
+        .check()
+        .map_err(crate::fit::FitError::from)?;
+    let fp = FitParams {
+        objective: TargetWeight::L2,
+        ..fp_obj.clone()
+    };
     let obj = Objective::new(backend, coll, &p.objective.check()?, &|_, _| {})?;
     let dist = if p.methods.iter().any(|m| m.clustering()) {
         let dp = DistanceParams::default()
@@ -277,7 +331,13 @@ pub fn acquisition_cv(
     let all: Vec<usize> = (0..n).collect();
     let cands = cell_candidates(coll, &all, &fp)?;
     let cellset = fit_cells(coll, &all, &fp)?;
+    let lights = if p.appearance {
+        LightRenders::all(coll).map_err(|e| AcquireError::Render(e.to_string()))?
+    } else {
+        Vec::new()
+    };
     let mut show_chosen: Vec<Vec<Candidate>> = vec![Vec::new(); folds.len()];
+    let mut show_prior: Vec<Option<[Vec<f64>; 3]>> = vec![None; folds.len()];
     let mut results = Vec::new();
     for (mi, m) in p.methods.iter().enumerate() {
         // rows[plan][n][noise] accumulated over folds.
@@ -302,22 +362,38 @@ pub fn acquisition_cv(
                     .collect();
                 let dense = Dense::new(backend, coll, basis, held, &fp)?;
                 let mm = basis.len() + 1;
+                let prior = if p.ridge && !train.is_empty() {
+                    Some(Prior::new(backend, coll, basis, &train, &fp_obj)?)
+                } else {
+                    None
+                };
+                let mut ridges: Vec<Vec<Option<f64>>> = vec![vec![None; p.ns.len()]; p.plans.len()];
                 // The dense fit of each held-out material (the limit).
-                let dense_x: Vec<[Vec<f64>; 3]> = (0..held.len())
-                    .into_par_iter()
-                    .map(|t| -> Result<[Vec<f64>; 3], AcquireError> {
-                        let x = [0, 1, 2].map(|c| {
-                            let g = &dense.g[c];
-                            GramProblem::new(mm, &g.gram, &g.h[t * mm..(t + 1) * mm], g.bb[t])
-                                .and_then(|pr| {
-                                    lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default())
-                                })
-                                .map(|s| s.x)
-                        });
-                        let [a, b, c] = x;
-                        Ok([a?, b?, c?])
-                    })
-                    .collect::<Result<_, _>>()?;
+                let dense_x: Vec<[Vec<f64>; 3]> = if weight != TargetWeight::L2 {
+                    crate::fit::fit(backend, coll, basis, held, &fp_obj, &|_, _| {})?
+                        .into_iter()
+                        .map(|tf| [0, 1, 2].map(|c| tf.coefficients.iter().map(|a| a[c]).collect()))
+                        .collect()
+                } else {
+                    (0..held.len())
+                        .into_par_iter()
+                        .map(|t| -> Result<[Vec<f64>; 3], AcquireError> {
+                            let x = [0, 1, 2].map(|c| {
+                                let g = &dense.g[c];
+                                GramProblem::new(mm, &g.gram, &g.h[t * mm..(t + 1) * mm], g.bb[t])
+                                    .and_then(|pr| {
+                                        lawson_hanson::solve(
+                                            &pr,
+                                            &lawson_hanson::LhParams::default(),
+                                        )
+                                    })
+                                    .map(|s| s.x)
+                            });
+                            let [a, b, c] = x;
+                            Ok([a?, b?, c?])
+                        })
+                        .collect::<Result<_, _>>()?
+                };
                 // Every reconstruction of the fold by a plan of ours: (plan, n, noise, held-out
                 // index, coefficients per channel); scored together below (one pass over the
                 // grid for every MAE, renders from the pixel table).
@@ -333,12 +409,15 @@ pub fn acquisition_cv(
                         candidates_per_step: p.candidates_per_step,
                         shortlist: p.shortlist,
                         seed: seed_f,
-                        fit: fp.clone(),
+                        fit: fp_obj.clone(),
                         restarts: p.restarts,
                     };
-                    // Condition and random plans need no training materials: without
-                    // them `plan` skips the training-score history the results never use.
-                    let train_of = if crit == Criterion::Error {
+                    // Condition and random plans need no training materials (but for the
+                    // shared weights of an objective): without them `plan` skips the
+                    // training-score history the results never use.
+                    let train_of = if crit == Criterion::Error
+                        || (crit == Criterion::Condition && weight != TargetWeight::L2)
+                    {
                         &train[..]
                     } else {
                         &[]
@@ -352,6 +431,22 @@ pub fn acquisition_cv(
                     let mut mats = basis.clone();
                     mats.extend_from_slice(held);
                     let vals = values_at(coll, &mats, &chosen)?;
+                    let cos: Vec<f64> = chosen.iter().map(|c| c.wi[2]).collect();
+                    let lambdas: Vec<f64> = match &prior {
+                        Some(pr) => {
+                            let tv = values_at(coll, &train, &chosen)?;
+                            p.ns.iter()
+                                .map(|&ns| pr.choose(&vals, &tv, ns.min(nmax), weight, &cos))
+                                .collect::<Result<_, _>>()?
+                        }
+                        None => vec![0.0; p.ns.len()],
+                    };
+                    if prior.is_some() {
+                        for (ni, &l) in lambdas.iter().enumerate() {
+                            ridges[pi][ni] = Some(l);
+                        }
+                    }
+                    let toward = |ni: usize| prior.as_ref().map(|pr| (&pr.mean, lambdas[ni]));
                     for si in 0..p.noises.len() {
                         let sigma = p.noises[si];
                         // Noisy measurements of every held-out material at the nmax samples.
@@ -367,7 +462,17 @@ pub fn acquisition_cv(
                         for (ni, &ns) in p.ns.iter().enumerate() {
                             let xs: Vec<[Vec<f64>; 3]> = (0..held.len())
                                 .into_par_iter()
-                                .map(|t| sample_coefficients(basis.len(), &vals, &ys[t], ns))
+                                .map(|t| {
+                                    sample_coefficients(
+                                        basis.len(),
+                                        &vals,
+                                        &ys[t],
+                                        ns,
+                                        weight,
+                                        &cos,
+                                        toward(ni),
+                                    )
+                                })
                                 .collect::<Result<_, _>>()?;
                             recs.extend(
                                 xs.into_iter().enumerate().map(|(t, x)| (pi, ni, si, t, x)),
@@ -398,7 +503,25 @@ pub fn acquisition_cv(
                         coef,
                     })
                     .collect();
-                let maes = grid.maes(&jobs);
+                let (maes, logs): (Vec<f64>, Vec<f64>) = if p.appearance {
+                    grid.sums(&jobs).into_iter().unzip()
+                } else {
+                    (grid.maes(&jobs), Vec::new())
+                };
+                let looks: Vec<Option<Appearance>> = if p.appearance {
+                    coefs
+                        .par_iter()
+                        .enumerate()
+                        .map(|(i, coef)| {
+                            let mut a = LightRenders::scores(&lights, target(i), basis, coef)
+                                .map_err(|e| AcquireError::Render(e.to_string()))?;
+                            a.log_rmse = logs[i];
+                            Ok(Some(a))
+                        })
+                        .collect::<Result<_, AcquireError>>()?
+                } else {
+                    vec![None; coefs.len()]
+                };
                 let ies: Vec<f64> = coefs
                     .par_iter()
                     .enumerate()
@@ -420,6 +543,8 @@ pub fn acquisition_cv(
                         image_error: ies[i],
                         dense_mae: maes[*t],
                         dense_image_error: ies[*t],
+                        appearance: looks[i].clone(),
+                        dense_appearance: looks[*t].clone(),
                     });
                 }
                 for (pi, &crit) in p.plans.iter().enumerate() {
@@ -443,15 +568,16 @@ pub fn acquisition_cv(
                         weights: &cellset.weights,
                         rp: &rp,
                         display: &display,
+                        lights: &lights,
                     };
-                    let per: Vec<Vec<Vec<(f64, f64, f64)>>> = held
+                    let per: Vec<Vec<Vec<Scores>>> = held
                         .par_iter()
                         .map(|&ti| nielsen_rows(&nf, p, ti, &originals[ti]))
                         .collect::<Result<_, _>>()?;
                     for (ni, &ns) in p.ns.iter().enumerate() {
                         for si in 0..p.noises.len() {
                             let rows = held.iter().enumerate().map(|(t, &ti)| {
-                                let (rho, mae, image_error) = per[t][ni][si];
+                                let (rho, mae, image_error, appearance) = per[t][ni][si].clone();
                                 AcqHeldOut {
                                     material: names[ti].clone(),
                                     fold: f,
@@ -461,6 +587,8 @@ pub fn acquisition_cv(
                                     image_error,
                                     dense_mae: maes[t],
                                     dense_image_error: ies[t],
+                                    appearance,
+                                    dense_appearance: looks[t].clone(),
                                 }
                             });
                             acc[pi][ni][si].0.extend(rows);
@@ -470,13 +598,22 @@ pub fn acquisition_cv(
                         }
                     }
                 }
-                Ok((named, show, acc))
+                Ok((named, show, acc, ridges, prior.map(|p| p.mean)))
             })
             .collect::<Result<_, _>>()?;
-        for (f, (named, show, facc)) in per_fold.into_iter().enumerate() {
+        let mut ridge_folds: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); p.ns.len()]; p.plans.len()];
+        for (f, (named, show, facc, fridge, fprior)) in per_fold.into_iter().enumerate() {
             fold_bases_named.push(named);
             if mi == 0 && !show.is_empty() {
                 show_chosen[f] = show;
+            }
+            if mi == 0 {
+                show_prior[f] = fprior;
+            }
+            for (pi, per_n) in fridge.into_iter().enumerate() {
+                for (ni, l) in per_n.into_iter().enumerate() {
+                    ridge_folds[pi][ni].extend(l);
+                }
             }
             for (pi, per_n) in facc.into_iter().enumerate() {
                 for (ni, per_noise) in per_n.into_iter().enumerate() {
@@ -516,6 +653,15 @@ pub fn acquisition_cv(
                         median_image_error: median(&img),
                         mean_dense_mae: mean(&col(|h| h.dense_mae)),
                         mean_dense_image_error: mean(&col(|h| h.dense_image_error)),
+                        ridge: ridge_folds[pi][ni].clone(),
+                        mean_log_rmse: looks_mean(&held_out, |h| h.appearance.as_ref())
+                            .map(|(l, _)| l),
+                        appearance: looks_mean(&held_out, |h| h.appearance.as_ref())
+                            .map(|(_, a)| a),
+                        mean_dense_log_rmse: looks_mean(&held_out, |h| h.dense_appearance.as_ref())
+                            .map(|(l, _)| l),
+                        dense_appearance: looks_mean(&held_out, |h| h.dense_appearance.as_ref())
+                            .map(|(_, a)| a),
                         held_out,
                     });
                 }
@@ -529,6 +675,7 @@ pub fn acquisition_cv(
         folds: &folds,
         bases: &bases[0][0],
         chosen: &show_chosen,
+        prior: &show_prior,
         cellset: &cellset,
         cands: &cands,
         rp: &rp,
@@ -555,6 +702,7 @@ pub fn acquisition_cv(
         k: p.k,
         candidates_per_step: p.candidates_per_step,
         restarts: p.restarts,
+        objective: weight.kind().name().to_string(),
         results,
         collection_fingerprint: coll.fingerprint(),
     })
@@ -585,13 +733,17 @@ fn measure(
 }
 
 /// Per-channel sample fit (Lambertian + basis, SPEC 10) of the first `ns` samples:
-/// `vals[c][b][s]` the basis values, `y[c]` the measurements.
+/// `vals[c][b][s]` the basis values, `y[c]` the measurements, each sample weighted by the
+/// objective's weight at its measured value and `cos[s]`, its `cos theta_i` (SPEC 11).
 #[allow(clippy::needless_range_loop)]
 fn sample_coefficients(
     nb: usize,
     vals: &[Vec<Vec<f64>>; 3],
     y: &[Vec<f64>; 3],
     ns: usize,
+    weight: TargetWeight,
+    cos: &[f64],
+    toward: Option<(&[Vec<f64>; 3], f64)>,
 ) -> Result<[Vec<f64>; 3], AcquireError> {
     let mm = nb + 1;
     let mut x: [Vec<f64>; 3] = Default::default();
@@ -601,13 +753,105 @@ fn sample_coefficients(
             r.push(FRAC_1_PI);
             r.extend((0..nb).map(|b| vals[c][b][s]));
         }
-        x[c] = solve_rows(mm, &r, &y[c][..ns], &vec![1.0; ns])?.x;
+        let w: Vec<f64> = (0..ns).map(|s| weight.phi(y[c][s], cos[s])).collect();
+        let pr = toward.map(|(mean, l)| (&mean[c][..], l));
+        x[c] = solve_rows_toward(mm, &r, &y[c][..ns], &w, pr)?.x;
     }
     Ok(x)
 }
 
-/// `(rho, MAE, image error)` of one reconstruction.
-type Scores = (f64, f64, f64);
+/// The ridge of the fits from samples (SPEC 10, beside it in `docs/acquisition.md`): the
+/// mean over a fold's training materials of their dense fits (under the objective's
+/// shared weights), and those materials' dense state to score their fits from samples.
+struct Prior {
+    /// Per channel, the mean coefficients (Lambertian first).
+    mean: [Vec<f64>; 3],
+    /// The training materials' full-mask Gram quantities (shared weights).
+    dense: Dense,
+}
+
+impl Prior {
+    fn new(
+        backend: &dyn Backend,
+        coll: &Collection,
+        basis: &[usize],
+        train: &[usize],
+        fp: &FitParams,
+    ) -> Result<Self, AcquireError> {
+        let dense = Dense::new(backend, coll, basis, train, fp)?;
+        let m = dense.m;
+        let mut mean = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
+        for (c, mc) in mean.iter_mut().enumerate() {
+            let g = &dense.g[c];
+            let xs = crate::nnls::GramBatch::new(
+                m,
+                &g.gram,
+                &g.h[..train.len() * m],
+                &g.bb[..train.len()],
+            )
+            .and_then(|b| lawson_hanson::solve_batch(&b, &lawson_hanson::LhParams::default()))?;
+            for s in &xs {
+                for (a, x) in mc.iter_mut().zip(&s.x) {
+                    *a += x / train.len() as f64;
+                }
+            }
+        }
+        Ok(Self { mean, dense })
+    }
+
+    /// The ridge strength of [`RIDGE_STRENGTHS`] whose fits of the training materials
+    /// from their noise-free values `tv[c][t][s]` at the first `ns` samples (basis values
+    /// `vals[c][b][s]`) have the lowest mean score (`rho` under the shared weights on the
+    /// whole mask); ties to the weaker ridge.
+    fn choose(
+        &self,
+        vals: &[Vec<Vec<f64>>; 3],
+        tv: &[Vec<Vec<f64>>; 3],
+        ns: usize,
+        weight: TargetWeight,
+        cos: &[f64],
+    ) -> Result<f64, AcquireError> {
+        let nb = self.dense.m - 1;
+        let nt = tv[0].len();
+        let scores: Vec<f64> = RIDGE_STRENGTHS
+            .par_iter()
+            .map(|&l| -> Result<f64, AcquireError> {
+                let mut sum = 0.0;
+                for t in 0..nt {
+                    let y = [0, 1, 2].map(|c| tv[c][t].clone());
+                    let x =
+                        sample_coefficients(nb, vals, &y, ns, weight, cos, Some((&self.mean, l)))?;
+                    sum += self.dense.rho(t, &x);
+                }
+                Ok(sum / nt.max(1) as f64)
+            })
+            .collect::<Result<_, _>>()?;
+        let mut best = 0;
+        for (i, v) in scores.iter().enumerate() {
+            if *v < scores[best] {
+                best = i;
+            }
+        }
+        Ok(RIDGE_STRENGTHS[best])
+    }
+}
+
+/// `(rho, MAE, image error, appearance)` of one reconstruction.
+type Scores = (f64, f64, f64, Option<Appearance>);
+
+/// The mean log-RMSE and the means of the image metrics of the rows' `get`, when every
+/// row has them.
+fn looks_mean(
+    rows: &[AcqHeldOut],
+    get: impl Fn(&AcqHeldOut) -> Option<&Appearance>,
+) -> Option<(f64, AppearanceMeans)> {
+    let a: Vec<&Appearance> = rows.iter().filter_map(&get).collect();
+    if a.len() != rows.len() {
+        return None;
+    }
+    let logs: Vec<f64> = a.iter().map(|x| x.log_rmse).collect();
+    Some((mean(&logs), means_of(&a)?))
+}
 
 /// What the `nielsen` rows of one fold share.
 struct NielsenFold<'a> {
@@ -617,6 +861,7 @@ struct NielsenFold<'a> {
     weights: &'a [f64],
     rp: &'a RenderParams,
     display: &'a DisplayParams,
+    lights: &'a [LightRenders],
 }
 
 /// Held-out material `ti` reconstructed by the `nielsen` baseline from its first n samples,
@@ -660,7 +905,24 @@ fn nielsen_rows(
                 .map_err(|e| AcquireError::Render(e.to_string()))?;
             let ie = normalized_image_error(original, &img, nf.display)
                 .map_err(|e| AcquireError::Render(e.to_string()))?;
-            out[ni].push((if e > 0.0 { sq / e } else { 0.0 }, ab / 3.0, ie));
+            let looks = if nf.lights.is_empty() {
+                None
+            } else {
+                let brdf = nf.model.brdf(&coef);
+                let mut a =
+                    LightRenders::scores_of(nf.lights, ti, |l| render_sphere(l.params(), &brdf))
+                        .map_err(|e| AcquireError::Render(e.to_string()))?;
+                let mut logs = LogSums::default();
+                for c in 0..3 {
+                    for (j, (&t, &w)) in tv[c].iter().zip(nf.weights).enumerate() {
+                        let cos = crate::backend::weighted::cos_theta_i(nf.model.cells[j] as usize);
+                        logs.add(nf.model.value(j, &coef[c]), t, w, cos);
+                    }
+                }
+                a.log_rmse = logs.value();
+                Some(a)
+            };
+            out[ni].push((if e > 0.0 { sq / e } else { 0.0 }, ab / 3.0, ie, looks));
         }
     }
     Ok(out)
@@ -674,6 +936,7 @@ struct Showcase<'a> {
     folds: &'a [Vec<usize>],
     bases: &'a [Vec<usize>],
     chosen: &'a [Vec<Candidate>],
+    prior: &'a [Option<[Vec<f64>; 3]>],
     cellset: &'a crate::merl::grid::CellSet,
     cands: &'a [Candidate],
     rp: &'a RenderParams,
@@ -721,18 +984,28 @@ impl Showcase<'_> {
                 .map_err(|e| AcquireError::Render(e.to_string()))?;
             Ok::<_, AcquireError>((img, ie))
         };
-        // The dense fit of the fold's basis.
-        let fp = p.objective.fit_params();
+        // The dense fit of the fold's basis (under the objective; rho is l2's).
+        let fp_obj = p.objective.fit_params();
+        let weight = fp_obj.objective;
+        let fp = FitParams {
+            objective: TargetWeight::L2,
+            ..fp_obj.clone()
+        };
         let dense = Dense::new(self.backend, coll, basis, &[ti], &fp)?;
         let mm = basis.len() + 1;
-        let x = [0, 1, 2].map(|c| {
-            let g = &dense.g[c];
-            GramProblem::new(mm, &g.gram, &g.h[..mm], g.bb[0])
-                .and_then(|pr| lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default()))
-                .map(|s| s.x)
-        });
-        let [a, b, c] = x;
-        let x = [a?, b?, c?];
+        let x = if weight == TargetWeight::L2 {
+            let x = [0, 1, 2].map(|c| {
+                let g = &dense.g[c];
+                GramProblem::new(mm, &g.gram, &g.h[..mm], g.bb[0])
+                    .and_then(|pr| lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default()))
+                    .map(|s| s.x)
+            });
+            let [a, b, c] = x;
+            [a?, b?, c?]
+        } else {
+            let tf = crate::fit::fit(self.backend, coll, basis, &[ti], &fp_obj, &|_, _| {})?;
+            [0, 1, 2].map(|c| tf[0].coefficients.iter().map(|a| a[c]).collect())
+        };
         let coef: Vec<[f64; 3]> = (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
         let (img, ie) = render(&combination_brdf(coll, basis, &coef))?;
         let mut tiles = vec![("dense fit".to_string(), img, ie, dense.rho(0, &x))];
@@ -765,8 +1038,12 @@ impl Showcase<'_> {
             let vals = values_at(coll, &mats, chosen)?;
             let nb = basis.len();
             let y = measure(p.seed, ti, si, sigma, chosen.len(), |c, s| vals[c][nb][s]);
+            let cos: Vec<f64> = chosen.iter().map(|c| c.wi[2]).collect();
             for &n in &ns {
-                let x = sample_coefficients(nb, &vals, &y, n.min(chosen.len()))?;
+                let lambda = find(n).and_then(|r| r.ridge.get(f).copied()).unwrap_or(0.0);
+                let toward = self.prior[f].as_ref().map(|m| (m, lambda));
+                let x =
+                    sample_coefficients(nb, &vals, &y, n.min(chosen.len()), weight, &cos, toward)?;
                 let coef: Vec<[f64; 3]> = (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
                 let (img, ie) = render(&combination_brdf(coll, basis, &coef))?;
                 tiles.push((format!("n = {n}"), img, ie, rho_at(n)));
@@ -859,6 +1136,56 @@ impl AcqCv {
                 ));
             }
         }
+        if let Some(a) = self.appearance_markdown() {
+            s.push('\n');
+            s.push_str(&a);
+        }
         s
+    }
+
+    /// The appearance metrics (SPEC 11) of every row as a Markdown table (means over the
+    /// held-out materials; image metrics at 256 px under the paper's light and averaged
+    /// over the four lights), the dense fits first; `None` when they were not computed.
+    pub fn appearance_markdown(&self) -> Option<String> {
+        use crate::stats::num;
+        if self.results.iter().all(|r| r.appearance.is_none()) {
+            return None;
+        }
+        let mut s = format!(
+            "Appearance (objective `{}`; SPEC 11: renders 256 px, four lights):\n\n| method | plan | n | noise | log-RMSE | image error (45, 45) | image error (4 lights) | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median FLIP |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+            self.objective
+        );
+        let row = |s: &mut String,
+                   m: &str,
+                   plan: &str,
+                   n: &str,
+                   noise: &str,
+                   l: f64,
+                   a: &AppearanceMeans| {
+            s.push_str(&format!(
+                "| {m} | {plan} | {n} | {noise} | {} | {} | {} | {} | {} | {} | {} |\n",
+                num(l),
+                num(a.image_error_paper_light),
+                num(a.image_error),
+                num(a.ciede2000),
+                num(a.flip_paper_light),
+                num(a.flip),
+                num(a.median_flip)
+            ));
+        };
+        let mut seen: Vec<&str> = Vec::new();
+        for r in &self.results {
+            if !seen.contains(&r.method.as_str()) {
+                seen.push(&r.method);
+                if let (Some(l), Some(a)) = (r.mean_dense_log_rmse, &r.dense_appearance) {
+                    row(&mut s, &r.method, "dense fit (the limit)", "all", "0", l, a);
+                }
+            }
+            if let (Some(l), Some(a)) = (r.mean_log_rmse, &r.appearance) {
+                let (n, noise) = (r.n.to_string(), num(r.noise));
+                row(&mut s, &r.method, r.plan.as_str(), &n, &noise, l, a);
+            }
+        }
+        Some(s)
     }
 }

@@ -18,7 +18,7 @@ use super::linalg::singular_values;
 use super::samples::Sample;
 use super::AcquireError;
 use crate::collection::Collection;
-use crate::fit::TargetFit;
+use crate::fit::{TargetFit, TargetWeight};
 use crate::nnls::{lawson_hanson, GramProblem, NnlsError, NnlsSolution};
 use std::f64::consts::FRAC_1_PI;
 
@@ -84,6 +84,34 @@ impl Design {
 /// The weighted NNLS of one channel: rows `n x m`, values `y` and weights `w` (one per
 /// row), through the Gram form and the crate's Lawson-Hanson solver.
 pub fn solve_rows(m: usize, rows: &[f64], y: &[f64], w: &[f64]) -> Result<NnlsSolution, NnlsError> {
+    solve_rows_toward(m, rows, y, w, None)
+}
+
+/// Ridge strengths [`solve_rows_toward`] chooses among (`cv --acquisition` picks one per
+/// fold, plan and n on the training materials; 0: plain NNLS).
+pub const RIDGE_STRENGTHS: [f64; 7] = [0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
+
+/// [`solve_rows`] with an optional ridge toward `prior = (mean, lambda)` (SPEC 10's
+/// choice among the solutions when the samples do not determine the fit):
+///
+/// ```text
+/// minimise  sum_s w_s (row_s . x - y_s)^2 + mu |x - mean|^2   subject to x >= 0,
+/// mu = lambda tr(G) / m
+/// ```
+///
+/// `G = A^T W A` the sampled Gram matrix, so `lambda` is relative to the mean squared
+/// (weighted) column norm and does not depend on the units or on the number of samples.
+/// With fewer samples than columns the sampled problem has many exact solutions; the
+/// ridge picks the one nearest the mean (the training materials' mean coefficients), and
+/// with enough samples a small `lambda` leaves the fit as it was. `lambda = 0` or no prior
+/// is [`solve_rows`], bit for bit.
+pub fn solve_rows_toward(
+    m: usize,
+    rows: &[f64],
+    y: &[f64],
+    w: &[f64],
+    prior: Option<(&[f64], f64)>,
+) -> Result<NnlsSolution, NnlsError> {
     let mut g = vec![0.0; m * m];
     let mut h = vec![0.0; m];
     let mut bb = 0.0;
@@ -100,6 +128,14 @@ pub fn solve_rows(m: usize, rows: &[f64], y: &[f64], w: &[f64]) -> Result<NnlsSo
     for i in 0..m {
         for j in 0..i {
             g[j * m + i] = g[i * m + j];
+        }
+    }
+    if let Some((mean, lambda)) = prior.filter(|p| p.1 > 0.0) {
+        let mu = lambda * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
+        for i in 0..m {
+            g[i * m + i] += mu;
+            h[i] += mu * mean[i];
+            bb += mu * mean[i] * mean[i];
         }
     }
     let p = GramProblem::new(m, &g, &h, bb)?;
@@ -154,12 +190,15 @@ pub fn determination(n: usize, m: usize, d: &[f64]) -> Determination {
 pub struct SampleFit {
     /// Coefficients per column (0 = Lambertian, then the basis), RGB.
     pub coefficients: Vec<[f64; 3]>,
-    /// `sqrt(sum_s w_s r_s^2)` per channel, on the samples.
+    /// `sqrt(sum_s w_s r_s^2)` per channel, on the samples (`w_s` the sigma weights).
     pub residual: [f64; 3],
     /// Weighted mean of |fit - y| over the samples, averaged over channels.
     pub mae: f64,
     /// `sum_c residual_c^2 / sum_c sum_s w_s y_c(s)^2` on the samples.
     pub relative_residual: f64,
+    /// The same ratio with the objective's weights (SPEC 11; equal to
+    /// `relative_residual` under `l2`): what the fit minimised, on the samples.
+    pub objective_residual: f64,
     /// Largest scaled KKT violation per channel.
     pub kkt: [f64; 3],
     /// Solver iterations per channel.
@@ -179,7 +218,7 @@ impl SampleFit {
             mae: self.mae,
             relative_residual: self.relative_residual,
             relative_mae: 0.0,
-            objective_residual: self.relative_residual,
+            objective_residual: self.objective_residual,
             kkt: self.kkt,
             iterations: self.iterations,
         }
@@ -208,6 +247,7 @@ pub fn fit_samples(
     coll: &Collection,
     basis: &[usize],
     samples: &[Sample],
+    objective: TargetWeight,
 ) -> Result<SampleFit, AcquireError> {
     if basis.is_empty() {
         return Err(crate::fit::FitError::EmptyBasis.into());
@@ -225,13 +265,21 @@ pub fn fit_samples(
         });
     }
     let d = Design::at_samples(coll, basis, samples)?;
-    fit_design(&d, samples)
+    fit_design(&d, samples, objective)
 }
 
 /// [`fit_samples`] on a given design (rows at the samples, in order). Samples validated
 /// as a samples file is ([`super::samples`]: values at most `MAX_VALUE`, sigmas at most
 /// `MAX_SIGMA_RATIO` apart) give a finite Gram problem; others may be refused by it.
-pub fn fit_design(d: &Design, samples: &[Sample]) -> Result<SampleFit, AcquireError> {
+///
+/// Under an objective (SPEC 11) each sample's weight is the objective's weight at the
+/// measured value, `phi(y_c(s), cos theta_i(s))`, times its sigma weight: the residual,
+/// MAE and relative residual reported are then the objective's, on the samples.
+pub fn fit_design(
+    d: &Design,
+    samples: &[Sample],
+    objective: TargetWeight,
+) -> Result<SampleFit, AcquireError> {
     let m = d.m;
     let n = samples.len();
     let mut out = SampleFit {
@@ -239,23 +287,32 @@ pub fn fit_design(d: &Design, samples: &[Sample]) -> Result<SampleFit, AcquireEr
         residual: [0.0; 3],
         mae: 0.0,
         relative_residual: 0.0,
+        objective_residual: 0.0,
         kkt: [0.0; 3],
         iterations: [0; 3],
         determination: determination(n, m, &d.mean_rows()),
     };
     let (mut sq, mut energy) = (0.0, 0.0);
+    let (mut osq, mut oenergy) = (0.0, 0.0);
     let floor = super::samples::sigma_floor(samples);
     for c in 0..3 {
         let y: Vec<f64> = samples.iter().map(|s| s.rgb[c]).collect();
         let w: Vec<f64> = samples.iter().map(|s| s.weight(c, floor)).collect();
-        let sol = solve_rows(m, &d.rows[c], &y, &w)?;
+        let ow: Vec<f64> = samples
+            .iter()
+            .zip(&w)
+            .map(|(s, &wv)| wv * objective.phi(s.rgb[c], s.wi[2]))
+            .collect();
+        let sol = solve_rows(m, &d.rows[c], &y, &ow)?;
         let (mut r2, mut ab, mut wsum) = (0.0, 0.0, 0.0);
-        for ((row, &yv), &wv) in d.rows[c].chunks_exact(m).zip(&y).zip(&w) {
+        for (((row, &yv), &wv), &owv) in d.rows[c].chunks_exact(m).zip(&y).zip(&w).zip(&ow) {
             let f: f64 = row.iter().zip(&sol.x).map(|(a, x)| a * x).sum();
             r2 += wv * (f - yv) * (f - yv);
             ab += wv * (f - yv).abs();
             wsum += wv;
             energy += wv * yv * yv;
+            osq += owv * (f - yv) * (f - yv);
+            oenergy += owv * yv * yv;
         }
         sq += r2;
         out.residual[c] = r2.sqrt();
@@ -267,6 +324,7 @@ pub fn fit_design(d: &Design, samples: &[Sample]) -> Result<SampleFit, AcquireEr
         }
     }
     out.relative_residual = if energy > 0.0 { sq / energy } else { 0.0 };
+    out.objective_residual = if oenergy > 0.0 { osq / oenergy } else { 0.0 };
     Ok(out)
 }
 

@@ -576,6 +576,7 @@ pub fn plan_criterion(
         history,
         seed: p.seed,
         restarts: 1,
+        objective: "l2".into(),
         chosen: chosen.iter().map(|&j| cands[j]).collect(),
     })
 }

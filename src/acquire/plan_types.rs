@@ -150,9 +150,18 @@ pub struct Plan {
     /// Greedy paths compared (`error` with restarts; 1 otherwise).
     #[serde(default = "one")]
     pub restarts: usize,
+    /// The objective the plan weighs its rows by (SPEC 11; `l2` in files written before
+    /// objectives reached plans).
+    #[serde(default = "l2_name")]
+    pub objective: String,
     /// The chosen candidates, in order (not written).
     #[serde(skip)]
     pub chosen: Vec<Candidate>,
+}
+
+/// The serde default of `objective`: `l2`.
+pub(crate) fn l2_name() -> String {
+    "l2".into()
 }
 
 /// The serde default of `restarts` (files written before restarts existed: one path).

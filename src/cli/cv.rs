@@ -60,6 +60,10 @@ pub struct CvArgs {
     /// lights: image error, CIEDE2000, FLIP).
     #[arg(long)]
     pub no_appearance: bool,
+    /// --acquisition: fit from samples by plain NNLS, without the ridge toward the training
+    /// materials' mean coefficients (whose strength is chosen on the training folds).
+    #[arg(long)]
+    pub no_ridge: bool,
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
@@ -138,7 +142,6 @@ impl CvArgs {
 
     /// The `cv --acquisition` request these flags make (the first `-k` is the basis size).
     pub fn acquisition_request(&self, g: &Global) -> anyhow::Result<AcquisitionRequest> {
-        self.objective.l2_only("cv --acquisition")?;
         let mut r = AcquisitionRequest::default();
         if let Some(m) = methods(self)? {
             r.methods = m;
@@ -162,6 +165,9 @@ impl CvArgs {
         r.render_size = self.render_size;
         r.grid = self.grid.grid();
         r.seed = g.seed;
+        r.objective = self.objective.weight();
+        r.appearance = !self.no_appearance;
+        r.ridge = !self.no_ridge;
         Ok(r)
     }
 }

@@ -90,7 +90,7 @@ impl FitArgs {
         r.solver = self.solver;
         r.gram = self.gram;
         r.seed = g.seed;
-        r.objective = self.objective.l2_only("fit --samples")?;
+        r.objective = self.objective.weight();
         Ok(r)
     }
 }

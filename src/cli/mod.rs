@@ -80,7 +80,7 @@ pub struct ObjectiveArgs {
     /// What a fit minimises: relative (weights 1 / (f + eps)^2: every cell counts by its
     /// relative error, so the diffuse body is not given up for the highlight), l2 (raw
     /// reflectance, the paper's) or log (an L2 in log(1 + f cos theta_i)) [default:
-    /// relative; fits from samples and acquisition: l2].
+    /// relative].
     #[arg(long, value_enum)]
     pub objective: Option<brdf_basis::fit::ObjectiveKind>,
     /// eps of `--objective relative`, in MERL reflectance units (> 0).
@@ -99,18 +99,6 @@ impl ObjectiveArgs {
                 }
                 w => w,
             },
-        }
-    }
-
-    /// `l2` unless another objective is given, which is refused with `what`'s name: the
-    /// commands whose fits from samples do not take objectives yet.
-    pub fn l2_only(&self, what: &str) -> anyhow::Result<brdf_basis::fit::TargetWeight> {
-        match self.objective {
-            None | Some(brdf_basis::fit::ObjectiveKind::L2) => Ok(brdf_basis::fit::TargetWeight::L2),
-            Some(k) => anyhow::bail!(
-                "{what}: --objective {} is not supported yet (fits from samples minimise l2); leave --objective out or give l2",
-                k.name()
-            ),
         }
     }
 }

@@ -51,6 +51,8 @@ pub struct PlanArgs {
     /// at a smaller -n may choose another path).
     #[arg(long, default_value_t = defaults().restarts)]
     pub restarts: usize,
+    #[command(flatten)]
+    pub objective: super::ObjectiveArgs,
     /// Output CSV: the samples-file header and one row per sample, in the order chosen.
     #[arg(long)]
     pub out: PathBuf,
@@ -71,6 +73,7 @@ impl PlanArgs {
         r.shortlist = self.shortlist;
         r.restarts = self.restarts;
         r.seed = g.seed;
+        r.objective = self.objective.weight();
         r
     }
 }

@@ -4,6 +4,7 @@ use super::{check_restarts, Grid};
 use crate::acquire::{acquisition_cv, AcqCv, AcqCvParams, Criterion};
 use crate::backend::Backend;
 use crate::collection::Collection;
+use crate::fit::TargetWeight;
 use crate::select::{CvMethod, ObjectiveParams};
 use crate::Result;
 
@@ -36,6 +37,13 @@ pub struct AcquisitionRequest {
     pub grid: Grid,
     /// `--seed`.
     pub seed: u64,
+    /// `--objective` and `--eps` (SPEC 11): the fold bases' shared weights, the plans'
+    /// row weights and every fit's weights.
+    pub objective: TargetWeight,
+    /// Appearance metrics of every reconstruction (`--no-appearance` turns them off).
+    pub appearance: bool,
+    /// The ridge of the fits from samples (`--no-ridge` turns it off).
+    pub ridge: bool,
 }
 
 impl Default for AcquisitionRequest {
@@ -54,6 +62,9 @@ impl Default for AcquisitionRequest {
             render_size: d.render_size,
             grid: Grid::default(),
             seed: d.seed,
+            objective: super::DEFAULT_OBJECTIVE,
+            appearance: d.appearance,
+            ridge: d.ridge,
         }
     }
 }
@@ -76,7 +87,10 @@ impl AcquisitionRequest {
             objective: ObjectiveParams::default()
                 .mask(self.grid.mask)
                 .weighting(self.grid.weighting)
-                .stride(self.grid.stride),
+                .stride(self.grid.stride)
+                .objective(self.objective),
+            appearance: self.appearance,
+            ridge: self.ridge,
         }
     }
 

@@ -173,8 +173,8 @@ pub struct FitSamplesRequest {
     pub gram: GramMode,
     /// `--seed`: of the directions suggested when the samples do not determine the fit.
     pub seed: u64,
-    /// `--objective`: `l2` only for now (SPEC 11's sample weights are not applied yet;
-    /// [`Self::run`] refuses any other).
+    /// `--objective` and `--eps` (SPEC 11: each sample weighted by the objective's weight
+    /// at its measured value).
     pub objective: TargetWeight,
 }
 
@@ -215,7 +215,7 @@ impl FitSamplesRequest {
             solver: d.solver,
             gram: d.gram,
             seed: 1,
-            objective: TargetWeight::L2,
+            objective: super::DEFAULT_OBJECTIVE,
         }
     }
 
@@ -233,15 +233,10 @@ impl FitSamplesRequest {
     /// An unknown material, an unreadable or invalid samples file, a failed fit.
     pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
         use crate::acquire::{fit as afit, plan, read_samples};
-        if self.objective != TargetWeight::L2 {
-            refuse!(
-                "fit --samples: --objective {} is not supported yet (fits from samples minimise l2)",
-                self.objective.kind().name()
-            );
-        }
+        self.objective.check()?;
         let basis = indices_of(coll, &self.basis)?;
         let samples = read_samples(&self.samples)?;
-        let sf = afit::fit_samples(coll, &basis, &samples)?;
+        let sf = afit::fit_samples(coll, &basis, &samples, self.objective)?;
         let d = &sf.determination;
         let more = d.columns.saturating_sub(d.rank.min(d.samples)).max(3);
         let hint = if d.rank < d.columns || d.condition > afit::WARN_CONDITION {

@@ -52,8 +52,9 @@ use crate::merl::{Mask, Weighting};
 /// The fit objective of `fit`, `select` and `cv` when none is given (SPEC 11): `relative`
 /// with `eps` 0.01, the objective with the lowest mean held-out FLIP over the four lights
 /// on merl100 (5 folds, greedy k = 12; README "Appearance" gives the measurement).
-/// `reproduce` keeps `l2` where it reproduces the paper; fits from samples (`fit
-/// --samples`, `plan`, `cv --acquisition`) minimise `l2` until objectives reach them.
+/// `reproduce` keeps `l2` where it reproduces the paper. Fits from samples (`fit
+/// --samples`, `cv --acquisition`) weigh each sample by the objective at its measured
+/// value, plans (`plan`) by the objective's shared weights (SPEC 11).
 pub const DEFAULT_OBJECTIVE: TargetWeight = TargetWeight::Relative {
     eps: TargetWeight::DEFAULT_EPS,
 };

@@ -5,7 +5,7 @@ use crate::acquire::plan::{cell_candidates, plan_with_progress, Candidate};
 use crate::acquire::{read_candidates, Criterion, Plan, PlanParams};
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
-use crate::fit::FitParams;
+use crate::fit::{FitParams, TargetWeight};
 use crate::Result;
 use std::path::PathBuf;
 
@@ -33,6 +33,9 @@ pub struct PlanRequest {
     pub restarts: usize,
     /// `--seed`.
     pub seed: u64,
+    /// `--objective` and `--eps` (SPEC 11): the weights of the plan's rows and of its
+    /// training fits.
+    pub objective: TargetWeight,
 }
 
 impl PlanRequest {
@@ -58,6 +61,7 @@ impl PlanRequest {
             shortlist: d.shortlist,
             restarts: d.restarts,
             seed: d.seed,
+            objective: super::DEFAULT_OBJECTIVE,
         }
     }
 
@@ -81,7 +85,10 @@ impl PlanRequest {
             candidates_per_step: self.candidates_per_step,
             shortlist: self.shortlist,
             seed: self.seed,
-            fit: FitParams::default(),
+            fit: FitParams {
+                objective: self.objective,
+                ..FitParams::default()
+            },
             restarts: self.restarts,
         }
     }
@@ -109,6 +116,7 @@ impl PlanRequest {
         progress: Progress<'_>,
     ) -> Result<Plan> {
         self.check()?;
+        self.objective.check()?;
         let basis = indices_of(coll, &self.basis)?;
         let targets = match &self.targets {
             Some(t) => indices_of(coll, t)?,

@@ -163,6 +163,7 @@ fn acquisition(
             k: 0,
             candidates_per_step: 0,
             restarts: 1,
+            objective: "l2".into(),
             results: vec![],
             collection_fingerprint: coll.fingerprint(),
             showcase: None,
@@ -200,6 +201,8 @@ fn acquisition(
         render_size: p.render_size.min(64),
         objective: ObjectiveParams::default().stride(stride),
         noises: if big { vec![0.0] } else { vec![0.0, 0.02] },
+        // The paper's l2 reproduction and its timing: no appearance renders here.
+        appearance: false,
         ..AcqCvParams::default()
     };
     let settings = format!(

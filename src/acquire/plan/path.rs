@@ -16,6 +16,7 @@ pub(super) fn plan_path(
     steps: &Steps<'_>,
 ) -> Result<Plan, AcquireError> {
     let m = basis.len() + 1;
+    let weighted = p.fit.objective != crate::fit::TargetWeight::L2;
     let mut mats = basis.to_vec();
     mats.extend_from_slice(targets);
     let per_step = if p.candidates_per_step == 0 {
@@ -73,17 +74,25 @@ pub(super) fn plan_path(
         let sub: Vec<Candidate> = pool.iter().map(|&i| cands[i]).collect();
         // Only the error criterion scores the training values of every candidate; the
         // others need the basis there (and the training values at the chosen one only).
-        let scored = if p.criterion == Criterion::Error {
+        // Under an objective (SPEC 11) the training values also give the shared weights.
+        let scored = if p.criterion == Criterion::Error || (weighted && !targets.is_empty()) {
             &mats[..]
         } else {
             basis
         };
         let vals = values_at_ticking(coll, scored, &sub, &|| steps.at(step))?;
+        let sw = if weighted {
+            sample_weights(&vals, &sub, p.fit.objective)
+        } else {
+            Default::default()
+        };
+        let scale = |c: usize, k: usize| if weighted { sw[c][k] } else { 1.0 };
         let row = |c: usize, k: usize| -> [f64; 16] {
             let mut r = [0.0; 16];
-            r[0] = FRAC_1_PI;
+            let s = scale(c, k);
+            r[0] = FRAC_1_PI * s;
             for b in 0..basis.len() {
-                r[b + 1] = vals[c][b][k];
+                r[b + 1] = vals[c][b][k] * s;
             }
             r
         };
@@ -119,7 +128,7 @@ pub(super) fn plan_path(
                 let nt = targets.len();
                 let ys = |k: usize| -> Vec<[f64; 3]> {
                     (0..nt)
-                        .map(|t| [0, 1, 2].map(|c| vals[c][basis.len() + t][k]))
+                        .map(|t| [0, 1, 2].map(|c| vals[c][basis.len() + t][k] * scale(c, k)))
                         .collect()
                 };
                 let screen = Screen::new(&st, d);
@@ -184,14 +193,14 @@ pub(super) fn plan_path(
         cond_rows.extend((0..m).map(|j| (a[0][j] + a[1][j] + a[2][j]) / 3.0));
         if let Some(d) = &dense {
             let at_chosen;
-            let (tv, tk) = if p.criterion == Criterion::Error {
+            let (tv, tk) = if scored.len() == mats.len() {
                 (&vals, best_k)
             } else {
                 at_chosen = values_at(coll, &mats, &sub[best_k..best_k + 1])?;
                 (&at_chosen, 0)
             };
             let yv: Vec<[f64; 3]> = (0..targets.len())
-                .map(|t| [0, 1, 2].map(|c| tv[c][basis.len() + t][tk]))
+                .map(|t| [0, 1, 2].map(|c| tv[c][basis.len() + t][tk] * scale(c, best_k)))
                 .collect();
             st.push(&a, &yv);
             st.x = st.exact(None);
@@ -219,7 +228,29 @@ pub(super) fn plan_path(
         history,
         seed: p.seed,
         restarts: 1,
+        objective: p.fit.objective.kind().name().to_string(),
         chosen: chosen.iter().map(|&i| cands[i]).collect(),
+    })
+}
+
+/// The square roots of SPEC 11's shared weights at each candidate of a step, per channel:
+/// the objective's weight at the median over the materials of `vals` (`vals[c][material]
+/// [candidate]`: the basis and, when there are any, the training materials) and the
+/// candidate's `cos theta_i`. A plan chooses where to measure before the material is
+/// known, so it weighs its rows as selection does (SPEC 11), by the weights of the
+/// typical material; the fit from the measured samples uses the material's own.
+fn sample_weights(
+    vals: &[Vec<Vec<f64>>; 3],
+    sub: &[Candidate],
+    w: crate::fit::TargetWeight,
+) -> [Vec<f64>; 3] {
+    [0, 1, 2].map(|c| {
+        (0..sub.len())
+            .map(|k| {
+                let col: Vec<f64> = vals[c].iter().map(|v| v[k]).collect();
+                w.phi(crate::stats::median(&col), sub[k].wi[2]).sqrt()
+            })
+            .collect()
     })
 }
 

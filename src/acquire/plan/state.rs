@@ -14,6 +14,12 @@ pub(crate) struct Dense {
 
 impl Dense {
     /// One back-end pass (or the separable closed form) per channel.
+    ///
+    /// Under an objective other than `l2` (SPEC 11) the cells carry its shared weights
+    /// per channel: the objective's weight at the median over the basis and the targets
+    /// ([`crate::select::shared_weights`] of those materials), so that `rho` is `rho_W`
+    /// with the weights a plan can know before the material is measured; one back-end
+    /// pass per channel (the weights are not separable).
     pub fn new(
         backend: &dyn Backend,
         coll: &Collection,
@@ -24,15 +30,30 @@ impl Dense {
         let mut all = basis.to_vec();
         all.extend_from_slice(targets);
         let cells = fit_cells(coll, &all, fit)?;
+        let shared;
+        let (per_channel, mode) = if fit.objective == crate::fit::TargetWeight::L2 {
+            ([&cells; 3], fit.gram)
+        } else {
+            shared = crate::select::objective::shared_weights(
+                backend,
+                &coll.subset(&all),
+                &cells,
+                fit.objective,
+            )?;
+            (
+                [&shared[0], &shared[1], &shared[2]],
+                crate::fit::GramMode::Grid,
+            )
+        };
         let g = [0, 1, 2].map(|c| {
             channel_gram(
                 backend,
                 coll,
                 basis,
                 targets,
-                &cells,
+                per_channel[c],
                 c,
-                fit.gram,
+                mode,
                 &|_, _| {},
             )
         });

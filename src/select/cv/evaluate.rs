@@ -19,10 +19,64 @@ use crate::stats::{mean, median, StatsError};
 
 /// The renders of the appearance metrics (SPEC 11): per light, the pixel table of every
 /// material and the render of every material.
-struct LightRenders {
+pub(crate) struct LightRenders {
     rp: RenderParams,
     pixels: PixelBrdfs,
     originals: Vec<Image>,
+}
+
+impl LightRenders {
+    /// Every material of `coll` rendered under each of the four lights ([`LIGHTS`], SPEC
+    /// 11's size), with the pixel tables of the fits' renders.
+    pub(crate) fn all(coll: &Collection) -> Result<Vec<Self>, crate::eval::render::RenderError> {
+        LIGHTS
+            .iter()
+            .map(|&(th, ph)| {
+                let rp = render_params((th, ph));
+                let originals = (0..coll.len())
+                    .map(|t| render_sphere(&rp, &material_brdf(&coll.materials()[t].data)))
+                    .collect::<Result<Vec<_>, _>>()?;
+                Ok(Self {
+                    pixels: PixelBrdfs::new(coll, &rp)?,
+                    originals,
+                    rp,
+                })
+            })
+            .collect()
+    }
+
+    /// The image metrics under each light of `lights` of material `t` fitted by `basis`
+    /// with `coefficients` (log-RMSE left at 0).
+    pub(crate) fn scores(
+        lights: &[Self],
+        t: usize,
+        basis: &[usize],
+        coefficients: &[[f64; 3]],
+    ) -> Result<Appearance, crate::eval::render::RenderError> {
+        Self::scores_of(lights, t, |l| {
+            render_sphere(&l.rp, &l.pixels.combination(basis, coefficients))
+        })
+    }
+
+    /// The image metrics under each light of material `t` against the renders `render`
+    /// makes of a reconstruction (log-RMSE left at 0).
+    pub(crate) fn scores_of(
+        lights: &[Self],
+        t: usize,
+        render: impl Fn(&Self) -> Result<Image, crate::eval::render::RenderError>,
+    ) -> Result<Appearance, crate::eval::render::RenderError> {
+        let scores = lights
+            .iter()
+            .zip(LIGHTS)
+            .map(|(l, light)| light_scores(&l.originals[t], &render(l)?, light))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Appearance::new(0.0, scores))
+    }
+
+    /// The light's render parameters.
+    pub(crate) fn params(&self) -> &RenderParams {
+        &self.rp
+    }
 }
 
 /// What the held-out materials are evaluated with: the objective, the grid MAE and
@@ -67,17 +121,7 @@ impl<'a> Evaluator<'a> {
             .with_light(45.0, 45.0);
         let originals = renders(&rp)?;
         let lights = if appearance {
-            LIGHTS
-                .iter()
-                .map(|&(th, ph)| {
-                    let rp = render_params((th, ph));
-                    Ok(LightRenders {
-                        pixels: PixelBrdfs::new(coll, &rp)?,
-                        originals: renders(&rp)?,
-                        rp,
-                    })
-                })
-                .collect::<Result<Vec<_>, SelectionError>>()?
+            LightRenders::all(coll)?
         } else {
             Vec::new()
         };
@@ -110,16 +154,7 @@ impl<'a> Evaluator<'a> {
         let appearance = if self.lights.is_empty() {
             None
         } else {
-            let scores = self
-                .lights
-                .iter()
-                .zip(LIGHTS)
-                .map(|(l, light)| {
-                    let img = render_sphere(&l.rp, &l.pixels.combination(basis, coefficients))?;
-                    Ok(light_scores(&l.originals[t], &img, light)?)
-                })
-                .collect::<Result<Vec<_>, SelectionError>>()?;
-            Some(Appearance::new(0.0, scores))
+            Some(LightRenders::scores(&self.lights, t, basis, coefficients)?)
         };
         Ok(HeldOut {
             material: self.obj.names()[t].clone(),
@@ -263,7 +298,15 @@ impl<'a> Evaluator<'a> {
 /// they were not computed.
 pub(crate) fn appearance_means(held: &[HeldOut]) -> Option<AppearanceMeans> {
     let a: Vec<&Appearance> = held.iter().filter_map(|h| h.appearance.as_ref()).collect();
-    if a.is_empty() || a.len() != held.len() {
+    if a.len() != held.len() {
+        return None;
+    }
+    means_of(&a)
+}
+
+/// Means (and medians) of the appearance metrics `a`; `None` when `a` is empty.
+pub(crate) fn means_of(a: &[&Appearance]) -> Option<AppearanceMeans> {
+    if a.is_empty() {
         return None;
     }
     let col = |g: &dyn Fn(&Appearance) -> f64| a.iter().map(|x| g(x)).collect::<Vec<f64>>();
