@@ -277,6 +277,9 @@ fn figure_materials(held: &[Vec<HeldOut>]) -> Vec<(usize, String)> {
     chosen
 }
 
+/// A fold basis (collection indices) and a fit's coefficients by it.
+type BasisFit = (Vec<usize>, Vec<[f64; 3]>);
+
 /// The renders of the figure: per chosen material and light of [`FIGURE_LIGHTS`], the
 /// target and the fit of each objective by the material's fold basis (the coefficients of
 /// the cross-validation: `l2` from the objective's Gram form, the others refitted with
@@ -290,7 +293,7 @@ fn figure_rows(
     chosen: &[(usize, String)],
 ) -> Result<Vec<FigureRow>, ExperimentError> {
     // Per chosen material and objective: the fold basis (collection indices) and the fit.
-    let mut fits: Vec<Vec<(Vec<usize>, Vec<[f64; 3]>)>> = Vec::new();
+    let mut fits: Vec<Vec<BasisFit>> = Vec::new();
     let mut rows = Vec::new();
     for (i, why) in chosen {
         let first = &cvs[0].results[0].held_out[*i];

@@ -47,9 +47,12 @@ fn shrink(img: &Rgb8Image) -> Rgb8Image {
     cur
 }
 
+/// A tile: its column label, caption and display-mapped render.
+type Tile = (String, String, Rgb8Image);
+
 /// The figure's tiles, display-mapped: per row, `(label, caption, tile)` in column order.
 struct Renders {
-    rows: Vec<(String, Vec<(String, String, Rgb8Image)>)>,
+    rows: Vec<(String, Vec<Tile>)>,
     columns: usize,
 }
 
