@@ -32,6 +32,7 @@ mod nbrdf_gpu;
 mod objectives;
 mod outputs;
 mod reproduce;
+mod reproduce_appearance;
 mod requests;
 mod rgl;
 mod saved_matrix;

@@ -75,6 +75,11 @@ pub struct ReproduceArgs {
     /// 10, 20, noise 0 and 2%).
     #[arg(long)]
     pub no_acquisition: bool,
+    /// Leave out the Appearance section (SPEC 11; otherwise the collection is
+    /// cross-validated under each fit objective, l2, relative and log: greedy bases of
+    /// --k-max, --cv-folds folds (5 when 0); appearance.json and a figure of renders).
+    #[arg(long)]
+    pub no_appearance: bool,
 }
 
 impl ReproduceArgs {
@@ -93,6 +98,7 @@ impl ReproduceArgs {
         r.cv_runs = self.cv_runs;
         r.selection = !self.no_selection;
         r.acquisition = !self.no_acquisition;
+        r.appearance = !self.no_appearance;
         r.seed = g.seed;
         r
     }
@@ -163,6 +169,17 @@ fn run_into(
         }
         ctx.acquisition = Some(a);
     }
+    if let Some(a) = r.appearance {
+        ctx.timings.push(StageTiming {
+            stage: "appearance".into(),
+            seconds: r.appearance_seconds,
+        });
+        if let Some(st) = &a.study {
+            brdf_basis::io::json::write_json(&root.join(layout::APPEARANCE), st)?;
+            written.push(PathBuf::from(layout::APPEARANCE));
+        }
+        ctx.appearance = Some(a);
+    }
     ctx.timings.push(StageTiming {
         stage: "files".into(),
         seconds: t_files.elapsed().as_secs_f64(),
@@ -173,6 +190,12 @@ fn run_into(
     super::plot::write_report_figures(&e, &figures, &mut ctx)?;
     if let Some(a) = ctx.acquisition.as_ref().filter(|a| a.skipped.is_none()) {
         let fig = brdf_basis::plot::acquisition::rho_vs_n(&a.cv)?;
+        super::plot::write_figure(&figures, &fig)?;
+        ctx.figures
+            .push((fig.stem.clone(), format!("figures/{}.png", fig.stem)));
+    }
+    if let Some(st) = ctx.appearance.as_ref().and_then(|a| a.study.as_ref()) {
+        let fig = brdf_basis::plot::appearance::renders(st)?;
         super::plot::write_figure(&figures, &fig)?;
         ctx.figures
             .push((fig.stem.clone(), format!("figures/{}.png", fig.stem)));

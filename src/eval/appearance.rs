@@ -128,20 +128,134 @@ pub fn mean_flip(reference: &Image, test: &Image, d: &DisplayParams) -> Result<f
     Ok(sum / n as f64)
 }
 
-/// The image metrics of `test` against `reference`, rendered under the light `(theta, phi)`.
+/// The image metrics of `test` against `reference`, rendered under the light `(theta, phi)`
+/// ([`Reference::scores`]: the values of [`normalized_image_error`], [`mean_ciede2000`]
+/// and [`mean_flip`], to the bit).
 pub fn light_scores(
     reference: &Image,
     test: &Image,
-    (theta, phi): (f64, f64),
+    light: (f64, f64),
 ) -> Result<LightScores, RenderError> {
-    let d = DisplayParams::default();
-    Ok(LightScores {
-        theta,
-        phi,
-        image_error: normalized_image_error(reference, test, &d)?,
-        ciede2000: mean_ciede2000(reference, test, &d)?,
-        flip: mean_flip(reference, test, &d)?,
-    })
+    Reference::new(reference)?.scores(test, light)
+}
+
+/// A reference render prepared for [`Reference::scores`]: its display values, CIELAB
+/// colours and 8-bit image computed once (the separate metric functions each map both
+/// images again: five display mappings per image and light).
+pub struct Reference<'a> {
+    image: &'a Image,
+    /// Display values of every channel of every pixel.
+    display: Vec<f64>,
+    /// CIELAB of every sphere pixel, in pixel order.
+    lab: Vec<super::color::Lab>,
+}
+
+impl<'a> Reference<'a> {
+    /// Prepares `image` (checked: well-formed, at least one sphere pixel).
+    pub fn new(image: &'a Image) -> Result<Self, RenderError> {
+        image.check()?;
+        if image.sphere_pixels() == 0 {
+            return Err(RenderError::EmptyMask);
+        }
+        let d = DisplayParams::default();
+        let display = display_values(image, &d);
+        let lab = sphere_labs(image, &display);
+        Ok(Self {
+            image,
+            display,
+            lab,
+        })
+    }
+
+    /// The image metrics of `test` against this reference under the light `(theta, phi)`:
+    /// each test pixel mapped once, then the sums of [`normalized_image_error`],
+    /// [`mean_ciede2000`] and [`mean_flip`] in their order (the same bits).
+    pub fn scores(
+        &self,
+        test: &Image,
+        (theta, phi): (f64, f64),
+    ) -> Result<LightScores, RenderError> {
+        let (a, d) = (self.image, DisplayParams::default());
+        // Sizes, masks and form: the image error's checks.
+        check_pair(a, test)?;
+        let td = display_values(test, &d);
+        let count = a.sphere_pixels();
+        let errors: Vec<f64> = a
+            .mask
+            .iter()
+            .enumerate()
+            .filter(|&(_, &on)| on)
+            .map(|(i, _)| {
+                let sum: f64 = (0..3)
+                    .map(|c| (self.display[3 * i + c] - td[3 * i + c]).abs())
+                    .sum();
+                sum / 3.0
+            })
+            .collect();
+        let image_error = errors.iter().sum::<f64>() / count as f64;
+        let mut sum = 0.0;
+        for (la, lb) in self.lab.iter().zip(sphere_labs(test, &td)) {
+            sum += ciede2000(*la, lb);
+        }
+        let ciede = sum / self.lab.len() as f64;
+        let to8 = |img: &Image, dv: &[f64]| {
+            let bytes: Vec<u8> = dv.iter().map(|&v| (v * 255.0).round() as u8).collect();
+            nv_flip::FlipImageRgb8::with_data(img.width, img.height, &bytes)
+        };
+        let map = nv_flip::flip(
+            to8(a, &self.display),
+            to8(test, &td),
+            FLIP_PIXELS_PER_DEGREE,
+        )
+        .to_vec();
+        let (mut fsum, mut n) = (0.0f64, 0usize);
+        for (&e, &on) in map.iter().zip(&a.mask) {
+            if on {
+                fsum += f64::from(e);
+                n += 1;
+            }
+        }
+        Ok(LightScores {
+            theta,
+            phi,
+            image_error,
+            ciede2000: ciede,
+            flip: fsum / n as f64,
+        })
+    }
+}
+
+/// The CIELAB colour of every sphere pixel of `img` from its display values `dv`.
+fn sphere_labs(img: &Image, dv: &[f64]) -> Vec<super::color::Lab> {
+    img.mask
+        .iter()
+        .enumerate()
+        .filter(|&(_, &on)| on)
+        .map(|(i, _)| srgb_to_lab([dv[3 * i], dv[3 * i + 1], dv[3 * i + 2]]))
+        .collect()
+}
+
+/// [`super::image_error::pixel_errors`]'s checks of two images: well-formed, the same
+/// size and the same sphere mask.
+fn check_pair(a: &Image, b: &Image) -> Result<(), RenderError> {
+    a.check()?;
+    b.check()?;
+    if (a.width, a.height) != (b.width, b.height) {
+        return Err(RenderError::SizeMismatch {
+            a_width: a.width,
+            a_height: a.height,
+            b_width: b.width,
+            b_height: b.height,
+        });
+    }
+    if let Some(i) = a.mask.iter().zip(&b.mask).position(|(x, y)| x != y) {
+        let w = a.width as usize;
+        return Err(RenderError::MaskMismatch {
+            col: (i % w) as u32,
+            row: (i / w) as u32,
+        });
+    }
+    Ok(())
 }
 
 /// Running sums of the log-RMSE: add cells with [`LogSums::add`], then [`LogSums::value`].
@@ -203,6 +317,31 @@ mod tests {
         let g = light_scores(&a, &grey, LIGHTS[0]).unwrap();
         assert!(h.ciede2000 > 10.0 * g.ciede2000, "{h:?} {g:?}");
         assert!(h.flip > 5.0 * g.flip && h.flip <= 1.0, "{h:?} {g:?}");
+    }
+
+    /// The prepared reference gives the separate metric functions' values to the bit.
+    #[test]
+    fn prepared_reference_scores_equal_the_separate_metrics() {
+        let d = DisplayParams::default();
+        for light in LIGHTS {
+            let p = RenderParams::default()
+                .with_size(48)
+                .with_light(light.0, light.1);
+            let a = render_sphere(&p, &|wi, wo| {
+                [0.2 + wi[0].abs(), 0.1 + 3.0 * wo[2].powi(8), 0.05 * wi[2]]
+            })
+            .unwrap();
+            let b = render_sphere(&p, &|wi, _| [0.25, 0.12 + wi[1].abs(), 0.04]).unwrap();
+            let s = light_scores(&a, &b, light).unwrap();
+            assert_eq!(s.image_error, normalized_image_error(&a, &b, &d).unwrap());
+            assert_eq!(s.ciede2000, mean_ciede2000(&a, &b, &d).unwrap());
+            assert_eq!(s.flip, mean_flip(&a, &b, &d).unwrap());
+            assert!(s.image_error > 0.0 && s.ciede2000 > 0.0 && s.flip > 0.0);
+        }
+        let small = render([0.1, 0.2, 0.3], LIGHTS[0]);
+        let other = RenderParams::default().with_size(32);
+        let b = render_sphere(&other, &|_, _| [0.1; 3]).unwrap();
+        assert!(light_scores(&small, &b, LIGHTS[0]).is_err());
     }
 
     #[test]

@@ -278,10 +278,28 @@ pub fn render_sphere(
     Ok(render_with_frame(params, brdf, &tangent_frame))
 }
 
+/// [`render_sphere`] whose BRDF is also given the pixel's index (`row * size + col`): the
+/// same image as [`render_sphere`] with `|wi, wo| brdf(index, wi, wo)`.
+pub(crate) fn render_sphere_indexed(
+    params: &RenderParams,
+    brdf: &(dyn Fn(usize, [f64; 3], [f64; 3]) -> [f64; 3] + Sync),
+) -> Result<Image, RenderError> {
+    params.check()?;
+    Ok(render_frame_indexed(params, brdf, &tangent_frame))
+}
+
 /// [`render_sphere`] with a caller-chosen shading frame (tests check frame independence).
 fn render_with_frame(
     params: &RenderParams,
     brdf: &(dyn Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync),
+    frame_of: &(dyn Fn([f64; 3]) -> [[f64; 3]; 3] + Sync),
+) -> Image {
+    render_frame_indexed(params, &|_, wi, wo| brdf(wi, wo), frame_of)
+}
+
+fn render_frame_indexed(
+    params: &RenderParams,
+    brdf: &(dyn Fn(usize, [f64; 3], [f64; 3]) -> [f64; 3] + Sync),
     frame_of: &(dyn Fn([f64; 3]) -> [[f64; 3]; 3] + Sync),
 ) -> Image {
     let size = params.size;
@@ -306,7 +324,8 @@ fn render_with_frame(
                     continue;
                 }
                 let frame = frame_of(n);
-                let f = brdf(to_local(&frame, wi), to_local(&frame, wo));
+                let index = row * size as usize + col as usize;
+                let f = brdf(index, to_local(&frame, wi), to_local(&frame, wo));
                 let o = 3 * col as usize;
                 for c in 0..3 {
                     out[o + c] = (f[c] * cos_i) as f32;

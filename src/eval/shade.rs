@@ -2,7 +2,7 @@
 //! 7), a neural one (its network at the direction pair, SPEC 9), or a fitted combination `a0 / pi + sum_k a_k f_k`.
 
 use crate::collection::{Collection, MaterialData};
-use crate::eval::render::{render_sphere, RenderError, RenderParams};
+use crate::eval::render::{render_sphere_indexed, Image, RenderError, RenderParams};
 use crate::merl::grid::lookup;
 
 /// A BRDF `f(wi, wo) -> RGB` for the renderer.
@@ -79,6 +79,10 @@ pub struct PixelBrdfs {
     values: Vec<Vec<[f64; 3]>>,
     /// Every material's BRDF (for pairs not in the table).
     brdfs: Vec<BrdfFn>,
+    /// The render the table was made for.
+    rp: RenderParams,
+    /// Per pixel of that render (`row * size + col`), its row of `values` (`u32::MAX`: none).
+    pixel_rows: Vec<u32>,
 }
 
 fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
@@ -90,25 +94,27 @@ impl PixelBrdfs {
     pub fn new(coll: &Collection, rp: &RenderParams) -> Result<Self, RenderError> {
         use rayon::prelude::*;
         let pairs = std::sync::Mutex::new(Vec::new());
-        render_sphere(rp, &|wi, wo| {
+        render_sphere_indexed(rp, &|px, wi, wo| {
             if wi[2] > 0.0 && wo[2] > 0.0 {
                 pairs
                     .lock()
                     .unwrap_or_else(|p| p.into_inner())
-                    .push((wi, wo));
+                    .push((wi, wo, px));
             }
             [0.0; 3]
         })?;
         let mut pairs = pairs.into_inner().unwrap_or_else(|p| p.into_inner());
         // Rayon's order of the pixels is not fixed; the table's is.
-        pairs.sort_by_key(|a| pair_key(a.0, a.1));
+        pairs.sort_by_key(|a| (pair_key(a.0, a.1), a.2));
         let mut index = std::collections::HashMap::new();
         let mut unique = Vec::new();
-        for (wi, wo) in pairs {
-            index.entry(pair_key(wi, wo)).or_insert_with(|| {
+        let mut pixel_rows = vec![u32::MAX; rp.size as usize * rp.size as usize];
+        for (wi, wo, px) in pairs {
+            let row = *index.entry(pair_key(wi, wo)).or_insert_with(|| {
                 unique.push((wi, wo));
                 unique.len() - 1
             });
+            pixel_rows[px] = row as u32;
         }
         let brdfs: Vec<BrdfFn> = coll
             .materials()
@@ -123,7 +129,65 @@ impl PixelBrdfs {
             index,
             values,
             brdfs,
+            rp: *rp,
+            pixel_rows,
         })
+    }
+
+    /// The row of the table of pixel `px` of the table's render.
+    fn pixel_row(&self, px: usize) -> Option<&Vec<[f64; 3]>> {
+        match self.pixel_rows.get(px) {
+            Some(&r) if r != u32::MAX => Some(&self.values[r as usize]),
+            _ => None,
+        }
+    }
+
+    /// The render (with the parameters the table was made for) of material `m`: the image
+    /// `render_sphere(rp, &self.material(m))` gives, each pixel's value found by its index.
+    pub fn render_material(&self, m: usize) -> Result<Image, RenderError> {
+        render_sphere_indexed(&self.rp, &|px, wi, wo| match self.pixel_row(px) {
+            Some(r) => r[m],
+            None => self.brdfs[m](wi, wo),
+        })
+    }
+
+    /// The render (with the parameters the table was made for) of a fitted combination:
+    /// the image `render_sphere(rp, &self.combination(basis, coefficients))` gives, each
+    /// pixel's values found by its index.
+    pub fn render_combination(
+        &self,
+        basis: &[usize],
+        coefficients: &[[f64; 3]],
+    ) -> Result<Image, RenderError> {
+        render_sphere_indexed(&self.rp, &|px, wi, wo| {
+            self.combine(self.pixel_row(px), basis, coefficients, wi, wo)
+        })
+    }
+
+    /// `a0 / pi + sum_k a_k f_k(wi, wo)`, the values `f_k` from `row` when given.
+    #[inline]
+    fn combine(
+        &self,
+        row: Option<&Vec<[f64; 3]>>,
+        basis: &[usize],
+        coefficients: &[[f64; 3]],
+        wi: [f64; 3],
+        wo: [f64; 3],
+    ) -> [f64; 3] {
+        if wi[2] <= 0.0 || wo[2] <= 0.0 {
+            return [0.0; 3];
+        }
+        let mut v = [0, 1, 2].map(|c| coefficients[0][c] * std::f64::consts::FRAC_1_PI);
+        for (&b, a) in basis.iter().zip(&coefficients[1..]) {
+            let x = match row {
+                Some(r) => r[b],
+                None => self.brdfs[b](wi, wo),
+            };
+            for c in 0..3 {
+                v[c] += a[c] * x[c];
+            }
+        }
+        v
     }
 
     /// Material `m`'s [`material_brdf`], from the table.
@@ -140,23 +204,12 @@ impl PixelBrdfs {
         basis: &'s [usize],
         coefficients: &'s [[f64; 3]],
     ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 's {
-        let a0 = coefficients[0];
         move |wi, wo| {
             if wi[2] <= 0.0 || wo[2] <= 0.0 {
                 return [0.0; 3];
             }
             let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
-            let mut v = [0, 1, 2].map(|c| a0[c] * std::f64::consts::FRAC_1_PI);
-            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
-                let x = match row {
-                    Some(r) => r[b],
-                    None => self.brdfs[b](wi, wo),
-                };
-                for c in 0..3 {
-                    v[c] += a[c] * x[c];
-                }
-            }
-            v
+            self.combine(row, basis, coefficients, wi, wo)
         }
     }
 }

@@ -11,6 +11,8 @@
 //! DIR/statistics.json      statistical tests            DIR/bases.json
 //! DIR/selection.json       bases chosen by fitting error (when run)
 //! DIR/cv.json              cross-validation (when run)
+//! DIR/acquisition.json     acquisition cross-validation (when run)
+//! DIR/appearance.json      held-out fits under each objective of SPEC 11 (when run)
 //! DIR/fit-<basis>.json     the fits of each basis       DIR/fit_errors.csv
 //! DIR/renders/             showcase renders (EXR, PNG) and heatmaps
 //! DIR/figures/             the report's figures (SVG and PNG)
@@ -45,6 +47,9 @@ pub const FIGURES: &str = "figures";
 /// The acquisition cross-validation (`reproduce`'s "Acquisition" section).
 pub const ACQUISITION: &str = "acquisition.json";
 
+/// The appearance study (`reproduce`'s "Appearance" section).
+pub const APPEARANCE: &str = "appearance.json";
+
 /// The directory of the showcase renders.
 pub const RENDERS: &str = "renders";
 
@@ -64,6 +69,7 @@ pub fn is_output(name: &str) -> bool {
             | "selection.json"
             | "cv.json"
             | "acquisition.json"
+            | "appearance.json"
             | "renders"
             | "figures"
     ) || (name.starts_with("fit-") && name.ends_with(".json"))

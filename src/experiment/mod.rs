@@ -15,6 +15,7 @@
 //! push in the `Bases` stage of [`run`]; another report section is one function in
 //! [`report::SECTIONS`].
 
+pub mod appearance;
 pub mod bases;
 pub mod claims;
 pub mod evaluation;
@@ -274,6 +275,9 @@ pub enum Stage {
     CrossValidation,
     /// Fits, renders and image errors of every basis.
     Fits,
+    /// Held-out fits under each objective of SPEC 11 (`reproduce`'s Appearance section,
+    /// [`appearance::run`], after the paper's stages).
+    Appearance,
 }
 
 impl std::fmt::Display for Stage {
@@ -286,6 +290,7 @@ impl std::fmt::Display for Stage {
             Stage::Selection => "selection",
             Stage::CrossValidation => "cross-validation",
             Stage::Fits => "fits",
+            Stage::Appearance => "appearance",
         })
     }
 }

@@ -21,6 +21,17 @@ pub struct ReportContext {
     pub timings: Vec<StageTiming>,
     /// The acquisition cross-validation run beside the experiment (SPEC 10), if any.
     pub acquisition: Option<AcquisitionReport>,
+    /// The appearance study run beside the experiment (SPEC 11), if any.
+    pub appearance: Option<AppearanceReport>,
+}
+
+/// The appearance study of the report's "Appearance" section.
+#[derive(Clone, Debug)]
+pub struct AppearanceReport {
+    /// The study (`appearance.json`); `None` when it was not run.
+    pub study: Option<super::appearance::AppearanceStudy>,
+    /// Why it was not run, instead of a result.
+    pub skipped: Option<String>,
 }
 
 /// The acquisition cross-validation of the report's "Acquisition" section.
@@ -60,6 +71,7 @@ pub const SECTIONS: &[Section] = &[
     bases,
     fits,
     cross_validation,
+    appearance,
     acquisition,
     lobes,
     claims,
@@ -349,6 +361,44 @@ fn acquisition(_: &Experiment, ctx: &ReportContext, s: &mut String) {
         None => "Acquisition: held-out mean rho against n (noise-free, log scale; dashed: the dense fit)".into(),
     };
     ctx.figure(s, "acquisition-rho", &caption);
+}
+
+fn appearance(_: &Experiment, ctx: &ReportContext, s: &mut String) {
+    let Some(a) = &ctx.appearance else {
+        return;
+    };
+    let _ = writeln!(s, "\n## Appearance (SPEC 11)\n");
+    let Some(st) = &a.study else {
+        let why = a.skipped.as_deref().unwrap_or("not run");
+        let _ = writeln!(s, "Not run: {why}.\n");
+        return;
+    };
+    let n = st.rows.first().map_or(0, |r| r.materials);
+    let _ = writeln!(s, "The paper's fits above minimise `l2` on raw reflectance, and so do every number before this section: they reproduce the paper. Here the same model (a non-negative combination of basis materials and the Lambertian term, per channel) is fitted under each objective of SPEC 11, held out: {} folds (seed {}), per fold a {} basis of k = {} chosen on the training materials under the objective's shared weights, each of the {n} held-out materials fitted under its per-target weights (`relative`: eps {}) on a grid of stride {}. rho: the relative residual of SPEC 8 (unweighted); objective rho: under the objective's own weights; log-RMSE on the grid; image error, CIEDE2000 and FLIP (67 ppd) on 256 x 256 renders under the paper's light (45, 45) and averaged over the four lights of SPEC 11. Last column: the held-out materials whose four-light FLIP is lower than under `l2`. `appearance.json` has every fold's basis and every held-out value.\n", st.folds, st.seed, st.method, st.k, st.rows.iter().find_map(|r| r.eps).map_or("-".into(), |e| e.to_string()), st.stride);
+    let _ = writeln!(s, "| objective | rho | objective rho | log-RMSE | image error (45, 45) | image error (4 lights) | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | FLIP below l2 |\n|---|---|---|---|---|---|---|---|---|---|");
+    for r in &st.rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.objective,
+            num(r.rho),
+            num(r.objective_rho),
+            num(r.log_rmse),
+            num(r.image_error_paper_light),
+            num(r.image_error),
+            num(r.ciede2000),
+            num(r.flip_paper_light),
+            num(r.flip),
+            r.flip_better_than_l2
+                .map_or("-".into(), |b| format!("{b} of {}", r.materials))
+        );
+    }
+    let shown: Vec<String> = st
+        .figure
+        .iter()
+        .map(|f| format!("`{}` ({}, fold {})", f.material, f.why, f.fold + 1))
+        .collect();
+    ctx.figure(s, "appearance-renders", &format!("Held-out renders: per row a material ({}); columns: the target and its fits under `l2`, `relative` and `log` by the material's fold basis, under the light (45, 45) deg, then (75, 270) deg; under each fit its FLIP against the target under that light", shown.join(", ")));
 }
 
 fn lobes(e: &Experiment, ctx: &ReportContext, s: &mut String) {

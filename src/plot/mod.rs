@@ -13,6 +13,7 @@
 //! [`report::report_figures`] builds the whole figure set of `reproduce`'s report.
 
 pub mod acquisition;
+pub mod appearance;
 pub mod charts;
 pub mod heatmap;
 pub mod legend;

@@ -5,10 +5,12 @@ use crate::acquire::cv::AcqSelect;
 use crate::acquire::{acquisition_cv, AcqCv, AcqCvParams, Criterion};
 use crate::backend::Backend;
 use crate::collection::Collection;
+use crate::experiment::appearance::{self, AppearanceParams};
 use crate::experiment::bases::read_paper_bases;
-use crate::experiment::report::AcquisitionReport;
+use crate::experiment::report::{AcquisitionReport, AppearanceReport};
 use crate::experiment::{
-    run as run_experiment, Experiment, ExperimentParams, StageProgress, ValidExperimentParams,
+    run as run_experiment, Experiment, ExperimentParams, Stage, StageProgress,
+    ValidExperimentParams,
 };
 use crate::select::ObjectiveParams;
 use crate::Result;
@@ -45,6 +47,9 @@ pub struct ReproduceRequest {
     pub selection: bool,
     /// The acquisition cross-validation (`--no-acquisition` clears it).
     pub acquisition: bool,
+    /// The Appearance section: held-out fits under each objective of SPEC 11
+    /// (`--no-appearance` clears it).
+    pub appearance: bool,
     /// `--seed`.
     pub seed: u64,
 }
@@ -65,6 +70,7 @@ impl Default for ReproduceRequest {
             cv_runs: d.cv_runs,
             selection: d.error_driven,
             acquisition: true,
+            appearance: true,
             seed: d.seed,
         }
     }
@@ -81,6 +87,10 @@ pub struct Reproduction {
     pub acquisition: Option<AcquisitionReport>,
     /// Seconds the acquisition cross-validation took.
     pub acquisition_seconds: f64,
+    /// The Appearance section's study (`None` when not asked for).
+    pub appearance: Option<AppearanceReport>,
+    /// Seconds the appearance study took.
+    pub appearance_seconds: f64,
 }
 
 impl ReproduceRequest {
@@ -113,7 +123,7 @@ impl ReproduceRequest {
     }
 
     /// Runs the experiment on `coll` with the checked `params` ([`Self::check`]), then the
-    /// acquisition cross-validation. `progress(stage, done, total)` reports the
+    /// appearance study and the acquisition cross-validation. `progress(stage, done, total)` reports the
     /// experiment's stages.
     ///
     /// # Errors
@@ -127,6 +137,24 @@ impl ReproduceRequest {
     ) -> Result<Reproduction> {
         let experiment = run_experiment(backend, coll, params, progress)?;
         let t = Instant::now();
+        let appearance = if self.appearance {
+            Some(match AppearanceParams::of(params.params(), coll.len()) {
+                Ok(ap) => AppearanceReport {
+                    study: Some(appearance::run(backend, coll, &ap, &|d, t| {
+                        progress(Stage::Appearance, d, t)
+                    })?),
+                    skipped: None,
+                },
+                Err(why) => AppearanceReport {
+                    study: None,
+                    skipped: Some(why),
+                },
+            })
+        } else {
+            None
+        };
+        let appearance_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
         let acquisition = if self.acquisition {
             Some(acquisition(backend, coll, params.params())?)
         } else {
@@ -136,6 +164,8 @@ impl ReproduceRequest {
             experiment,
             acquisition,
             acquisition_seconds: t.elapsed().as_secs_f64(),
+            appearance,
+            appearance_seconds,
         })
     }
 }

@@ -10,8 +10,8 @@ use crate::backend::{Backend, Lobe};
 use crate::collection::{Collection, MaterialData};
 use crate::eval::appearance::{light_scores, render_params, Appearance, LogSums, LIGHTS};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
-use crate::eval::render::{render_sphere, Image, RenderParams};
-use crate::eval::shade::{material_brdf, PixelBrdfs};
+use crate::eval::render::{Image, RenderParams};
+use crate::eval::shade::PixelBrdfs;
 use crate::fit::{channel_lobe, fit_cells, FitParams, GramMode, TargetWeight, LAMBERTIAN};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::{CellMoments, SeparableLobe};
@@ -32,12 +32,16 @@ impl LightRenders {
         LIGHTS
             .iter()
             .map(|&(th, ph)| {
+                // Every material's render from the table of its values at the render's
+                // pixels (the values `material_brdf` gives there: the same bits, each
+                // network run once).
                 let rp = render_params((th, ph));
+                let pixels = PixelBrdfs::new(coll, &rp)?;
                 let originals = (0..coll.len())
-                    .map(|t| render_sphere(&rp, &material_brdf(&coll.materials()[t].data)))
+                    .map(|t| pixels.render_material(t))
                     .collect::<Result<Vec<_>, _>>()?;
                 Ok(Self {
-                    pixels: PixelBrdfs::new(coll, &rp)?,
+                    pixels,
                     originals,
                     rp,
                 })
@@ -53,9 +57,7 @@ impl LightRenders {
         basis: &[usize],
         coefficients: &[[f64; 3]],
     ) -> Result<Appearance, crate::eval::render::RenderError> {
-        Self::scores_of(lights, t, |l| {
-            render_sphere(&l.rp, &l.pixels.combination(basis, coefficients))
-        })
+        Self::scores_of(lights, t, |l| l.pixels.render_combination(basis, coefficients))
     }
 
     /// The image metrics under each light of material `t` against the renders `render`
@@ -89,7 +91,6 @@ pub(crate) struct Evaluator<'a> {
     fp: FitParams,
     grid: GridEval<'a>,
     pixels: PixelBrdfs,
-    rp: RenderParams,
     display: DisplayParams,
     originals: Vec<Image>,
     lights: Vec<LightRenders>,
@@ -106,20 +107,18 @@ impl<'a> Evaluator<'a> {
         render_size: u32,
         appearance: bool,
     ) -> Result<Self, SelectionError> {
-        let renders = |rp: &RenderParams| -> Result<Vec<Image>, SelectionError> {
+        // Every material's render from the table of its values at the render's pixels
+        // (the values `material_brdf` gives there: the same bits, each network run once).
+        let renders = |pixels: &PixelBrdfs| -> Result<Vec<Image>, SelectionError> {
             (0..coll.len())
-                .map(|t| {
-                    Ok(render_sphere(
-                        rp,
-                        &material_brdf(&coll.materials()[t].data),
-                    )?)
-                })
+                .map(|t| Ok(pixels.render_material(t)?))
                 .collect()
         };
         let rp = RenderParams::default()
             .with_size(render_size)
             .with_light(45.0, 45.0);
-        let originals = renders(&rp)?;
+        let pixels = PixelBrdfs::new(coll, &rp)?;
+        let originals = renders(&pixels)?;
         let lights = if appearance {
             LightRenders::all(coll)?
         } else {
@@ -131,8 +130,7 @@ impl<'a> Evaluator<'a> {
             obj,
             fp: fp.clone(),
             grid: GridEval::new(coll, fp),
-            pixels: PixelBrdfs::new(coll, &rp)?,
-            rp,
+            pixels,
             display: DisplayParams::default(),
             originals,
             lights,
@@ -150,7 +148,7 @@ impl<'a> Evaluator<'a> {
         objective_rho: f64,
         coefficients: &[[f64; 3]],
     ) -> Result<HeldOut, SelectionError> {
-        let img = render_sphere(&self.rp, &self.pixels.combination(basis, coefficients))?;
+        let img = self.pixels.render_combination(basis, coefficients)?;
         let appearance = if self.lights.is_empty() {
             None
         } else {
