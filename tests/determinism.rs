@@ -262,7 +262,14 @@ fn reproduce_writes_the_same_outputs_with_the_cpu_and_the_gpu() {
         let o = bin()
             .args(["--quiet", "--backend", backend, "--seed", "3", "reproduce"])
             .arg(&csv)
-            .args(["--runs", "10", "--render-size", "32", "--out"])
+            .args([
+                "--runs",
+                "10",
+                "--render-size",
+                "32",
+                "--no-appearance",
+                "--out",
+            ])
             .arg(&out)
             .output()
             .expect("run");

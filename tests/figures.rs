@@ -91,6 +91,7 @@ fn unusable_font_is_refused_before_reproduce_and_render_work() {
             "--backend",
             "cpu",
             "reproduce",
+            "--no-appearance",
             "--runs",
             "2",
             "--out",

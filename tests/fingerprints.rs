@@ -36,6 +36,7 @@ fn cv_and_reproduce_results_carry_the_collection_fingerprint() {
     let o = bin_cpu()
         .args([
             "reproduce",
+            "--no-appearance",
             "--runs",
             "2",
             "--stride",

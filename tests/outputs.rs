@@ -187,6 +187,7 @@ const CMDS: &[Cmd] = &[
         name: "reproduce",
         args: &[
             "reproduce",
+            "--no-appearance",
             "{IN}",
             "--runs",
             "1",
@@ -709,8 +710,19 @@ fn an_export_replaces_an_earlier_export_and_nothing_else() {
 fn reproduce_refuses_a_file_and_a_missing_parent() {
     let work = tmp();
     std::fs::write(work.path().join("file"), "mine").expect("write");
-    let args =
-        |out: &str| ["reproduce", "--runs", "1", "--stride", "16", "--out", out].map(String::from);
+    let args = |out: &str| {
+        [
+            "reproduce",
+            "--no-appearance",
+            "--runs",
+            "1",
+            "--stride",
+            "16",
+            "--out",
+            out,
+        ]
+        .map(String::from)
+    };
     let o = run_in(work.path(), &args("file"));
     let e = text(&o.stderr);
     assert!(!o.status.success());
@@ -763,6 +775,7 @@ fn an_interrupted_reproduce_leaves_nothing_and_a_rerun_works() {
         "--backend",
         "cpu",
         "reproduce",
+        "--no-appearance",
         "--runs",
         "2",
         "--stride",

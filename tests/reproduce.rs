@@ -207,7 +207,7 @@ fn reproduce_rejects_bad_settings_before_work() {
         let out = d.path().join(format!("o{i}"));
         let t = std::time::Instant::now();
         let o = bin_cpu()
-            .arg("reproduce")
+            .args(["reproduce", "--no-appearance"])
             .args(*args)
             .arg("--out")
             .arg(&out)
@@ -228,7 +228,7 @@ fn reproduce_rejects_bad_settings_before_work() {
     )
     .expect("write");
     let o = bin_cpu()
-        .arg("reproduce")
+        .args(["reproduce", "--no-appearance"])
         .arg("--paper-bases")
         .arg(&csv)
         .arg("--out")
@@ -256,7 +256,7 @@ fn reproduce_rejects_bad_settings_before_work() {
     std::fs::write(&csv, pb).expect("write");
     let out = d.path().join("partial");
     let o = bin_cpu()
-        .arg("reproduce")
+        .args(["reproduce", "--no-appearance"])
         .arg(&coll)
         .args([
             "--runs",

@@ -433,7 +433,13 @@ fn reproduce_k_max_message_reads_right() {
     let Some(base) = base_csv(&d, 6, "reproduce_k_max_message_reads_right") else {
         return;
     };
-    let o = run(&["reproduce", s(&base), "--out", s(&d.join("out"))]);
+    let o = run(&[
+        "reproduce",
+        "--no-appearance",
+        s(&base),
+        "--out",
+        s(&d.join("out")),
+    ]);
     assert!(!o.status.success());
     assert!(
         stderr(&o).contains("it must be below the number of materials (6)"),

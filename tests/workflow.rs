@@ -133,6 +133,7 @@ fn reproduce_runs_end_to_end_on_a_small_setting() {
     let st = bin_cpu()
         .args([
             "reproduce",
+            "--no-appearance",
             "--runs",
             "3",
             "--stride",

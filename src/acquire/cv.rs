@@ -67,9 +67,9 @@ pub struct AcqCvParams {
     /// Appearance metrics (SPEC 11: log-RMSE, and image error, CIEDE2000 and FLIP under
     /// the four lights) of every reconstruction, the `nielsen` baseline's included.
     pub appearance: bool,
-    /// Fits from samples with a ridge toward the training materials' mean coefficients,
-    /// its strength chosen per fold, plan and n on the training materials
-    /// ([`choose_ridge`]); `false`: plain NNLS.
+    /// Fits from fewer samples than unknowns with a ridge toward the training materials'
+    /// mean coefficients, its strength chosen per fold, plan and n on the training
+    /// materials ([`RIDGE_STRENGTHS`]); `false`: plain NNLS.
     pub ridge: bool,
 }
 
@@ -158,8 +158,8 @@ pub struct AcqResult {
     pub mean_dense_mae: f64,
     /// Mean image error of the dense fits.
     pub mean_dense_image_error: f64,
-    /// The ridge strength of the fits from samples per fold ([`choose_ridge`]; empty for
-    /// `nielsen` and without a ridge).
+    /// The ridge strength of the fits from samples per fold ([`RIDGE_STRENGTHS`]; 0 with
+    /// at least as many samples as unknowns; empty for `nielsen` and without a ridge).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ridge: Vec<f64>,
     /// Mean log-RMSE (SPEC 11), when the appearance metrics were computed.
@@ -435,9 +435,17 @@ pub fn acquisition_cv(
                     let lambdas: Vec<f64> = match &prior {
                         Some(pr) => {
                             let tv = values_at(coll, &train, &chosen)?;
+                            // With at least as many samples as unknowns the samples
+                            // determine the fit: no prior.
                             p.ns.iter()
-                                .map(|&ns| pr.choose(&vals, &tv, ns.min(nmax), weight, &cos))
-                                .collect::<Result<_, _>>()?
+                                .map(|&ns| {
+                                    if ns.min(nmax) >= mm {
+                                        Ok(0.0)
+                                    } else {
+                                        pr.choose(&vals, &tv, ns.min(nmax), weight, &cos)
+                                    }
+                                })
+                                .collect::<Result<_, AcquireError>>()?
                         }
                         None => vec![0.0; p.ns.len()],
                     };

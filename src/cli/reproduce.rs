@@ -77,7 +77,8 @@ pub struct ReproduceArgs {
     pub no_acquisition: bool,
     /// Leave out the Appearance section (SPEC 11; otherwise the collection is
     /// cross-validated under each fit objective, l2, relative and log: greedy bases of
-    /// --k-max, --cv-folds folds (5 when 0); appearance.json and a figure of renders).
+    /// --k-max, --cv-folds folds (5 when 0); appearance.json and a figure of renders) and
+    /// the appearance metrics (renders under four lights) of the Acquisition section.
     #[arg(long)]
     pub no_appearance: bool,
 }

@@ -57,7 +57,9 @@ impl LightRenders {
         basis: &[usize],
         coefficients: &[[f64; 3]],
     ) -> Result<Appearance, crate::eval::render::RenderError> {
-        Self::scores_of(lights, t, |l| l.pixels.render_combination(basis, coefficients))
+        Self::scores_of(lights, t, |l| {
+            l.pixels.render_combination(basis, coefficients)
+        })
     }
 
     /// The image metrics under each light of material `t` against the renders `render`
