@@ -6,6 +6,27 @@ use std::path::PathBuf;
 /// Characters of a material name shown in messages; longer names are cut.
 pub const NAME_CHARS: usize = 60;
 
+/// A field name of a binary header (RGL `tensor_file`) as messages show it: every
+/// character outside printable ASCII escaped, cut to [`NAME_CHARS`] characters followed
+/// by `... (N characters)`, so that a corrupt header (a name of 60,000 random bytes) is
+/// not echoed as raw bytes.
+pub fn field_name(name: &str) -> String {
+    let esc: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_graphic() || c == ' ' {
+                c.to_string()
+            } else {
+                c.escape_default().to_string()
+            }
+        })
+        .collect();
+    match esc.char_indices().nth(NAME_CHARS) {
+        None => esc,
+        Some((cut, _)) => format!("{}... ({} characters)", &esc[..cut], esc.len()),
+    }
+}
+
 /// A material name as messages show it: control characters escaped, and a name longer
 /// than [`NAME_CHARS`] characters cut to its first [`NAME_CHARS`] followed by
 /// `... (N bytes)`, so that a 10 MB name is not echoed by every message. Use it
@@ -258,7 +279,7 @@ pub enum RglError {
         len: u64,
     },
     /// A field's dtype code is not one of the container's types.
-    #[error("{path}: field `{}`: unknown dtype code {code} (float32 is 10, uint8 is 1)", .field.escape_debug())]
+    #[error("{path}: field `{}`: unknown dtype code {code} (float32 is 10, uint8 is 1)", field_name(.field))]
     UnknownDtype {
         /// File.
         path: PathBuf,
@@ -268,7 +289,7 @@ pub enum RglError {
         code: u8,
     },
     /// A field's element count or byte size does not fit in 64 bits.
-    #[error("{path}: field `{}`: shape {shape:?} overflows (its size in bytes does not fit in 64 bits)", .field.escape_debug())]
+    #[error("{path}: field `{}`: shape {shape:?} overflows (its size in bytes does not fit in 64 bits)", field_name(.field))]
     Overflow {
         /// File.
         path: PathBuf,
@@ -278,7 +299,7 @@ pub enum RglError {
         shape: Vec<u64>,
     },
     /// A field's data runs past the end of the file.
-    #[error("{path}: field `{}`: its data ({size} bytes at offset {offset}) runs past the end of the file ({len} bytes): truncated file or wrong shape", .field.escape_debug())]
+    #[error("{path}: field `{}`: its data ({size} bytes at offset {offset}) runs past the end of the file ({len} bytes): truncated file or wrong shape", field_name(.field))]
     PastEnd {
         /// File.
         path: PathBuf,
@@ -292,7 +313,7 @@ pub enum RglError {
         len: u64,
     },
     /// Two fields share a name.
-    #[error("{path}: field `{}` appears twice", .field.escape_debug())]
+    #[error("{path}: field `{}` appears twice", field_name(.field))]
     DuplicateField {
         /// File.
         path: PathBuf,

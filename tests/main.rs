@@ -10,6 +10,7 @@ mod common;
 mod acquisition;
 mod acquisition_objectives;
 mod audit2;
+mod audit2_s3;
 mod cli;
 mod collection;
 mod determinism;

@@ -34,10 +34,14 @@ impl Brdf {
         })
     }
 
-    /// Evaluates at one pair of directions (3 floats each): (r, g, b).
-    fn eval1(&self, wi: [f64; 3], wo: [f64; 3]) -> (f64, f64, f64) {
+    /// Evaluates at one pair of unit directions (3 floats each): (r, g, b). A direction
+    /// with a NaN or infinite component, or of length other than 1 (within 1e-5), is
+    /// refused with ValueError naming it: it would be read as another direction (or none).
+    fn eval1(&self, wi: [f64; 3], wo: [f64; 3]) -> PyResult<(f64, f64, f64)> {
+        unit("wi", wi)?;
+        unit("wo", wo)?;
         let v = (self.f)(wi, wo);
-        (v[0], v[1], v[2])
+        Ok((v[0], v[1], v[2]))
     }
 
     /// Evaluates at arrays of directions, shape (..., 3) each: returns (..., 3) float64.
@@ -95,11 +99,39 @@ pub(crate) fn render<'py>(
     Ok(img.data.to_pyarray(py).reshape([s, s, 3])?.into_any())
 }
 
-pub(crate) fn image_of(a: &PyReadonlyArrayDyn<'_, f32>) -> PyResult<bb::eval::render::Image> {
+/// Refuses a direction `name` that is not a finite unit vector (length 1 within 1e-5, the
+/// rounding of float32 vectors normalised elsewhere).
+fn unit(name: &str, d: [f64; 3]) -> PyResult<()> {
+    if d.iter().any(|x| !x.is_finite()) {
+        return Err(value_err(format!(
+            "{name} = {d:?}: a direction must be finite (a NaN or infinite component)"
+        )));
+    }
+    let len = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if (len - 1.0).abs() > 1e-5 {
+        return Err(value_err(format!(
+            "{name} = {d:?}: a direction must be a unit vector, its length is {len} (normalise it first)"
+        )));
+    }
+    Ok(())
+}
+
+/// The image `a` (named `name` in messages): shape (height, width, 3), every value
+/// finite (a NaN would count as black in the error).
+pub(crate) fn image_of(
+    a: &PyReadonlyArrayDyn<'_, f32>,
+    name: &str,
+) -> PyResult<bb::eval::render::Image> {
     let sh = a.shape();
     if sh.len() != 3 || sh[2] != 3 {
         return Err(value_err(format!(
-            "an image has shape (height, width, 3), got {sh:?}"
+            "{name}: an image has shape (height, width, 3), got {sh:?}"
+        )));
+    }
+    if let Some((i, v)) = a.as_array().indexed_iter().find(|(_, v)| !v.is_finite()) {
+        return Err(value_err(format!(
+            "{name}: the value at [{}, {}, {}] is {v}; an image must be finite",
+            i[0], i[1], i[2]
         )));
     }
     let (h, w) = (sh[0] as u32, sh[1] as u32);
@@ -126,7 +158,7 @@ pub(crate) fn image_error(
         .with_exposure(exposure)
         .with_gamma(gamma);
     d.check().map_err(lib_err)?;
-    bb::eval::image_error::normalized_image_error(&image_of(&a)?, &image_of(&b)?, &d)
+    bb::eval::image_error::normalized_image_error(&image_of(&a, "a")?, &image_of(&b, "b")?, &d)
         .map_err(lib_err)
 }
 
@@ -152,7 +184,7 @@ pub(crate) fn image_metrics(
     reference: PyReadonlyArrayDyn<'_, f32>,
     test: PyReadonlyArrayDyn<'_, f32>,
 ) -> PyResult<std::collections::BTreeMap<&'static str, f64>> {
-    let (a, b) = (image_of(&reference)?, image_of(&test)?);
+    let (a, b) = (image_of(&reference, "reference")?, image_of(&test, "test")?);
     let s = bb::eval::appearance::light_scores(&a, &b, (f64::NAN, f64::NAN)).map_err(lib_err)?;
     Ok([
         ("image_error", s.image_error),

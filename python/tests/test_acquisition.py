@@ -224,3 +224,27 @@ def test_fit_samples_under_an_objective_is_scipys_weighted_nnls(objective):
         scale = float(np.sum(w * y[:, ch] ** 2))
         assert obj(r.coefficients[:, ch]) <= obj(x) + 1e-9 * scale, (objective, ch)
         np.testing.assert_allclose(r.coefficients[:, ch], x, rtol=1e-4, atol=1e-6 * np.abs(x).max())
+
+
+def test_eval1_and_image_error_refuse_nan_zero_and_non_unit_inputs():
+    """Audit 2, T18: a NaN, zero or non-unit direction and a NaN image were accepted
+    silently ((0, 0, 0), a fifth of the value, NaN counted as black)."""
+    c = bb.Collection.default()
+    f = bb.Brdf.material(c, "polished-gold")
+    up = (0.0, 0.0, 1.0)
+    for bad, what in [((np.nan, 0.0, 1.0), "finite"), ((0.0, 0.0, 0.0), "unit vector"), ((0.0, 0.0, 5.0), "unit vector")]:
+        with pytest.raises(ValueError, match="wi = .*" + what):
+            f.eval1(bad, up)
+        with pytest.raises(ValueError, match="wo = .*" + what):
+            f.eval1(up, bad)
+    # Unit vectors normalised in float32 are accepted.
+    v = np.array([0.3, 0.1, 0.9], dtype=np.float32)
+    v = v / np.linalg.norm(v)
+    assert np.all(np.isfinite(f.eval1(tuple(float(x) for x in v), up)))
+    gold = bb.render(f, size=32)
+    nan = np.full_like(gold, np.nan)
+    with pytest.raises(ValueError, match=r"a: the value at \[0, 0, 0\] is NaN"):
+        bb.image_error(nan, gold)
+    with pytest.raises(ValueError, match=r"b: the value at"):
+        bb.image_error(gold, nan)
+    assert bb.image_error(gold, gold) == 0.0

@@ -240,11 +240,27 @@ pub fn read_samples(path: &Path) -> Result<Vec<Sample>, AcquireError> {
 /// ([`read_samples`]'s formats, columns and checks of the angles) whose values are
 /// ignored, so they may be missing (a `plan --out` CSV is a candidates file) or not
 /// numbers. Returns `(incoming, outgoing)` unit directions, at least one.
+///
+/// A direction pair given twice is refused naming both lines: a plan would otherwise
+/// measure one direction several times (rows equal to 1e-9 in the unit vectors; at
+/// theta 0 every phi is one direction).
 pub fn read_candidates(path: &Path) -> Result<Vec<DirectionPair>, AcquireError> {
-    Ok(read(path, Purpose::Candidates)?
-        .into_iter()
-        .map(|s| (s.wi, s.wo))
-        .collect())
+    let s = read(path, Purpose::Candidates)?;
+    let key = |v: &[f64; 3]| v.map(|x| (x * 1e9).round() as i64);
+    let mut seen = std::collections::HashMap::with_capacity(s.len());
+    for x in &s {
+        if let Some(first) = seen.insert((key(&x.wi), key(&x.wo)), x.line) {
+            return Err(AcquireError::Parse {
+                path: path.to_path_buf(),
+                line: x.line,
+                column: None,
+                message: format!(
+                    "the direction pair is the one of line {first} (at theta 0 every phi is one direction); give each candidate once, or a plan could measure one direction twice"
+                ),
+            });
+        }
+    }
+    Ok(s.into_iter().map(|x| (x.wi, x.wo)).collect())
 }
 
 fn read(path: &Path, purpose: Purpose) -> Result<Vec<Sample>, AcquireError> {

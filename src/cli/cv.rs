@@ -99,7 +99,7 @@ pub struct CvArgs {
     pub restarts: usize,
     /// --acquisition: also write the figure (held-out mean rho against n, one line per
     /// plan, log scale; below it the renders of one held-out material: target, dense fit,
-    /// reconstructions from each n by the first plan) as this PNG.
+    /// reconstructions from each n by the first plan) as this .svg or .png file.
     #[arg(long)]
     pub figure: Option<PathBuf>,
 }
@@ -172,10 +172,41 @@ impl CvArgs {
     }
 }
 
+/// The `--acquisition` flags given without `--acquisition` (which would ignore them).
+fn acquisition_only(a: &CvArgs) -> Vec<&'static str> {
+    let d = acq();
+    [
+        ("--plans", !a.plans.is_empty()),
+        ("-n", !a.n.is_empty()),
+        ("--noise", !a.noise.is_empty()),
+        ("--figure", a.figure.is_some()),
+        ("--no-ridge", a.no_ridge),
+        (
+            "--candidates-per-step",
+            a.candidates_per_step != d.candidates_per_step,
+        ),
+        ("--shortlist", a.shortlist != d.shortlist),
+        ("--restarts", a.restarts != d.restarts),
+    ]
+    .into_iter()
+    .filter_map(|(flag, given)| given.then_some(flag))
+    .collect()
+}
+
 /// Runs the cross-validation.
 pub fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     if a.acquisition {
         return run_acquisition(g, a);
+    }
+    let ignored = acquisition_only(&a);
+    if !ignored.is_empty() {
+        anyhow::bail!(
+            "{} {} only with --acquisition (acquisition cross-validation); without it `cv` compares basis-selection methods and would ignore {}: add --acquisition or leave {} out",
+            ignored.join(", "),
+            if ignored.len() == 1 { "applies" } else { "apply" },
+            if ignored.len() == 1 { "it" } else { "them" },
+            if ignored.len() == 1 { "it" } else { "them" },
+        );
     }
     // Every output path before the work (two outputs on one path are refused).
     let mut plan = OutputPlan::new(&a.collection);
@@ -229,6 +260,13 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
         plan.file(m, "--markdown")?;
     }
     if let Some(f) = &a.figure {
+        // Written as the format its name says, as `plot --out` does.
+        if !matches!(super::extension(f).as_str(), "svg" | "png") {
+            anyhow::bail!(
+                "--figure {}: give a .svg or .png file name (the figure is written in the format its name ends in)",
+                f.display()
+            );
+        }
         plan.file(f, "--figure")?;
     }
     let mut out = plan.into_set()?;
@@ -248,9 +286,13 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     }
     if let Some(f) = &a.figure {
         let fig = brdf_basis::plot::acquisition::rho_vs_n(&res)?;
-        let bytes =
-            brdf_basis::io::image::rgb8_png_bytes(f, fig.png.width, fig.png.height, &fig.png.data)?;
-        out.stage(f, |w| w.write_all(&bytes))?;
+        if super::extension(f) == "svg" {
+            out.stage(f, |w| w.write_all(fig.svg.as_bytes()))?;
+        } else {
+            let (w, h) = (fig.png.width, fig.png.height);
+            let bytes = brdf_basis::io::image::rgb8_png_bytes(f, w, h, &fig.png.data)?;
+            out.stage(f, |w| w.write_all(&bytes))?;
+        }
     }
     out.commit()?;
     print!("{md}");

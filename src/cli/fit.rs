@@ -55,6 +55,7 @@ pub struct FitArgs {
     /// Fit a new material from its measured samples (SPEC 10) instead of collection
     /// materials: a CSV `theta_i,phi_i,theta_o,phi_o,r,g,b[,sigma | ,sigma_r,sigma_g,sigma_b]`
     /// (degrees) or an ASTM E1392 `.astm` file; the target is named after the file's stem.
+    /// --stride, --mask, --weighting, --solver and --gram do not apply (refused).
     #[arg(long, conflicts_with_all = ["targets", "all_others"])]
     pub samples: Option<PathBuf>,
 }
@@ -280,6 +281,30 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 /// samples) and, with `--export`, the whole reconstruction as a MERL `.binary`.
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let req = a.samples_request(g)?;
+    // The fit from samples solves over the samples alone: flags of the grid fit would
+    // be ignored (and recorded in the JSON as if they had applied).
+    let (grid, d) = (&req.grid, FitParams::default());
+    let ignored: Vec<&str> = [
+        ("--stride", grid.stride != 1),
+        ("--mask", grid.mask != brdf_basis::merl::Mask::Evaluation),
+        (
+            "--weighting",
+            grid.weighting != brdf_basis::merl::Weighting::Uniform,
+        ),
+        ("--solver", req.solver != d.solver),
+        ("--gram", req.gram != d.gram),
+    ]
+    .into_iter()
+    .filter_map(|(flag, given)| given.then_some(flag))
+    .collect();
+    if !ignored.is_empty() {
+        anyhow::bail!(
+            "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS); leave {} out",
+            ignored.join(", "),
+            if ignored.len() == 1 { "does" } else { "do" },
+            if ignored.len() == 1 { "it" } else { "them" },
+        );
+    }
     let mut out_plan = OutputPlan::new(&a.collection);
     for (path, noun) in req.input_files() {
         out_plan.input_named(&path, noun);

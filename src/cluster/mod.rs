@@ -134,6 +134,17 @@ pub enum ClusterError {
         /// Number of runs.
         runs: usize,
     },
+    /// No run has a defined Davies-Bouldin index because the distances are too large to
+    /// add up: the runs' losses overflow `f64`.
+    #[error(
+        "the Davies-Bouldin index is undefined in all {runs} runs: the distances are too large to add up in 64-bit floating point (the k-medoids loss, a sum of distances, overflows to infinity in {overflowed} of them; the largest distance is near the f64 limit of 1.8e308); rescale the matrix; no best run can be chosen"
+    )]
+    DistanceSumOverflow {
+        /// Number of runs.
+        runs: usize,
+        /// Runs whose loss is infinite.
+        overflowed: usize,
+    },
     /// At least one run (start) is needed.
     #[error("the number of runs (restarts) must be at least 1")]
     ZeroRuns,

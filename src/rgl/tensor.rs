@@ -197,11 +197,13 @@ impl TensorFile {
         for k in 0..n {
             let len = c.u16(&|| format!("the name length of field {}", k + 1))?;
             let raw = c.take(len as usize, &|| format!("the name of field {}", k + 1))?;
-            let name = String::from_utf8_lossy(raw).into_owned();
+            // Bytes outside printable ASCII escaped (`\xff`): the names the format uses are
+            // ASCII, and a corrupt header's are shown as the bytes they are.
+            let name = raw.escape_ascii().to_string();
             let what = |s: &str| {
                 let name = name.clone();
                 let s = s.to_string();
-                move || format!("{s} of field `{}`", name.escape_debug())
+                move || format!("{s} of field `{}`", crate::error::field_name(&name))
             };
             let ndim = c.u16(&what("the dimension count"))?;
             let code = c.u8(&what("the dtype"))?;

@@ -94,15 +94,38 @@ impl AcquisitionRequest {
         }
     }
 
-    /// The rules of the settings that need no collection (1 to 64 restarts); the others
-    /// (folds, k, plans, n, noise) are checked by [`Self::run`] before any work.
+    /// The rules of the settings that need no collection (1 to 64 restarts; no plan,
+    /// sample count or noise level listed twice, as `--methods` refuses a method listed
+    /// twice: each would give a duplicate row); the others (folds, k, plans, n, noise) are
+    /// checked by [`Self::run`] before any work.
     ///
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        check_restarts(self.restarts)
+        check_restarts(self.restarts)?;
+        let plans: Vec<&str> = self.plans.iter().map(|c| c.as_str()).collect();
+        once("--plans", "plan", &plans, |c| format!("`{c}`"))?;
+        once("-n", "sample count", &self.ns, |n| n.to_string())?;
+        once("--noise", "noise level", &self.noises, |x| x.to_string())
     }
+}
 
+/// Refuses a value of `flag`'s list that appears twice (`show`: the value in words).
+fn once<T: PartialEq>(
+    flag: &str,
+    what: &str,
+    values: &[T],
+    show: impl Fn(&T) -> String,
+) -> Result<()> {
+    for (j, v) in values.iter().enumerate() {
+        if values[..j].contains(v) {
+            super::refuse!("{flag}: {what} {} is listed twice; give each once", show(v));
+        }
+    }
+    Ok(())
+}
+
+impl AcquisitionRequest {
     /// Runs the acquisition cross-validation on `coll` and returns what
     /// `cv --acquisition --json` writes (its [`AcqCv::markdown`] is `--markdown`).
     ///

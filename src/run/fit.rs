@@ -238,7 +238,15 @@ impl FitSamplesRequest {
         let samples = read_samples(&self.samples)?;
         let sf = afit::fit_samples(coll, &basis, &samples, self.objective)?;
         let d = &sf.determination;
-        let more = d.columns.saturating_sub(d.rank.min(d.samples)).max(3);
+        // As many directions as the warning says more samples would help: the missing
+        // samples, else the missing rank, else "a few" (3).
+        let more = if d.samples < d.columns {
+            d.columns - d.samples
+        } else if d.rank < d.columns {
+            d.columns - d.rank
+        } else {
+            3
+        };
         let hint = if d.rank < d.columns || d.condition > afit::WARN_CONDITION {
             plan::suggest(coll, &basis, &samples, more, self.seed)?
         } else {

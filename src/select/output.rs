@@ -80,7 +80,7 @@ pub struct ClusteringOutput {
 impl ClusteringOutput {
     /// The output of `runs`; an error when there is no run or when no run has a defined
     /// Davies-Bouldin index (two medoids at distance 0 in every run: the matrix holds
-    /// duplicate or all-zero rows).
+    /// duplicate or all-zero rows; or distances so large that their sums overflow).
     pub fn new(
         method: &str,
         algorithm: Option<String>,
@@ -90,6 +90,13 @@ impl ClusteringOutput {
     ) -> Result<Self, ClusterError> {
         let best = best_run(&runs).cloned().ok_or(ClusterError::ZeroRuns)?;
         if !best.db_index.is_finite() {
+            let overflowed = runs.iter().filter(|r| !r.loss.is_finite()).count();
+            if overflowed > 0 {
+                return Err(ClusterError::DistanceSumOverflow {
+                    runs: runs.len(),
+                    overflowed,
+                });
+            }
             return Err(ClusterError::UndefinedDbIndex { runs: runs.len() });
         }
         Ok(Self {

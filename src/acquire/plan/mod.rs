@@ -365,9 +365,17 @@ pub fn suggest(
             .collect()
     };
     let mut d: Vec<f64> = super::fit::Design::at_samples(coll, basis, samples)?.mean_rows();
-    let mut out = Vec::new();
+    let mut out: Vec<String> = Vec::new();
+    let measured: Vec<String> = samples
+        .iter()
+        .map(|s| {
+            let (ti, pi) = super::eval::angles_deg(s.wi);
+            let (to, po) = super::eval::angles_deg(s.wo);
+            format!("({ti:.1}, {pi:.1}, {to:.1}, {po:.1})")
+        })
+        .collect();
     let mut used = vec![false; pool.len()];
-    for _ in 0..count {
+    while out.len() < count {
         let n0 = d.len() / m;
         let scores: Vec<f64> = (0..pool.len())
             .into_par_iter()
@@ -380,14 +388,27 @@ pub fn suggest(
                 condition_number(n0 + 1, m, &dd)
             })
             .collect();
-        let k = argmin(&scores);
+        // The lowest score among the cells not yet taken (ties, infinite scores of a
+        // design still rank-deficient included: the earliest).
+        let Some(k) = (0..pool.len())
+            .filter(|&k| !used[k])
+            .min_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+        else {
+            break;
+        };
         used[k] = true;
-        d.extend(mean_row(k));
         let s = PlannedSample::from(&pool[k]);
-        out.push(format!(
+        let text = format!(
             "({:.1}, {:.1}, {:.1}, {:.1})",
             s.theta_i, s.phi_i, s.theta_o, s.phi_o
-        ));
+        );
+        // Cells that print as one direction (or as one already measured) are one
+        // suggestion: each is listed once.
+        if out.contains(&text) || measured.contains(&text) {
+            continue;
+        }
+        d.extend(mean_row(k));
+        out.push(text);
     }
     Ok(format!(
         "(theta_i, phi_i, theta_o, phi_o) = {} degrees",

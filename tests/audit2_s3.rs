@@ -1,0 +1,402 @@
+//! The S3 defects of the second hostile audit (review/audit-2.md, Part 2, "S3"): duplicate
+//! candidates (T4), the suggestions of `fit --samples` (T5), flags that a command would
+//! ignore (T8, T9), the `cv --acquisition --figure` format (T10), duplicate list values
+//! (T11), corrupt RGL headers (T14), an all-1e308 matrix (T15). Each test fails on the
+//! code the audit ran.
+
+use crate::common::*;
+use std::path::Path;
+use std::process::Output;
+use std::time::Duration;
+
+const CSV: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n\
+    plastic,0.2,0.1,0.05,0.3,0.3,0.3,0.04,120\n\
+    metal,0,0,0,0.9,0.7,0.4,0.8,2500\n\
+    satin,0.05,0.05,0.08,0.2,0.25,0.3,0.1,15\n\
+    target,0.12,0.07,0.06,0.5,0.4,0.3,0.2,400\n";
+
+fn run(dir: &Path, args: &[&str]) -> Output {
+    let mut cmd = bin();
+    cmd.args(["--quiet", "--backend", "cpu"])
+        .args(args)
+        .current_dir(dir);
+    output_within(&mut cmd, Duration::from_secs(300))
+        .unwrap_or_else(|| panic!("brdf-basis {args:?} hangs"))
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A refusal: exit status 1 (not a panic's 101 or a signal) and a message holding every
+/// one of `parts`.
+fn refused(dir: &Path, args: &[&str], parts: &[&str]) -> String {
+    let o = run(dir, args);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {:?}\n{e}", o.status);
+    assert!(!e.contains("panicked"), "{args:?}: {e}");
+    for p in parts {
+        assert!(e.contains(p), "{args:?}: `{p}` not in: {e}");
+    }
+    e
+}
+
+/// T4: a candidates file giving one direction pair twice (the same row, or theta 0 under
+/// two phi) is refused naming both lines; the old code planned that direction three
+/// times without a word.
+#[test]
+fn plan_refuses_duplicate_candidates() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    let plan = |cands: &'static str| {
+        vec![
+            "plan",
+            "c.csv",
+            "--basis",
+            "plastic,metal",
+            "--targets",
+            "satin,target",
+            "-n",
+            "3",
+            "--candidates",
+            cands,
+            "--out",
+            "p.csv",
+        ]
+    };
+    let mut same = String::from("theta_i,phi_i,theta_o,phi_o\n");
+    for _ in 0..50 {
+        same += "30,0,40,180\n";
+    }
+    write(d, "same.csv", same);
+    refused(
+        d,
+        &plan("same.csv"),
+        &[
+            "same.csv: line 3",
+            "the direction pair is the one of line 2",
+        ],
+    );
+    write(
+        d,
+        "pole.csv",
+        "theta_i,phi_i,theta_o,phi_o\n10,0,20,180\n0,0,30,0\n20,0,30,90\n0,90,30,0\n",
+    );
+    refused(
+        d,
+        &plan("pole.csv"),
+        &["pole.csv: line 5", "the one of line 3"],
+    );
+    assert!(!d.join("p.csv").exists());
+    write(
+        d,
+        "ok.csv",
+        "theta_i,phi_i,theta_o,phi_o\n10,0,20,180\n0,0,30,0\n20,0,30,90\n25,0,35,180\n",
+    );
+    let o = run(d, &plan("ok.csv"));
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// The directions listed after "e.g. at" in a warning.
+fn suggested(warning: &str) -> Vec<String> {
+    let list = warning
+        .split("= ")
+        .nth(1)
+        .and_then(|s| s.split(" degrees").next())
+        .unwrap_or_else(|| panic!("no directions in: {warning}"));
+    list.split("), ")
+        .map(|s| s.trim_end_matches(')').to_string())
+        .collect()
+}
+
+/// T5: two conflicting samples at one direction for a basis of 3 materials (4 unknowns):
+/// the warning says "2 more samples" and lists 2 distinct directions (the old code: 3,
+/// two of them the same).
+#[test]
+fn fit_samples_suggests_as_many_distinct_directions_as_it_says() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    write(
+        d,
+        "s.csv",
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n30,0,30,180,0.2,0.2,0.2\n30,0,30,180,0.6,0.6,0.6\n",
+    );
+    let o = run(
+        d,
+        &[
+            "fit",
+            "c.csv",
+            "--basis",
+            "plastic,metal,satin",
+            "--samples",
+            "s.csv",
+            "--json",
+            "f.json",
+        ],
+    );
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    let w = e
+        .lines()
+        .find(|l| l.contains("more samples would determine it"))
+        .unwrap_or_else(|| panic!("no warning: {e}"));
+    assert!(w.contains(" 2 more samples"), "{w}");
+    let dirs = suggested(w);
+    assert_eq!(dirs.len(), 2, "{w}");
+    assert_ne!(dirs[0], dirs[1], "{w}");
+    assert!(!dirs.iter().any(|s| s == "(30.0, 0.0, 30.0, 180.0"), "{w}");
+}
+
+/// T8: `fit --samples` solves over the samples alone; the grid fit's flags, which it
+/// would ignore (and record in the JSON as if they had applied), are refused by name.
+#[test]
+fn fit_samples_refuses_the_grid_fits_flags() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    let mut s = String::from("theta_i,phi_i,theta_o,phi_o,r,g,b\n");
+    for (ti, to) in [(10, 20), (20, 25), (30, 31), (40, 45), (50, 10), (60, 70)] {
+        s += &format!("{ti},0,{to},180,0.2,0.1,0.1\n");
+    }
+    write(d, "s.csv", s);
+    let fit = |extra: &[&'static str]| {
+        let mut a = vec![
+            "fit",
+            "c.csv",
+            "--basis",
+            "plastic,metal",
+            "--samples",
+            "s.csv",
+            "--json",
+            "f.json",
+        ];
+        a.extend_from_slice(extra);
+        a
+    };
+    for (flag, value) in [
+        ("--stride", "4"),
+        ("--solver", "pgd"),
+        ("--weighting", "solid-angle"),
+        ("--mask", "valid"),
+    ] {
+        refused(
+            d,
+            &fit(&[flag, value]),
+            &[
+                &format!("{flag} does not apply with --samples"),
+                "leave it out",
+            ],
+        );
+    }
+    refused(
+        d,
+        &fit(&["--stride", "2", "--mask", "valid"]),
+        &["--stride, --mask do not apply with --samples"],
+    );
+    assert!(!d.join("f.json").exists());
+    let o = run(d, &fit(&[]));
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// T9: `cv` without `--acquisition` refuses the acquisition flags it would ignore (the
+/// old code exited 0 and wrote no figure), naming each.
+#[test]
+fn cv_without_acquisition_refuses_its_flags() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    let cv = |extra: &[&'static str]| {
+        let mut a = vec![
+            "cv",
+            "c.csv",
+            "--methods",
+            "random",
+            "-k",
+            "1",
+            "--json",
+            "q.json",
+        ];
+        a.extend_from_slice(extra);
+        a
+    };
+    refused(
+        d,
+        &cv(&["--plans", "random", "-n", "3", "--figure", "x.png"]),
+        &[
+            "--plans, -n, --figure apply only with --acquisition",
+            "add --acquisition or leave them out",
+        ],
+    );
+    for extra in [
+        &["--no-ridge"][..],
+        &["--noise", "0.1"],
+        &["--restarts", "3"],
+    ] {
+        refused(
+            d,
+            &cv(extra),
+            &[&format!("{} applies only with --acquisition", extra[0])],
+        );
+    }
+    assert!(!d.join("q.json").exists() && !d.join("x.png").exists());
+}
+
+/// T11: a sample count, noise level or plan listed twice in `cv --acquisition` is refused,
+/// as a method listed twice is (each gave a duplicate row).
+#[test]
+fn cv_acquisition_refuses_values_listed_twice() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    let cv = |extra: &[&'static str]| {
+        let mut a = vec!["cv", "c.csv", "--acquisition", "--json", "q.json"];
+        a.extend_from_slice(extra);
+        a
+    };
+    refused(
+        d,
+        &cv(&["-n", "3,3"]),
+        &["-n: sample count 3 is listed twice"],
+    );
+    refused(
+        d,
+        &cv(&["--noise", "0,0.02,0"]),
+        &["--noise: noise level 0 is listed twice"],
+    );
+    refused(
+        d,
+        &cv(&["--plans", "error,error"]),
+        &["--plans: plan `error` is listed twice"],
+    );
+    refused(
+        d,
+        &cv(&["--methods", "greedy,greedy"]),
+        &["method `greedy` is listed twice"],
+    );
+}
+
+/// T10: `cv --acquisition --figure` writes the format its name ends in (the old code
+/// wrote PNG bytes into `x.svg`), and refuses another extension before any work.
+#[test]
+fn cv_acquisition_figure_is_written_in_the_format_it_is_named() {
+    let dir = tmp();
+    let d = dir.path();
+    let mut c = String::from(CSV);
+    c += "rough,0.3,0.3,0.3,0.05,0.05,0.05,0.04,5\n\
+        gold,0,0,0,0.9,0.6,0.2,0.9,1200\n\
+        paint,0.4,0.05,0.05,0.1,0.1,0.1,0.05,60\n\
+        chalk,0.5,0.5,0.45,0.02,0.02,0.02,0.03,3\n";
+    write(d, "c8.csv", c);
+    let cv = |fig: &'static str| {
+        vec![
+            "cv",
+            "c8.csv",
+            "--acquisition",
+            "--methods",
+            "random",
+            "-k",
+            "2",
+            "--plans",
+            "random",
+            "-n",
+            "3",
+            "--noise",
+            "0",
+            "--folds",
+            "2",
+            "--stride",
+            "8",
+            "--render-size",
+            "16",
+            "--no-appearance",
+            "--candidates-per-step",
+            "50",
+            "--json",
+            "q.json",
+            "--figure",
+            fig,
+        ]
+    };
+    refused(
+        d,
+        &cv("x.jpg"),
+        &["--figure x.jpg: give a .svg or .png file name"],
+    );
+    assert!(!d.join("q.json").exists());
+    let o = run(d, &cv("x.svg"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let svg = std::fs::read(d.join("x.svg")).expect("svg");
+    let head = String::from_utf8_lossy(&svg[..svg.len().min(200)]).into_owned();
+    assert!(head.contains("<svg"), "{head}");
+    let o = run(d, &cv("x.PNG"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let png = std::fs::read(d.join("x.PNG")).expect("png");
+    assert!(png.starts_with(b"\x89PNG"));
+}
+
+/// T14: a corrupt RGL header whose field name is 5,000 bytes of binary garbage ends in a
+/// message of printable ASCII, the name escaped and cut (the old message held the raw
+/// bytes, up to 19.7 KB).
+#[test]
+fn rgl_field_names_are_escaped_and_cut_in_messages() {
+    let dir = tmp();
+    let d = dir.path();
+    let mut b = b"tensor_file\0".to_vec();
+    b.extend_from_slice(&[1, 0]);
+    b.extend_from_slice(&1u32.to_le_bytes());
+    let name: Vec<u8> = (0..5000u32).map(|i| (i * 7 + 0x80) as u8).collect();
+    b.extend_from_slice(&(name.len() as u16).to_le_bytes());
+    b.extend_from_slice(&name);
+    b.extend_from_slice(&[3, 0]); // dimension count, then nothing: truncated
+    let f = write(d, "bad_rgb.bsdf", &b);
+    let e = refused(
+        d,
+        &["info", f.to_str().expect("path")],
+        &["truncated", "of field `\\x80"],
+    );
+    assert!(e.len() < 1000, "{} bytes: {e}", e.len());
+    assert!(
+        e.chars()
+            .all(|c| c.is_ascii_graphic() || c == ' ' || c == '\n'),
+        "{e}"
+    );
+    let err = brdf_basis::rgl::tensor::TensorFile::parse(b, &f).unwrap_err();
+    assert!(err.to_string().contains("... ("), "{err}");
+}
+
+/// T15: a matrix of distances 1e308 is refused naming the overflow of the sums, not
+/// "two medoids at distance 0" (they are 1e308 apart).
+#[test]
+fn select_on_distances_too_large_to_add_names_the_overflow() {
+    let dir = tmp();
+    let d = dir.path();
+    let names = ["a", "b", "c", "d", "e", "f"];
+    let mut s = format!("material,{}\n", names.join(","));
+    for (i, n) in names.iter().enumerate() {
+        let row: Vec<&str> = (0..names.len())
+            .map(|j| if i == j { "0" } else { "1e308" })
+            .collect();
+        s += &format!("{n},{}\n", row.join(","));
+    }
+    write(d, "huge.csv", s);
+    let e = refused(
+        d,
+        &[
+            "select",
+            "--distances",
+            "huge.csv",
+            "--method",
+            "kmedoids",
+            "-k",
+            "2",
+            "--runs",
+            "3",
+            "--json",
+            "k.json",
+        ],
+        &["too large to add up", "overflows to infinity"],
+    );
+    assert!(!e.contains("distance 0"), "{e}");
+}
