@@ -111,8 +111,8 @@ fn suggested(warning: &str) -> Vec<String> {
 }
 
 /// T5: two conflicting samples at one direction for a basis of 3 materials (4 unknowns):
-/// the warning says "2 more samples" and lists 2 distinct directions (the old code: 3,
-/// two of them the same).
+/// they tell one thing (rank 1), so the warning says "3 more samples" and lists 3 distinct
+/// directions (the old code: "2 more" and 3 directions, two of them the same).
 #[test]
 fn fit_samples_suggests_as_many_distinct_directions_as_it_says() {
     let dir = tmp();
@@ -142,10 +142,12 @@ fn fit_samples_suggests_as_many_distinct_directions_as_it_says() {
         .lines()
         .find(|l| l.contains("more samples would determine it"))
         .unwrap_or_else(|| panic!("no warning: {e}"));
-    assert!(w.contains(" 2 more samples"), "{w}");
+    assert!(w.contains(" 3 more samples"), "{w}");
     let dirs = suggested(w);
-    assert_eq!(dirs.len(), 2, "{w}");
-    assert_ne!(dirs[0], dirs[1], "{w}");
+    assert_eq!(dirs.len(), 3, "{w}");
+    for (i, a) in dirs.iter().enumerate() {
+        assert!(!dirs[..i].contains(a), "{w}");
+    }
     assert!(!dirs.iter().any(|s| s == "(30.0, 0.0, 30.0, 180.0"), "{w}");
 }
 

@@ -339,13 +339,15 @@ pub fn determination_warnings(d: &Determination, bound: f64, where_: &str) -> Ve
     } else {
         format!(", e.g. at {where_}")
     };
+    // Samples that repeat what others tell (rank below the sample count) add nothing: the
+    // missing count is that of the rank.
     if d.samples < d.columns {
         w.push(format!(
             "{} samples for {} unknowns per channel (the Lambertian term and {} basis materials): the samples cannot determine the fit; NNLS returns the non-negative combination closest to them, often a good one, but {} more samples would determine it{at}",
             d.samples,
             d.columns,
             d.columns - 1,
-            d.columns - d.samples
+            d.columns - d.rank.min(d.samples)
         ));
     } else if d.rank < d.columns {
         w.push(format!(

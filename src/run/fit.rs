@@ -241,7 +241,7 @@ impl FitSamplesRequest {
         // As many directions as the warning says more samples would help: the missing
         // samples, else the missing rank, else "a few" (3).
         let more = if d.samples < d.columns {
-            d.columns - d.samples
+            d.columns - d.rank.min(d.samples)
         } else if d.rank < d.columns {
             d.columns - d.rank
         } else {
