@@ -82,7 +82,7 @@ pub(super) fn plan_path(
         };
         let vals = values_at_ticking(coll, scored, &sub, &|| steps.at(step))?;
         let sw = if weighted {
-            sample_weights(&vals, &sub, p.fit.objective)
+            sample_weights(&vals, &sub, p.fit.objective, &|| steps.at(step))
         } else {
             Default::default()
         };
@@ -239,14 +239,20 @@ pub(super) fn plan_path(
 /// candidate's `cos theta_i`. A plan chooses where to measure before the material is
 /// known, so it weighs its rows as selection does (SPEC 11), by the weights of the
 /// typical material; the fit from the measured samples uses the material's own.
+///
+/// In parallel over the candidates, calling `tick` for each (the plan's progress, through
+/// which a caller stops it).
 fn sample_weights(
     vals: &[Vec<Vec<f64>>; 3],
     sub: &[Candidate],
     w: crate::fit::TargetWeight,
+    tick: &(dyn Fn() + Sync),
 ) -> [Vec<f64>; 3] {
     [0, 1, 2].map(|c| {
         (0..sub.len())
+            .into_par_iter()
             .map(|k| {
+                tick();
                 let col: Vec<f64> = vals[c].iter().map(|v| v[k]).collect();
                 w.phi(crate::stats::median(&col), sub[k].wi[2]).sqrt()
             })
