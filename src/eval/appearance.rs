@@ -16,7 +16,7 @@
 //!   `(log(1 + max(fhat, 0) c) - log(1 + max(f, 0) c))^2`, `c = max(cos theta_i, 0)`.
 
 use super::color::{ciede2000, srgb_to_lab};
-use super::image_error::{normalized_image_error, DisplayParams};
+use super::image_error::{normalized_image_error, same_shape, DisplayParams};
 use super::render::{Image, RenderError};
 
 /// The lights of SPEC 11, `(theta, phi)` in degrees; the first is the paper's (SPEC 7).
@@ -117,15 +117,25 @@ pub fn mean_flip(reference: &Image, test: &Image, d: &DisplayParams) -> Result<f
         let bytes: Vec<u8> = img.data.iter().map(|&v| d.map_u8(f64::from(v))).collect();
         nv_flip::FlipImageRgb8::with_data(img.width, img.height, &bytes)
     };
-    let map = nv_flip::flip(to8(reference), to8(test), FLIP_PIXELS_PER_DEGREE).to_vec();
+    Ok(flip_mean(to8(reference), to8(test), &reference.mask))
+}
+
+/// The mean of NVIDIA's LDR FLIP map of `test` against `reference` over the pixels of
+/// `mask` (at least one).
+fn flip_mean(
+    reference: nv_flip::FlipImageRgb8,
+    test: nv_flip::FlipImageRgb8,
+    mask: &[bool],
+) -> f64 {
+    let map = nv_flip::flip(reference, test, FLIP_PIXELS_PER_DEGREE).to_vec();
     let (mut sum, mut n) = (0.0f64, 0usize);
-    for (&e, &on) in map.iter().zip(&reference.mask) {
+    for (&e, &on) in map.iter().zip(mask) {
         if on {
             sum += f64::from(e);
             n += 1;
         }
     }
-    Ok(sum / n as f64)
+    sum / n as f64
 }
 
 /// The image metrics of `test` against `reference`, rendered under the light `(theta, phi)`
@@ -177,7 +187,9 @@ impl<'a> Reference<'a> {
     ) -> Result<LightScores, RenderError> {
         let (a, d) = (self.image, DisplayParams::default());
         // Sizes, masks and form: the image error's checks.
-        check_pair(a, test)?;
+        a.check()?;
+        test.check()?;
+        same_shape(a, test)?;
         let td = display_values(test, &d);
         let count = a.sphere_pixels();
         let errors: Vec<f64> = a
@@ -202,25 +214,12 @@ impl<'a> Reference<'a> {
             let bytes: Vec<u8> = dv.iter().map(|&v| (v * 255.0).round() as u8).collect();
             nv_flip::FlipImageRgb8::with_data(img.width, img.height, &bytes)
         };
-        let map = nv_flip::flip(
-            to8(a, &self.display),
-            to8(test, &td),
-            FLIP_PIXELS_PER_DEGREE,
-        )
-        .to_vec();
-        let (mut fsum, mut n) = (0.0f64, 0usize);
-        for (&e, &on) in map.iter().zip(&a.mask) {
-            if on {
-                fsum += f64::from(e);
-                n += 1;
-            }
-        }
         Ok(LightScores {
             theta,
             phi,
             image_error,
             ciede2000: ciede,
-            flip: fsum / n as f64,
+            flip: flip_mean(to8(a, &self.display), to8(test, &td), &a.mask),
         })
     }
 }
@@ -233,29 +232,6 @@ fn sphere_labs(img: &Image, dv: &[f64]) -> Vec<super::color::Lab> {
         .filter(|&(_, &on)| on)
         .map(|(i, _)| srgb_to_lab([dv[3 * i], dv[3 * i + 1], dv[3 * i + 2]]))
         .collect()
-}
-
-/// [`super::image_error::pixel_errors`]'s checks of two images: well-formed, the same
-/// size and the same sphere mask.
-fn check_pair(a: &Image, b: &Image) -> Result<(), RenderError> {
-    a.check()?;
-    b.check()?;
-    if (a.width, a.height) != (b.width, b.height) {
-        return Err(RenderError::SizeMismatch {
-            a_width: a.width,
-            a_height: a.height,
-            b_width: b.width,
-            b_height: b.height,
-        });
-    }
-    if let Some(i) = a.mask.iter().zip(&b.mask).position(|(x, y)| x != y) {
-        let w = a.width as usize;
-        return Err(RenderError::MaskMismatch {
-            col: (i % w) as u32,
-            row: (i / w) as u32,
-        });
-    }
-    Ok(())
 }
 
 /// Running sums of the log-RMSE: add cells with [`LogSums::add`], then [`LogSums::value`].

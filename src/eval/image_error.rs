@@ -98,16 +98,9 @@ pub fn display_image(image: &Image, display: &DisplayParams) -> Result<Rgb8Image
     })
 }
 
-/// Per-pixel error: the mean over the three channels of `|map(a) - map(b)|`, row-major;
-/// 0 off the sphere. Errors when the images differ in size or mask or are malformed.
-pub fn pixel_errors(
-    a: &Image,
-    b: &Image,
-    display: &DisplayParams,
-) -> Result<Vec<f64>, RenderError> {
-    a.check()?;
-    b.check()?;
-    display.check()?;
+/// Two images of the same size and the same sphere mask, or the error naming the first
+/// difference.
+pub(crate) fn same_shape(a: &Image, b: &Image) -> Result<(), RenderError> {
     if (a.width, a.height) != (b.width, b.height) {
         return Err(RenderError::SizeMismatch {
             a_width: a.width,
@@ -123,6 +116,20 @@ pub fn pixel_errors(
             row: (i / w) as u32,
         });
     }
+    Ok(())
+}
+
+/// Per-pixel error: the mean over the three channels of `|map(a) - map(b)|`, row-major;
+/// 0 off the sphere. Errors when the images differ in size or mask or are malformed.
+pub fn pixel_errors(
+    a: &Image,
+    b: &Image,
+    display: &DisplayParams,
+) -> Result<Vec<f64>, RenderError> {
+    a.check()?;
+    b.check()?;
+    display.check()?;
+    same_shape(a, b)?;
     let errors = a
         .mask
         .iter()
