@@ -63,26 +63,12 @@ pub use pollster;
 /// The wgpu this crate is built against (hand [`gpu_backend`] a device from it).
 pub use wgpu;
 
-pub mod acquire;
-pub mod atomic;
+pub use brdf_basis_core::{
+    acquire, atomic, brdf, cluster, collection, distance, error, eval, fit, hash, io, merl, nnls,
+    npy_format, rgl, select, separable, stats,
+};
 pub mod backend;
-pub mod brdf;
-pub mod cluster;
-pub mod collection;
-pub mod distance;
-pub mod error;
-pub mod eval;
 pub mod experiment;
-pub mod fit;
-pub mod hash;
-pub mod io;
-pub mod merl;
-pub mod nnls;
-pub mod npy_format;
 #[cfg(feature = "plot")]
 pub mod plot;
-pub mod rgl;
 pub mod run;
-pub mod select;
-pub mod separable;
-pub mod stats;

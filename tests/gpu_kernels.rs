@@ -189,7 +189,7 @@ fn no_kernel_invocation_approaches_the_loop_limit() {
             let shape = KernelShape::choose(rows, software);
             let plan = PairPlan::new(rows, 0, 1_096_216, &limits, shape).expect("plan");
             assert!(plan.run_iters <= MAX_RUN_ITERS && (shape.lanes as u32) < LAVAPIPE_LOOP_LIMIT);
-            // The f64 reduction's loop (shaders/reduce_f64.wgsl): one lane-run per iteration.
+            // The f64 reduction's loop (crates/gpu/src/pairwise/reduce_f64.wgsl): one lane-run per iteration.
             assert!(plan.n_runs * shape.lanes < LAVAPIPE_LOOP_LIMIT as usize / 16);
             assert!(plan.n_pad >= rows && plan.n_pad.is_multiple_of(shape.side()));
             assert!(

@@ -52,7 +52,7 @@ fn write_json(p: &Path, v: &serde_json::Value) {
 /// The embedded collection's CSV with the first material's `n` changed (same names).
 fn other_collection(dir: &Path) -> PathBuf {
     let csv = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/default_collection.csv"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/core/data/default_collection.csv"),
     )
     .expect("csv");
     let changed = csv.replacen(",79998,", ",79000,", 1);

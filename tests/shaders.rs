@@ -179,7 +179,7 @@ fn shared_constants_agree() {
         rust.iter()
             .map(|(n, v)| (n.to_string(), *v))
             .collect::<Vec<_>>(),
-        "shaders/common.wgsl against src/backend/gpu/mod.rs"
+        "crates/gpu/src/common.wgsl against crates/gpu/src/lib.rs"
     );
     // Each table row is 90 (theta) or 180 (phi_d) entries, in order, without overlap.
     let rows = [
@@ -215,7 +215,7 @@ fn shared_constants_agree() {
     for n in &names {
         let used = kernels.iter().any(|k| k.contains(n.as_str()))
             || COMMON_WGSL.matches(n.as_str()).count() > 1;
-        assert!(used, "`{n}` in shaders/common.wgsl is used by no kernel");
+        assert!(used, "`{n}` in common.wgsl is used by no kernel");
     }
     // And the grid tables hold what the kernels expect at each offset.
     let g = brdf_basis::merl::GridTables::new();

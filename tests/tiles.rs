@@ -168,7 +168,7 @@ fn missing_doubled_and_foreign_tiles_are_refused() {
     let euclid = tile(d, "e2.npy", &["--metric", "euclidean"], 2, 3);
     refuse(&[&t[0], &euclid, &t[2]], &["other settings", "e2.npy"]);
     let csv = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/default_collection.csv"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/core/data/default_collection.csv"),
     )
     .expect("csv");
     // Same names, one parameter changed.

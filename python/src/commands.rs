@@ -247,7 +247,8 @@ pub(crate) fn fit_samples<'py>(
     let coll = coll_of(collection);
     let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
     let w = objective_of(objective, eps)?;
-    let f = bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref(), w).map_err(lib_err)?;
+    let f =
+        bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref(), w).map_err(lib_err)?;
     let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
     let coefficients = numpy::PyArray1::from_vec(py, flat)
         .reshape([f.coefficients.len(), 3])?

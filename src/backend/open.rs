@@ -2,9 +2,9 @@
 //! measured faster for it: [`AutoBackend`]; else the CPU back-end), `gpu` (any adapter,
 //! software ones included) or `cpu`.
 
-use super::cpu::CpuBackend;
-use super::{Backend, Lobe, PairOp, Progress};
+use crate::backend::cpu::CpuBackend;
 use crate::backend::gpu::{GpuBackend, GpuContext};
+use crate::backend::{Backend, Lobe, PairOp, Progress};
 use crate::error::{BackendError, GpuError};
 use crate::merl::CellSet;
 

@@ -23,18 +23,18 @@
 //! or not at all.
 
 use super::report::{markdown, ReportContext};
-use super::{claims, clustering, evaluation, Experiment, StageTiming};
+use super::{claims, evaluation, Experiment, StageTiming};
 use crate::distance::{DistanceParams, Metric, DEFAULT_BAND_ROWS};
 use crate::error::{DistanceError, OutputError};
 use crate::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
 use crate::eval::render::RenderError;
-use crate::io::image::{
-    font_registered, with_colour_bar, write_exr, write_png, write_rgb8_image, HEATMAP_QUANTITY,
-};
+use crate::io::image::{write_exr, write_png, write_rgb8_image, HEATMAP_QUANTITY};
 use crate::io::json::write_json;
 use crate::io::saved::{write_csv, write_npy_with_sidecar};
 use crate::io::sidecar::{sidecar_path, MatrixSettings};
 use crate::merl::Weighting;
+use crate::plot::colour_bar::{font_registered, with_colour_bar};
+use crate::select::runs as clustering;
 use crate::select::EmpiricalOutput;
 use std::path::{Path, PathBuf};
 

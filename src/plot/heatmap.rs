@@ -2,10 +2,10 @@
 //! colour bar beside it, labelled with the quantity and the values of its ends, so that a
 //! heatmap PNG can be read on its own.
 
+pub use super::colour_bar::with_colour_bar;
 use super::{with_text, PlotError};
 use crate::eval::image_error::{heatmap, pixel_errors, DisplayParams, HeatmapScale, Rgb8Image};
 use crate::eval::render::Image;
-pub use crate::io::image::with_colour_bar;
 
 /// What the colour bar measures.
 pub const QUANTITY: &str = crate::io::image::HEATMAP_QUANTITY;

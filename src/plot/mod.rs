@@ -15,6 +15,7 @@
 pub mod acquisition;
 pub mod appearance;
 pub mod charts;
+pub mod colour_bar;
 pub mod heatmap;
 pub mod legend;
 pub mod lobes;

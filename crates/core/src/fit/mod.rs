@@ -1,0 +1,843 @@
+//! Fitting materials as non-negative combinations of a basis (the paper's Eq. 1-2, SPEC 5).
+//!
+//! Per colour channel c, over the fit mask with weights w:
+//! `min sum_s w_s (a0 / pi + sum_k a_k f_k,c(s) - f_B,c(s))^2` subject to `a >= 0`.
+//! Gram quantities `A^T W A`, `A^T W b` and `b^T W b` come from one pass of the back-end
+//! over the grid (f32 partials reduced in f64); the problem is solved exactly by
+//! Lawson-Hanson (default) or by the batched projected-gradient solver; residuals and MAE
+//! are computed on the grid in f64.
+
+use crate::backend::cpu::CpuBackend;
+pub use crate::backend::weighted::{ObjectiveKind, TargetWeight};
+use crate::backend::{Backend, Lobe, LobeParams, Progress};
+use crate::collection::{Collection, MaterialData};
+use crate::error::BackendError;
+use crate::merl::{CellSet, GridTables, Mask, Weighting};
+use crate::nnls::{lawson_hanson, pgd, GramBatch, NnlsError, NnlsSolution};
+use crate::separable::{CellMoments, SeparableLobe};
+use rayon::prelude::*;
+use std::num::NonZeroUsize;
+
+pub mod appearance;
+pub mod diagnostics;
+pub mod export;
+pub mod file;
+
+/// Errors of fitting.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitError {
+    /// The basis is empty.
+    #[error("the basis is empty: give at least one basis material")]
+    EmptyBasis,
+    /// No target to fit.
+    #[error("no target material to fit")]
+    NoTargets,
+    /// Too many basis materials for the chosen solver.
+    #[error("a basis of {found} materials is larger than the {solver} solver supports ({limit})")]
+    BasisTooLarge {
+        /// Solver name.
+        solver: &'static str,
+        /// Its limit.
+        limit: usize,
+        /// Basis size asked for.
+        found: usize,
+    },
+    /// A material appears twice in the basis.
+    #[error("material `{}` appears twice in the basis", crate::error::short_name(.0))]
+    DuplicateBasis(String),
+    /// A Gram quantity is not finite (non-finite data).
+    #[error("non-finite Gram entry for `{}` (channel {channel}): the data holds NaN or infinite values", crate::error::short_name(.material))]
+    NonFinite {
+        /// Material.
+        material: String,
+        /// Channel.
+        channel: usize,
+    },
+    /// The fit mask holds no cell valid in every material involved (measured tables
+    /// with disjoint valid cells, or a grid stride that skips every valid cell).
+    #[error("{}", crate::merl::grid::no_cells_reason(*.mask, *.stride, "the fit"))]
+    NoCells {
+        /// The mask.
+        mask: Mask,
+        /// The stride.
+        stride: usize,
+    },
+    /// A grid stride of 0 (1 is the full grid).
+    #[error("a grid stride of 0 is meaningless: give --stride 1 (the full grid) or more")]
+    ZeroStride,
+    /// Back-end failure.
+    #[error(transparent)]
+    Backend(#[from] BackendError),
+    /// Solver failure.
+    #[error(transparent)]
+    Nnls(#[from] NnlsError),
+    /// The fit of one material failed (non-finite data, or no convergence).
+    #[error("the NNLS fit of `{}` (channel {channel}) failed: {reason}", crate::error::short_name(.material))]
+    Solve {
+        /// Material fitted (the target).
+        material: String,
+        /// Colour channel (0 = R).
+        channel: usize,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+/// Which NNLS solver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Solver {
+    /// Exact active-set Lawson-Hanson (f64).
+    Exact,
+    /// Accelerated projected gradient, batched over targets; targets whose KKT violation
+    /// stays above tolerance are re-solved exactly.
+    Pgd,
+}
+
+/// How Gram matrices and grid errors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum GramMode {
+    /// The separable closed form (module `separable`) when every lobe is analytic, else
+    /// the back-end's grid pass.
+    Auto,
+    /// Always the back-end's pass over the grid (GPU kernel or CPU twin).
+    Grid,
+}
+
+/// Fit parameters. Defaults: evaluation mask, uniform weights, full grid, exact solver,
+/// automatic Gram mode.
+#[derive(Clone, Debug)]
+pub struct FitParams {
+    /// Fit mask.
+    pub mask: Mask,
+    /// Weighting.
+    pub weighting: Weighting,
+    /// Grid stride.
+    pub stride: usize,
+    /// Solver.
+    pub solver: Solver,
+    /// Gram mode.
+    pub gram: GramMode,
+    /// The fit objective (SPEC 11): `l2` (SPEC 5, the paper's) or per-target weights.
+    pub objective: TargetWeight,
+}
+
+impl Default for FitParams {
+    fn default() -> Self {
+        Self {
+            mask: Mask::Evaluation,
+            weighting: Weighting::Uniform,
+            stride: 1,
+            solver: Solver::Exact,
+            gram: GramMode::Auto,
+            objective: TargetWeight::L2,
+        }
+    }
+}
+
+/// The fit of one target.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TargetFit {
+    /// Target material.
+    pub material: String,
+    /// Coefficients per column (0 = Lambertian, then the basis in order), RGB.
+    pub coefficients: Vec<[f64; 3]>,
+    /// `sqrt(sum_s w_s r_s^2)` per channel, on the grid.
+    pub residual: [f64; 3],
+    /// Weighted mean of |fit - target| over the mask, averaged over channels.
+    pub mae: f64,
+    /// Relative residual (SPEC 8): `sum_c residual_c^2 / sum_c sum_s w_s b_c(s)^2`; 0 is
+    /// a perfect fit, 1 a fit that explains nothing of the target.
+    pub relative_residual: f64,
+    /// `mae` divided by the weighted mean of |target| over the mask (averaged over the
+    /// channels likewise): above 1 the fit is further from the target than the zero BRDF.
+    pub relative_mae: f64,
+    /// Relative residual under the objective's weights `W` (SPEC 11's `rho_W`):
+    /// `sum_c sum_s W r^2 / sum_c sum_s W b^2`; equal to `relative_residual` for `l2`.
+    pub objective_residual: f64,
+    /// Largest scaled KKT violation per channel.
+    pub kkt: [f64; 3],
+    /// Solver iterations per channel.
+    pub iterations: [usize; 3],
+}
+
+impl TargetFit {
+    /// Whether basis column `k` (0-based, Lambertian excluded) contributes (`a > 0` in
+    /// some channel).
+    pub fn contributes(&self, k: usize) -> bool {
+        self.coefficients[k + 1].iter().any(|&a| a > 0.0)
+    }
+}
+
+/// The lobe of channel `c` of a material.
+pub fn channel_lobe(m: &MaterialData, c: usize) -> Lobe {
+    match m {
+        MaterialData::Analytic(a) => Lobe::Analytic(LobeParams {
+            kd: a.d[c] as f32,
+            ks: a.s[c] as f32,
+            f0: a.f0 as f32,
+            n: a.n as f32,
+        }),
+        MaterialData::Measured(t) => Lobe::Measured {
+            table: t.clone(),
+            channel: Some(c),
+        },
+        MaterialData::Rgl(t) => Lobe::Measured {
+            table: t.table().clone(),
+            channel: Some(c),
+        },
+        MaterialData::Neural(net) => Lobe::Neural {
+            net: net.clone(),
+            channel: Some(c),
+        },
+    }
+}
+
+/// The Lambertian column `1 / pi`.
+pub const LAMBERTIAN: Lobe = Lobe::Analytic(LobeParams {
+    kd: 1.0,
+    ks: 0.0,
+    f0: 0.0,
+    n: 1.0,
+});
+
+/// The cells of a fit of the materials `idx` of `coll`: the mask on the grid
+/// sub-sampled by the stride, restricted to cells valid in every measured one of them
+/// ([`CellSet::for_collection`]). A stride of 0 is refused.
+pub fn fit_cells(coll: &Collection, idx: &[usize], p: &FitParams) -> Result<CellSet, FitError> {
+    let stride = NonZeroUsize::new(p.stride).ok_or(FitError::ZeroStride)?;
+    Ok(CellSet::for_collection(
+        &coll.subset(idx),
+        p.mask,
+        p.weighting,
+        stride,
+    ))
+}
+
+/// Lobes in separable form when every one is analytic.
+pub fn separable_lobes(lobes: &[Lobe]) -> Option<Vec<SeparableLobe>> {
+    let t = GridTables::new();
+    lobes
+        .iter()
+        .map(|l| match l {
+            Lobe::Analytic(p) => Some(SeparableLobe::new(&t, p)),
+            Lobe::Measured { .. } | Lobe::Neural { .. } => None,
+        })
+        .collect()
+}
+
+/// The full Gram matrix of `lobes` with the first `basis` as columns (layout of
+/// [`Backend::gram`]): the separable closed form in f64 when `mode` is `Auto` and every
+/// lobe is analytic, else the back-end's grid pass.
+pub(crate) fn gram_full(
+    backend: &dyn Backend,
+    lobes: &[Lobe],
+    cells: &CellSet,
+    basis: usize,
+    mode: GramMode,
+    progress: Progress<'_>,
+) -> Result<Vec<f64>, FitError> {
+    if mode == GramMode::Auto {
+        if let Some(sep) = separable_lobes(lobes) {
+            let mom = CellMoments::new(&GridTables::new(), cells);
+            return Ok(mom.gram(&sep, basis));
+        }
+    }
+    Ok(backend.gram(lobes, cells, basis, progress)?)
+}
+
+/// Lobes (three channels side by side) above which [`gram_grid_rgb`] makes one pass per
+/// channel instead of one for all three: the back-end returns the full square matrix of
+/// every lobe it is given, `(3 n)^2` entries (4,096 lobes: 128 MiB), against `3 n^2` for
+/// three passes.
+pub const RGB_PASS_MAX_LOBES: usize = 4096;
+
+/// Per channel `c`, the back-end's Gram pass ([`Backend::gram`], as `gram_full` makes it
+/// with [`GramMode::Grid`]) of `lobes[c]` (each `n` lobes, the first `basis` of them the
+/// basis columns): in one pass over the cells for the three channels together, so that a
+/// material's three lobes are filled together (a network runs once per cell for its three
+/// channels, not once per channel), each channel's lobes padded to whole blocks and only
+/// each channel's own block pairs reduced. A pair's sum depends only on its two rows and
+/// the cells (the canonical summation order of both back-ends), so every matrix is bit for
+/// bit the one a pass over its channel alone gives (tested); above
+/// [`RGB_PASS_MAX_LOBES`] lobes it is made that way, one pass per channel.
+pub fn gram_grid_rgb(
+    backend: &dyn Backend,
+    lobes: [Vec<Lobe>; 3],
+    cells: &CellSet,
+    basis: usize,
+    progress: Progress<'_>,
+) -> Result<[Vec<f64>; 3], FitError> {
+    use crate::backend::blocks::{gram_blocks, BLOCK};
+    let n = lobes[0].len();
+    if lobes.iter().any(|l| l.len() != n) {
+        return Err(FitError::Backend(BackendError::Invalid(
+            "gram_grid_rgb: the channels have different numbers of lobes".into(),
+        )));
+    }
+    let n_pad = n.div_ceil(BLOCK) * BLOCK;
+    if 3 * n_pad > RGB_PASS_MAX_LOBES {
+        let mut out: [Vec<f64>; 3] = Default::default();
+        for (o, l) in out.iter_mut().zip(&lobes) {
+            *o = backend.gram(l, cells, basis, progress)?;
+        }
+        return Ok(out);
+    }
+    let mut all: Vec<Lobe> = Vec::with_capacity(3 * n_pad);
+    let mut blocks = Vec::new();
+    let per = gram_blocks(n, basis);
+    for (c, l) in lobes.into_iter().enumerate() {
+        all.extend(l);
+        // Padding: a cheap analytic lobe whose sums are never read.
+        all.resize((c + 1) * n_pad, LAMBERTIAN);
+        let off = (c * n_pad / BLOCK) as u32;
+        blocks.extend(per.iter().map(|&[bi, bj]| [bi + off, bj + off]));
+    }
+    let big = backend.reduce_pairs(
+        &all,
+        cells,
+        &blocks,
+        crate::backend::blocks::PairOp::Dot,
+        progress,
+    )?;
+    let w = 3 * n_pad;
+    Ok(std::array::from_fn(|c| {
+        let o = c * n_pad;
+        let mut g = vec![0.0; n * n];
+        for i in 0..n {
+            g[i * n..(i + 1) * n].copy_from_slice(&big[(o + i) * w + o..(o + i) * w + o + n]);
+        }
+        g
+    }))
+}
+
+/// The Gram matrices of a whole collection over `cells`, per channel, with the columns
+/// `[1/pi, material 0, .., material N-1]` (`(N + 1)^2`, row-major), from one grid pass
+/// ([`gram_grid_rgb`]): what the stages of an experiment on a measured or neural collection
+/// share (the empirical selection, the objective of SPEC 8 and the fits) instead of each
+/// making its own passes. Analytic collections have closed forms instead.
+#[derive(Clone, Debug)]
+pub struct CollectionGrams {
+    /// The cells, as [`fit_cells`] gives them for the whole collection.
+    pub cells: CellSet,
+    /// Per channel, the `(N + 1)^2` Gram matrix.
+    pub grams: [Vec<f64>; 3],
+}
+
+impl CollectionGrams {
+    /// One grid pass of `backend` over the cells of `p` for every material of `coll`.
+    pub fn grid(
+        backend: &dyn Backend,
+        coll: &Collection,
+        p: &FitParams,
+        progress: Progress<'_>,
+    ) -> Result<Self, FitError> {
+        let all: Vec<usize> = (0..coll.len()).collect();
+        let cells = fit_cells(coll, &all, p)?;
+        let grams = Self::over(backend, coll, &cells, progress)?;
+        Ok(Self { cells, grams })
+    }
+
+    /// The Gram matrices alone, per channel, of every material of `coll` over `cells`
+    /// (one grid pass for the three channels, [`gram_grid_rgb`]).
+    pub fn over(
+        backend: &dyn Backend,
+        coll: &Collection,
+        cells: &CellSet,
+        progress: Progress<'_>,
+    ) -> Result<[Vec<f64>; 3], FitError> {
+        gram_grid_rgb(
+            backend,
+            collection_lobes(coll),
+            cells,
+            coll.len() + 1,
+            progress,
+        )
+    }
+
+    /// Whether [`CollectionGrams::grid`] is how the Gram matrices of `coll` are made with
+    /// `mode` (else they come in closed form: every material analytic, mode auto).
+    pub fn needed(coll: &Collection, mode: GramMode) -> bool {
+        !(mode == GramMode::Auto && coll.all_analytic())
+    }
+}
+
+/// Per channel, the Lambertian lobe then every material's lobe of that channel.
+pub(crate) fn collection_lobes(coll: &Collection) -> [Vec<Lobe>; 3] {
+    std::array::from_fn(|c| {
+        std::iter::once(LAMBERTIAN)
+            .chain(coll.materials().iter().map(|m| channel_lobe(&m.data, c)))
+            .collect()
+    })
+}
+
+/// The Gram quantities of one channel (section 5): what one batch of NNLS fits shares.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelGram {
+    /// `(k+1)^2` Gram matrix of the Lambertian and basis columns, row-major.
+    pub gram: Vec<f64>,
+    /// Per target `t`, `h[t * (k+1) .. (t+1) * (k+1)]`: its products with the columns.
+    pub h: Vec<f64>,
+    /// Per target, its weighted squared norm `sum_s w_s b(s)^2`.
+    pub bb: Vec<f64>,
+}
+
+/// Gram quantities of one channel: the `(k+1)^2` Gram of the Lambertian and basis
+/// columns and, per target, its products with them and its squared norm.
+#[allow(clippy::too_many_arguments)]
+#[doc(hidden)]
+pub fn channel_gram(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cells: &CellSet,
+    c: usize,
+    mode: GramMode,
+    progress: Progress<'_>,
+) -> Result<ChannelGram, FitError> {
+    let m = basis.len() + 1;
+    let mut lobes = vec![LAMBERTIAN];
+    lobes.extend(
+        basis
+            .iter()
+            .map(|&i| channel_lobe(&coll.materials()[i].data, c)),
+    );
+    lobes.extend(
+        targets
+            .iter()
+            .map(|&i| channel_lobe(&coll.materials()[i].data, c)),
+    );
+    let n = lobes.len();
+    let full = gram_full(backend, &lobes, cells, m, mode, progress)?;
+    gram_quantities(
+        coll,
+        basis,
+        targets,
+        c,
+        |i, j| full[i * n + j],
+        |a| a,
+        |t| m + t,
+    )
+}
+
+/// [`ChannelGram`] of `basis` and `targets` (channel `c`) read from a Gram matrix `at(i, j)`
+/// in which basis column `a` (0: the Lambertian) is row `col(a)` and target `t` (its index
+/// in `targets`) is row `row(t)`; a non-finite entry is an error naming its material.
+fn gram_quantities(
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    c: usize,
+    at: impl Fn(usize, usize) -> f64,
+    col: impl Fn(usize) -> usize,
+    row: impl Fn(usize) -> usize,
+) -> Result<ChannelGram, FitError> {
+    let m = basis.len() + 1;
+    let mut g = vec![0.0; m * m];
+    for i in 0..m {
+        for j in 0..m {
+            g[i * m + j] = at(col(i), col(j));
+        }
+    }
+    let mut hs = Vec::with_capacity(targets.len() * m);
+    let mut bbs = Vec::with_capacity(targets.len());
+    for (t, &ti) in targets.iter().enumerate() {
+        let r = row(t);
+        hs.extend((0..m).map(|i| at(col(i), r)));
+        let bb = at(r, r);
+        if !bb.is_finite() || hs[t * m..].iter().any(|v| !v.is_finite()) {
+            return Err(FitError::NonFinite {
+                material: coll.materials()[ti].name.clone(),
+                channel: c,
+            });
+        }
+        bbs.push(bb);
+    }
+    if let Some(i) = g.iter().position(|v| !v.is_finite()) {
+        let k = (i / m).max(1) - 1;
+        return Err(FitError::NonFinite {
+            material: coll.materials()[basis[k]].name.clone(),
+            channel: c,
+        });
+    }
+    Ok(ChannelGram {
+        gram: g,
+        h: hs,
+        bb: bbs,
+    })
+}
+
+impl CollectionGrams {
+    /// [`channel_gram`] of `basis` and `targets` of `coll` (the collection these Gram
+    /// matrices were made of), channel `c`, read from the matrices: the same numbers, bit
+    /// for bit, as a pass over these cells for those materials alone would give.
+    pub fn channel_gram(
+        &self,
+        coll: &Collection,
+        basis: &[usize],
+        targets: &[usize],
+        c: usize,
+    ) -> Result<ChannelGram, FitError> {
+        let n = coll.len() + 1;
+        let full = &self.grams[c];
+        gram_quantities(
+            coll,
+            basis,
+            targets,
+            c,
+            |i, j| full[i * n + j],
+            |a| if a == 0 { 0 } else { basis[a - 1] + 1 },
+            |t| targets[t] + 1,
+        )
+    }
+
+    /// Whether these are the Gram matrices over `cells` (same cells, same weights).
+    pub fn covers(&self, cells: &CellSet) -> bool {
+        self.cells.cells == cells.cells && self.cells.weights == cells.weights
+    }
+}
+
+/// Scaled-KKT level above which a projected-gradient solution is re-solved exactly.
+pub const PGD_FALLBACK_KKT: f64 = 1e-5;
+
+/// Solves one channel's batch with the chosen solver (PGD on the back-end: the GPU kernel
+/// in f32 on the GPU back-end; targets left above [`PGD_FALLBACK_KKT`] are re-solved
+/// exactly).
+pub(crate) fn solve_channel(
+    backend: &dyn Backend,
+    m: usize,
+    g: &[f64],
+    hs: &[f64],
+    bbs: &[f64],
+    solver: Solver,
+) -> Result<Vec<NnlsSolution>, FitError> {
+    let batch = GramBatch::new(m, g, hs, bbs)?;
+    let lh = lawson_hanson::LhParams::default();
+    Ok(match solver {
+        Solver::Exact => lawson_hanson::solve_batch(&batch, &lh)?,
+        Solver::Pgd => {
+            let pp = pgd::PgdParams::default();
+            let mut sols = backend.nnls_pgd(&batch, &pp)?;
+            for (t, s) in sols.iter_mut().enumerate() {
+                if s.max_kkt_violation > PGD_FALLBACK_KKT.max(pp.tol) {
+                    if let Some(p) = batch.problem(t) {
+                        *s = lawson_hanson::solve(&p, &lh)?;
+                    }
+                }
+            }
+            sols
+        }
+    })
+}
+
+/// Fits every target by the basis.
+pub fn fit(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    p: &FitParams,
+    progress: Progress<'_>,
+) -> Result<Vec<TargetFit>, FitError> {
+    if basis.is_empty() {
+        return Err(FitError::EmptyBasis);
+    }
+    if targets.is_empty() {
+        return Err(FitError::NoTargets);
+    }
+    for (i, &b) in basis.iter().enumerate() {
+        if basis[..i].contains(&b) {
+            return Err(FitError::DuplicateBasis(coll.materials()[b].name.clone()));
+        }
+    }
+    if p.solver == Solver::Pgd && basis.len() + 1 > pgd::PGD_MAX_COLUMNS {
+        return Err(FitError::BasisTooLarge {
+            solver: "pgd",
+            limit: pgd::PGD_MAX_COLUMNS - 1,
+            found: basis.len(),
+        });
+    }
+    let mut all: Vec<usize> = basis.to_vec();
+    all.extend_from_slice(targets);
+    let cells = fit_cells(coll, &all, p)?;
+    if cells.cells.is_empty() {
+        return Err(FitError::NoCells {
+            mask: p.mask,
+            stride: p.stride,
+        });
+    }
+    let m = basis.len() + 1;
+    let mut fits: Vec<TargetFit> = targets
+        .iter()
+        .map(|&t| TargetFit {
+            material: coll.materials()[t].name.clone(),
+            coefficients: vec![[0.0; 3]; m],
+            residual: [0.0; 3],
+            mae: 0.0,
+            relative_residual: 0.0,
+            relative_mae: 0.0,
+            objective_residual: 0.0,
+            kkt: [0.0; 3],
+            iterations: [0; 3],
+        })
+        .collect();
+    let weight = p.objective.check()?;
+    let weighted = weight != TargetWeight::L2;
+    // Per target, the objective's sums `sum_c sum_s W r^2` and `sum_c sum_s W b^2`.
+    let mut objective_sums = vec![[0.0f64; 2]; targets.len()];
+    let cpu = CpuBackend::new();
+    let all_analytic = all
+        .iter()
+        .all(|&i| coll.materials()[i].analytic().is_some());
+    let moments = (p.gram == GramMode::Auto && all_analytic)
+        .then(|| CellMoments::new(&GridTables::new(), &cells));
+    let mut target_norms = vec![0.0; targets.len()];
+    let mut target_l1 = vec![0.0; targets.len()];
+    for c in 0..3 {
+        let sols = if weighted {
+            let ws = weighted_channel(backend, coll, basis, targets, &cells, c, weight)?;
+            for (o, s) in objective_sums.iter_mut().zip(&ws) {
+                o[0] += s.objective;
+                o[1] += s.yy;
+            }
+            ws.into_iter().map(|s| s.solution).collect()
+        } else {
+            let ChannelGram {
+                gram: g,
+                h: hs,
+                bb: bbs,
+            } = channel_gram(backend, coll, basis, targets, &cells, c, p.gram, progress)?;
+            target_norms
+                .iter_mut()
+                .zip(&bbs)
+                .for_each(|(n, &b)| *n += b);
+            solve_channel(backend, m, &g, &hs, &bbs, p.solver)?
+        };
+        let errs = grid_errors(
+            coll,
+            basis,
+            targets,
+            &sols,
+            &cells,
+            moments.as_ref(),
+            c,
+            &cpu,
+        );
+        for ((((f, s), e), tl1), tn) in fits
+            .iter_mut()
+            .zip(&sols)
+            .zip(errs)
+            .zip(&mut target_l1)
+            .zip(&mut target_norms)
+        {
+            *tl1 += e.l1;
+            if weighted {
+                // The l2 path takes `sum_s w_s b^2` from the Gram pass; here, from the grid.
+                *tn += e.energy;
+            }
+            for (k, &a) in s.x.iter().enumerate() {
+                f.coefficients[k][c] = a;
+            }
+            f.residual[c] = e.residual;
+            f.mae += e.mae / 3.0;
+            f.kkt[c] = s.max_kkt_violation;
+            f.iterations[c] = s.iterations;
+        }
+    }
+    for ((f, &norm), o) in fits.iter_mut().zip(&target_norms).zip(&objective_sums) {
+        let sq: f64 = f.residual.iter().map(|r| r * r).sum();
+        f.relative_residual = if norm > 0.0 { sq / norm } else { 0.0 };
+        f.objective_residual = if !weighted {
+            f.relative_residual
+        } else if o[1] > 0.0 {
+            (o[0] / o[1]).max(0.0)
+        } else {
+            0.0
+        };
+    }
+    for (f, &l1) in fits.iter_mut().zip(&target_l1) {
+        f.relative_mae = if l1 > 0.0 { 3.0 * f.mae / l1 } else { 0.0 };
+    }
+    Ok(fits)
+}
+
+/// One target's fit of one channel under a weighted objective.
+pub(crate) struct WeightedFit {
+    /// The exact NNLS solution of its weighted system.
+    pub(crate) solution: NnlsSolution,
+    /// Its objective `sum_s W r^2` (from the system: `x' G x - 2 x' r + yy`, at least 0).
+    pub(crate) objective: f64,
+    /// `sum_s W b^2`.
+    pub(crate) yy: f64,
+}
+
+/// Every target's fit of channel `c` under the per-target weights `weight` (SPEC 11): the
+/// back-end's weighted systems ([`Backend::weighted_systems`]: one pass for every target),
+/// then an exact Lawson-Hanson solve per target.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn weighted_channel(
+    backend: &dyn Backend,
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cells: &CellSet,
+    c: usize,
+    weight: TargetWeight,
+) -> Result<Vec<WeightedFit>, FitError> {
+    let lobe = |i: usize| channel_lobe(&coll.materials()[i].data, c);
+    let basis_lobes: Vec<Lobe> = basis.iter().map(|&i| lobe(i)).collect();
+    let target_lobes: Vec<Lobe> = targets.iter().map(|&i| lobe(i)).collect();
+    let sys = backend.weighted_systems(&basis_lobes, &target_lobes, cells, weight)?;
+    let m = basis.len() + 1;
+    let lh = lawson_hanson::LhParams::default();
+    targets
+        .par_iter()
+        .enumerate()
+        .map(|(t, &ti)| {
+            let g = sys.gram(t);
+            let (h, yy) = (sys.rhs(t), sys.yy(t));
+            if !yy.is_finite() || h.iter().chain(&g).any(|v| !v.is_finite()) {
+                return Err(FitError::NonFinite {
+                    material: coll.materials()[ti].name.clone(),
+                    channel: c,
+                });
+            }
+            let problem = crate::nnls::GramProblem::new(m, &g, h, yy)?;
+            let solution = lawson_hanson::solve(&problem, &lh)?;
+            let objective = problem.objective(&solution.x)?.max(0.0);
+            Ok(WeightedFit {
+                solution,
+                objective,
+                yy,
+            })
+        })
+        .collect()
+}
+
+/// Grid errors of one channel's fit of one target.
+pub(crate) struct ChannelErrors {
+    /// `sqrt(sum_s w_s r_s^2)`.
+    pub(crate) residual: f64,
+    /// `sum_s w_s |r_s|`.
+    pub(crate) mae: f64,
+    /// `sum_s w_s |b_s|` (the target's own weighted L1 norm).
+    pub(crate) l1: f64,
+    /// `sum_s w_s b_s^2` (the target's weighted energy).
+    pub(crate) energy: f64,
+}
+
+/// The errors of channel `c` of every target's fit `sols` on the grid, in f64: from the
+/// separable cell moments when every lobe is analytic (and `moments` were built), else
+/// cell by cell.
+#[allow(clippy::too_many_arguments)]
+fn grid_errors(
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    sols: &[NnlsSolution],
+    cells: &CellSet,
+    moments: Option<&CellMoments>,
+    c: usize,
+    cpu: &CpuBackend,
+) -> Vec<ChannelErrors> {
+    let mut lobes = vec![LAMBERTIAN];
+    lobes.extend(
+        basis
+            .iter()
+            .map(|&b| channel_lobe(&coll.materials()[b].data, c)),
+    );
+    match (moments, separable_lobes(&lobes)) {
+        (Some(mom), Some(cols)) => {
+            // Every lobe analytic: one multiply-add per cell from per-(i, j) tables.
+            let refs: Vec<&SeparableLobe> = cols.iter().collect();
+            let t = GridTables::new();
+            targets
+                .par_iter()
+                .zip(sols)
+                .map(|(&ti, s)| {
+                    let target = match channel_lobe(&coll.materials()[ti].data, c) {
+                        Lobe::Analytic(tp) => SeparableLobe::new(&t, &tp),
+                        Lobe::Measured { .. } | Lobe::Neural { .. } => {
+                            unreachable!("moments exist only when every material is analytic")
+                        }
+                    };
+                    let e = mom.errors(&SeparableLobe::combination(&refs, &s.x), &target);
+                    let zero = mom.errors(&SeparableLobe::combination(&[], &[]), &target);
+                    ChannelErrors {
+                        residual: e.squared.sqrt(),
+                        mae: e.absolute,
+                        l1: zero.absolute,
+                        energy: zero.squared,
+                    }
+                })
+                .collect()
+        }
+        _ => {
+            // On the grid, in f64, cell by cell.
+            let cols: Vec<Vec<f64>> = lobes
+                .iter()
+                .map(|l| cpu.values_f64(l, &cells.cells))
+                .collect();
+            targets
+                .par_iter()
+                .zip(sols)
+                .map(|(&t, s)| {
+                    let b =
+                        cpu.values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
+                    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+                    cell_errors(&refs, &s.x, &b, &cells.weights)
+                })
+                .collect()
+        }
+    }
+}
+
+/// The grid errors of the combination `sum_k x_k cols_k` against the target values `b`,
+/// cell by cell in f64, with cell weights `w`: `sum w r^2`'s root, `sum w |r|` and
+/// `sum w |b|`. The one cell-by-cell error sum: the fits' ([`fit`]) and the
+/// cross-validation's held-out MAE (`select::cv`), which passes only the columns with a
+/// non-zero coefficient; dropping a `0 * col` term changes no bit of a sum of finite
+/// values (it adds a zero), so both give the same MAE.
+pub(crate) fn cell_errors(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64]) -> ChannelErrors {
+    let (mut sq, mut ab, mut l1, mut energy) = (0.0, 0.0, 0.0, 0.0);
+    for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
+        let fitv: f64 = cols.iter().zip(x).map(|(col, &a)| a * col[i]).sum();
+        let r = fitv - bv;
+        sq += w * r * r;
+        ab += w * r.abs();
+        l1 += w * bv.abs();
+        energy += w * bv * bv;
+    }
+    ChannelErrors {
+        residual: sq.sqrt(),
+        mae: ab,
+        l1,
+        energy,
+    }
+}
+
+/// The fitted combination of channel `c` at the given cells (f64).
+pub fn combination_values(
+    coll: &Collection,
+    basis: &[usize],
+    fit: &TargetFit,
+    c: usize,
+    cells: &[u32],
+) -> Vec<f64> {
+    let cpu = CpuBackend::new();
+    let mut out = cpu.values_f64(&LAMBERTIAN, cells);
+    out.iter_mut().for_each(|v| *v *= fit.coefficients[0][c]);
+    for (k, &b) in basis.iter().enumerate() {
+        let a = fit.coefficients[k + 1][c];
+        if a != 0.0 {
+            let v = cpu.values_f64(&channel_lobe(&coll.materials()[b].data, c), cells);
+            out.iter_mut().zip(v).for_each(|(o, x)| *o += a * x);
+        }
+    }
+    out
+}
