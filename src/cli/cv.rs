@@ -22,7 +22,7 @@ fn acq() -> AcquisitionRequest {
 #[command(
     after_help = "Examples:\n  brdf-basis cv --methods greedy,swap,kmedoids,random -k 5 --folds 5 --json cv.json --markdown cv.md\n  brdf-basis cv --stride 3 -k 3,5 --json quick.json"
 )]
-pub struct CvArgs {
+pub(crate) struct CvArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Methods, comma-separated: greedy, swap, ga, kmedoids, gcuk, empirical, random
@@ -119,7 +119,7 @@ fn methods(a: &CvArgs) -> anyhow::Result<Option<Vec<CvMethod>>> {
 
 impl CvArgs {
     /// The `cv` request these flags make.
-    pub fn request(&self, g: &Global) -> anyhow::Result<CvRequest> {
+    pub(crate) fn request(&self, g: &Global) -> anyhow::Result<CvRequest> {
         let mut r = CvRequest::default();
         if let Some(m) = methods(self)? {
             r.methods = m;
@@ -141,7 +141,7 @@ impl CvArgs {
     }
 
     /// The `cv --acquisition` request these flags make (the first `-k` is the basis size).
-    pub fn acquisition_request(&self, g: &Global) -> anyhow::Result<AcquisitionRequest> {
+    pub(crate) fn acquisition_request(&self, g: &Global) -> anyhow::Result<AcquisitionRequest> {
         let mut r = AcquisitionRequest::default();
         if let Some(m) = methods(self)? {
             r.methods = m;
@@ -194,7 +194,7 @@ fn acquisition_only(a: &CvArgs) -> Vec<&'static str> {
 }
 
 /// Runs the cross-validation.
-pub fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     if a.acquisition {
         return run_acquisition(g, a);
     }

@@ -24,7 +24,7 @@ brdf-basis distance --stride 2 --band-rows 16 --tile 1/2 --out t1.npy\n  \
 brdf-basis distance --stride 2 --band-rows 16 --tile 2/2 --out t2.npy\n  \
 brdf-basis merge t1.npy t2.npy --out d.npy"
 )]
-pub struct DistanceArgs {
+pub(crate) struct DistanceArgs {
     /// Collection(s): analytic .csv, .binary file or directory (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// brdf-it (the paper's Eq. 5) or euclidean (on F0, n).
@@ -60,7 +60,7 @@ fn parse_tile(s: &str) -> anyhow::Result<(usize, usize)> {
 
 impl DistanceArgs {
     /// The request these flags make.
-    pub fn request(&self) -> anyhow::Result<DistanceRequest> {
+    pub(crate) fn request(&self) -> anyhow::Result<DistanceRequest> {
         let mut r = DistanceRequest::default();
         r.metric = self.metric;
         r.grid = self.grid.grid();
@@ -72,7 +72,7 @@ impl DistanceArgs {
 }
 
 /// Computes and writes the matrix (or one tile of it).
-pub fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     let ext = super::extension(&a.out);
     if ext != "npy" && ext != "csv" {
         anyhow::bail!("{}: output must end in .npy or .csv", a.out.display());

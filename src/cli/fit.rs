@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 #[command(
     after_help = "Examples:\n  brdf-basis fit --basis gloss-white-enamel,gloss-black-enamel,polished-brass --targets gloss-red-enamel,polished-gold,polished-copper --json fits.json --export fitted/\n  brdf-basis fit ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json"
 )]
-pub struct FitArgs {
+pub(crate) struct FitArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Basis materials, comma-separated.
@@ -63,7 +63,7 @@ pub struct FitArgs {
 impl FitArgs {
     /// The request these flags make (`fit` without `--samples`): neither `--targets` nor
     /// `--all-others` is an empty target list, which the request refuses.
-    pub fn request(&self) -> FitRequest {
+    pub(crate) fn request(&self) -> FitRequest {
         let mut r = FitRequest::new(self.basis.clone());
         r.targets = if self.all_others {
             FitTargets::AllOthers
@@ -81,7 +81,7 @@ impl FitArgs {
 
 impl FitArgs {
     /// The request these flags make with `--samples`.
-    pub fn samples_request(&self, g: &Global) -> anyhow::Result<FitSamplesRequest> {
+    pub(crate) fn samples_request(&self, g: &Global) -> anyhow::Result<FitSamplesRequest> {
         let path = self
             .samples
             .clone()
@@ -97,7 +97,7 @@ impl FitArgs {
 }
 
 /// Runs the fits.
-pub fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     if a.samples.is_some() {
         return run_samples(g, a);
     }

@@ -11,13 +11,13 @@ use brdf_basis::backend::BackendChoice;
 #[command(
     after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu\n  brdf-basis info paper_white_rgb.bsdf merl/\n  brdf-basis info merl100/   (a directory of neural BRDF sets)"
 )]
-pub struct InfoArgs {
+pub(crate) struct InfoArgs {
     /// Collection(s) to describe (kinds and counts of materials); none: only the back-end.
     pub collection: Vec<std::path::PathBuf>,
 }
 
 /// Prints the back-end, adapter, driver and limits.
-pub fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
     let gpu = if g.backend == BackendChoice::Cpu {
         None
     } else {

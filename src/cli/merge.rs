@@ -17,7 +17,7 @@ brdf-basis distance --stride 2 --band-rows 16 --tile 1/2 --out t1.npy\n  \
 brdf-basis distance --stride 2 --band-rows 16 --tile 2/2 --out t2.npy\n  \
 brdf-basis merge t1.npy t2.npy --out d.npy"
 )]
-pub struct MergeArgs {
+pub(crate) struct MergeArgs {
     /// Tile files (.npy, each with its .names.json sidecar), in any order.
     #[arg(required = true)]
     pub tiles: Vec<PathBuf>,
@@ -27,7 +27,7 @@ pub struct MergeArgs {
 }
 
 /// Merges the tiles.
-pub fn run(g: &Global, a: MergeArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: MergeArgs) -> anyhow::Result<()> {
     let ext = super::extension(&a.out);
     if ext != "npy" {
         anyhow::bail!("{}: merge writes a .npy", a.out.display());

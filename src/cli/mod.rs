@@ -1,16 +1,16 @@
 //! The command line: clap arguments -> library parameters, one module per subcommand.
 
-pub mod cv;
-pub mod distance;
-pub mod fit;
-pub mod info;
-pub mod merge;
-pub mod plan;
-pub mod plot;
-pub mod render;
-pub mod reproduce;
-pub mod select;
-pub mod tabulate;
+pub(crate) mod cv;
+pub(crate) mod distance;
+pub(crate) mod fit;
+pub(crate) mod info;
+pub(crate) mod merge;
+pub(crate) mod plan;
+pub(crate) mod plot;
+pub(crate) mod render;
+pub(crate) mod reproduce;
+pub(crate) mod select;
+pub(crate) mod tabulate;
 
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::backend::Backend;
@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 /// of them (GPU through wgpu/Vulkan, or a fast multi-threaded CPU back-end).
 #[derive(Parser, Debug)]
 #[command(name = "brdf-basis", version, about, long_about = None)]
-pub struct Cli {
+pub(crate) struct Cli {
     /// Global options.
     #[command(flatten)]
     pub global: Global,
@@ -34,7 +34,7 @@ pub struct Cli {
 
 /// Options every subcommand takes.
 #[derive(Args, Debug, Clone)]
-pub struct Global {
+pub(crate) struct Global {
     /// Compute back-end: auto (a hardware GPU if present, else CPU), gpu (any adapter,
     /// lavapipe included) or cpu.
     #[arg(long, global = true, default_value = "auto")]
@@ -50,7 +50,7 @@ pub struct Global {
 /// Which grid cells a reduction runs over and how they are weighted (shared by
 /// `distance`, `select` and `fit`).
 #[derive(Args, Debug, Clone)]
-pub struct GridArgs {
+pub(crate) struct GridArgs {
     /// uniform (the paper's Eq. 5) or solid-angle (exact bin measure).
     #[arg(long, default_value = "uniform")]
     pub weighting: brdf_basis::merl::Weighting,
@@ -64,7 +64,7 @@ pub struct GridArgs {
 
 impl GridArgs {
     /// The flags as a request's [`brdf_basis::run::Grid`].
-    pub fn grid(&self) -> brdf_basis::run::Grid {
+    pub(crate) fn grid(&self) -> brdf_basis::run::Grid {
         brdf_basis::run::Grid {
             mask: self.mask,
             weighting: self.weighting,
@@ -76,7 +76,7 @@ impl GridArgs {
 /// The fit objective (SPEC 11): `--objective` and `--eps` (shared by `fit`, `select`,
 /// `plan` and `cv`).
 #[derive(Args, Debug, Clone)]
-pub struct ObjectiveArgs {
+pub(crate) struct ObjectiveArgs {
     /// What a fit minimises: relative (weights 1 / (f + eps)^2: every cell counts by its
     /// relative error, so the diffuse body is not given up for the highlight), l2 (raw
     /// reflectance, the paper's) or log (an L2 in log(1 + f cos theta_i)) [default:
@@ -90,7 +90,7 @@ pub struct ObjectiveArgs {
 
 impl ObjectiveArgs {
     /// The objective these flags give (the default objective when none is given).
-    pub fn weight(&self) -> brdf_basis::fit::TargetWeight {
+    pub(crate) fn weight(&self) -> brdf_basis::fit::TargetWeight {
         match self.objective {
             Some(k) => k.weight(self.eps),
             None => match brdf_basis::run::DEFAULT_OBJECTIVE {
@@ -115,7 +115,7 @@ fn parse_stride(s: &str) -> Result<usize, String> {
 
 /// Subcommands.
 #[derive(Subcommand, Debug)]
-pub enum Command {
+pub(crate) enum Command {
     /// Back-end, adapter name, driver and the limits used.
     Info(info::InfoArgs),
     /// Write one material on the MERL grid as a MERL .binary file.
@@ -141,7 +141,7 @@ pub enum Command {
 }
 
 /// Runs the parsed command line.
-pub fn run(cli: Cli) -> anyhow::Result<()> {
+pub(crate) fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(a) => info::run(&cli.global, a),
         Command::Tabulate(a) => tabulate::run(&cli.global, a),
@@ -158,12 +158,12 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 /// Loads the COLLECTION arguments (none: the embedded default).
-pub fn load_collection(paths: &[PathBuf]) -> anyhow::Result<Collection> {
+pub(crate) fn load_collection(paths: &[PathBuf]) -> anyhow::Result<Collection> {
     Ok(Collection::load_many(paths)?)
 }
 
 /// Opens the back-end chosen by `--backend`.
-pub fn backend(g: &Global) -> anyhow::Result<Box<dyn Backend>> {
+pub(crate) fn backend(g: &Global) -> anyhow::Result<Box<dyn Backend>> {
     let b = brdf_basis::backend::open(g.backend)?;
     if !g.quiet {
         eprintln!("backend: {}", b.name());
@@ -172,7 +172,7 @@ pub fn backend(g: &Global) -> anyhow::Result<Box<dyn Backend>> {
 }
 
 /// A progress bar over `total` units (hidden with --quiet or when stderr is no terminal).
-pub fn progress_bar(g: &Global, total: u64, what: &str) -> indicatif::ProgressBar {
+pub(crate) fn progress_bar(g: &Global, total: u64, what: &str) -> indicatif::ProgressBar {
     if g.quiet {
         return indicatif::ProgressBar::hidden();
     }
@@ -189,7 +189,7 @@ pub fn progress_bar(g: &Global, total: u64, what: &str) -> indicatif::ProgressBa
 }
 
 /// The extension of an output path, lower-case (`""` when none).
-pub fn extension(path: &Path) -> String {
+pub(crate) fn extension(path: &Path) -> String {
     path.extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
@@ -198,7 +198,7 @@ pub fn extension(path: &Path) -> String {
 
 /// Plans a `.npy` matrix output and its `.names.json` sidecar: the sidecar replaces only
 /// an earlier matrix sidecar (any format version), never another file of that name.
-pub fn plan_matrix(plan: &mut OutputPlan, npy: &Path, flag: &str) -> anyhow::Result<()> {
+pub(crate) fn plan_matrix(plan: &mut OutputPlan, npy: &Path, flag: &str) -> anyhow::Result<()> {
     plan.file(npy, flag)?;
     plan.owned_file(
         &brdf_basis::io::sidecar::sidecar_path(npy),
@@ -211,7 +211,7 @@ pub fn plan_matrix(plan: &mut OutputPlan, npy: &Path, flag: &str) -> anyhow::Res
 
 /// Whether `path` is a matrix sidecar written by brdf-basis: a JSON object whose
 /// `format` starts with `brdf-basis-matrix/` (read at most 64 MiB).
-pub fn is_matrix_sidecar(path: &Path) -> bool {
+pub(crate) fn is_matrix_sidecar(path: &Path) -> bool {
     use std::io::Read;
     let mut text = String::new();
     let read = std::fs::File::open(path)

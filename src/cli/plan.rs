@@ -17,7 +17,7 @@ fn defaults() -> PlanRequest {
 #[command(
     after_help = "Examples:\n  brdf-basis plan ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,steel,cherry-235 -n 20 --out plan.csv --json plan.json\n  brdf-basis plan --basis gloss-white-enamel,polished-brass -n 10 --criterion condition --out plan.csv"
 )]
-pub struct PlanArgs {
+pub(crate) struct PlanArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Basis materials, comma-separated.
@@ -63,7 +63,7 @@ pub struct PlanArgs {
 
 impl PlanArgs {
     /// The request these flags make.
-    pub fn request(&self, g: &Global) -> PlanRequest {
+    pub(crate) fn request(&self, g: &Global) -> PlanRequest {
         let mut r = PlanRequest::new(self.basis.clone());
         r.targets = (!self.targets.is_empty()).then(|| self.targets.clone());
         r.candidates = self.candidates.clone();
@@ -79,7 +79,7 @@ impl PlanArgs {
 }
 
 /// Plans the samples.
-pub fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     let req = a.request(g);
     req.check()?;
     let mut op = OutputPlan::new(&a.collection);

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 #[command(
     after_help = "Examples:\n  brdf-basis plot --material polished-gold --out gold-lobes.svg\n  brdf-basis fit --basis mirror-silver,matte-white-paint --targets polished-gold --json f.json\n  brdf-basis plot --material polished-gold --fit f.json --out gold-lobes.png --angles 0,45,70"
 )]
-pub struct PlotArgs {
+pub(crate) struct PlotArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Material to plot.
@@ -35,7 +35,7 @@ pub struct PlotArgs {
 }
 
 /// Writes `fig` as `dir/<stem>.svg` and `.png`.
-pub fn write_figure(dir: &Path, fig: &Figure) -> anyhow::Result<(PathBuf, PathBuf)> {
+pub(crate) fn write_figure(dir: &Path, fig: &Figure) -> anyhow::Result<(PathBuf, PathBuf)> {
     let svg = dir.join(format!("{}.svg", fig.stem));
     let png = dir.join(format!("{}.png", fig.stem));
     write_atomic(&svg, |w| w.write_all(fig.svg.as_bytes()))?;
@@ -45,7 +45,7 @@ pub fn write_figure(dir: &Path, fig: &Figure) -> anyhow::Result<(PathBuf, PathBu
 
 /// Draws and writes every figure of the report into `dir`, listing them in `ctx` (the
 /// figure set is the library's [`report_figures`]).
-pub fn write_report_figures(
+pub(crate) fn write_report_figures(
     e: &Experiment,
     dir: &Path,
     ctx: &mut ReportContext,
@@ -64,7 +64,7 @@ pub fn write_report_figures(
 }
 
 /// Runs `plot`.
-pub fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
     font()?; // an unusable BRDF_BASIS_FONT is refused before any work
     if let Some(bad) = a.angles.iter().find(|t| !(0.0..90.0).contains(*t)) {
         anyhow::bail!("--angles: {bad} is not an incident angle in [0, 90) degrees");

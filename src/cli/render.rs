@@ -15,7 +15,7 @@ use std::path::PathBuf;
 #[command(
     after_help = "Examples:\n  brdf-basis render --material polished-gold --out gold.exr --png gold.png\n  brdf-basis render --material polished-gold --fit fits.json --out fit.exr --png fit.png --heatmap err.png  (fits.json from `brdf-basis fit`)"
 )]
-pub struct RenderArgs {
+pub(crate) struct RenderArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Material to render (with --fit: the fitted combination of this target).
@@ -64,7 +64,7 @@ fn parse_light(s: &str) -> Result<(f64, f64), String> {
 
 /// Plans an output image before the work ([`OutputPlan::file`]) and checks that its
 /// extension is the format written (`ext`, case-insensitive).
-pub fn plan_image(
+pub(crate) fn plan_image(
     plan: &mut OutputPlan,
     path: &std::path::Path,
     flag: &str,
@@ -83,7 +83,7 @@ pub fn plan_image(
 }
 
 /// Renders.
-pub fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     if a.heatmap.is_some() {
         // The heatmap's colour bar is labelled: an unusable BRDF_BASIS_FONT is refused now.
         brdf_basis::plot::font()?;

@@ -24,7 +24,7 @@ fn defaults() -> ReproduceRequest {
 #[command(
     after_help = "Examples:\n  brdf-basis reproduce --out results\n  brdf-basis reproduce --out quick --runs 5 --stride 4 --force"
 )]
-pub struct ReproduceArgs {
+pub(crate) struct ReproduceArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Output directory (created, its parent must exist; an existing one must be empty
@@ -85,7 +85,7 @@ pub struct ReproduceArgs {
 
 impl ReproduceArgs {
     /// The request these flags make.
-    pub fn request(&self, g: &Global) -> ReproduceRequest {
+    pub(crate) fn request(&self, g: &Global) -> ReproduceRequest {
         let mut r = ReproduceRequest::default();
         r.runs = self.runs;
         r.stride = self.stride;
@@ -106,7 +106,7 @@ impl ReproduceArgs {
 }
 
 /// Runs everything.
-pub fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let req = a.request(g);
     // The output tree before any work: a new directory (its parent exists), an empty one,

@@ -20,7 +20,7 @@ fn defaults() -> SelectRequest {
 #[command(
     after_help = "Examples:\n  brdf-basis select --method gcuk --json gcuk.json\n  brdf-basis select --method kmedoids -k 5 --runs 30 --json km5.json\n  brdf-basis select --method empirical --json empirical.json\n  brdf-basis select --method swap -k 5 --json swap5.json\n  brdf-basis select --method greedy -k 3 --candidates polished-gold,mirror-silver,matte-white-paint,red-acrylic-sheet --json mine.json"
 )]
-pub struct SelectArgs {
+pub(crate) struct SelectArgs {
     /// Collection(s) (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Selection method.
@@ -75,7 +75,7 @@ pub struct SelectArgs {
 
 /// Flags of the error-driven methods (flattened into `select`).
 #[derive(clap::Args, Debug, Clone)]
-pub struct ErrorArgs {
+pub(crate) struct ErrorArgs {
     /// greedy, swap, ga: materials that may enter the basis, comma-separated (default: all).
     #[arg(long, value_delimiter = ',')]
     pub candidates: Vec<String>,
@@ -107,7 +107,7 @@ fn given(names: &[String]) -> Option<Vec<String>> {
 
 impl SelectArgs {
     /// The request these flags make.
-    pub fn request(&self, g: &Global) -> SelectRequest {
+    pub(crate) fn request(&self, g: &Global) -> SelectRequest {
         let e = &self.error;
         let mut r = SelectRequest::new(self.method);
         r.k = self.k;
@@ -135,7 +135,7 @@ impl SelectArgs {
 }
 
 /// Runs the selection.
-pub fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
     let req = a.request(g);
     req.check()?;
     req.check_source(!a.collection.is_empty())?;

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 #[command(
     after_help = "Example:\n  brdf-basis tabulate --material polished-gold --out gold.binary\n  brdf-basis tabulate ngan2005_ashikhmin_shirley.csv --material gold-metallic-paint --out g.binary"
 )]
-pub struct TabulateArgs {
+pub(crate) struct TabulateArgs {
     /// Collection(s): analytic .csv, .binary file or directory (none: embedded default).
     pub collection: Vec<PathBuf>,
     /// Material to write.
@@ -24,7 +24,7 @@ pub struct TabulateArgs {
 }
 
 /// Writes the material on the full MERL grid (invalid cells = -1).
-pub fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
+pub(crate) fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
     let mut plan = OutputPlan::new(&a.collection);
     plan.file(&a.out, "--out")?;
     let mut out = plan.into_set()?;

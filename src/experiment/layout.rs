@@ -243,7 +243,7 @@ mod erased {
     use crate::error::OutputError;
     use std::path::Path;
 
-    pub trait Json {
+    pub(super) trait Json {
         fn write(&self, path: &Path) -> Result<(), OutputError>;
     }
 

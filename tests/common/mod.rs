@@ -31,7 +31,7 @@ fn visible(line: &str) {
 /// data) <test>: <path>` and returns `None`, so the README's test command passes on a
 /// clone that has only the repository; with `BRDF_BASIS_REQUIRE_SHARED=1` (set by
 /// `.ci/run`) a missing file is a failure instead.
-pub fn shared_or_skip(name: &str, test: &str) -> Option<PathBuf> {
+pub(crate) fn shared_or_skip(name: &str, test: &str) -> Option<PathBuf> {
     let p = shared(name);
     if p.exists() {
         return Some(p);
@@ -51,32 +51,32 @@ pub fn shared_or_skip(name: &str, test: &str) -> Option<PathBuf> {
 
 /// The Ngan et al. 2005 Ashikhmin-Shirley table (100 materials), or `None` after
 /// printing SKIP when `../shared` is absent (see [`shared_or_skip`]).
-pub fn ngan_or_skip(test: &str) -> Option<Collection> {
+pub(crate) fn ngan_or_skip(test: &str) -> Option<Collection> {
     let p = shared_or_skip("ngan2005_ashikhmin_shirley.csv", test)?;
     Some(Collection::load(&p).expect("../shared/data/ngan2005_ashikhmin_shirley.csv"))
 }
 
 /// The `brdf-basis` binary built for these tests, as a command.
-pub fn bin() -> Command {
+pub(crate) fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
 }
 
 /// [`bin`] with `--quiet`.
-pub fn bin_quiet() -> Command {
+pub(crate) fn bin_quiet() -> Command {
     let mut c = bin();
     c.arg("--quiet");
     c
 }
 
 /// [`bin`] with `--quiet --backend cpu`.
-pub fn bin_cpu() -> Command {
+pub(crate) fn bin_cpu() -> Command {
     let mut c = bin();
     c.args(["--quiet", "--backend", "cpu"]);
     c
 }
 
 /// Writes `bytes` to `dir/name` and returns the path.
-pub fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
+pub(crate) fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, bytes).expect("write");
     p
@@ -84,7 +84,7 @@ pub fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
 
 /// A measured copy of `lobe`: its f32 CPU tabulation on every cell, the same table in all
 /// three channels, read through `channel`.
-pub fn measured_lobe(lobe: &Lobe, channel: Option<usize>) -> Lobe {
+pub(crate) fn measured_lobe(lobe: &Lobe, channel: Option<usize>) -> Lobe {
     let all: Vec<u32> = (0..N_CELLS as u32).collect();
     let table = CpuBackend::new()
         .tabulate(std::slice::from_ref(lobe), &all)
@@ -99,7 +99,7 @@ pub fn measured_lobe(lobe: &Lobe, channel: Option<usize>) -> Lobe {
 
 /// A measured copy of an analytic material: its f64 values rounded to f32 in every valid
 /// cell, -1 elsewhere.
-pub fn measured_material(m: &Material) -> Material {
+pub(crate) fn measured_material(m: &Material) -> Material {
     let cpu = CpuBackend::new();
     let cells: Vec<u32> = (0..N_CELLS as u32).collect();
     let mut rgb = vec![-1f32; 3 * N_CELLS];
@@ -120,7 +120,7 @@ pub fn measured_material(m: &Material) -> Material {
 
 /// The GPU back-end, opened once; `None` (after printing SKIP) when there is no adapter,
 /// a panic when `BRDF_BASIS_REQUIRE_GPU=1`.
-pub fn gpu(test: &str) -> Option<&'static GpuBackend> {
+pub(crate) fn gpu(test: &str) -> Option<&'static GpuBackend> {
     static GPU: OnceLock<Result<GpuBackend, String>> = OnceLock::new();
     match GPU.get_or_init(|| GpuBackend::new().map_err(|e| e.to_string())) {
         Ok(g) => Some(g),
@@ -135,7 +135,7 @@ pub fn gpu(test: &str) -> Option<&'static GpuBackend> {
 }
 
 /// Largest relative difference `|a - b| / max(|b|, floor)` over pairs.
-pub fn max_rel(a: &[f64], b: &[f64], floor: f64) -> f64 {
+pub(crate) fn max_rel(a: &[f64], b: &[f64], floor: f64) -> f64 {
     assert_eq!(a.len(), b.len());
     a.iter()
         .zip(b)
@@ -145,19 +145,19 @@ pub fn max_rel(a: &[f64], b: &[f64], floor: f64) -> f64 {
 
 /// The one seeded generator of all test randomness (ChaCha8, as the library's seeded
 /// steps): the same seed gives the same numbers on every platform.
-pub fn rng(seed: u64) -> rand_chacha::ChaCha8Rng {
+pub(crate) fn rng(seed: u64) -> rand_chacha::ChaCha8Rng {
     rand::SeedableRng::seed_from_u64(seed)
 }
 
 /// A temporary directory.
-pub fn tmp() -> tempfile::TempDir {
+pub(crate) fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().expect("temp dir")
 }
 
 /// Runs `cmd` (stdin closed, stdout and stderr captured while it runs, so a chatty child
 /// never blocks on a full pipe) and returns its output, or `None` after killing it when
 /// it runs longer than `limit`.
-pub fn output_within(
+pub(crate) fn output_within(
     cmd: &mut Command,
     limit: std::time::Duration,
 ) -> Option<std::process::Output> {
@@ -200,7 +200,7 @@ pub fn output_within(
 
 /// A little-endian float32 C-order `.npy` file (format 1.0 or 2.0): its shape and values
 /// (a parser of the tests' own, independent of the crate's readers).
-pub fn read_f32_npy(path: &Path) -> (Vec<usize>, Vec<f32>) {
+pub(crate) fn read_f32_npy(path: &Path) -> (Vec<usize>, Vec<f32>) {
     let b = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     assert_eq!(&b[..6], b"\x93NUMPY", "{}", path.display());
     let (hlen, start) = match b[6] {
@@ -238,7 +238,7 @@ pub fn read_f32_npy(path: &Path) -> (Vec<usize>, Vec<f32>) {
 /// absolute error at or below it (1e-6), where each occurred, and the values outside SPEC
 /// 9 (the first kept).
 #[derive(Clone, Debug, Default)]
-pub struct Spec9 {
+pub(crate) struct Spec9 {
     /// Values compared.
     pub n: usize,
     /// Worst relative error (reference > 1e-3) and where: (error, label, got, want).
@@ -255,7 +255,7 @@ impl Spec9 {
     /// Records a tabulated value `got` against its f64 reference `want` (both as
     /// tabulated: clamped at 0); `label` names it (material, channel, cell), built only
     /// when needed.
-    pub fn add(&mut self, got: f64, want: f64, label: impl Fn() -> String) {
+    pub(crate) fn add(&mut self, got: f64, want: f64, label: impl Fn() -> String) {
         self.n += 1;
         let e = (got - want).abs();
         let (worst, tol) = if want.abs() > 1e-3 {
@@ -276,7 +276,7 @@ impl Spec9 {
     }
 
     /// Both records as one.
-    pub fn merge(mut self, o: Spec9) -> Spec9 {
+    pub(crate) fn merge(mut self, o: Spec9) -> Spec9 {
         self.n += o.n;
         self.bad += o.bad;
         if o.rel.0 > self.rel.0 {
@@ -292,7 +292,7 @@ impl Spec9 {
     }
 
     /// One line: the worst errors and where.
-    pub fn report(&self) -> String {
+    pub(crate) fn report(&self) -> String {
         format!(
             "{} values: worst relative error {:.3e} (values > 1e-3; {}: {:.7e} vs f64 {:.7e}), \
              worst absolute error {:.3e} (values <= 1e-3; {}: {:.4e} vs {:.4e}); {} outside \

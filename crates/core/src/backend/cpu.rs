@@ -337,7 +337,7 @@ mod neural_cache {
     static CACHE: Mutex<Vec<Entry>> = Mutex::new(Vec::new());
 
     /// The values of `(net, channel)` at `cells`, from the cache or from `compute`.
-    pub fn get(
+    pub(super) fn get(
         net: &Arc<Nbrdf>,
         channel: Option<usize>,
         cells: &[u32],
@@ -481,7 +481,7 @@ mod avx2 {
     /// # Safety
     /// The processor must support AVX2 and FMA; all rows must have one length.
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn block<const DOT: bool>(
+    pub(super) unsafe fn block<const DOT: bool>(
         a: [&[f32]; BLOCK],
         b: [&[f32]; BLOCK],
         acc: &mut [[f64; BLOCK]; BLOCK],
@@ -552,7 +552,7 @@ mod avx2 {
     /// # Safety
     /// The processor must support AVX2 and FMA.
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn fill_analytic(
+    pub(super) unsafe fn fill_analytic(
         beta: &[f32],
         alpha: f32,
         cells: &[(usize, f32, f32)],

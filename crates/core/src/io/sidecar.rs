@@ -26,11 +26,14 @@ const SIDECAR_FORMAT_1: &str = "brdf-basis-matrix/1";
 mod spelled {
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<T: std::fmt::Display, S: Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn serialize<T: std::fmt::Display, S: Serializer>(
+        v: &T,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
         s.collect_str(v)
     }
 
-    pub fn deserialize<'de, T, D>(d: D) -> Result<T, D::Error>
+    pub(super) fn deserialize<'de, T, D>(d: D) -> Result<T, D::Error>
     where
         T: std::str::FromStr,
         T::Err: std::fmt::Display,

@@ -24,7 +24,7 @@ pub(super) struct NeuralPass<'a> {
 impl<'a> NeuralPass<'a> {
     /// The pass for `layout`'s neural lobes (`None` without any), writing into `texture`
     /// (the value texture of `plan`, created with storage binding).
-    pub fn new(
+    pub(super) fn new(
         ctx: &GpuContext,
         kernel: &'a NeuralKernel,
         lobes: &[Lobe],
@@ -52,7 +52,7 @@ impl<'a> NeuralPass<'a> {
 
     /// Evaluates the neural rows at the chunk's cells `cc` (weights `cw`, scaled as `op`
     /// scales rows) into the value texture: submitted before the chunk's reductions.
-    pub fn chunk(
+    pub(super) fn chunk(
         &mut self,
         ctx: &GpuContext,
         op: PairOp,

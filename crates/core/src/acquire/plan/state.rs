@@ -20,7 +20,7 @@ impl Dense {
     /// ([`crate::select::shared_weights`] of those materials), so that `rho` is `rho_W`
     /// with the weights a plan can know before the material is measured; one back-end
     /// pass per channel (the weights are not separable).
-    pub fn new(
+    pub(crate) fn new(
         backend: &dyn Backend,
         coll: &Collection,
         basis: &[usize],
@@ -71,7 +71,7 @@ impl Dense {
     /// leaves a non-zero partial sum as it is, so this is the sum over every `j` bit for
     /// bit, but for the sign of a `(G x)_i` that is exactly zero (then multiplied by
     /// `x_i` and added to `q`, where it changes nothing unless `q` is zero too).
-    pub fn r2(&self, c: usize, t: usize, x: &[f64]) -> f64 {
+    pub(crate) fn r2(&self, c: usize, t: usize, x: &[f64]) -> f64 {
         let m = self.m;
         let g = &self.g[c];
         let h = &g.h[t * m..(t + 1) * m];
@@ -94,7 +94,7 @@ impl Dense {
     }
 
     /// rho of target `t` with per-channel coefficients `x[c]`.
-    pub fn rho(&self, t: usize, x: &[Vec<f64>; 3]) -> f64 {
+    pub(crate) fn rho(&self, t: usize, x: &[Vec<f64>; 3]) -> f64 {
         self.rho_of(t, [&x[0], &x[1], &x[2]])
     }
 

@@ -101,7 +101,7 @@ pub(crate) struct Evaluator<'a> {
 impl<'a> Evaluator<'a> {
     /// Renders every material once (`render_size` pixels), and with `appearance` under
     /// the four lights at SPEC 11's size.
-    pub fn new(
+    pub(crate) fn new(
         backend: &'a dyn Backend,
         coll: &'a Collection,
         obj: &'a Objective,
@@ -220,7 +220,7 @@ impl<'a> Evaluator<'a> {
     /// the fits (every fold, method and k, every held-out material) come from one pass
     /// over the grid ([`GridEval::sums`]: each material tabulated once per block of cells,
     /// however many folds it serves in).
-    pub fn methods(
+    pub(crate) fn methods(
         &self,
         methods: &[&str],
         ks: &[usize],

@@ -52,7 +52,7 @@ pub(crate) struct Fold<'a> {
 
 impl<'a> Fold<'a> {
     /// Fold `f` of `n` materials, `held` its held-out materials.
-    pub fn new(
+    pub(crate) fn new(
         f: usize,
         n: usize,
         held: &[usize],
@@ -88,7 +88,7 @@ impl<'a> Fold<'a> {
     }
 
     /// The basis (collection indices) method `m` chooses from the training materials.
-    pub fn basis(
+    pub(crate) fn basis(
         &mut self,
         m: CvMethod,
         k: usize,

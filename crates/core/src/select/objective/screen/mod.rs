@@ -148,7 +148,7 @@ pub(super) struct Bound {
 
 impl Bound {
     /// The bound of the mean.
-    pub fn mean(&self) -> f64 {
+    pub(super) fn mean(&self) -> f64 {
         if self.count == 0 {
             f64::INFINITY
         } else {

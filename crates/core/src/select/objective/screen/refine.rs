@@ -105,7 +105,7 @@ pub(crate) fn refine(
 
 /// Largest tie tolerance for which `best_first` orders the exact scores by their bounds
 /// (its cutoffs assume a small tolerance); above it, candidates go in collection order.
-pub const BEST_FIRST_TOL_MAX: f64 = 1e-6;
+pub(super) const BEST_FIRST_TOL_MAX: f64 = 1e-6;
 
 /// The cutoff of [`best_first`]: candidates scoring at least this cannot change the chain
 /// once a candidate scoring `best` is known (`raise` widens it past a band with a score).
