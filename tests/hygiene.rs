@@ -211,6 +211,9 @@ fn inline_modules(code: &str) -> Vec<(String, std::ops::Range<usize>)> {
 }
 
 /// The longest prefix of `full` that is a known module.
+/// The module path that stands for every other crate.
+const EXTERN: &str = "<another crate>";
+
 fn known_prefix(full: &[String], modules: &BTreeSet<ModPath>) -> ModPath {
     let mut m = full.to_vec();
     while !m.is_empty() && !modules.contains(&m) {
@@ -223,7 +226,9 @@ fn known_prefix(full: &[String], modules: &BTreeSet<ModPath>) -> ModPath {
 /// (`"*"` for a glob), and the names each module defines itself.
 #[derive(Default)]
 struct Reexports {
+    /// `(module, name) -> path`: a named re-export's item path, a glob's module path.
     names: BTreeMap<(ModPath, String), ModPath>,
+    modules: BTreeSet<ModPath>,
     defined: BTreeMap<ModPath, BTreeSet<String>>,
 }
 
@@ -231,6 +236,9 @@ impl Reexports {
     /// Records the `pub use` (and `pub(crate) use`) statements and the item definitions of
     /// `code`, the text of module `here`.
     fn scan(&mut self, code: &str, here: &ModPath, modules: &BTreeSet<ModPath>) {
+        if self.modules.is_empty() {
+            self.modules = modules.clone();
+        }
         for line in code.lines() {
             let t = line.trim_start();
             for kw in [
@@ -278,6 +286,31 @@ impl Reexports {
                     .map(|w| (w[0], w[2]))
                     .collect();
                 let (mut base, mut rest) = (here.clone(), stmt.trim_start());
+                // A path that starts with neither `crate`, `self`, `super` nor a child
+                // module names another crate (`pub use brdf_basis_core::fit;`): its names
+                // lead out of this crate, where no cycle can close.
+                let first: String = rest.chars().take_while(|&c| is_ident(c)).collect();
+                let local = ["crate", "self", "super"].contains(&first.as_str()) || {
+                    let mut child = here.clone();
+                    child.push(first.clone());
+                    modules.contains(&child)
+                };
+                if !local {
+                    let outside: ModPath = vec![EXTERN.to_string()];
+                    let glob = rest.trim_end().ends_with("::*");
+                    for p in paths_at(rest) {
+                        let name = match p.last() {
+                            None => continue,
+                            Some(_) if glob => "*".to_string(),
+                            Some(last) => alias
+                                .get(last.as_str())
+                                .unwrap_or(&last.as_str())
+                                .to_string(),
+                        };
+                        self.names.insert((here.clone(), name), outside.clone());
+                    }
+                    continue;
+                }
                 if let Some(r) = rest.strip_prefix("crate::") {
                     base.clear();
                     rest = r;
@@ -293,17 +326,23 @@ impl Reexports {
                 for p in paths_at(rest) {
                     let mut full = base.clone();
                     full.extend(p.iter().cloned());
-                    let target = known_prefix(&full, modules);
+                    let is_glob = glob && rest.trim_end().ends_with("::*");
+                    if is_glob && full.last().is_some_and(|l| l == "*") {
+                        full.pop();
+                    }
                     let name = match p.last() {
                         None => continue,
-                        Some(_) if glob && rest.trim_end().ends_with("::*") => "*".to_string(),
+                        Some(_) if is_glob => "*".to_string(),
                         Some(last) => alias
                             .get(last.as_str())
                             .unwrap_or(&last.as_str())
                             .to_string(),
                     };
-                    if target != *here {
-                        self.names.insert((here.clone(), name), target);
+                    // The item's whole path (a glob: its module), so that a path through
+                    // a name that another re-export brings in (`crate::io::image::f`
+                    // where the root re-exports `io` from another crate) is followed.
+                    if known_prefix(&full, modules) != *here || full.len() > here.len() + 1 {
+                        self.names.insert((here.clone(), name), full);
                     }
                 }
             }
@@ -335,11 +374,19 @@ impl Reexports {
                 .then(|| self.names.get(&(m.clone(), "*".into())))
                 .flatten()
         });
+        let glob = !own && !self.names.contains_key(&(m.clone(), name.clone()));
         match next {
-            Some(t) if *t != m => {
+            Some(t) if t.first().is_some_and(|f| f == EXTERN) => t.clone(),
+            Some(t) => {
+                // A named re-export's path ends with the item; a glob's with its module.
                 let mut f = t.clone();
-                f.extend(full[m.len()..].iter().cloned());
-                self.resolve_from(t.clone(), &f, depth - 1)
+                let after = if glob { m.len() } else { m.len() + 1 };
+                f.extend(full[after..].iter().cloned());
+                let km = known_prefix(&f, &self.modules);
+                if km == m && f == full {
+                    return m;
+                }
+                self.resolve_from(km, &f, depth - 1)
             }
             _ => m,
         }
@@ -626,4 +673,170 @@ fn the_cycle_check_sees_through_a_parents_pub_use() {
         cycles[0].starts_with("cycle between api, io:"),
         "{cycles:?}"
     );
+}
+
+#[test]
+fn the_cycle_check_sends_another_crates_modules_out_of_the_crate() {
+    let d = crate::common::tmp();
+    let src = d.path();
+    let put = |rel: &str, text: &str| {
+        let p = src.join(rel);
+        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
+        std::fs::write(&p, text).expect("write");
+    };
+    // The facade's layout: the core's modules re-exported at the root beside a glob.
+    put(
+        "lib.rs",
+        "mod api;\npub use api::*;\npub use core_crate::{fit, io};\npub mod plot;\n",
+    );
+    put("api.rs", "use crate::plot::Figure;\npub struct Error;\n");
+    put(
+        "plot.rs",
+        "use crate::fit::Fit;\nuse crate::io::write;\npub struct Figure;\n",
+    );
+    assert!(import_cycles(src).is_empty(), "{:?}", import_cycles(src));
+    // Without the external re-export the names fall to `api`'s glob: a cycle.
+    put("lib.rs", "mod api;\npub use api::*;\npub mod plot;\n");
+    let cycles = import_cycles(src);
+    assert_eq!(cycles.len(), 1, "{cycles:?}");
+    assert!(
+        cycles[0].starts_with("cycle between api, plot:"),
+        "{cycles:?}"
+    );
+}
+
+/// Most lines a source file may have without a `// Long file:` comment saying why.
+const FILE_LINES: usize = 820;
+/// Most lines a function may have without a `Long function:` comment (its doc or a line
+/// comment) within the ten lines above its `fn` saying why.
+const FN_LINES: usize = 120;
+
+/// `(name, first line (1-based), lines)` of every function with a body in `code`: from
+/// its `fn` line to its closing brace, braces matched outside comments, strings and
+/// character literals.
+fn functions(code: &str) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = code.lines().collect();
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let t = line.trim_start();
+        let t = ["pub(crate) ", "pub(super) ", "pub "]
+            .iter()
+            .fold(t, |t, p| t.strip_prefix(p).unwrap_or(t));
+        let t = ["const ", "unsafe ", "extern \"C\" "]
+            .iter()
+            .fold(t, |t, p| t.strip_prefix(p).unwrap_or(t));
+        let Some(rest) = t.strip_prefix("fn ") else {
+            continue;
+        };
+        let name: String = rest.chars().take_while(|&c| is_ident(c)).collect();
+        let (mut depth, mut started) = (0i64, false);
+        for (j, l) in lines.iter().enumerate().skip(i) {
+            let code_part = strip_comments(l);
+            let mut chars = code_part.chars().peekable();
+            let mut in_str = false;
+            while let Some(c) = chars.next() {
+                match c {
+                    '\\' if in_str => {
+                        chars.next();
+                    }
+                    '"' => in_str = !in_str,
+                    '\'' if !in_str => {
+                        // A character literal ('{', '\'') or a lifetime ('a).
+                        let look: String = chars.clone().take(3).collect();
+                        if look.starts_with('\\') {
+                            chars.nth(2);
+                        } else if look.chars().nth(1) == Some('\'') {
+                            chars.nth(1);
+                        }
+                    }
+                    '{' if !in_str => {
+                        depth += 1;
+                        started = true;
+                    }
+                    '}' if !in_str => depth -= 1,
+                    _ => {}
+                }
+            }
+            if started && depth == 0 {
+                out.push((name.clone(), i + 1, j - i + 1));
+                break;
+            }
+            if !started && code_part.trim_end().ends_with(';') {
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// Files over [`FILE_LINES`] and functions over [`FN_LINES`] lines that do not say why.
+fn oversized(files: &[(String, String)]) -> Vec<String> {
+    let mut bad = Vec::new();
+    for (rel, text) in files {
+        let n = text.lines().count();
+        if n > FILE_LINES && !text.contains("// Long file:") {
+            bad.push(format!("{rel}: {n} lines and no `// Long file:` reason"));
+        }
+        let lines: Vec<&str> = text.lines().collect();
+        for (name, at, len) in functions(text) {
+            if len <= FN_LINES {
+                continue;
+            }
+            let above = &lines[at.saturating_sub(11)..at - 1];
+            if !above.iter().any(|l| l.contains("Long function:")) {
+                bad.push(format!(
+                    "{rel}:{at}: fn {name} has {len} lines and no `Long function:` reason"
+                ));
+            }
+        }
+    }
+    bad
+}
+
+#[test]
+fn no_file_or_function_is_oversized_without_a_reason() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for rel in CRATE_SOURCES {
+        let mut paths = Vec::new();
+        rust_files(&root.join(rel), &mut paths);
+        for p in paths {
+            let text = std::fs::read_to_string(&p).expect("read");
+            let rel = p
+                .strip_prefix(root)
+                .expect("under root")
+                .display()
+                .to_string();
+            files.push((rel, text));
+        }
+    }
+    assert!(files.len() > 100, "{} source files", files.len());
+    let bad = oversized(&files);
+    assert!(
+        bad.is_empty(),
+        "{} oversized without a reason:\n{}",
+        bad.len(),
+        bad.join("\n")
+    );
+}
+
+#[test]
+fn the_size_check_measures_functions_and_takes_reasons() {
+    let body = |n: usize| "    let x = '{';\n    // }\n".repeat(n / 2);
+    let long = format!("fn long() {{\n{}}}\n", body(130));
+    let short = format!("pub(crate) fn short() {{\n{}}}\n", body(20));
+    let f = functions(&format!("{long}{short}"));
+    assert_eq!(f.len(), 2, "{f:?}");
+    assert_eq!((f[0].0.as_str(), f[0].1, f[0].2), ("long", 1, 132));
+    assert_eq!((f[1].0.as_str(), f[1].2), ("short", 22));
+    let bad = oversized(&[("a.rs".into(), long.clone())]);
+    assert_eq!(
+        bad,
+        vec!["a.rs:1: fn long has 132 lines and no `Long function:` reason"]
+    );
+    let why = format!("/// Long function: one pass that must stay one.\n{long}");
+    assert!(oversized(&[("a.rs".into(), why)]).is_empty());
+    let big = "// x\n".repeat(FILE_LINES + 1);
+    assert_eq!(oversized(&[("b.rs".into(), big.clone())]).len(), 1);
+    assert!(oversized(&[("b.rs".into(), format!("// Long file: tables.\n{big}"))]).is_empty());
 }

@@ -1,4 +1,4 @@
-//! The neural BRDF kernel (`shaders/nbrdf.wgsl`, `backend::gpu::neural`) against an f64
+//! The neural BRDF kernel (`crates/gpu/src/nbrdf.wgsl`, `backend::gpu::neural`) against an f64
 //! evaluation of the networks written here from SPEC 9 (weights read from the real
 //! `.npy` files by a parser of this file), itself checked against the f64 values of
 //! `nbrdf_check_values.csv`. Accuracy: SPEC 9 (5e-4 relative where the value exceeds

@@ -19,6 +19,9 @@ pub struct RhoVsN<'a> {
 }
 
 impl Draw for RhoVsN<'_> {
+    /// Long function: one figure drawn top to bottom (axes, a series per plan, the
+    /// capped markers, the legend) on one chart context, which plotters borrows mutably
+    /// for the whole drawing.
     fn draw<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,

@@ -2,23 +2,23 @@
 # SPDX-License-Identifier: MIT OR Apache-2.0
 """Generate brdf-basis's embedded default collection of Ashikhmin-Shirley materials.
 
-Every number written to ``data/default_collection.csv`` is computed here from the
+Every number written to ``crates/core/data/default_collection.csv`` is computed here from the
 physical inputs below (refractive indices, complex indices of metals, microfacet
 roughness, diffuse reflectances). Nothing is copied from a measured or fitted BRDF
 data set. Standard library only; the output is deterministic.
 
 Usage (from the repository root):
 
-    python3 data/make_default_collection.py            # writes data/default_collection.csv
-    python3 data/make_default_collection.py --table    # also prints the README's Markdown table
-    python3 data/make_default_collection.py --stdout   # prints the CSV instead of writing it
+    python3 crates/core/data/make_default_collection.py            # writes crates/core/data/default_collection.csv
+    python3 crates/core/data/make_default_collection.py --table    # also prints the README's Markdown table
+    python3 crates/core/data/make_default_collection.py --stdout   # prints the CSV instead of writing it
 
 The model (SPEC section 1), per channel c:
 
     f_c = d_c / pi + s_c * rho_s(F0, n)
     rho_s = (n + 1) (N.H)^n F(F0, wo.H) / (8 pi (wo.H) max(N.wi, N.wo)),  Schlick F.
 
-Rules applied here (see data/README.md for the discussion):
+Rules applied here (see crates/core/data/README.md for the discussion):
 
 * Dielectric:  F0 = ((eta - 1) / (eta + 1))^2 at 589.3 nm (sodium D line); white
   specular, s_r = s_g = s_b = S.

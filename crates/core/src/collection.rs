@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// The embedded default collection, authored by this project (see `data/README.md`).
+/// The embedded default collection, authored by this project (see `crates/core/data/README.md`).
 pub const DEFAULT_COLLECTION_CSV: &str = include_str!("../data/default_collection.csv");
 /// Name under which the embedded collection reports errors and provenance.
 pub const DEFAULT_COLLECTION_NAME: &str = "<embedded default collection>";
@@ -544,7 +544,7 @@ pub fn synthetic(n: usize, seed: u64) -> Collection {
 
 /// Parses an analytic CSV (SPEC 1) from bytes; `path` names the source in errors.
 ///
-/// Over 100 lines on purpose: one check per column and per value, each with its own error
+/// Long function: one check per column and per value, each with its own error
 /// naming the file, line and column, read top to bottom in SPEC 1's column order.
 pub fn parse_csv(bytes: &[u8], path: &Path) -> Result<Collection, CollectionError> {
     let mut rdr = csv::ReaderBuilder::new()

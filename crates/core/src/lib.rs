@@ -18,9 +18,9 @@
 //! use brdf_basis_core::distance::{distance_matrix, DistanceParams};
 //!
 //! let coll = Collection::embedded_default();
-//! let p = DistanceParams { stride: 8, ..Default::default() };
+//! let p = DistanceParams::default().stride(8).check(&coll).unwrap();
 //! let d = distance_matrix(&CpuBackend::new(), &coll, &p, &|_, _| {}).unwrap();
-//! assert_eq!(d.n, coll.len());
+//! assert_eq!(d.names().len(), coll.len());
 //! ```
 //!
 //! The back-end contract the GPU crate implements is [`backend::Backend`] (tabulate lobes

@@ -168,6 +168,10 @@ impl WeightedKernel {
     }
 
     /// Every target's system (see [`brdf_basis_core::backend::weighted`]) on the device.
+    ///
+    /// Long function: the chunked driver of the kernel: per chunk of cells the upload
+    /// of rows and weights, one dispatch per batch of targets, the f64 reduction and
+    /// the readback, with the buffers living across the loop.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,

@@ -179,6 +179,10 @@ impl NielsenModel {
 
     /// Trains on `nobs` observations given by `values(block)`: the value of each
     /// observation at each cell of `block` (`values(block)[o][j]`).
+    ///
+    /// Long function: two passes over the cells in blocks (medians, means and the Gram
+    /// matrix of the centred observations; then the components) that share the block
+    /// closure and whose loop order fixes the bits (comments inside).
     pub fn from_values(
         nobs: usize,
         cells: &[u32],

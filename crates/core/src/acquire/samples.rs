@@ -468,6 +468,9 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
     parse_astm_for(bytes, path, Purpose::Samples)
 }
 
+/// Long function: one check per header line and per value, each with its own error
+/// naming the file, line and column, read top to bottom as the format lays them out (as
+/// `parse_csv_for`).
 fn parse_astm_for(
     bytes: &[u8],
     path: &Path,

@@ -5,8 +5,8 @@
 //! # Plan, stage, commit
 //!
 //! ```no_run
-//! # fn main() -> Result<(), brdf_basis::error::OutputError> {
-//! use brdf_basis::atomic::OutputPlan;
+//! # fn main() -> Result<(), brdf_basis_core::error::OutputError> {
+//! use brdf_basis_core::atomic::OutputPlan;
 //! use std::path::{Path, PathBuf};
 //! let inputs = vec![PathBuf::from("coll.csv")];
 //! // 1. Before any work: every output path of the command, each with the flag that

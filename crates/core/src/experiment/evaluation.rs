@@ -235,6 +235,10 @@ pub fn visible_showcase(coll: &Collection, targets: &[usize]) -> usize {
 /// per basis, and the grid errors of every basis's fits from one pass over the cells for
 /// all of them ([`cell_sums`]: each material tabulated once per block of cells, not once per
 /// basis and channel); bases whose fits share no cell set get one pass per cell set.
+///
+/// Long function: two phases over the same per-basis state (the coefficients per cell
+/// set, then one grid pass per distinct cell set for every basis's errors), with
+/// `fit`'s arithmetic channel by channel so that the results are `fit`'s to the bit.
 fn fit_all(
     backend: &dyn Backend,
     coll: &Collection,

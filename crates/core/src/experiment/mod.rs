@@ -4,7 +4,7 @@
 //! command line (`reproduce`) only parses arguments and writes files.
 //!
 //! ```no_run
-//! use brdf_basis::{backend::cpu::CpuBackend, collection::Collection, experiment::*};
+//! use brdf_basis_core::{backend::cpu::CpuBackend, collection::Collection, experiment::*};
 //! let coll = Collection::embedded_default();
 //! let p = ExperimentParams { runs: 5, stride: 4, ..Default::default() }.check(&coll).unwrap();
 //! let e = run(&CpuBackend::new(), &coll, &p, &|_, _, _| {}).unwrap();
@@ -399,7 +399,7 @@ fn metric_list(coll: &Collection) -> Vec<(String, Metric, Weighting)> {
 
 /// Runs section VI on `coll`.
 ///
-/// Long (about 200 lines) on purpose: the seven stages of section VI run in order, each a
+/// Long function: the seven stages of section VI run in order, each a
 /// call to its own function with typed inputs and outputs, timed and reported between
 /// calls; splitting the sequence would only hide the order the paper describes.
 pub fn run(

@@ -236,7 +236,7 @@ fn normalize(v: [f64; 3]) -> [f64; 3] {
 impl RglBsdf {
     /// Validates the fields of a parsed container and builds the evaluation tables.
     ///
-    /// Over 100 lines on purpose: one check per field and per property (dtype, shape,
+    /// Long function: one check per field and per property (dtype, shape,
     /// agreement with `theta_i` and the RGB resolution, values), in the order Mitsuba's
     /// reader checks them, each with its own message.
     pub fn from_tensor(tf: &TensorFile, path: &Path) -> Result<Self, RglError> {

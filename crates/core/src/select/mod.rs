@@ -24,9 +24,9 @@
 //!   back by the same type, with the fingerprint of the collection or matrix it came from.
 //!
 //! ```no_run
-//! use brdf_basis::backend::cpu::CpuBackend;
-//! use brdf_basis::collection::Collection;
-//! use brdf_basis::select::*;
+//! use brdf_basis_core::backend::cpu::CpuBackend;
+//! use brdf_basis_core::collection::Collection;
+//! use brdf_basis_core::select::*;
 //! let coll = Collection::embedded_default();
 //! let cpu = CpuBackend::new();
 //! let op = ObjectiveParams::default().check()?;

@@ -217,6 +217,10 @@ impl PairwiseKernel {
 
     /// Reduces `op` of `lobes` over `cells` for the listed `BLOCK x BLOCK` block pairs:
     /// full `n x n`, f64. `plan` must be made for these lobes and cells.
+    ///
+    /// Long function: the chunked driver of the kernel: per chunk of cells the upload,
+    /// a dispatch per block shape and the f64 reduction, with the staging buffers and
+    /// readback living across the loop.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,

@@ -168,7 +168,7 @@ pub const MAX_PLAN_COLUMNS: usize = 16;
 /// `R = 4` was fixed before any held-out figure was looked at; the README gives the
 /// cross-validated figures with one and with four paths.
 ///
-/// Over 100 lines (in `plan_path`): one greedy loop whose three criteria share the
+/// Long (in `plan_path`): one greedy loop whose three criteria share the
 /// step's candidate pool, its values and the sampled state; each criterion's scoring is a
 /// closure over them.
 #[allow(clippy::needless_range_loop)]

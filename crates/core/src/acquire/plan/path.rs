@@ -5,6 +5,9 @@ use super::*;
 
 /// One greedy path of [`plan`] (its parameters checked), with the training materials'
 /// dense state `dense`.
+///
+/// Long function: one greedy loop whose three criteria share the step's candidate pool,
+/// its values and the sampled state; each criterion's scoring is a closure over them.
 #[allow(clippy::needless_range_loop)]
 pub(super) fn plan_path(
     coll: &Collection,

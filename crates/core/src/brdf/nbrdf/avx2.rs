@@ -229,6 +229,10 @@ unsafe fn load8(w: &[f32; NBRDF_WEIGHTS], at: usize) -> __m256 {
 ///
 /// # Safety
 /// The processor must support AVX2 and FMA.
+///
+/// Long function: the block kernel, operation for operation the portable `forward` with
+/// intrinsics; its register blocks are unrolled in place so that the accumulator chains
+/// stay in registers.
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn forward(
     w: &[f32; NBRDF_WEIGHTS],

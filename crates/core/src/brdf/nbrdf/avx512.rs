@@ -135,6 +135,10 @@ unsafe fn forward(w: &[f32; NBRDF_WEIGHTS], x: &[[V; 5]], y: &mut [[V; 3]], s: &
 }
 
 /// [`forward`] on `NZ` registers of sixteen cells (`x.len() == 2 NZ`).
+///
+/// Long function: the block kernel, operation for operation the portable `forward` with
+/// intrinsics; its register blocks are unrolled in place so that the accumulator chains
+/// stay in registers.
 #[inline]
 #[target_feature(enable = "avx512f,avx2,fma")]
 unsafe fn forward_n<const NZ: usize>(

@@ -268,6 +268,10 @@ impl Acc {
 /// Loose level: the fresh targets' gradients by register tiles (their signs set in the
 /// rows), then the carried targets' positive pairs; tight level: every positive pair from
 /// the signs ([`Memo`] per passive set and candidate, then [`pair_bound`]).
+///
+/// Long function: the screen's innermost kernel, inlined into its two levels (`TIGHT`)
+/// with register tiles unrolled by hand; a call boundary inside would cost the tiles
+/// their registers.
 #[inline(always)]
 pub(super) fn task_bounds_body<const TIGHT: bool>(
     sc: &Screen<'_>,

@@ -195,6 +195,10 @@ impl<'a> Screen<'a> {
     /// `old` of an earlier step where they serve (`cols` extends their columns, and each of
     /// `cands` has its rows); `None` when no candidate can be screened (the non-zero basis
     /// columns have no Cholesky factor).
+    ///
+    /// Long function: the bounds' data of every live target (factors, gradients, the
+    /// signs carried from an earlier step, the candidates' rows) built in one pass per
+    /// target whose parts share that target's state.
     pub(super) fn new(
         obj: &'a Objective,
         live: &'a [usize],

@@ -165,6 +165,10 @@ impl PartialOrd for Queued {
 ///
 /// With one group, `old` are the signs of the previous step of a greedy run (they serve
 /// where this basis extends that one), and the signs of this step come back with the result.
+///
+/// Long function: one best-first scan whose state (the bounds in order, the known
+/// scores, the cut-off `c` and its raise) every step reads and updates; the steps are
+/// documented above in order.
 pub(crate) fn best_first(
     obj: &Objective,
     addings: &[super::super::Adding],

@@ -1,0 +1,761 @@
+//! One fold of the acquisition cross-validation: the state every fold shares
+//! ([`Shared`]), the fold's plans and fits from samples, their scores, the `nielsen`
+//! baseline, and the noise model and ridge of the fits from samples.
+
+use super::*;
+
+/// One reconstruction of a fold: plan, n and noise indices, the held-out material's index
+/// in the fold and its coefficients per channel.
+type Rec = (usize, usize, usize, usize, [Vec<f64>; 3]);
+
+/// One fold's basis (names), the samples of the showcase's plan (empty unless it is
+/// the first method's first plan, not nielsen), its rows per plan, n and noise, the
+/// ridge strength per plan and n and the ridge's prior mean.
+pub(super) type FoldRows = (
+    Vec<String>,
+    Vec<Candidate>,
+    Vec<Vec<Vec<Cell>>>,
+    Vec<Vec<Option<f64>>>,
+    Option<[Vec<f64>; 3]>,
+);
+
+/// What every fold of every method shares: the checked settings, the fold bases, the
+/// renders of every material, the candidates and cells of the fit mask.
+pub(super) struct Shared<'a> {
+    backend: &'a dyn Backend,
+    coll: &'a Collection,
+    p: &'a AcqCvParams,
+    n: usize,
+    nmax: usize,
+    /// The objective's per-target weight of fits and plans (SPEC 11).
+    pub(super) weight: TargetWeight,
+    /// Fit parameters of the scores (l2: rho and MAE of SPEC 10).
+    fp: FitParams,
+    /// Fit parameters of the objective's fits and plans.
+    fp_obj: FitParams,
+    pub(super) folds: Vec<Vec<usize>>,
+    /// `bases[method][0][fold]`.
+    pub(super) bases: Vec<Vec<Vec<Vec<usize>>>>,
+    grid: GridEval<'a>,
+    pub(super) rp: RenderParams,
+    pub(super) display: DisplayParams,
+    pixels: PixelBrdfs,
+    pub(super) originals: Vec<Image>,
+    pub(super) names: Vec<String>,
+    pub(super) cands: Vec<Candidate>,
+    pub(super) cellset: crate::merl::grid::CellSet,
+    lights: Vec<LightRenders>,
+}
+
+/// Where one fold is: its method and index, basis, held-out and training materials.
+struct FoldAt<'b> {
+    mi: usize,
+    f: usize,
+    basis: &'b [usize],
+    held: &'b [usize],
+    train: &'b [usize],
+}
+
+/// The scores of a fold's reconstructions, the dense fits first (index `t` of `held`),
+/// then every reconstruction (`held.len() + r` for `recs[r]`).
+struct Scored {
+    maes: Vec<f64>,
+    ies: Vec<f64>,
+    looks: Vec<Option<Appearance>>,
+    /// rho of each held-out material's dense fit.
+    dense_rho: Vec<f64>,
+}
+
+impl<'a> Shared<'a> {
+    /// Checks the settings, then chooses every fold's basis and renders, tabulates and
+    /// lists what the folds share.
+    pub(super) fn new(
+        backend: &'a dyn Backend,
+        coll: &'a Collection,
+        p: &'a AcqCvParams,
+    ) -> Result<Self, AcquireError> {
+        let n = coll.len();
+        let nmax = p.ns.iter().copied().max().unwrap_or(0);
+        if nmax == 0 || p.plans.is_empty() || p.methods.is_empty() {
+            return Err(AcquireError::InvalidParam {
+                name: "plans / methods / n",
+                value: format!("{} / {} / {:?}", p.plans.len(), p.methods.len(), p.ns),
+                expected: "at least one plan, one method and one n >= 1",
+            });
+        }
+        if let Some(s) = p.noises.iter().find(|s| !s.is_finite() || **s < 0.0) {
+            return Err(AcquireError::InvalidParam {
+                name: "noise",
+                value: s.to_string(),
+                expected: "finite relative noise levels >= 0",
+            });
+        }
+        let vp = CvParams {
+            methods: p.methods.clone(),
+            ks: vec![p.k],
+            folds: p.folds,
+            seed: p.seed,
+            objective: p.objective.clone(),
+            ..CvParams::default()
+        }
+        .check(n)?;
+        // The objective's fits and plans; the scores (rho, MAE: SPEC 10) are l2's.
+        let fp_obj = p.objective.fit_params();
+        let weight = fp_obj
+            .objective
+            .check()
+            .map_err(crate::fit::FitError::from)?;
+        let fp = FitParams {
+            objective: TargetWeight::L2,
+            ..fp_obj.clone()
+        };
+        let obj = Objective::new(backend, coll, &p.objective.check()?, &|_, _| {})?;
+        let dist = if p.methods.iter().any(|m| m.clustering()) {
+            let dp = DistanceParams::default()
+                .metric(vp.params().metric)
+                .mask(fp.mask)
+                .weighting(fp.weighting)
+                .stride(fp.stride)
+                .check(coll)
+                .map_err(crate::select::SelectionError::from)?;
+            Some(
+                distance_matrix(backend, coll, &dp, &|_, _| {})
+                    .map_err(crate::select::SelectionError::from)?,
+            )
+        } else {
+            None
+        };
+        let folds = make_folds(n, p.folds, p.seed);
+        let bases = fold_bases(&obj, dist.as_ref(), &folds, &vp, &|_, _| {})?;
+        let grid = GridEval::new(coll, &fp);
+        let rp = RenderParams::default()
+            .with_size(p.render_size)
+            .with_light(45.0, 45.0);
+        let display = DisplayParams::default();
+        let pixels = PixelBrdfs::new(coll, &rp).map_err(|e| AcquireError::Render(e.to_string()))?;
+        let originals: Vec<_> = (0..n)
+            .map(|t| render_sphere(&rp, &pixels.material(t)))
+            .collect::<Result<_, _>>()
+            .map_err(|e| AcquireError::Render(e.to_string()))?;
+        let names = coll.names();
+        let all: Vec<usize> = (0..n).collect();
+        let cands = cell_candidates(coll, &all, &fp)?;
+        let cellset = fit_cells(coll, &all, &fp)?;
+        let lights = if p.appearance {
+            LightRenders::all(coll).map_err(|e| AcquireError::Render(e.to_string()))?
+        } else {
+            Vec::new()
+        };
+        Ok(Self {
+            backend,
+            coll,
+            p,
+            n,
+            nmax,
+            weight,
+            fp,
+            fp_obj,
+            folds,
+            bases,
+            grid,
+            rp,
+            display,
+            pixels,
+            originals,
+            names,
+            cands,
+            cellset,
+            lights,
+        })
+    }
+
+    /// `acc[plan][n][noise]`, empty.
+    pub(super) fn empty_cells(&self) -> Vec<Vec<Vec<Cell>>> {
+        let p = self.p;
+        vec![vec![vec![(Vec::new(), Vec::new()); p.noises.len()]; p.ns.len()]; p.plans.len()]
+    }
+
+    /// Fold `f` of method `mi` (held-out materials `held`): its basis's names, the
+    /// showcase's samples, its rows per plan, n and noise, the ridge strengths per plan
+    /// and n, and the ridge's prior mean.
+    pub(super) fn fold(
+        &self,
+        mi: usize,
+        f: usize,
+        held: &[usize],
+    ) -> Result<FoldRows, AcquireError> {
+        let (p, coll, n) = (self.p, self.coll, self.n);
+        let basis = &self.bases[mi][0][f];
+        let named: Vec<String> = basis.iter().map(|&b| self.names[b].clone()).collect();
+        let train: Vec<usize> = (0..n)
+            .filter(|i| held.binary_search(i).is_err() && !basis.contains(i))
+            .collect();
+        let dense = Dense::new(self.backend, coll, basis, held, &self.fp)?;
+        let prior = if p.ridge && !train.is_empty() {
+            // On the CPU twin, as the limits: the same ridge on every back-end.
+            Some(Prior::new(
+                &CpuBackend::new(),
+                coll,
+                basis,
+                &train,
+                &self.fp_obj,
+            )?)
+        } else {
+            None
+        };
+        let dense_x = self.dense_limits(basis, held, &dense)?;
+        let at = FoldAt {
+            mi,
+            f,
+            basis,
+            held,
+            train: &train,
+        };
+        let mut acc = self.empty_cells();
+        let mut ridges: Vec<Vec<Option<f64>>> = vec![vec![None; p.ns.len()]; p.plans.len()];
+        let (recs, show) = self.our_plans(&at, prior.as_ref(), &mut acc, &mut ridges)?;
+        let sc = self.score(&at, &dense, &dense_x, &recs)?;
+        let (names, (maes, ies, looks, dense_rho)) =
+            (&self.names, (&sc.maes, &sc.ies, &sc.looks, &sc.dense_rho));
+        for (r, (pi, ni, si, t, x)) in recs.iter().enumerate() {
+            let i = held.len() + r;
+            acc[*pi][*ni][*si].0.push(AcqHeldOut {
+                material: names[held[*t]].clone(),
+                fold: f,
+                rho: dense.rho(*t, x),
+                dense_rho: dense_rho[*t],
+                mae: maes[i],
+                image_error: ies[i],
+                dense_mae: maes[*t],
+                dense_image_error: ies[*t],
+                appearance: looks[i].clone(),
+                dense_appearance: looks[*t].clone(),
+            });
+        }
+        self.nielsen_plans(&at, &sc, &mut acc)?;
+        Ok((named, show, acc, ridges, prior.map(|p| p.mean)))
+    }
+
+    /// The dense fit of each held-out material (the limit). Under an objective the
+    /// per-target weighted systems come from the CPU twin: they agree between back-ends
+    /// only within `WEIGHTED_TOLERANCE`, which an ill-conditioned fit amplifies, and the
+    /// limit is a small pass beside the plans; so the JSON is the same on every back-end.
+    fn dense_limits(
+        &self,
+        basis: &[usize],
+        held: &[usize],
+        dense: &Dense,
+    ) -> Result<Vec<[Vec<f64>; 3]>, AcquireError> {
+        let (coll, mm) = (self.coll, basis.len() + 1);
+        Ok(if self.weight != TargetWeight::L2 {
+            crate::fit::fit(
+                &CpuBackend::new(),
+                coll,
+                basis,
+                held,
+                &self.fp_obj,
+                &|_, _| {},
+            )?
+            .into_iter()
+            .map(|tf| [0, 1, 2].map(|c| tf.coefficients.iter().map(|a| a[c]).collect()))
+            .collect()
+        } else {
+            (0..held.len())
+                .into_par_iter()
+                .map(|t| -> Result<[Vec<f64>; 3], AcquireError> {
+                    let x = [0, 1, 2].map(|c| {
+                        let g = &dense.g[c];
+                        GramProblem::new(mm, &g.gram, &g.h[t * mm..(t + 1) * mm], g.bb[t])
+                            .and_then(|pr| {
+                                lawson_hanson::solve(&pr, &lawson_hanson::LhParams::default())
+                            })
+                            .map(|s| s.x)
+                    });
+                    let [a, b, c] = x;
+                    Ok([a?, b?, c?])
+                })
+                .collect::<Result<_, _>>()?
+        })
+    }
+
+    /// Every reconstruction of the fold by a plan of ours: (plan, n, noise, held-out index,
+    /// coefficients per channel), scored together by [`Self::score`] (one pass over the
+    /// grid for every MAE, renders from the pixel table); the plans' samples go to `acc`,
+    /// the ridge strengths to `ridges`. Also returns the showcase's samples (the first
+    /// method's first plan).
+    #[allow(clippy::needless_range_loop)]
+    fn our_plans(
+        &self,
+        at: &FoldAt<'_>,
+        prior: Option<&Prior>,
+        acc: &mut [Vec<Vec<Cell>>],
+        ridges: &mut [Vec<Option<f64>>],
+    ) -> Result<(Vec<Rec>, Vec<Candidate>), AcquireError> {
+        let (p, coll, backend, nmax, weight) =
+            (self.p, self.coll, self.backend, self.nmax, self.weight);
+        let (mi, f, basis, held, train) = (at.mi, at.f, at.basis, at.held, at.train);
+        let (cands, fp_obj, mm) = (&self.cands, &self.fp_obj, basis.len() + 1);
+        let mut show = Vec::new();
+        let mut recs: Vec<Rec> = Vec::new();
+        let seed_f = p.seed.wrapping_add(1000 * f as u64);
+        for (pi, &crit) in p.plans.iter().enumerate() {
+            if crit == Criterion::Nielsen {
+                continue;
+            }
+            let pp = PlanParams {
+                n: nmax,
+                criterion: crit,
+                candidates_per_step: p.candidates_per_step,
+                shortlist: p.shortlist,
+                seed: seed_f,
+                fit: fp_obj.clone(),
+                restarts: p.restarts,
+            };
+            // Condition and random plans need no training materials (but for the
+            // shared weights of an objective): without them `plan` skips the
+            // training-score history the results never use.
+            let train_of = if crit == Criterion::Error
+                || (crit == Criterion::Condition && weight != TargetWeight::L2)
+            {
+                train
+            } else {
+                &[]
+            };
+            let chosen = plan(backend, coll, basis, train_of, cands, &pp)?.chosen;
+            let samples: Vec<PlannedSample> = chosen.iter().map(PlannedSample::from).collect();
+            if mi == 0 && pi == 0 {
+                show = chosen.clone();
+            }
+            let mut mats = basis.to_vec();
+            mats.extend_from_slice(held);
+            let vals = values_at(coll, &mats, &chosen)?;
+            let cos: Vec<f64> = chosen.iter().map(|c| c.wi[2]).collect();
+            let lambdas: Vec<f64> = match &prior {
+                Some(pr) => {
+                    let tv = values_at(coll, train, &chosen)?;
+                    // With at least as many samples as unknowns the samples
+                    // determine the fit: no prior.
+                    p.ns.iter()
+                        .map(|&ns| {
+                            if ns.min(nmax) >= mm {
+                                Ok(0.0)
+                            } else {
+                                pr.choose(&vals, &tv, ns.min(nmax), weight, &cos)
+                            }
+                        })
+                        .collect::<Result<_, AcquireError>>()?
+                }
+                None => vec![0.0; p.ns.len()],
+            };
+            if prior.is_some() {
+                for (ni, &l) in lambdas.iter().enumerate() {
+                    ridges[pi][ni] = Some(l);
+                }
+            }
+            let toward = |ni: usize| prior.map(|pr| (&pr.mean, lambdas[ni]));
+            for si in 0..p.noises.len() {
+                let sigma = p.noises[si];
+                // Noisy measurements of every held-out material at the nmax samples.
+                let ys: Vec<[Vec<f64>; 3]> = held
+                    .iter()
+                    .enumerate()
+                    .map(|(t, &ti)| {
+                        measure(p.seed, ti, si, sigma, nmax, |c, s| {
+                            vals[c][basis.len() + t][s]
+                        })
+                    })
+                    .collect();
+                for (ni, &ns) in p.ns.iter().enumerate() {
+                    let xs: Vec<[Vec<f64>; 3]> = (0..held.len())
+                        .into_par_iter()
+                        .map(|t| {
+                            sample_coefficients(
+                                basis.len(),
+                                &vals,
+                                &ys[t],
+                                ns,
+                                weight,
+                                &cos,
+                                toward(ni),
+                            )
+                        })
+                        .collect::<Result<_, _>>()?;
+                    recs.extend(xs.into_iter().enumerate().map(|(t, x)| (pi, ni, si, t, x)));
+                    acc[pi][ni][si].1.push(samples[..ns].to_vec());
+                }
+            }
+        }
+        Ok((recs, show))
+    }
+
+    /// MAE, image error and appearance of the fold's dense fits (first) and of every
+    /// reconstruction in `recs`, and the dense fits' rho.
+    fn score(
+        &self,
+        at: &FoldAt<'_>,
+        dense: &Dense,
+        dense_x: &[[Vec<f64>; 3]],
+        recs: &[Rec],
+    ) -> Result<Scored, AcquireError> {
+        let (p, basis, held, mm) = (self.p, at.basis, at.held, at.basis.len() + 1);
+        let (grid, lights, pixels, rp, display, originals) = (
+            &self.grid,
+            &self.lights,
+            &self.pixels,
+            &self.rp,
+            &self.display,
+            &self.originals,
+        );
+        let coefs: Vec<Vec<[f64; 3]>> = dense_x
+            .iter()
+            .chain(recs.iter().map(|r| &r.4))
+            .map(|x| (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect())
+            .collect();
+        let target = |i: usize| {
+            held[if i < held.len() {
+                i
+            } else {
+                recs[i - held.len()].3
+            }]
+        };
+        let jobs: Vec<MaeJob<'_>> = coefs
+            .iter()
+            .enumerate()
+            .map(|(i, coef)| MaeJob {
+                basis,
+                target: target(i),
+                coef,
+            })
+            .collect();
+        let (maes, logs): (Vec<f64>, Vec<f64>) = if p.appearance {
+            grid.sums(&jobs).into_iter().unzip()
+        } else {
+            (grid.maes(&jobs), Vec::new())
+        };
+        let looks: Vec<Option<Appearance>> = if p.appearance {
+            coefs
+                .par_iter()
+                .enumerate()
+                .map(|(i, coef)| {
+                    let mut a = LightRenders::scores(lights, target(i), basis, coef)
+                        .map_err(|e| AcquireError::Render(e.to_string()))?;
+                    a.log_rmse = logs[i];
+                    Ok(Some(a))
+                })
+                .collect::<Result<_, AcquireError>>()?
+        } else {
+            vec![None; coefs.len()]
+        };
+        let ies: Vec<f64> = coefs
+            .par_iter()
+            .enumerate()
+            .map(|(i, coef)| {
+                render_error(pixels, rp, display, &originals[target(i)], basis, coef).map(|r| r.1)
+            })
+            .collect::<Result<_, _>>()?;
+        let dense_rho: Vec<f64> = (0..held.len()).map(|t| dense.rho(t, &dense_x[t])).collect();
+        Ok(Scored {
+            maes,
+            ies,
+            looks,
+            dense_rho,
+        })
+    }
+
+    /// The `nielsen` rows of the fold (SPEC 10's peer baseline): its own model of every
+    /// training material of the fold (no basis), plan and reconstruction of each held-out
+    /// material, beside the dense fit of our basis.
+    fn nielsen_plans(
+        &self,
+        at: &FoldAt<'_>,
+        sc: &Scored,
+        acc: &mut [Vec<Vec<Cell>>],
+    ) -> Result<(), AcquireError> {
+        let (p, coll, n, nmax) = (self.p, self.coll, self.n, self.nmax);
+        let (f, held, names, cands, cellset) =
+            (at.f, at.held, &self.names, &self.cands, &self.cellset);
+        let (rp, display, lights, originals) =
+            (&self.rp, &self.display, &self.lights, &self.originals);
+        let (maes, ies, looks, dense_rho) = (&sc.maes, &sc.ies, &sc.looks, &sc.dense_rho);
+        let seed_f = p.seed.wrapping_add(1000 * f as u64);
+        for (pi, &crit) in p.plans.iter().enumerate() {
+            if crit != Criterion::Nielsen {
+                continue;
+            }
+            // The peer baseline: its own model of every training material of the
+            // fold (no basis), plan and reconstruction.
+            let train_all: Vec<usize> = (0..n).filter(|i| held.binary_search(i).is_err()).collect();
+            let model = NielsenModel::train(coll, &train_all, &cellset.cells, nmax)?;
+            let chosen = model.plan(nmax, nielsen_per_step(p.candidates_per_step), seed_f);
+            let samples: Vec<PlannedSample> = chosen
+                .iter()
+                .map(|&j| PlannedSample::from(&cands[j]))
+                .collect();
+            let nf = NielsenFold {
+                coll,
+                model: &model,
+                chosen: &chosen,
+                weights: &cellset.weights,
+                rp,
+                display,
+                lights,
+            };
+            let per: Vec<Vec<Vec<Scores>>> = held
+                .par_iter()
+                .map(|&ti| nielsen_rows(&nf, p, ti, &originals[ti]))
+                .collect::<Result<_, _>>()?;
+            for (ni, &ns) in p.ns.iter().enumerate() {
+                for si in 0..p.noises.len() {
+                    let rows = held.iter().enumerate().map(|(t, &ti)| {
+                        let (rho, mae, image_error, appearance) = per[t][ni][si].clone();
+                        AcqHeldOut {
+                            material: names[ti].clone(),
+                            fold: f,
+                            rho,
+                            dense_rho: dense_rho[t],
+                            mae,
+                            image_error,
+                            dense_mae: maes[t],
+                            dense_image_error: ies[t],
+                            appearance,
+                            dense_appearance: looks[t].clone(),
+                        }
+                    });
+                    acc[pi][ni][si].0.extend(rows);
+                    acc[pi][ni][si]
+                        .1
+                        .push(samples[..ns.min(samples.len())].to_vec());
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Noisy measurements `f (1 + sigma N(0, 1))` of held-out material `ti` (collection index)
+/// at `nmax` samples, `f(c, s)` its noise-free value: one draw per sample and channel,
+/// seeded per material and noise level (the same draws for every plan).
+pub(super) fn measure(
+    seed: u64,
+    ti: usize,
+    si: usize,
+    sigma: f64,
+    nmax: usize,
+    f: impl Fn(usize, usize) -> f64,
+) -> [Vec<f64>; 3] {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+        seed ^ ((ti as u64 + 1) << 20) ^ ((si as u64 + 1) << 8),
+    );
+    let mut y: [Vec<f64>; 3] = Default::default();
+    for s in 0..nmax {
+        for (c, yc) in y.iter_mut().enumerate() {
+            let z = standard_normal(&mut rng);
+            yc.push(f(c, s) * (1.0 + sigma * z));
+        }
+    }
+    y
+}
+
+/// Per-channel sample fit (Lambertian + basis, SPEC 10) of the first `ns` samples:
+/// `vals[c][b][s]` the basis values, `y[c]` the measurements, each sample weighted by the
+/// objective's weight at its measured value and `cos[s]`, its `cos theta_i` (SPEC 11).
+#[allow(clippy::needless_range_loop)]
+pub(super) fn sample_coefficients(
+    nb: usize,
+    vals: &[Vec<Vec<f64>>; 3],
+    y: &[Vec<f64>; 3],
+    ns: usize,
+    weight: TargetWeight,
+    cos: &[f64],
+    toward: Option<(&[Vec<f64>; 3], f64)>,
+) -> Result<[Vec<f64>; 3], AcquireError> {
+    let mm = nb + 1;
+    let mut x: [Vec<f64>; 3] = Default::default();
+    for c in 0..3 {
+        let mut r = Vec::with_capacity(ns * mm);
+        for s in 0..ns {
+            r.push(FRAC_1_PI);
+            r.extend((0..nb).map(|b| vals[c][b][s]));
+        }
+        let w: Vec<f64> = (0..ns).map(|s| weight.phi(y[c][s], cos[s])).collect();
+        let pr = toward.map(|(mean, l)| (&mean[c][..], l));
+        x[c] = solve_rows_toward(mm, &r, &y[c][..ns], &w, pr)?.x;
+    }
+    Ok(x)
+}
+
+/// The ridge of the fits from samples (SPEC 10, beside it in `docs/acquisition.md`): the
+/// mean over a fold's training materials of their dense fits (under the objective's
+/// shared weights), and those materials' dense state to score their fits from samples.
+struct Prior {
+    /// Per channel, the mean coefficients (Lambertian first).
+    mean: [Vec<f64>; 3],
+    /// The training materials' full-mask Gram quantities (shared weights).
+    dense: Dense,
+}
+
+impl Prior {
+    fn new(
+        backend: &dyn Backend,
+        coll: &Collection,
+        basis: &[usize],
+        train: &[usize],
+        fp: &FitParams,
+    ) -> Result<Self, AcquireError> {
+        let dense = Dense::new(backend, coll, basis, train, fp)?;
+        let m = dense.m;
+        let mut mean = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
+        for (c, mc) in mean.iter_mut().enumerate() {
+            let g = &dense.g[c];
+            let xs = crate::nnls::GramBatch::new(
+                m,
+                &g.gram,
+                &g.h[..train.len() * m],
+                &g.bb[..train.len()],
+            )
+            .and_then(|b| lawson_hanson::solve_batch(&b, &lawson_hanson::LhParams::default()))?;
+            for s in &xs {
+                for (a, x) in mc.iter_mut().zip(&s.x) {
+                    *a += x / train.len() as f64;
+                }
+            }
+        }
+        Ok(Self { mean, dense })
+    }
+
+    /// The ridge strength of [`RIDGE_STRENGTHS`] whose fits of the training materials
+    /// from their noise-free values `tv[c][t][s]` at the first `ns` samples (basis values
+    /// `vals[c][b][s]`) have the lowest mean score (`rho` under the shared weights on the
+    /// whole mask); ties to the weaker ridge.
+    #[allow(clippy::needless_range_loop)]
+    fn choose(
+        &self,
+        vals: &[Vec<Vec<f64>>; 3],
+        tv: &[Vec<Vec<f64>>; 3],
+        ns: usize,
+        weight: TargetWeight,
+        cos: &[f64],
+    ) -> Result<f64, AcquireError> {
+        let nb = self.dense.m - 1;
+        let nt = tv[0].len();
+        let scores: Vec<f64> = RIDGE_STRENGTHS
+            .par_iter()
+            .map(|&l| -> Result<f64, AcquireError> {
+                let mut sum = 0.0;
+                for t in 0..nt {
+                    let y = [0, 1, 2].map(|c| tv[c][t].clone());
+                    let x =
+                        sample_coefficients(nb, vals, &y, ns, weight, cos, Some((&self.mean, l)))?;
+                    sum += self.dense.rho(t, &x);
+                }
+                Ok(sum / nt.max(1) as f64)
+            })
+            .collect::<Result<_, _>>()?;
+        let mut best = 0;
+        for (i, v) in scores.iter().enumerate() {
+            if *v < scores[best] {
+                best = i;
+            }
+        }
+        Ok(RIDGE_STRENGTHS[best])
+    }
+}
+
+/// What the `nielsen` rows of one fold share.
+struct NielsenFold<'a> {
+    coll: &'a Collection,
+    model: &'a NielsenModel,
+    chosen: &'a [usize],
+    weights: &'a [f64],
+    rp: &'a RenderParams,
+    display: &'a DisplayParams,
+    lights: &'a [LightRenders],
+}
+
+/// Held-out material `ti` reconstructed by the `nielsen` baseline from its first n samples,
+/// per n and noise level (`[n][noise]`): rho and MAE on every model cell (the fit mask),
+/// image error of the render.
+fn nielsen_rows(
+    nf: &NielsenFold<'_>,
+    p: &AcqCvParams,
+    ti: usize,
+    original: &Image,
+) -> Result<Vec<Vec<Scores>>, AcquireError> {
+    let cpu = CpuBackend::new();
+    let data = &nf.coll.materials()[ti].data;
+    let tv = super::super::nielsen::channel_values(&cpu, data, &nf.model.cells);
+    let e: f64 = tv
+        .iter()
+        .map(|t| {
+            t.iter()
+                .zip(nf.weights)
+                .map(|(v, w)| w * v * v)
+                .sum::<f64>()
+        })
+        .sum();
+    let nmax = nf.chosen.len();
+    let mut out = vec![Vec::with_capacity(p.noises.len()); p.ns.len()];
+    for (si, &sigma) in p.noises.iter().enumerate() {
+        let y = measure(p.seed, ti, si, sigma, nmax, |c, s| tv[c][nf.chosen[s]]);
+        for (ni, &ns) in p.ns.iter().enumerate() {
+            let ns = ns.min(nmax);
+            let coef: [Vec<f64>; 3] =
+                [0, 1, 2].map(|c| nf.model.coefficients(&nf.chosen[..ns], &y[c][..ns], ETA));
+            let (mut sq, mut ab) = (0.0, 0.0);
+            for c in 0..3 {
+                for (j, (&t, &w)) in tv[c].iter().zip(nf.weights).enumerate() {
+                    let r = nf.model.value(j, &coef[c]) - t;
+                    sq += w * r * r;
+                    ab += w * r.abs();
+                }
+            }
+            let img = render_sphere(nf.rp, &nf.model.brdf(&coef))
+                .map_err(|e| AcquireError::Render(e.to_string()))?;
+            let ie = normalized_image_error(original, &img, nf.display)
+                .map_err(|e| AcquireError::Render(e.to_string()))?;
+            let looks = if nf.lights.is_empty() {
+                None
+            } else {
+                let brdf = nf.model.brdf(&coef);
+                let mut a =
+                    LightRenders::scores_of(nf.lights, ti, |l| render_sphere(l.params(), &brdf))
+                        .map_err(|e| AcquireError::Render(e.to_string()))?;
+                let mut logs = LogSums::default();
+                for c in 0..3 {
+                    for (j, (&t, &w)) in tv[c].iter().zip(nf.weights).enumerate() {
+                        let cos = crate::backend::weighted::cos_theta_i(nf.model.cells[j] as usize);
+                        logs.add(nf.model.value(j, &coef[c]), t, w, cos);
+                    }
+                }
+                a.log_rmse = logs.value();
+                Some(a)
+            };
+            out[ni].push((if e > 0.0 { sq / e } else { 0.0 }, ab / 3.0, ie, looks));
+        }
+    }
+    Ok(out)
+}
+
+/// The render of `combination_brdf(coll, basis, coef)` from `pixels` and its image error
+/// against `original`.
+pub(super) fn render_error(
+    pixels: &PixelBrdfs,
+    rp: &RenderParams,
+    display: &DisplayParams,
+    original: &Image,
+    basis: &[usize],
+    coef: &[[f64; 3]],
+) -> Result<(Image, f64), AcquireError> {
+    let img = render_sphere(rp, &pixels.combination(basis, coef))
+        .map_err(|e| AcquireError::Render(e.to_string()))?;
+    let ie = normalized_image_error(original, &img, display)
+        .map_err(|e| AcquireError::Render(e.to_string()))?;
+    Ok((img, ie))
+}
+
+/// A standard normal draw (Box-Muller on two uniform draws in (0, 1]).
+fn standard_normal(rng: &mut rand_chacha::ChaCha8Rng) -> f64 {
+    let u1 = 1.0 - rand::Rng::random::<f64>(rng);
+    let u2 = rand::Rng::random::<f64>(rng);
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
