@@ -568,15 +568,18 @@ fn the_module_graph_of_src_has_no_import_cycle() {
     }
 }
 
+/// Writes `text` to `src/rel`, making its directories.
+fn put_file(src: &Path, rel: &str, text: &str) {
+    let p = src.join(rel);
+    std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
+    std::fs::write(&p, text).expect("write");
+}
+
 #[test]
 fn the_cycle_check_finds_a_planted_cycle_and_ignores_containment() {
     let d = crate::common::tmp();
     let src = d.path();
-    let put = |rel: &str, text: &str| {
-        let p = src.join(rel);
-        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
-        std::fs::write(&p, text).expect("write");
-    };
+    let put = |rel: &str, text: &str| put_file(src, rel, text);
     put("lib.rs", "pub mod a;\npub mod b;\npub mod c;\n");
     put(
         "a/mod.rs",
@@ -611,11 +614,7 @@ fn the_cycle_check_finds_a_planted_cycle_and_ignores_containment() {
 fn the_cycle_check_sees_through_a_parents_pub_use() {
     let d = crate::common::tmp();
     let src = d.path();
-    let put = |rel: &str, text: &str| {
-        let p = src.join(rel);
-        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
-        std::fs::write(&p, text).expect("write");
-    };
+    let put = |rel: &str, text: &str| put_file(src, rel, text);
     // The shape of the old io::npy <-> io::saved cycle: the error type defined in one child
     // and re-exported by the parent, the other child using it through the parent.
     put("lib.rs", "mod api;\npub use api::*;\npub mod io;\n");
@@ -679,11 +678,7 @@ fn the_cycle_check_sees_through_a_parents_pub_use() {
 fn the_cycle_check_sends_another_crates_modules_out_of_the_crate() {
     let d = crate::common::tmp();
     let src = d.path();
-    let put = |rel: &str, text: &str| {
-        let p = src.join(rel);
-        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
-        std::fs::write(&p, text).expect("write");
-    };
+    let put = |rel: &str, text: &str| put_file(src, rel, text);
     // The facade's layout: the core's modules re-exported at the root beside a glob.
     put(
         "lib.rs",

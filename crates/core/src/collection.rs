@@ -476,7 +476,7 @@ pub const MAX_CSV_BYTES: u64 = 256 << 20;
 
 /// Reads a regular file of at most `max` bytes. Anything else (a FIFO, a device, a
 /// socket) is refused from its metadata, before it is opened, so that reading never blocks.
-pub fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, CollectionError> {
+pub(crate) fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, CollectionError> {
     let io = |source| CollectionError::Io {
         path: path.to_path_buf(),
         source,
@@ -502,7 +502,7 @@ pub fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, CollectionError> {
 /// messages, reports and JSON), no comma (flags take comma-separated lists of names).
 /// Names never choose a path (see `cli::fit` for exported files), so `/` and `..` are
 /// allowed. Returns what is wrong.
-pub fn check_name(name: &str) -> Result<(), String> {
+pub(crate) fn check_name(name: &str) -> Result<(), String> {
     if name.trim().is_empty() {
         return Err("empty material name".into());
     }

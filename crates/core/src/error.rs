@@ -10,7 +10,7 @@ pub const NAME_CHARS: usize = 60;
 /// character outside printable ASCII escaped, cut to [`NAME_CHARS`] characters followed
 /// by `... (N characters)`, so that a corrupt header (a name of 60,000 random bytes) is
 /// not echoed as raw bytes.
-pub fn field_name(name: &str) -> String {
+pub(crate) fn field_name(name: &str) -> String {
     let esc: String = name
         .chars()
         .map(|c| {

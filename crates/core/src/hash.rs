@@ -74,12 +74,12 @@ impl Hasher {
 }
 
 /// A hash as 16 lower-case hex digits.
-pub fn hex(h: u64) -> String {
+pub(crate) fn hex(h: u64) -> String {
     format!("{h:016x}")
 }
 
 /// The XXH3-64 of `bytes`, as 16 hex digits.
-pub fn hex_of(bytes: &[u8]) -> String {
+pub(crate) fn hex_of(bytes: &[u8]) -> String {
     hex(xxhash_rust::xxh3::xxh3_64(bytes))
 }
 

@@ -223,7 +223,7 @@ pub(crate) fn shape_text(shape: &[u64]) -> String {
 
 /// Parses the text of a `.npy` header (the dict literal) for a 2-D little-endian
 /// float64 C-order array; returns `(rows, cols)`. The message says what is wrong.
-pub fn parse_header_dict(text: &str) -> Result<(usize, usize), String> {
+pub(crate) fn parse_header_dict(text: &str) -> Result<(usize, usize), String> {
     let (descr, fortran, shape) = header_fields(text)?;
     if descr != "<f8" {
         return Err(format!(
@@ -247,7 +247,7 @@ pub fn parse_header_dict(text: &str) -> Result<(usize, usize), String> {
 
 /// Parses the text of a `.npy` header for a little-endian float32 C-order array of 1 or
 /// 2 dimensions; returns its shape. The message says what is wrong.
-pub fn parse_header_f32(text: &str) -> Result<Vec<usize>, String> {
+pub(crate) fn parse_header_f32(text: &str) -> Result<Vec<usize>, String> {
     let (descr, fortran, shape) = header_fields(text)?;
     if descr != "<f4" {
         return Err(format!(
@@ -272,7 +272,10 @@ pub fn parse_header_f32(text: &str) -> Result<Vec<usize>, String> {
 
 /// Reads the magic, version, length and header text of the `.npy` at the start of `r`,
 /// hashing the bytes read; returns the text and the offset of the data, or what is wrong.
-pub fn read_header_text(r: &mut impl Read, hash: &mut Hasher) -> Result<(String, u64), String> {
+pub(crate) fn read_header_text(
+    r: &mut impl Read,
+    hash: &mut Hasher,
+) -> Result<(String, u64), String> {
     let bad = |message: String| message;
     let mut magic = [0u8; 8];
     r.read_exact(&mut magic)
@@ -332,7 +335,7 @@ pub struct NpyF32 {
 /// regular file, shorter or longer than its shape says, or larger than the limit is
 /// refused with what is wrong (the caller names the file); the values are returned as stored (NaN included: the
 /// caller checks what they mean).
-pub fn read_npy_f32(path: &Path, max_values: usize) -> Result<NpyF32, String> {
+pub(crate) fn read_npy_f32(path: &Path, max_values: usize) -> Result<NpyF32, String> {
     let io = |e: std::io::Error| format!("cannot read: {e}");
     let bad = |message: String| message;
     let meta = std::fs::metadata(path).map_err(io)?;

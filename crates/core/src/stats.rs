@@ -421,7 +421,7 @@ pub struct NemenyiResult {
 /// `q_alpha` is computed, not tabulated; the tests check it against Demšar's table of
 /// `q_0.05` and `q_0.10` for `k = 2..10` and against `q_0.05` for `k` up to 20 (Harter
 /// 1960, doi:10.1080/01621459.1960.10483369).
-pub fn nemenyi(friedman: &FriedmanResult, alpha: f64) -> Result<NemenyiResult, StatsError> {
+pub(crate) fn nemenyi(friedman: &FriedmanResult, alpha: f64) -> Result<NemenyiResult, StatsError> {
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(StatsError::AlphaOutOfRange { alpha });
     }

@@ -109,7 +109,9 @@ pub type NeuralRow = (usize, Option<usize>);
 
 /// The distinct networks of `lobes` (neural lobes; others are skipped) and one row per
 /// neural lobe, in order: rows of one network (the same `Arc`) share its index.
-pub fn lobe_rows<'a>(lobes: impl Iterator<Item = &'a Lobe>) -> (Vec<Arc<Nbrdf>>, Vec<NeuralRow>) {
+pub(crate) fn lobe_rows<'a>(
+    lobes: impl Iterator<Item = &'a Lobe>,
+) -> (Vec<Arc<Nbrdf>>, Vec<NeuralRow>) {
     let mut nets: Vec<Arc<Nbrdf>> = Vec::new();
     let mut rows = Vec::new();
     for l in lobes {

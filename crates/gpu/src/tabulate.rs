@@ -90,7 +90,7 @@ struct PackGroup {
 /// of four rows, NIJ texels of their four betas, then one of their four alphas (f64
 /// rounded once); zeros for padding rows (`None`). The pairwise kernel and `pack` read
 /// this layout.
-pub fn separable_texels(t: &GridTables, rows: &[Option<LobeParams>]) -> Vec<f32> {
+pub(crate) fn separable_texels(t: &GridTables, rows: &[Option<LobeParams>]) -> Vec<f32> {
     use rayon::prelude::*;
     let mut texels = vec![0f32; rows.len() / 4 * (NIJ + 1) * 4];
     // Row blocks in parallel (each lobe's table costs 8,100 exp/pow in f64).
@@ -123,7 +123,7 @@ pub struct TabulateKernel {
 }
 
 /// The f32 alpha and beta of a lobe, as uploaded (beta: f64 rounded once).
-pub fn separable_f32(t: &GridTables, l: &LobeParams) -> (f32, Vec<f32>) {
+pub(crate) fn separable_f32(t: &GridTables, l: &LobeParams) -> (f32, Vec<f32>) {
     let s = SeparableLobe::new(t, l);
     (s.alpha as f32, s.beta.iter().map(|&b| b as f32).collect())
 }

@@ -7,7 +7,7 @@ use crate::collection::MaterialData;
 use crate::merl::grid::lookup;
 
 /// Checks that `d` is a finite direction above the horizon and returns it normalised.
-pub fn unit_above(what: &'static str, d: [f64; 3]) -> Result<[f64; 3], AcquireError> {
+pub(crate) fn unit_above(what: &'static str, d: [f64; 3]) -> Result<[f64; 3], AcquireError> {
     let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
     if !l.is_finite() || l <= 0.0 {
         return Err(AcquireError::BadDirection { what, dir: d });
@@ -46,7 +46,7 @@ pub fn direction(theta: f64, phi: f64) -> [f64; 3] {
 }
 
 /// `(theta, phi)` in degrees of a unit direction (phi in `(-180, 180]`).
-pub fn angles_deg(d: [f64; 3]) -> (f64, f64) {
+pub(crate) fn angles_deg(d: [f64; 3]) -> (f64, f64) {
     let theta = d[2].clamp(-1.0, 1.0).acos().to_degrees();
     let phi = d[1].atan2(d[0]).to_degrees();
     (theta, phi)

@@ -83,7 +83,12 @@ impl Design {
 
 /// The weighted NNLS of one channel: rows `n x m`, values `y` and weights `w` (one per
 /// row), through the Gram form and the crate's Lawson-Hanson solver.
-pub fn solve_rows(m: usize, rows: &[f64], y: &[f64], w: &[f64]) -> Result<NnlsSolution, NnlsError> {
+pub(crate) fn solve_rows(
+    m: usize,
+    rows: &[f64],
+    y: &[f64],
+    w: &[f64],
+) -> Result<NnlsSolution, NnlsError> {
     solve_rows_toward(m, rows, y, w, None)
 }
 
@@ -105,7 +110,7 @@ pub const RIDGE_STRENGTHS: [f64; 7] = [0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 /// ridge picks the one nearest the mean (the training materials' mean coefficients), and
 /// with enough samples a small `lambda` leaves the fit as it was. `lambda = 0` or no prior
 /// is [`solve_rows`], bit for bit.
-pub fn solve_rows_toward(
+pub(crate) fn solve_rows_toward(
     m: usize,
     rows: &[f64],
     y: &[f64],
@@ -275,7 +280,7 @@ pub fn fit_samples(
 /// Under an objective (SPEC 11) each sample's weight is the objective's weight at the
 /// measured value, `phi(y_c(s), cos theta_i(s))`, times its sigma weight: the residual,
 /// MAE and relative residual reported are then the objective's, on the samples.
-pub fn fit_design(
+pub(crate) fn fit_design(
     d: &Design,
     samples: &[Sample],
     objective: TargetWeight,

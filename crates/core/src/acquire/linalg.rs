@@ -5,7 +5,7 @@
 /// rotations (Golub & Van Loan, *Matrix Computations*, 4th ed., section 8.5): returns the
 /// eigenvalues in decreasing order and the eigenvectors as the columns of a row-major
 /// `n x n` matrix in the same order. Accurate to a few ulps of the largest eigenvalue.
-pub fn sym_eigen(n: usize, a: &[f64]) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn sym_eigen(n: usize, a: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let mut m = a[..n * n].to_vec();
     let mut v = vec![0.0; n * n];
     for i in 0..n {
@@ -25,7 +25,7 @@ pub fn sym_eigen(n: usize, a: &[f64]) -> (Vec<f64>, Vec<f64>) {
 
 /// The eigenvalues of [`sym_eigen`] alone, bit for bit (the rotations of the matrix do not
 /// depend on the eigenvectors, which are not accumulated: a third less work).
-pub fn sym_eigenvalues(n: usize, a: &[f64]) -> Vec<f64> {
+pub(crate) fn sym_eigenvalues(n: usize, a: &[f64]) -> Vec<f64> {
     let mut m = a[..n * n].to_vec();
     jacobi(n, &mut m, None);
     decreasing(n, &m).iter().map(|&i| m[i * n + i]).collect()
@@ -87,7 +87,7 @@ fn jacobi(n: usize, m: &mut [f64], mut v: Option<&mut [f64]>) {
 
 /// Singular values (decreasing) of the `rows x cols` row-major matrix `d`: square roots of
 /// the eigenvalues of the smaller of `d d^T` and `d^T d` (negative rounding clamped to 0).
-pub fn singular_values(rows: usize, cols: usize, d: &[f64]) -> Vec<f64> {
+pub(crate) fn singular_values(rows: usize, cols: usize, d: &[f64]) -> Vec<f64> {
     let (n, g) = if rows <= cols {
         let mut g = vec![0.0; rows * rows];
         for i in 0..rows {
@@ -123,7 +123,7 @@ pub fn singular_values(rows: usize, cols: usize, d: &[f64]) -> Vec<f64> {
 
 /// Condition number `s_max / s_min` of `d` over its `min(rows, cols)` singular values
 /// (infinite when the smallest is 0; 1 for an empty matrix).
-pub fn condition_number(rows: usize, cols: usize, d: &[f64]) -> f64 {
+pub(crate) fn condition_number(rows: usize, cols: usize, d: &[f64]) -> f64 {
     let s = singular_values(rows, cols, d);
     match (s.first(), s.last()) {
         (Some(&hi), Some(&lo)) if lo > 0.0 => hi / lo,

@@ -51,18 +51,18 @@ pub const LOCAL_STEPS: [usize; 2] = [3, 1];
 const BLOCK: usize = 2048;
 
 /// The cosine map `clamp(cos theta_i cos theta_o, 0.01, 1)` at a cell centre.
-pub fn cos_map(cell: u32) -> f64 {
+pub(crate) fn cos_map(cell: u32) -> f64 {
     let (wi, wo) = cell_directions(cell as usize);
     (wi[2] * wo[2]).clamp(COS_MIN, 1.0)
 }
 
 /// The mapping `log((f w + eps) / (m + eps))`.
-pub fn map_value(f: f64, w: f64, m: f64) -> f64 {
+pub(crate) fn map_value(f: f64, w: f64, m: f64) -> f64 {
     ((f * w + EPSILON).max(f64::MIN_POSITIVE) / (m + EPSILON)).ln()
 }
 
 /// The inverse of [`map_value`], `((m + eps) e^x - eps) / w`, negative values set to 0.
-pub fn unmap_value(x: f64, w: f64, m: f64) -> f64 {
+pub(crate) fn unmap_value(x: f64, w: f64, m: f64) -> f64 {
     (((m + EPSILON) * x.exp() - EPSILON) / w).max(0.0)
 }
 
@@ -96,7 +96,7 @@ pub struct NielsenModel {
 /// The three channels of a material at `cells` in f64: each channel's lobe tabulated by
 /// [`CpuBackend::values_f64`], a network run once for all three
 /// ([`CpuBackend::neural_values_f64`], the same values).
-pub fn channel_values(cpu: &CpuBackend, m: &MaterialData, cells: &[u32]) -> [Vec<f64>; 3] {
+pub(crate) fn channel_values(cpu: &CpuBackend, m: &MaterialData, cells: &[u32]) -> [Vec<f64>; 3] {
     match m {
         MaterialData::Neural(net) => cpu.neural_values_f64(net, cells),
         d => [0, 1, 2].map(|c| cpu.values_f64(&channel_lobe(d, c), cells)),
@@ -533,7 +533,7 @@ impl NielsenModel {
 /// over `cands` (cell centres only), keeping `p.n` components, and its plan of `p.n`
 /// samples with [`CANDIDATES_PER_STEP`] candidates per step (`p.candidates_per_step` when
 /// smaller). `history` holds the condition number after each sample.
-pub fn plan_criterion(
+pub(crate) fn plan_criterion(
     coll: &Collection,
     basis: &[usize],
     targets: &[usize],
@@ -586,7 +586,7 @@ pub fn plan_criterion(
 }
 
 /// Candidates per step of the baseline: the published 500, fewer if asked (0: 500).
-pub fn nielsen_per_step(requested: usize) -> usize {
+pub(crate) fn nielsen_per_step(requested: usize) -> usize {
     if requested == 0 {
         CANDIDATES_PER_STEP
     } else {

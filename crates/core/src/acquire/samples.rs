@@ -64,7 +64,7 @@ impl Sample {
 
 /// The smallest standard deviation of `samples` (1 when none has sigma): the scale of
 /// [`Sample::weight`].
-pub fn sigma_floor(samples: &[Sample]) -> f64 {
+pub(crate) fn sigma_floor(samples: &[Sample]) -> f64 {
     let low = samples
         .iter()
         .filter_map(|s| s.sigma)

@@ -79,7 +79,7 @@ mod paths;
 mod plan;
 mod set;
 
-pub use paths::check_output_path;
+pub(crate) use paths::check_output_path;
 use paths::*;
 use plan::*;
 pub use plan::{OutputPlan, Owns};

@@ -61,7 +61,7 @@ pub(super) fn not_replaceable(path: &Path, flag: &str) -> Option<OutputError> {
 /// its parent directory exists. `what` names the flag in the message (e.g. `--out`).
 /// Prefer [`OutputPlan`], which also refuses inputs and duplicates and proves the parent
 /// writable.
-pub fn check_output_path(path: &Path, what: &str) -> Result<(), OutputError> {
+pub(crate) fn check_output_path(path: &Path, what: &str) -> Result<(), OutputError> {
     if path.as_os_str().is_empty() {
         return Err(refused(path, format!("{what}: empty path")));
     }

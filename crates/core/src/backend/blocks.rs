@@ -66,7 +66,7 @@ pub fn add_block(out: &mut [f64], n: usize, [bi, bj]: [u32; 2], acc: impl Fn(usi
 }
 
 /// The condensed upper triangle of a full symmetric matrix.
-pub fn condensed_of(full: &[f64], n: usize) -> Vec<f64> {
+pub(crate) fn condensed_of(full: &[f64], n: usize) -> Vec<f64> {
     let mut v = Vec::with_capacity(n * n.saturating_sub(1) / 2);
     for i in 0..n {
         v.extend_from_slice(&full[i * n + i + 1..(i + 1) * n]);

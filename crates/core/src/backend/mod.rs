@@ -156,7 +156,7 @@ pub trait Backend: Send + Sync {
 }
 
 /// Number of condensed entries for `n` items.
-pub fn condensed_len(n: usize) -> usize {
+pub(crate) fn condensed_len(n: usize) -> usize {
     n * n.saturating_sub(1) / 2
 }
 

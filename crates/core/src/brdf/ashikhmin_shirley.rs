@@ -40,7 +40,7 @@ pub struct AshikhminShirley {
 
 /// `(N.H)^n` from `theta_h` (radians) with small relative error for huge `n`.
 #[inline]
-pub fn cos_pow(theta_h: f64, n: f64) -> f64 {
+pub(crate) fn cos_pow(theta_h: f64, n: f64) -> f64 {
     let s = (0.5 * theta_h).sin();
     (n * (-2.0 * s * s).ln_1p()).exp()
 }

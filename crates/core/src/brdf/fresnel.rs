@@ -6,7 +6,7 @@
 /// Schlick, "An Inexpensive BRDF Model for Physically-based Rendering", CGF 13(3), 1994,
 /// doi:10.1111/1467-8659.1330233.
 #[inline]
-pub fn schlick(f0: f64, x: f64) -> f64 {
+pub(crate) fn schlick(f0: f64, x: f64) -> f64 {
     let m = (1.0 - x).clamp(0.0, 1.0);
     let m2 = m * m;
     f0 + (1.0 - f0) * m2 * m2 * m

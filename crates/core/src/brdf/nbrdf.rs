@@ -127,7 +127,7 @@ const ROW_CELLS: usize = crate::merl::grid::N_TD * crate::merl::grid::N_PD;
 
 /// [`features`] of a flat grid cell (at its centre, SPEC 2).
 #[inline]
-pub fn cell_features(cell: usize) -> [f32; 5] {
+pub(crate) fn cell_features(cell: usize) -> [f32; 5] {
     let g = grid_features();
     let h = g.h[cell / ROW_CELLS];
     let jk = cell % ROW_CELLS;

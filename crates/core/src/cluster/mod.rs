@@ -34,14 +34,15 @@ pub const TIE_TOLERANCE: f64 = 1e-6;
 
 /// Whether `a` is lower than `b` by more than `tolerance x |b|` (the comparison behind
 /// every best-of choice; an infinite `b` is beaten by any lower `a`).
-pub fn clearly_lower(a: f64, b: f64, tolerance: f64) -> bool {
+pub(crate) fn clearly_lower(a: f64, b: f64, tolerance: f64) -> bool {
     if b.is_finite() {
         a < b - tolerance * b.abs()
     } else {
         a < b
     }
 }
-pub use validity::{assign, check_distances, davies_bouldin, loss, medoid_of};
+pub use validity::loss;
+pub use validity::{assign, davies_bouldin, medoid_of};
 
 /// Errors of the clustering algorithms and validity indices.
 #[non_exhaustive]

@@ -27,7 +27,7 @@ use crate::distance::{entry_fault, Distances, EntryFault};
 /// symmetric by construction and its diagonal is 0, so only these two faults can occur;
 /// whole matrices read from files go through `distance::check_entries`). The algorithms
 /// call this once before they start.
-pub fn check_distances<D: Distances + ?Sized>(d: &D) -> Result<(), ClusterError> {
+pub(crate) fn check_distances<D: Distances + ?Sized>(d: &D) -> Result<(), ClusterError> {
     let n = d.len();
     for i in 0..n {
         for j in i + 1..n {

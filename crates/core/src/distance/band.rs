@@ -101,7 +101,7 @@ pub fn tile_rows(n: usize, index: usize, count: usize) -> Result<Range<usize>, D
 /// call per `band_rows` columns after it (a chunk not a multiple of 4 long is padded with
 /// copies of its first lobe, whose values are dropped). For `rows = 0..N` these are
 /// exactly the super-block calls of the whole matrix.
-pub fn distance_rows(
+pub(crate) fn distance_rows(
     backend: &dyn Backend,
     coll: &Collection,
     p: &ValidDistanceParams,

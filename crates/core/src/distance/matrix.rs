@@ -270,7 +270,7 @@ pub struct BadEntry {
 
 /// What is wrong with entry `(i, j)` of value `v` taken alone (finite, non-negative,
 /// zero on the diagonal), if anything.
-pub fn entry_fault(i: usize, j: usize, v: f64) -> Option<EntryFault> {
+pub(crate) fn entry_fault(i: usize, j: usize, v: f64) -> Option<EntryFault> {
     if !v.is_finite() {
         Some(EntryFault::NotFinite)
     } else if v < 0.0 {
@@ -286,7 +286,7 @@ pub fn entry_fault(i: usize, j: usize, v: f64) -> Option<EntryFault> {
 /// non-negative, row by row, the diagonal 0, then every pair `i < j` symmetric within
 /// the relative tolerance `tol` (`|D_ij - D_ji| <= tol * max(|D_ij|, |D_ji|)`; 0 asks
 /// for exact symmetry). Returns the first bad entry.
-pub fn check_entries(n: usize, data: &[f64], tol: f64) -> Result<(), BadEntry> {
+pub(crate) fn check_entries(n: usize, data: &[f64], tol: f64) -> Result<(), BadEntry> {
     assert_eq!(data.len(), n * n, "check_entries: {n} x {n} matrix");
     for i in 0..n {
         for j in 0..n {

@@ -7,7 +7,8 @@ pub mod matrix;
 
 pub use band::{distance_matrix_banded, distance_tile, Tile, DEFAULT_BAND_ROWS};
 
-pub use matrix::{check_entries, entry_fault, BadEntry, DistanceMatrix, Distances, EntryFault};
+pub(crate) use matrix::{check_entries, entry_fault};
+pub use matrix::{BadEntry, DistanceMatrix, Distances, EntryFault};
 
 use crate::backend::{condensed_index, Backend, Lobe, LobeParams, Progress};
 use crate::collection::{Collection, MaterialData};

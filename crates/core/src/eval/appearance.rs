@@ -30,7 +30,7 @@ pub const RENDER_SIZE: u32 = 256;
 pub const FLIP_PIXELS_PER_DEGREE: f32 = 67.0;
 
 /// SPEC 11's render of the light `(theta, phi)` (degrees): [`RENDER_SIZE`] pixels.
-pub fn render_params((theta, phi): (f64, f64)) -> super::render::RenderParams {
+pub(crate) fn render_params((theta, phi): (f64, f64)) -> super::render::RenderParams {
     super::render::RenderParams::default()
         .with_size(RENDER_SIZE)
         .with_light(theta, phi)

@@ -18,7 +18,7 @@ const SRGB_TO_XYZ: [[f64; 3]; 3] = [
 ];
 
 /// The sRGB decoding curve: an encoded value in `[0, 1]` to linear.
-pub fn srgb_decode(v: f64) -> f64 {
+pub(crate) fn srgb_decode(v: f64) -> f64 {
     if v <= 0.04045 {
         v / 12.92
     } else {

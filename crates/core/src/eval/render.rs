@@ -235,7 +235,7 @@ pub fn sphere_mask(width: u32, height: u32) -> Vec<bool> {
 /// orthogonalises `(1, 0, 0)` against `n`), and at the sphere's centre (`n = +z`) it is
 /// the world frame. For an isotropic BRDF only the relative azimuth of `wi` and `wo`
 /// matters, so any consistent choice renders the same image.
-pub fn tangent_frame(n: [f64; 3]) -> [[f64; 3]; 3] {
+pub(crate) fn tangent_frame(n: [f64; 3]) -> [[f64; 3]; 3] {
     let c = [n[2], 0.0, -n[0]];
     let len = (c[0] * c[0] + c[2] * c[2]).sqrt();
     let t = if len > 1e-12 {

@@ -52,7 +52,7 @@ pub struct Basis {
 
 /// The five bases of the paper's VI-D from our own runs: empirical, k-medoids best over k,
 /// k-medoids at `k_max`, GCUK best, GCUK best at the largest k found (BRDF_it sets).
-pub fn our_bases(
+pub(crate) fn our_bases(
     coll: &Collection,
     emp: &Empirical,
     brdf_it: &[ClusteringSet],
@@ -123,7 +123,7 @@ pub fn our_bases(
 
 /// The basis of an error-driven selection (`greedy-k5`, `swap-k12`, ...), with its
 /// in-sample score in the note.
-pub fn error_driven_basis(s: &crate::select::search::Selection) -> Basis {
+pub(crate) fn error_driven_basis(s: &crate::select::search::Selection) -> Basis {
     let source = if s.method == "swap" {
         BasisSource::Swap
     } else {
@@ -153,7 +153,7 @@ fn basis(name: String, source: BasisSource, materials: &[String]) -> Basis {
 
 /// Merges bases with the same set of materials into the first of them (the others'
 /// names go to [`Basis::same_as`]), keeping the order.
-pub fn dedupe(bases: Vec<Basis>) -> Vec<Basis> {
+pub(crate) fn dedupe(bases: Vec<Basis>) -> Vec<Basis> {
     let mut out: Vec<Basis> = Vec::new();
     for b in bases {
         let mut set = b.materials.clone();
@@ -173,7 +173,7 @@ pub fn dedupe(bases: Vec<Basis>) -> Vec<Basis> {
 
 /// Whether `name` may name a basis (and so a file `fit-<name>.json`): ASCII letters,
 /// digits, `-`, `_`, `.`, not starting with `.`, at most 64 characters.
-pub fn valid_basis_name(name: &str) -> bool {
+pub(crate) fn valid_basis_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 64
         && !name.starts_with('.')

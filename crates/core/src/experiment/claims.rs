@@ -59,7 +59,7 @@ pub fn check(e: &Experiment) -> Vec<Claim> {
 /// Whether rank `rank` (1 = best) of `n` is in the better half: `rank <= n / 2`, so the
 /// middle rank of an odd `n` is not (5 of 9 is not, 4 of 9 is). What the claims call
 /// "good" on a ranking.
-pub fn in_better_half(rank: usize, n: usize) -> bool {
+pub(crate) fn in_better_half(rank: usize, n: usize) -> bool {
     rank >= 1 && rank <= n / 2
 }
 

@@ -113,7 +113,7 @@ pub fn errors_csv(e: &Evaluation) -> String {
 
 /// The image `sum_k a_k,c images[k]_c` per channel (all images of one size and mask),
 /// accumulated in f64: the render of a combination from the renders of its columns.
-pub fn combine(images: &[&Image], coefficients: &[[f64; 3]]) -> Image {
+pub(crate) fn combine(images: &[&Image], coefficients: &[[f64; 3]]) -> Image {
     let mut out = images[0].clone();
     for (p, v) in out.data.iter_mut().enumerate() {
         let c = p % 3;
@@ -156,7 +156,7 @@ pub const SHOWCASE_PROBE_SIZE: u32 = 64;
 /// such a target, the analytic target with a lobe nearest that exponent; else (measured,
 /// neural and RGL collections) the target whose render shows most, by
 /// [`visible_showcase`].
-pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
+pub(crate) fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
     if let Some(&t) = targets.iter().find(|&&t| coll.names()[t] == PAPER_SHOWCASE) {
         return t;
     }
@@ -190,7 +190,7 @@ pub fn default_showcase(coll: &Collection, targets: &[usize]) -> usize {
 /// display value (mean over RGB) of the lit sphere pixels (ties, and renders that fail:
 /// the first). A near-black material (small body) and a matte one (no peak above its body)
 /// both score low.
-pub fn visible_showcase(coll: &Collection, targets: &[usize]) -> usize {
+pub(crate) fn visible_showcase(coll: &Collection, targets: &[usize]) -> usize {
     let rp = RenderParams::default()
         .with_size(SHOWCASE_PROBE_SIZE)
         .with_light(45.0, 45.0);

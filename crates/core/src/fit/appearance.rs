@@ -42,7 +42,7 @@ pub fn log_rmse(
 }
 
 /// Renders of material `m` under the four lights ([`LIGHTS`], [`crate::eval::appearance::RENDER_SIZE`]).
-pub fn material_renders(coll: &Collection, m: usize) -> Result<Vec<Image>, FitError> {
+pub(crate) fn material_renders(coll: &Collection, m: usize) -> Result<Vec<Image>, FitError> {
     let brdf = material_brdf(&coll.materials()[m].data);
     LIGHTS
         .iter()

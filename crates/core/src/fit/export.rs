@@ -25,7 +25,7 @@ pub fn combination_grid(coll: &Collection, basis: &[usize], f: &TargetFit) -> Ve
 /// letters, digits, `-`, `_` and `.` are kept, anything else (`/`, `\`, spaces, control
 /// characters, non-ASCII) becomes `_`; leading dots are dropped (no `..`, no hidden
 /// file); at most 100 characters; an empty result becomes `material`.
-pub fn file_stem_for(name: &str) -> String {
+pub(crate) fn file_stem_for(name: &str) -> String {
     let mut s: String = name
         .chars()
         .map(|c| {

@@ -6,7 +6,7 @@
 use super::*;
 
 /// Lobes in separable form when every one is analytic.
-pub fn separable_lobes(lobes: &[Lobe]) -> Option<Vec<SeparableLobe>> {
+pub(crate) fn separable_lobes(lobes: &[Lobe]) -> Option<Vec<SeparableLobe>> {
     let t = GridTables::new();
     lobes
         .iter()
@@ -52,7 +52,7 @@ pub const RGB_PASS_MAX_LOBES: usize = 4096;
 /// the cells (the canonical summation order of both back-ends), so every matrix is bit for
 /// bit the one a pass over its channel alone gives (tested); above
 /// [`RGB_PASS_MAX_LOBES`] lobes it is made that way, one pass per channel.
-pub fn gram_grid_rgb(
+pub(crate) fn gram_grid_rgb(
     backend: &dyn Backend,
     lobes: [Vec<Lobe>; 3],
     cells: &CellSet,

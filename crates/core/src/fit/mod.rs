@@ -25,9 +25,8 @@ pub mod file;
 mod gram;
 
 pub(crate) use gram::collection_lobes;
-pub use gram::{
-    channel_gram, gram_grid_rgb, separable_lobes, ChannelGram, CollectionGrams, RGB_PASS_MAX_LOBES,
-};
+pub(crate) use gram::separable_lobes;
+pub use gram::{channel_gram, ChannelGram, CollectionGrams, RGB_PASS_MAX_LOBES};
 
 /// Errors of fitting.
 #[derive(Debug, thiserror::Error)]
@@ -548,7 +547,7 @@ pub(crate) fn cell_errors(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64]) -> C
 }
 
 /// The fitted combination of channel `c` at the given cells (f64).
-pub fn combination_values(
+pub(crate) fn combination_values(
     coll: &Collection,
     basis: &[usize],
     fit: &TargetFit,

@@ -124,7 +124,7 @@ pub fn write_rgb8_image(path: impl AsRef<Path>, image: &Rgb8Image) -> Result<(),
 
 /// Writes `width` x `height` interleaved 8-bit RGB (`3 * width * height` bytes, row 0 at
 /// the top) as PNG.
-pub fn write_png_rgb8(
+pub(crate) fn write_png_rgb8(
     path: impl AsRef<Path>,
     width: u32,
     height: u32,

@@ -16,8 +16,9 @@ use std::path::Path;
 
 #[doc(hidden)]
 pub use crate::npy_format::npy_f32_bytes;
+pub(crate) use crate::npy_format::parse_header_dict;
 use crate::npy_format::read_header_text;
-pub use crate::npy_format::{parse_header_dict, parse_header_f32, NpyF32};
+pub use crate::npy_format::NpyF32;
 
 /// Size and checksum of a `.npy` file as written or read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,7 +101,7 @@ pub fn write_npy_2d(
 
 /// Stages a `rows x cols` float64 `.npy` in `set` (renamed into place at its commit);
 /// returns its size and checksum.
-pub fn stage_npy_2d(
+pub(crate) fn stage_npy_2d(
     set: &mut OutputSet,
     path: &Path,
     rows: usize,
@@ -155,7 +156,7 @@ pub fn read_npy_f32(path: &Path, max_values: usize) -> Result<NpyF32, MatrixFile
 }
 
 /// Reads only the header of a `.npy` (no hashing of the data).
-pub fn read_npy_header(path: &Path) -> Result<NpyHeader, MatrixFileError> {
+pub(crate) fn read_npy_header(path: &Path) -> Result<NpyHeader, MatrixFileError> {
     let mut f = std::fs::File::open(path).map_err(|source| MatrixFileError::Io {
         path: path.to_path_buf(),
         source,
@@ -182,7 +183,7 @@ pub fn read_npy_2d(path: &Path) -> Result<Npy2d, MatrixFileError> {
 /// Streams a 2-D float64 C-order `.npy`, handing its values to `sink` in row-major
 /// chunks (any size), and returns the header and the file's size and checksum. A file
 /// shorter or longer than its shape says is refused, with the sizes expected and found.
-pub fn scan_npy_2d(
+pub(crate) fn scan_npy_2d(
     path: &Path,
     mut sink: impl FnMut(&[f64]) -> Result<(), MatrixFileError>,
 ) -> Result<(NpyHeader, NpyDigest), MatrixFileError> {
@@ -291,7 +292,7 @@ pub struct MappedNpy2d {
 /// the mapping, and returns the values in place. `Ok(None)` when the file cannot be read
 /// in place (no `mmap` on this platform, the kernel refused the map, an empty file, data
 /// not aligned for `f64`, a big-endian machine): read it with [`read_npy_2d`] instead.
-pub fn map_npy_2d(path: &Path) -> Result<Option<MappedNpy2d>, MatrixFileError> {
+pub(crate) fn map_npy_2d(path: &Path) -> Result<Option<MappedNpy2d>, MatrixFileError> {
     let io = |source| MatrixFileError::Io {
         path: path.to_path_buf(),
         source,
@@ -388,6 +389,7 @@ impl NpyRows {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::npy_format::parse_header_f32;
 
     #[test]
     fn headers_in_any_key_order_quote_and_spacing_parse() {

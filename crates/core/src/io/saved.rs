@@ -340,7 +340,7 @@ fn read_csv_matrix(path: &Path) -> Result<(Vec<String>, Vec<f64>), MatrixFileErr
 
 /// Checks that `names` are unique, non-empty and at least 2; the message says what is
 /// wrong.
-pub fn check_matrix_names(names: &[String]) -> Result<(), String> {
+pub(crate) fn check_matrix_names(names: &[String]) -> Result<(), String> {
     let n = names.len();
     if n < 2 {
         return Err(format!(
@@ -364,7 +364,7 @@ pub fn check_matrix_names(names: &[String]) -> Result<(), String> {
 /// The checks of [`load_saved_matrix`] on `names` and a row-major `N x N` array
 /// ([`check_entries`] within [`SYMMETRY_TOL`]); pairs within the tolerance are replaced
 /// by their mean.
-pub fn validate_matrix(
+pub(crate) fn validate_matrix(
     path: &Path,
     names: Vec<String>,
     mut data: Vec<f64>,

@@ -319,7 +319,7 @@ pub fn read_sidecar(npy: &Path) -> Result<MatrixSidecar, MatrixFileError> {
 
 /// In words, how the collections of two sidecars differ (by fingerprint, else by the
 /// first name that differs); `None` when they describe the same collection.
-pub fn collection_difference(a: &MatrixSidecar, b: &MatrixSidecar) -> Option<String> {
+pub(crate) fn collection_difference(a: &MatrixSidecar, b: &MatrixSidecar) -> Option<String> {
     if a.collection_fingerprint != b.collection_fingerprint {
         return Some(format!(
             "collection fingerprint {} ({} materials) vs {} ({} materials)",

@@ -97,7 +97,7 @@ fn rot_y(v: [f64; 3], a: f64) -> [f64; 3] {
 
 /// Half/difference angles `(theta_h, theta_d, phi_d)` of a pair of unit directions
 /// (the classic MERL `std_coords_to_half_diff_coords`).
-pub fn half_diff(wi: [f64; 3], wo: [f64; 3]) -> (f64, f64, f64) {
+pub(crate) fn half_diff(wi: [f64; 3], wo: [f64; 3]) -> (f64, f64, f64) {
     let h = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
     let l = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
     let h = [h[0] / l, h[1] / l, h[2] / l];
@@ -155,7 +155,7 @@ pub fn geometric_validity() -> &'static [bool] {
 }
 
 /// Whether each cell is in the evaluation mask of SPEC 3 (cached, computed once).
-pub fn evaluation_mask() -> &'static [bool] {
+pub(crate) fn evaluation_mask() -> &'static [bool] {
     &classes().evaluation
 }
 

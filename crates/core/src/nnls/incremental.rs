@@ -74,7 +74,7 @@ impl<'a> Cosine<'a> {
 /// column, `G_ii <= f64::MIN_POSITIVE`, gets `d_i = 0` and a zero row and column), and
 /// returns `d`. The one diagonal scaling of the crate: the solvers' scaled problem and the
 /// objective's cosine matrices (in place: at N = 10,000 one matrix is 800 MB).
-pub fn cosine_in_place(m: usize, g: &mut [f64]) -> Vec<f64> {
+pub(crate) fn cosine_in_place(m: usize, g: &mut [f64]) -> Vec<f64> {
     use rayon::prelude::*;
     assert_eq!(g.len(), m * m, "cosine_in_place: an m x m matrix");
     let scale: Vec<f64> = (0..m)
@@ -159,7 +159,7 @@ pub fn solve(g: Cosine<'_>, cols: &[usize], t: usize) -> Result<(Vec<f64>, f64),
 
 /// Lower Cholesky factor (row-major `p x p`) of a symmetric positive-definite matrix, or
 /// `None` when a pivot is not positive.
-pub fn cholesky(p: usize, a: &[f64]) -> Option<Vec<f64>> {
+pub(crate) fn cholesky(p: usize, a: &[f64]) -> Option<Vec<f64>> {
     let mut l = Vec::new();
     cholesky_into(p, a, &mut l).then_some(l)
 }

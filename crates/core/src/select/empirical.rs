@@ -77,7 +77,7 @@ pub fn empirical(
 
 /// Algorithm 1 from the Gram matrices of `coll` per channel (`(N + 1)^2`, the Lambertian
 /// column then every material: [`CollectionGrams`], over the cells of `p.fit`).
-pub fn empirical_from_grams(
+pub(crate) fn empirical_from_grams(
     coll: &Collection,
     p: &EmpiricalParams,
     fulls: &[Vec<f64>; 3],

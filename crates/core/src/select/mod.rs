@@ -48,9 +48,9 @@ pub mod runs;
 pub mod search;
 pub mod swap;
 
+pub(crate) use cv::make_folds;
 pub use cv::{
-    cross_validate, cross_validate_with, make_folds, CvMethod, CvMethodResult, CvParams, CvResult,
-    CvTest, HeldOut, ValidCvParams,
+    cross_validate, CvMethod, CvMethodResult, CvParams, CvResult, CvTest, HeldOut, ValidCvParams,
 };
 pub use empirical::{empirical, Empirical, EmpiricalParams};
 pub use ga::{ga, GaParams, ValidGaParams};
@@ -192,7 +192,10 @@ pub enum SelectionError {
 /// The error-driven bases `reproduce` compares: greedy and swap (from the greedy basis) at
 /// each k of `ks` (k larger than the collection is skipped), every material a candidate and
 /// a target; in the order greedy k1, swap k1, greedy k2, ...
-pub fn error_driven_bases(obj: &Objective, ks: &[usize]) -> Result<Vec<Selection>, SelectionError> {
+pub(crate) fn error_driven_bases(
+    obj: &Objective,
+    ks: &[usize],
+) -> Result<Vec<Selection>, SelectionError> {
     let mut out = Vec::new();
     for &k in ks.iter().filter(|&&k| k >= 1 && k <= obj.len()) {
         let p = SearchParams::new(k).check(obj.names())?;

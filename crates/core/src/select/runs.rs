@@ -231,7 +231,7 @@ fn set(
 
 /// `runs` seeded k-medoids runs (FasterPAM, seeds `seed`, `seed + 1`, ...; random initial
 /// medoids) for every `k` of `ks`, one [`ClusteringSet`] per `k`. Needs `runs >= 1`.
-pub fn kmedoids_sets(
+pub(crate) fn kmedoids_sets(
     d: &DistanceMatrix,
     metric: &str,
     ks: &[usize],
@@ -247,7 +247,7 @@ pub fn kmedoids_sets(
 }
 
 /// `runs` seeded GCUK runs with parameters `p` (the seed is replaced by `seed + r`).
-pub fn gcuk_set(
+pub(crate) fn gcuk_set(
     d: &DistanceMatrix,
     metric: &str,
     p: &GcukParams,

@@ -30,7 +30,8 @@ mod plan;
 mod reduce;
 mod shape;
 
-pub use plan::{covering_blocks, PairPlan, PlanLimits, RowLayout};
+pub(crate) use plan::covering_blocks;
+pub use plan::{PairPlan, PlanLimits, RowLayout};
 pub use reduce::{ReduceParams, SOURCE as REDUCE_SOURCE};
 pub use shape::{kernel_source, KernelShape, TILED_SOURCE};
 

@@ -229,7 +229,7 @@ pub(super) fn table_rows(blocks: usize) -> usize {
 
 /// The register blocks `(I <= J)` (in units of `4R` packed rows) that hold every lobe pair
 /// of the requested `BLOCK x BLOCK` block pairs, sorted.
-pub fn covering_blocks(
+pub(crate) fn covering_blocks(
     blocks: &[[u32; 2]],
     layout: &RowLayout,
     shape: KernelShape,

@@ -318,7 +318,7 @@ fn check(
 }
 
 /// Seed of restart `r` of [`plan`]: restart 0 is the plan's own seed.
-pub fn restart_seed(seed: u64, r: usize) -> u64 {
+pub(crate) fn restart_seed(seed: u64, r: usize) -> u64 {
     seed.wrapping_add((r as u64).wrapping_mul(0xD1B5_4A32_D192_ED03))
 }
 

@@ -18,7 +18,7 @@ use crate::distance::DistanceMatrix;
 
 /// The folds of `n` materials for `seed`: a seeded permutation cut into `folds` parts of
 /// sizes differing by at most one, each sorted.
-pub fn make_folds(n: usize, folds: usize, seed: u64) -> Vec<Vec<usize>> {
+pub(crate) fn make_folds(n: usize, folds: usize, seed: u64) -> Vec<Vec<usize>> {
     let mut perm: Vec<usize> = (0..n).collect();
     perm.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
     let (base, extra) = (n / folds, n % folds);

@@ -27,7 +27,7 @@ pub mod folds;
 pub mod params;
 pub mod report;
 
-pub use folds::make_folds;
+pub(crate) use folds::make_folds;
 pub use params::{CvMethod, CvParams, ValidCvParams};
 
 use super::objective::Objective;
@@ -188,7 +188,7 @@ fn l2_name() -> String {
 
 /// [`cross_validate_with`] on the CPU back-end (the held-out fits of a weighted objective
 /// go through a back-end: [`cross_validate_on`] names it).
-pub fn cross_validate_with(
+pub(crate) fn cross_validate_with(
     coll: &Collection,
     obj: &Objective,
     dist: Option<&DistanceMatrix>,
@@ -204,7 +204,7 @@ pub fn cross_validate_with(
 /// held-out material by every basis and the paired tests ([`evaluate`]); the weighted
 /// held-out fits of `relative` and `log` run on `backend`.
 /// `progress(done, total)` counts (fold, method, k) selections.
-pub fn cross_validate_on(
+pub(crate) fn cross_validate_on(
     backend: &dyn Backend,
     coll: &Collection,
     obj: &Objective,

@@ -136,7 +136,7 @@ const SHARED_WEIGHT_BLOCK_BYTES: usize = 256 << 20;
 /// of `f_c(s)` (the mean of the two middle values for an even count), normalised to sum 1
 /// (the scale of the weights changes no fit and no relative residual). The materials are
 /// tabulated by `backend` (f32) block by block of cells.
-pub fn shared_weights(
+pub(crate) fn shared_weights(
     backend: &dyn Backend,
     coll: &Collection,
     cells: &CellSet,
