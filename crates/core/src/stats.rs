@@ -395,7 +395,7 @@ pub fn friedman<R: AsRef<[f64]>>(blocks: &[R]) -> Result<FriedmanResult, StatsEr
     })
 }
 
-/// Result of [`nemenyi`].
+/// Result of `nemenyi`.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NemenyiResult {
     /// Significance level.

@@ -92,7 +92,7 @@ pub(crate) fn solve_rows(
     solve_rows_toward(m, rows, y, w, None)
 }
 
-/// Ridge strengths [`solve_rows_toward`] chooses among (`cv --acquisition` picks one per
+/// Ridge strengths `solve_rows_toward` chooses among (`cv --acquisition` picks one per
 /// fold, plan and n on the training materials; 0: plain NNLS).
 pub const RIDGE_STRENGTHS: [f64; 7] = [0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 

@@ -51,7 +51,7 @@ pub struct Sample {
 
 impl Sample {
     /// Weight of channel `c` in a set whose smallest standard deviation is `floor`
-    /// ([`sigma_floor`]): `(floor / sigma)^2`, the SPEC's `1 / sigma^2` scaled by
+    /// (`sigma_floor`): `(floor / sigma)^2`, the SPEC's `1 / sigma^2` scaled by
     /// `floor^2` so that it never underflows or overflows (1 without sigma). Scaling every
     /// sigma of the set by one constant leaves the weights unchanged.
     pub fn weight(&self, c: usize, floor: f64) -> f64 {

@@ -19,7 +19,7 @@ pub struct OutputSet {
 
 impl OutputSet {
     /// A set without a plan: each staged path is checked when staged
-    /// ([`check_output_path`]). Prefer [`OutputPlan`], which checks before the work.
+    /// (`check_output_path`). Prefer [`OutputPlan`], which checks before the work.
     pub fn new() -> Self {
         Self::default()
     }

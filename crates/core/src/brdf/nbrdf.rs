@@ -242,7 +242,7 @@ impl Nbrdf {
     }
 
     /// RGB reflectance at a direction pair (unit vectors, local frame): the angles of
-    /// [`crate::merl::grid::half_diff`], then [`Self::eval_f64`]. Below the horizon
+    /// `crate::merl::grid::half_diff`, then [`Self::eval_f64`]. Below the horizon
     /// (`wi.z <= 0` or `wo.z <= 0`) a BRDF is 0, and so is this (the network's raw output
     /// there means nothing).
     pub fn eval_dirs(&self, wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {

@@ -84,7 +84,7 @@ impl PartialEq for DistanceMatrix {
 impl DistanceMatrix {
     /// Builds a matrix from a full row-major `N x N` array. Rejects a wrong size, a
     /// non-finite or negative entry, a non-zero diagonal or an asymmetric pair
-    /// ([`check_entries`] with tolerance 0).
+    /// (`check_entries` with tolerance 0).
     pub fn from_full(names: Vec<String>, data: Vec<f64>) -> Result<Self, DistanceError> {
         let n = names.len();
         if data.len() != n * n {

@@ -11,7 +11,7 @@
 //!   `wi = (sin t cos p, sin t sin p, cos t)` for `(theta, phi) = (t, p)` in world
 //!   coordinates (theta from +z, phi from +x towards +y).
 //! * Radiance per channel `L = f(wi_local, wo_local) * max(N.wi, 0)`, linear, where the
-//!   local frame has N as +z (see [`tangent_frame`]). Where `N.wi <= 0` the BRDF is not
+//!   local frame has N as +z (see `tangent_frame`). Where `N.wi <= 0` the BRDF is not
 //!   called and the pixel is 0, so a BRDF may return anything below the horizon.
 //!
 //! The BRDF is a closure, so analytic materials (evaluated analytically), measured ones

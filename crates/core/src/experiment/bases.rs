@@ -2,7 +2,7 @@
 //! CSV `basis,material`).
 //!
 //! To add a basis source (e.g. error-driven selection): add a [`BasisSource`] variant and
-//! push a [`Basis`] in [`super::run`]'s `bases` stage; [`dedupe`] names coincident
+//! push a [`Basis`] in [`super::run`]'s `bases` stage; `dedupe` names coincident
 //! bases once, and the fits, tables and figures pick it up from there.
 
 use super::ExperimentError;

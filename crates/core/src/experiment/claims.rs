@@ -76,7 +76,7 @@ pub struct EmpiricalRanks {
 
 impl EmpiricalRanks {
     /// The paper's "unstable on reflectance MAE but good on image error": good on image
-    /// error means in the better half of the bases ([`in_better_half`]), and it must rank
+    /// error means in the better half of the bases (`in_better_half`), and it must rank
     /// better on image error than on MAE. "Ranks 7 of 9 by image error" is not good.
     pub fn agrees(&self) -> bool {
         in_better_half(self.image, self.n) && self.image < self.mae

@@ -144,7 +144,7 @@ pub const SHOWCASE_MIN_DIFFUSE: f64 = 0.05;
 /// lost in the body (Ngan's teflon: 0.45).
 pub const SHOWCASE_MIN_CONTRAST: f64 = 3.0;
 
-/// Render size of the renders [`default_showcase`] judges measured materials by.
+/// Render size of the renders `default_showcase` judges measured materials by.
 pub const SHOWCASE_PROBE_SIZE: u32 = 64;
 
 /// The default showcase among `targets` (collection indices, not empty):

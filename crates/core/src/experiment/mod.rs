@@ -117,7 +117,7 @@ pub struct ExperimentParams {
     pub render_size: u32,
     /// Render size of the showcase (default 256).
     pub showcase_size: u32,
-    /// Showcase material (default: [`evaluation::default_showcase`]: `alum-bronze` when it
+    /// Showcase material (default: `evaluation::default_showcase`: `alum-bronze` when it
     /// is a target, else a moderately glossy target whose render shows its lobe).
     pub showcase: Option<String>,
     /// First seed (default 1).

@@ -43,7 +43,7 @@ pub(crate) fn file_stem_for(name: &str) -> String {
     s
 }
 
-/// File names (`<stem>.binary`) for the targets, sanitised by [`file_stem_for`] and made
+/// File names (`<stem>.binary`) for the targets, sanitised by `file_stem_for` and made
 /// unique (case-insensitively, for case-insensitive file systems) by a `-2`, `-3`, ...
 /// suffix, in target order.
 pub fn export_file_names(names: &[&str]) -> Vec<String> {

@@ -37,7 +37,7 @@ pub(crate) fn gram_full(
     Ok(backend.gram(lobes, cells, basis, progress)?)
 }
 
-/// Lobes (three channels side by side) above which [`gram_grid_rgb`] makes one pass per
+/// Lobes (three channels side by side) above which `gram_grid_rgb` makes one pass per
 /// channel instead of one for all three: the back-end returns the full square matrix of
 /// every lobe it is given, `(3 n)^2` entries (4,096 lobes: 128 MiB), against `3 n^2` for
 /// three passes.
@@ -104,7 +104,7 @@ pub(crate) fn gram_grid_rgb(
 
 /// The Gram matrices of a whole collection over `cells`, per channel, with the columns
 /// `[1/pi, material 0, .., material N-1]` (`(N + 1)^2`, row-major), from one grid pass
-/// ([`gram_grid_rgb`]): what the stages of an experiment on a measured or neural collection
+/// (`gram_grid_rgb`): what the stages of an experiment on a measured or neural collection
 /// share (the empirical selection, the objective of SPEC 8 and the fits) instead of each
 /// making its own passes. Analytic collections have closed forms instead.
 #[derive(Clone, Debug)]
@@ -130,7 +130,7 @@ impl CollectionGrams {
     }
 
     /// The Gram matrices alone, per channel, of every material of `coll` over `cells`
-    /// (one grid pass for the three channels, [`gram_grid_rgb`]).
+    /// (one grid pass for the three channels, `gram_grid_rgb`).
     pub fn over(
         backend: &dyn Backend,
         coll: &Collection,

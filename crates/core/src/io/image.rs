@@ -135,7 +135,7 @@ pub(crate) fn write_png_rgb8(
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
-/// The bytes [`write_png_rgb8`] writes.
+/// The bytes `write_png_rgb8` writes.
 pub fn rgb8_png_bytes(
     path: &Path,
     width: u32,

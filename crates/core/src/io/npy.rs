@@ -147,7 +147,7 @@ fn read_header(
     })
 }
 
-/// [`crate::npy_format::read_npy_f32`] with the file named in its errors.
+/// `crate::npy_format::read_npy_f32` with the file named in its errors.
 pub fn read_npy_f32(path: &Path, max_values: usize) -> Result<NpyF32, MatrixFileError> {
     crate::npy_format::read_npy_f32(path, max_values).map_err(|message| MatrixFileError::Format {
         path: path.to_path_buf(),

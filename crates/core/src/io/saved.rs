@@ -147,7 +147,7 @@ pub enum MatrixLoad {
     /// Read in place from a read-only memory map of the file ([`super::mmap`]): the
     /// matrix needs no memory of its own beyond the pages the kernel caches (file-backed,
     /// reclaimable). Falls back to [`MatrixLoad::Read`] where the file cannot be mapped
-    /// (see [`map_npy_2d`]).
+    /// (see `map_npy_2d`).
     #[default]
     Map,
     /// Read into memory of the matrix's own.

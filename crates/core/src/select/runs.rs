@@ -4,7 +4,7 @@
 //! GCUK: the whole run). Runs are computed in parallel but listed in (k, run) order, so the
 //! result does not depend on the thread count. The best run is the one with the lowest
 //! Davies-Bouldin index, a later run winning only when it is lower by more than
-//! [`TIE_TOLERANCE`] (relative; [`clearly_lower`]), so ties go to the earliest run. `select`,
+//! [`TIE_TOLERANCE`] (relative; `clearly_lower`), so ties go to the earliest run. `select`,
 //! `reproduce` and `cv` all choose by [`best_index`].
 
 use crate::backend::Progress;
@@ -33,7 +33,7 @@ pub struct Run {
 }
 
 /// The index of the best of `db` values: the lowest, a later one winning only when
-/// [`clearly_lower`] by [`TIE_TOLERANCE`] (ties: the first); `None` for no value.
+/// `clearly_lower` by [`TIE_TOLERANCE`] (ties: the first); `None` for no value.
 pub fn best_index(db: impl IntoIterator<Item = f64>) -> Option<usize> {
     let mut best: Option<(usize, f64)> = None;
     for (i, v) in db.into_iter().enumerate() {

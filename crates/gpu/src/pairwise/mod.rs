@@ -22,7 +22,7 @@
 //! on a hardware GPU R = 2 keeps the 64 accumulators in registers.
 //!
 //! Rows are laid out by [`RowLayout`] (analytic lobes first, then measured tables, then
-//! neural lobes, each kind from a whole texel on, so that no row block mixes kinds); [`covering_blocks`] maps the caller's
+//! neural lobes, each kind from a whole texel on, so that no row block mixes kinds); `covering_blocks` maps the caller's
 //! `BLOCK x BLOCK` block pairs onto the register blocks that hold them.
 
 mod neural_rows;

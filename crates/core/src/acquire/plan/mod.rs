@@ -145,7 +145,7 @@ pub const MAX_PLAN_COLUMNS: usize = 16;
 /// indices) from `cands`.
 ///
 /// `error` with `p.restarts = R > 1`: `R` seeded greedy paths, path `r` drawing its
-/// candidate subsets from [`restart_seed`]`(p.seed, r)` and examining
+/// candidate subsets from `restart_seed``(p.seed, r)` and examining
 /// `ceil(candidates_per_step / R)` candidates per step (the step's budget shared among the
 /// paths), and the path whose exact mean training score after its last sample is the
 /// lowest (ties: the earliest). Every path is a plan of SPEC 10 (greedy on the noise-free

@@ -159,7 +159,7 @@ pub struct CvResult {
 }
 
 /// Runs the cross-validation: builds the objective and (for clustering methods) the
-/// distance matrix of the whole collection once, then [`cross_validate_with`].
+/// distance matrix of the whole collection once, then `cross_validate_with`.
 pub fn cross_validate(
     backend: &dyn Backend,
     coll: &Collection,

@@ -47,7 +47,7 @@ pub struct ObjectiveParams {
     /// Gram mode (default auto).
     pub gram: GramMode,
     /// The fit objective (SPEC 11; default `l2`, SPEC 8's). Under `relative` or `log` the
-    /// Gram matrices carry SPEC 11's shared weights per channel ([`shared_weights`]) and
+    /// Gram matrices carry SPEC 11's shared weights per channel (`shared_weights`) and
     /// the reported fits (cross-validation's held-out fits) use the per-target weights.
     pub objective: TargetWeight,
 }
