@@ -539,3 +539,25 @@ fn select_distances_with_a_wrong_method_says_so() {
         "{e}"
     );
 }
+
+/// Before (audit-2 U3): `plan --help` showed "[`super::nielsen`]" and every command's
+/// `--backend` help "([`AutoBackend`], [`AUTO_ROUTES`])": rustdoc links in the help text.
+#[test]
+fn no_help_shows_a_rustdoc_link() {
+    let top = stdout(&run(&["--help"]));
+    let commands: Vec<&str> = top
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|c| *c != "help")
+        .collect();
+    assert!(commands.len() >= 10, "{commands:?}");
+    for c in commands {
+        let help = stdout(&run(&[c, "--help"]));
+        for bad in ["[`", "`]", "super::", "crate::"] {
+            assert!(!help.contains(bad), "`{c} --help` shows `{bad}`:\n{help}");
+        }
+    }
+}

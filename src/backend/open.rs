@@ -117,7 +117,7 @@ impl Backend for AutoBackend {
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BackendChoice {
     /// On a hardware GPU, each operation on the back-end measured faster for it
-    /// ([`AutoBackend`], [`AUTO_ROUTES`]); else the CPU back-end (faster than a software
+    /// (`brdf-basis info` prints which); else the CPU back-end (faster than a software
     /// rasteriser: ~18 G abs-diffs/s on 2 cores against ~4 for lavapipe).
     #[default]
     Auto,

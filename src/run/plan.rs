@@ -72,7 +72,7 @@ impl PlanRequest {
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
         if self.criterion == Criterion::Nielsen {
-            refuse!("--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random (SPEC-cli), and `cv --acquisition --plans nielsen` compares the baseline");
+            refuse!("--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random, and `cv --acquisition --plans nielsen` compares the baseline");
         }
         check_restarts(self.restarts)
     }

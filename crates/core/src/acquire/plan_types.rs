@@ -18,7 +18,8 @@ pub enum Criterion {
     Condition,
     /// Uniform random candidates.
     Random,
-    /// The peer baseline of Nielsen et al. 2015 (its own PCA; [`super::nielsen`]).
+    /// The peer baseline of Nielsen et al. 2015 (its own PCA of the training materials, no
+    /// basis).
     Nielsen,
 }
 
