@@ -61,7 +61,8 @@ pub(crate) struct CvArgs {
     #[arg(long)]
     pub no_appearance: bool,
     /// --acquisition: fit from samples by plain NNLS, without the ridge toward the training
-    /// materials' mean coefficients (whose strength is chosen on the training folds).
+    /// materials' mean material (used below k + 1 samples; its strength is chosen on the
+    /// training folds).
     #[arg(long)]
     pub no_ridge: bool,
     /// Output JSON.

@@ -96,26 +96,58 @@ pub(crate) fn solve_rows(
 /// fold, plan and n on the training materials; 0: plain NNLS).
 pub const RIDGE_STRENGTHS: [f64; 7] = [0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
-/// [`solve_rows`] with an optional ridge toward `prior = (mean, lambda)` (SPEC 10's
-/// choice among the solutions when the samples do not determine the fit):
+/// The prior of [`solve_rows_toward`] in one channel: the mean coefficients `mean` of the
+/// training materials and the shape `S` of the penalty `(x - mean)^T S (x - mean)`, an
+/// `m x m` symmetric positive-semidefinite matrix of trace `m` ([`function_shape`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Toward<'a> {
+    /// Mean coefficients (Lambertian first).
+    pub mean: &'a [f64],
+    /// Shape of the penalty, row-major `m x m`, trace `m`.
+    pub shape: &'a [f64],
+    /// Strength relative to the sampled design ([`solve_rows_toward`]).
+    pub lambda: f64,
+}
+
+/// The shape of the ridge's penalty in function space: the basis columns' Gram matrix `G`
+/// on the whole mask under the objective's shared weights (`G_ij = sum_s W(s) f_i(s)
+/// f_j(s)`, Lambertian first), scaled to trace `m`. Then `(x - mean)^T S (x - mean)` is the
+/// weighted squared distance over the whole grid between the material the coefficients
+/// `x` describe and the training materials' mean material: among the many fits that
+/// fewer samples than unknowns allow, the ridge prefers the one that looks most like an
+/// ordinary material everywhere, not only at the samples, which is what keeps the
+/// unsampled specular peak from extrapolating. The identity when `G` has no trace.
+pub(crate) fn function_shape(m: usize, gram: &[f64]) -> Vec<f64> {
+    let tr: f64 = (0..m).map(|i| gram[i * m + i]).sum();
+    if tr > 0.0 && tr.is_finite() {
+        gram[..m * m].iter().map(|v| v * m as f64 / tr).collect()
+    } else {
+        (0..m * m)
+            .map(|i| if i % (m + 1) == 0 { 1.0 } else { 0.0 })
+            .collect()
+    }
+}
+
+/// [`solve_rows`] with an optional ridge toward a prior ([`Toward`]: SPEC 10's choice among
+/// the solutions when the samples do not determine the fit):
 ///
 /// ```text
-/// minimise  sum_s w_s (row_s . x - y_s)^2 + mu |x - mean|^2   subject to x >= 0,
+/// minimise  sum_s w_s (row_s . x - y_s)^2 + mu (x - mean)^T S (x - mean)   subject to x >= 0,
 /// mu = lambda tr(G) / m
 /// ```
 ///
 /// `G = A^T W A` the sampled Gram matrix, so `lambda` is relative to the mean squared
-/// (weighted) column norm and does not depend on the units or on the number of samples.
-/// With fewer samples than columns the sampled problem has many exact solutions; the
-/// ridge picks the one nearest the mean (the training materials' mean coefficients), and
-/// with enough samples a small `lambda` leaves the fit as it was. `lambda = 0` or no prior
-/// is [`solve_rows`], bit for bit.
+/// (weighted) column norm and does not depend on the units or on the number of samples;
+/// `S` has trace `m` (the identity is the plain ridge). With fewer samples than columns the
+/// sampled problem has many exact solutions; the ridge picks the one most probable under
+/// the prior, and with enough samples a small `lambda` leaves the fit as it was.
+/// `lambda = 0` or no prior is [`solve_rows`], bit for bit.
 pub(crate) fn solve_rows_toward(
     m: usize,
     rows: &[f64],
     y: &[f64],
     w: &[f64],
-    prior: Option<(&[f64], f64)>,
+    prior: Option<Toward<'_>>,
 ) -> Result<NnlsSolution, NnlsError> {
     let mut g = vec![0.0; m * m];
     let mut h = vec![0.0; m];
@@ -135,12 +167,15 @@ pub(crate) fn solve_rows_toward(
             g[j * m + i] = g[i * m + j];
         }
     }
-    if let Some((mean, lambda)) = prior.filter(|p| p.1 > 0.0) {
-        let mu = lambda * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
+    if let Some(t) = prior.filter(|p| p.lambda > 0.0) {
+        let mu = t.lambda * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
         for i in 0..m {
-            g[i * m + i] += mu;
-            h[i] += mu * mean[i];
-            bb += mu * mean[i] * mean[i];
+            let sm: f64 = (0..m).map(|j| t.shape[i * m + j] * t.mean[j]).sum();
+            for j in 0..m {
+                g[i * m + j] += mu * t.shape[i * m + j];
+            }
+            h[i] += mu * sm;
+            bb += mu * t.mean[i] * sm;
         }
     }
     let p = GramProblem::new(m, &g, &h, bb)?;
@@ -392,5 +427,187 @@ mod tests {
         assert!(dep.condition.is_infinite());
         let w = determination_warnings(&dep, WARN_CONDITION, "");
         assert!(w[0].contains("rank 1 of 2"), "{w:?}");
+    }
+
+    /// `A x = b` by Gaussian elimination with partial pivoting (the tests' reference,
+    /// independent of the crate's Cholesky); `None` when singular.
+    fn gauss(n: usize, a: &[f64], b: &[f64]) -> Option<Vec<f64>> {
+        let mut m: Vec<Vec<f64>> = (0..n)
+            .map(|i| {
+                let mut r = a[i * n..(i + 1) * n].to_vec();
+                r.push(b[i]);
+                r
+            })
+            .collect();
+        for c in 0..n {
+            let p = (c..n).max_by(|&i, &j| m[i][c].abs().total_cmp(&m[j][c].abs()))?;
+            if m[p][c].abs() < 1e-300 {
+                return None;
+            }
+            m.swap(c, p);
+            let pivot = m[c].clone();
+            for (r, row) in m.iter_mut().enumerate() {
+                if r != c {
+                    let f = row[c] / pivot[c];
+                    for (v, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                        *v -= f * p;
+                    }
+                }
+            }
+        }
+        Some((0..n).map(|i| m[i][n] / m[i][i]).collect())
+    }
+
+    /// The shape is the Gram matrix scaled to trace m; the identity without a trace.
+    #[test]
+    fn the_function_shape_is_the_gram_matrix_of_trace_m() {
+        let g = [2.0, 1.0, 0.5, 1.0, 4.0, 0.0, 0.5, 0.0, 0.0];
+        let s = function_shape(3, &g);
+        for (a, b) in s.iter().zip(&g) {
+            assert!((a - b * 0.5).abs() < 1e-15, "{s:?}");
+        }
+        assert_eq!(function_shape(2, &[0.0; 4]), vec![1.0, 0.0, 0.0, 1.0]);
+    }
+
+    /// With fewer samples than columns, the ridge's solution is the exact optimum of the
+    /// penalised problem (every active set enumerated in f64), and the identity shape
+    /// gives the plain ridge's normal equations bit for bit.
+    #[test]
+    fn the_shaped_ridge_reaches_the_penalised_optimum() {
+        let m = 4;
+        let rows = [0.3, 1.0, 0.2, 0.7, 0.3, 0.1, 0.9, 0.4];
+        let (y, w) = ([0.8, 0.5], [1.0, 2.5]);
+        let mean = [0.2, 0.3, 0.2, 0.2];
+        // A positive-definite shape with off-diagonal terms (a Gram matrix of 5 rows).
+        let f: [[f64; 4]; 5] = [
+            [0.1, 0.5, 0.0, 0.2],
+            [0.2, 0.1, 0.4, 0.0],
+            [0.0, 0.3, 0.3, 0.6],
+            [0.4, 0.0, 0.1, 0.1],
+            [0.3, 0.6, 0.2, 0.1],
+        ];
+        let mut gram = vec![0.0; m * m];
+        for r in &f {
+            for i in 0..m {
+                for j in 0..m {
+                    gram[i * m + j] += r[i] * r[j];
+                }
+            }
+        }
+        let shape = function_shape(m, &gram);
+        let lambda = 0.05;
+        let got = solve_rows_toward(
+            m,
+            &rows,
+            &y,
+            &w,
+            Some(Toward {
+                mean: &mean,
+                shape: &shape,
+                lambda,
+            }),
+        )
+        .unwrap()
+        .x;
+        // The quadratic x^T Q x - 2 b^T x of the penalised problem, built here.
+        let mut q = vec![0.0; m * m];
+        let mut b = vec![0.0; m];
+        for (r, (yv, wv)) in rows.chunks(m).zip(y.iter().zip(w)) {
+            for i in 0..m {
+                b[i] += wv * r[i] * yv;
+                for j in 0..m {
+                    q[i * m + j] += wv * r[i] * r[j];
+                }
+            }
+        }
+        let mu = lambda * (0..m).map(|i| q[i * m + i]).sum::<f64>() / m as f64;
+        for i in 0..m {
+            for j in 0..m {
+                q[i * m + j] += mu * shape[i * m + j];
+                b[i] += mu * shape[i * m + j] * mean[j];
+            }
+        }
+        let f = |x: &[f64]| -> f64 {
+            let mut v = 0.0;
+            for i in 0..m {
+                v -= 2.0 * b[i] * x[i];
+                for j in 0..m {
+                    v += x[i] * q[i * m + j] * x[j];
+                }
+            }
+            v
+        };
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for set in 0u32..(1 << m) {
+            let p: Vec<usize> = (0..m).filter(|i| set >> i & 1 == 1).collect();
+            let qp: Vec<f64> = p
+                .iter()
+                .flat_map(|&i| p.iter().map(move |&j| (i, j)))
+                .map(|(i, j)| q[i * m + j])
+                .collect();
+            let bp: Vec<f64> = p.iter().map(|&i| b[i]).collect();
+            let Some(xp) = gauss(p.len(), &qp, &bp) else {
+                continue;
+            };
+            if xp.iter().any(|&v| v < 0.0) {
+                continue;
+            }
+            let mut x = vec![0.0; m];
+            p.iter().zip(&xp).for_each(|(&i, &v)| x[i] = v);
+            if best.as_ref().is_none_or(|(fb, _)| f(&x) < *fb) {
+                best = Some((f(&x), x));
+            }
+        }
+        let (_, want) = best.unwrap();
+        for (g, e) in got.iter().zip(&want) {
+            assert!((g - e).abs() < 1e-10, "{got:?} vs {want:?}");
+        }
+        // Identity shape: the plain ridge (diagonal mu, h + mu mean) bit for bit.
+        let eye: Vec<f64> = (0..m * m)
+            .map(|i| if i % (m + 1) == 0 { 1.0 } else { 0.0 })
+            .collect();
+        let shaped = solve_rows_toward(
+            m,
+            &rows,
+            &y,
+            &w,
+            Some(Toward {
+                mean: &mean,
+                shape: &eye,
+                lambda,
+            }),
+        )
+        .unwrap();
+        let mut g = vec![0.0; m * m];
+        let mut h = vec![0.0; m];
+        let mut bb = 0.0;
+        for ((row, &yv), &wv) in rows.chunks_exact(m).zip(&y).zip(&w) {
+            for i in 0..m {
+                let wi = wv * row[i];
+                h[i] += wi * yv;
+                for j in 0..=i {
+                    g[i * m + j] += wi * row[j];
+                }
+            }
+            bb += wv * yv * yv;
+        }
+        for i in 0..m {
+            for j in 0..i {
+                g[j * m + i] = g[i * m + j];
+            }
+        }
+        let mu = lambda * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
+        for i in 0..m {
+            g[i * m + i] += mu;
+            h[i] += mu * mean[i];
+            bb += mu * mean[i] * mean[i];
+        }
+        let plain = lawson_hanson::solve(
+            &GramProblem::new(m, &g, &h, bb).unwrap(),
+            &lawson_hanson::LhParams::default(),
+        )
+        .unwrap();
+        assert_eq!(shaped.x, plain.x);
+        assert_eq!(shaped.objective.to_bits(), plain.objective.to_bits());
     }
 }

@@ -16,7 +16,7 @@ pub(super) type FoldRows = (
     Vec<Candidate>,
     Vec<Vec<Vec<Cell>>>,
     Vec<Vec<Option<f64>>>,
-    Option<[Vec<f64>; 3]>,
+    Option<RidgePrior>,
 );
 
 /// What every fold of every method shares: the checked settings, the fold bases, the
@@ -233,7 +233,7 @@ impl<'a> Shared<'a> {
             });
         }
         self.nielsen_plans(&at, &sc, &mut acc)?;
-        Ok((named, show, acc, ridges, prior.map(|p| p.mean)))
+        Ok((named, show, acc, ridges, prior.map(|p| p.ridge)))
     }
 
     /// The dense fit of each held-out material (the limit). Under an objective the
@@ -321,7 +321,24 @@ impl<'a> Shared<'a> {
             } else {
                 &[]
             };
-            let chosen = plan(backend, coll, basis, train_of, cands, &pp)?.chosen;
+            // The training materials' dense state is the ridge's (CPU twin, the same
+            // fit parameters): computed once per fold, not once per plan.
+            let chosen = match prior {
+                Some(pr) if !train_of.is_empty() => {
+                    super::super::plan::check(coll, basis, train_of, cands, &pp)?;
+                    plan_given_dense(
+                        coll,
+                        basis,
+                        train_of,
+                        cands,
+                        &pp,
+                        Some(&pr.dense),
+                        &|_, _| {},
+                    )?
+                }
+                _ => plan(backend, coll, basis, train_of, cands, &pp)?,
+            }
+            .chosen;
             let samples: Vec<PlannedSample> = chosen.iter().map(PlannedSample::from).collect();
             if mi == 0 && pi == 0 {
                 show = chosen.clone();
@@ -352,7 +369,7 @@ impl<'a> Shared<'a> {
                     ridges[pi][ni] = Some(l);
                 }
             }
-            let toward = |ni: usize| prior.map(|pr| (&pr.mean, lambdas[ni]));
+            let toward = |ni: usize| prior.map(|pr| (&pr.ridge, lambdas[ni]));
             for si in 0..p.noises.len() {
                 let sigma = p.noises[si];
                 // Noisy measurements of every held-out material at the nmax samples.
@@ -567,7 +584,7 @@ pub(super) fn sample_coefficients(
     ns: usize,
     weight: TargetWeight,
     cos: &[f64],
-    toward: Option<(&[Vec<f64>; 3], f64)>,
+    toward: Option<(&RidgePrior, f64)>,
 ) -> Result<[Vec<f64>; 3], AcquireError> {
     let mm = nb + 1;
     let mut x: [Vec<f64>; 3] = Default::default();
@@ -578,18 +595,37 @@ pub(super) fn sample_coefficients(
             r.extend((0..nb).map(|b| vals[c][b][s]));
         }
         let w: Vec<f64> = (0..ns).map(|s| weight.phi(y[c][s], cos[s])).collect();
-        let pr = toward.map(|(mean, l)| (&mean[c][..], l));
+        let pr = toward.map(|(pr, lambda)| Toward {
+            mean: &pr.mean[c],
+            shape: &pr.shape[c],
+            lambda,
+        });
         x[c] = solve_rows_toward(mm, &r, &y[c][..ns], &w, pr)?.x;
     }
     Ok(x)
+}
+
+/// The prior of the fits from samples, per channel: the mean coefficients of a fold's
+/// training materials (their dense fits under the objective's shared weights) and the
+/// shape of the penalty in function space ([`function_shape`]).
+#[derive(Clone, Debug)]
+pub(super) struct RidgePrior {
+    /// Mean coefficients (Lambertian first).
+    pub(super) mean: [Vec<f64>; 3],
+    /// Shape of the penalty (`m x m`, trace `m`).
+    pub(super) shape: [Vec<f64>; 3],
 }
 
 /// The ridge of the fits from samples (SPEC 10, beside it in `docs/acquisition.md`): the
 /// mean over a fold's training materials of their dense fits (under the objective's
 /// shared weights), and those materials' dense state to score their fits from samples.
 struct Prior {
-    /// Per channel, the mean coefficients (Lambertian first).
-    mean: [Vec<f64>; 3],
+    /// Per channel, the mean coefficients and the penalty's shape.
+    ridge: RidgePrior,
+    /// The same prior without each training material in turn (`loo[t]`), which scores
+    /// that material's fits from samples when the strength is chosen: a material's own
+    /// coefficients must not shape the prior its fit is judged with.
+    loo: Vec<RidgePrior>,
     /// The training materials' full-mask Gram quantities (shared weights).
     dense: Dense,
 }
@@ -604,23 +640,42 @@ impl Prior {
     ) -> Result<Self, AcquireError> {
         let dense = Dense::new(backend, coll, basis, train, fp)?;
         let m = dense.m;
-        let mut mean = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
-        for (c, mc) in mean.iter_mut().enumerate() {
+        let nt = train.len();
+        let mut coefs: [Vec<Vec<f64>>; 3] = Default::default();
+        for (c, cc) in coefs.iter_mut().enumerate() {
             let g = &dense.g[c];
-            let xs = crate::nnls::GramBatch::new(
-                m,
-                &g.gram,
-                &g.h[..train.len() * m],
-                &g.bb[..train.len()],
-            )
-            .and_then(|b| lawson_hanson::solve_batch(&b, &lawson_hanson::LhParams::default()))?;
-            for s in &xs {
-                for (a, x) in mc.iter_mut().zip(&s.x) {
-                    *a += x / train.len() as f64;
-                }
-            }
+            let xs = crate::nnls::GramBatch::new(m, &g.gram, &g.h[..nt * m], &g.bb[..nt])
+                .and_then(|b| {
+                    lawson_hanson::solve_batch(&b, &lawson_hanson::LhParams::default())
+                })?;
+            *cc = xs.into_iter().map(|s| s.x).collect();
         }
-        Ok(Self { mean, dense })
+        let prior_of = |skip: Option<usize>| -> RidgePrior {
+            let mut mean: [Vec<f64>; 3] = Default::default();
+            let mut shape: [Vec<f64>; 3] = Default::default();
+            for c in 0..3 {
+                let rows: Vec<&[f64]> = (0..nt)
+                    .filter(|&t| Some(t) != skip)
+                    .map(|t| &coefs[c][t][..])
+                    .collect();
+                let mut mc = vec![0.0; m];
+                for x in &rows {
+                    for (a, v) in mc.iter_mut().zip(x.iter()) {
+                        *a += v / rows.len() as f64;
+                    }
+                }
+                shape[c] = function_shape(m, &dense.g[c].gram);
+                mean[c] = mc;
+            }
+            RidgePrior { mean, shape }
+        };
+        let ridge = prior_of(None);
+        let loo = if nt > 1 {
+            (0..nt).map(|t| prior_of(Some(t))).collect()
+        } else {
+            vec![ridge.clone(); nt]
+        };
+        Ok(Self { ridge, loo, dense })
     }
 
     /// The ridge strength of [`RIDGE_STRENGTHS`] whose fits of the training materials
@@ -644,8 +699,15 @@ impl Prior {
                 let mut sum = 0.0;
                 for t in 0..nt {
                     let y = [0, 1, 2].map(|c| tv[c][t].clone());
-                    let x =
-                        sample_coefficients(nb, vals, &y, ns, weight, cos, Some((&self.mean, l)))?;
+                    let x = sample_coefficients(
+                        nb,
+                        vals,
+                        &y,
+                        ns,
+                        weight,
+                        cos,
+                        Some((&self.loo[t], l)),
+                    )?;
                     sum += self.dense.rho(t, &x);
                 }
                 Ok(sum / nt.max(1) as f64)

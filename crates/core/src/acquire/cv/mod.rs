@@ -8,10 +8,11 @@
 //! renders (SPEC 7: light (45, 45)). The dense rho of the same basis (fit on the whole mask)
 //! is its limit.
 
-use super::fit::{solve_rows_toward, RIDGE_STRENGTHS};
+use super::fit::{function_shape, solve_rows_toward, Toward, RIDGE_STRENGTHS};
 use super::nielsen::{nielsen_per_step, NielsenModel, ETA};
 use super::plan::{
-    cell_candidates, plan, values_at, Candidate, Criterion, Dense, PlanParams, PlannedSample,
+    cell_candidates, plan, plan_given_dense, values_at, Candidate, Criterion, Dense, PlanParams,
+    PlannedSample,
 };
 use super::AcquireError;
 use crate::backend::cpu::CpuBackend;
@@ -68,8 +69,10 @@ pub struct AcqCvParams {
     /// the four lights) of every reconstruction, the `nielsen` baseline's included.
     pub appearance: bool,
     /// Fits from fewer samples than unknowns with a ridge toward the training materials'
-    /// mean coefficients, its strength chosen per fold, plan and n on the training
-    /// materials ([`RIDGE_STRENGTHS`]); `false`: plain NNLS.
+    /// mean material, measured on the whole grid under the shared weights
+    /// ([`function_shape`]), its strength chosen per fold, plan and n on the training
+    /// materials, each left out of the prior it is judged with ([`RIDGE_STRENGTHS`]);
+    /// `false`: plain NNLS.
     pub ridge: bool,
 }
 
@@ -256,7 +259,7 @@ pub fn acquisition_cv(
     let s = Shared::new(backend, coll, p)?;
     let names = &s.names;
     let mut show_chosen: Vec<Vec<Candidate>> = vec![Vec::new(); s.folds.len()];
-    let mut show_prior: Vec<Option<[Vec<f64>; 3]>> = vec![None; s.folds.len()];
+    let mut show_prior: Vec<Option<fold::RidgePrior>> = vec![None; s.folds.len()];
     let mut results = Vec::new();
     for (mi, m) in p.methods.iter().enumerate() {
         // Each fold returns its rows, merged in fold order.

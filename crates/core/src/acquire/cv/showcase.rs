@@ -12,7 +12,7 @@ pub(super) struct Showcase<'a> {
     pub(super) folds: &'a [Vec<usize>],
     pub(super) bases: &'a [Vec<usize>],
     pub(super) chosen: &'a [Vec<Candidate>],
-    pub(super) prior: &'a [Option<[Vec<f64>; 3]>],
+    pub(super) prior: &'a [Option<super::fold::RidgePrior>],
     pub(super) cellset: &'a crate::merl::grid::CellSet,
     pub(super) cands: &'a [Candidate],
     pub(super) rp: &'a RenderParams,

@@ -204,9 +204,25 @@ pub fn plan_with_progress(
     } else {
         Some(Dense::new(backend, coll, basis, targets, &p.fit)?)
     };
+    plan_given_dense(coll, basis, targets, cands, p, dense.as_ref(), progress)
+}
+
+/// [`plan_with_progress`] with the training materials' dense state already computed
+/// (`Dense::new(_, coll, basis, targets, &p.fit)`; `None` without targets): the
+/// acquisition's cross-validation computes it once per fold for its ridge and every
+/// plan. `p` is checked and not `nielsen`.
+pub(crate) fn plan_given_dense(
+    coll: &Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cands: &[Candidate],
+    p: &PlanParams,
+    dense: Option<&Dense>,
+    progress: crate::backend::Progress<'_>,
+) -> Result<Plan, AcquireError> {
     if p.restarts <= 1 || p.criterion != Criterion::Error || dense.is_none() {
         let steps = Steps::new(progress, 0, p.n as u64);
-        return plan_path(coll, basis, targets, cands, p, dense.as_ref(), &steps);
+        return plan_path(coll, basis, targets, cands, p, dense, &steps);
     }
     let per_path = if p.candidates_per_step == 0 {
         0
@@ -222,7 +238,7 @@ pub fn plan_with_progress(
             ..p.clone()
         };
         let steps = Steps::new(progress, (r * p.n) as u64, (p.restarts * p.n) as u64);
-        let pl = plan_path(coll, basis, targets, cands, &pr, dense.as_ref(), &steps)?;
+        let pl = plan_path(coll, basis, targets, cands, &pr, dense, &steps)?;
         let score = |q: &Plan| q.history.last().copied().unwrap_or(f64::INFINITY);
         if best.as_ref().is_none_or(|b| score(&pl) < score(b)) {
             best = Some(pl);
@@ -257,7 +273,7 @@ impl<'a> Steps<'a> {
 }
 
 /// The parameters' checks of [`plan`].
-fn check(
+pub(crate) fn check(
     coll: &Collection,
     basis: &[usize],
     targets: &[usize],
