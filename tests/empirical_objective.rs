@@ -129,7 +129,7 @@ fn reference_contributors(
         let dot = |a: usize, b: usize| -> f64 {
             (0..w.len()).map(|s| w[s] * cols[a][s] * cols[b][s]).sum()
         };
-        for t in 0..n {
+        for (t, row) in used.iter_mut().enumerate() {
             // Columns: the Lambertian (0), then every other material (j + 1).
             let basis: Vec<usize> = std::iter::once(0)
                 .chain((0..n).filter(|&j| j != t).map(|j| j + 1))
@@ -143,7 +143,7 @@ fn reference_contributors(
             let h: Vec<f64> = basis.iter().map(|&a| dot(a, t + 1)).collect();
             let x = enumerated_nnls(m, &g, &h);
             for (k, &col) in basis.iter().enumerate().skip(1) {
-                used[t][col - 1] |= x[k] > 0.0;
+                row[col - 1] |= x[k] > 0.0;
             }
         }
     }
