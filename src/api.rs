@@ -204,7 +204,8 @@ pub fn select_ga(obj: &Objective, p: &SearchParams, g: &GaParams) -> Result<Sele
 /// `p.more_than` leave-one-out fits.
 ///
 /// # Errors
-/// [`Error::Fit`] for fewer than two materials, no common cells, or a failed solve.
+/// [`Error::Selection`] for fewer than two materials, no common cells, an invalid
+/// objective, or a failed solve.
 pub fn empirical(
     backend: &dyn Backend,
     coll: &Collection,

@@ -15,6 +15,7 @@ mod cli;
 mod collection;
 mod determinism;
 mod distance;
+mod empirical_objective;
 mod figures;
 mod fingerprints;
 mod fit;

@@ -33,7 +33,8 @@ pub(crate) struct SelectArgs {
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
-    /// greedy, swap, ga: the fit objective whose shared weights score a basis.
+    /// greedy, swap, ga, empirical: the fit objective whose shared weights score a basis
+    /// (empirical: weight its leave-one-out fits; l2 gives the paper's).
     #[command(flatten)]
     pub objective: super::ObjectiveArgs,
     /// kmedoids, greedy, swap, ga: the basis size (kmedoids: instead of --k-min..--k-max).

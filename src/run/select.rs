@@ -140,9 +140,10 @@ pub struct SelectRequest {
     /// `--distances`: cluster this saved matrix (a `.npy` written by `distance`, read with
     /// its sidecar, or a `.csv`) instead of computing one ([`SelectRequest::run_saved`]).
     pub distances: Option<PathBuf>,
-    /// `--objective` and `--eps` (SPEC 11): greedy, swap and ga score bases under the
-    /// objective's shared weights. The clustering methods work on distances, and
-    /// `empirical` on its leave-one-out `l2` fits: the objective does not change them.
+    /// `--objective` and `--eps` (SPEC 11): greedy, swap and ga score bases, and
+    /// `empirical` makes its leave-one-out fits, under the objective's shared weights
+    /// (`l2`: the paper's fits). The clustering methods work on distances: the objective
+    /// does not change them.
     pub objective: crate::fit::TargetWeight,
 }
 
@@ -390,6 +391,7 @@ impl SelectRequest {
                     mask: g.mask,
                     weighting: g.weighting,
                     stride: g.stride,
+                    objective: self.objective,
                     ..Default::default()
                 },
                 more_than: self.more_than,

@@ -6,18 +6,22 @@ use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::{
     collection_lobes, fit_cells, separable_lobes, CollectionGrams, FitError, FitParams,
+    TargetWeight,
 };
 use crate::merl::GridTables;
 use crate::nnls::lawson_hanson::{self, LeaveOneOut};
 use crate::nnls::NnlsError;
 use crate::separable::{CellMoments, SeparableLobe};
+
+use super::objective::shared_weight_grams;
+use super::SelectionError;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 
 /// Parameters of the empirical selection.
 #[derive(Clone, Debug)]
 pub struct EmpiricalParams {
-    /// Fit settings (mask, weighting, stride; the solver is always exact here).
+    /// Fit settings (mask, weighting, stride, objective; the solver is always exact here).
     pub fit: FitParams,
     /// A material enters the basis when it contributes to more than this many fits
     /// (paper: 5).
@@ -47,23 +51,43 @@ pub struct Empirical {
     pub counts: Vec<usize>,
 }
 
-/// Runs Algorithm 1 on `coll`: the Gram matrices of all materials (closed form for an
-/// analytic collection, else one grid pass of the back-end for the three channels), then
-/// one exact rank-deficiency-safe NNLS per target and channel, all sharing the channel's
-/// scaled Gram matrix ([`LeaveOneOut`]). A failed solve is an error naming the material.
+/// Runs Algorithm 1 on `coll`: the Gram matrices of all materials, then one exact
+/// rank-deficiency-safe NNLS per target and channel, all sharing the channel's scaled Gram
+/// matrix ([`LeaveOneOut`]). A failed solve is an error naming the material.
+///
+/// Under `l2` (SPEC 5, the paper's) the Gram matrices are the closed form of an analytic
+/// collection, else one grid pass of the back-end for the three channels. Under
+/// `relative` or `log` (`p.fit.objective`, SPEC 11) they carry the selection's shared
+/// weights (the median material's weight per cell and channel, as greedy, swap and ga
+/// score): one back-end pass per channel, and the leave-one-out fits cost what they cost
+/// under `l2`.
 pub fn empirical(
     backend: &dyn Backend,
     coll: &Collection,
     p: &EmpiricalParams,
     progress: Progress<'_>,
-) -> Result<Empirical, FitError> {
+) -> Result<Empirical, SelectionError> {
     let n = coll.len();
     if n < 2 {
-        return Err(FitError::EmptyBasis);
+        return Err(FitError::EmptyBasis.into());
+    }
+    let objective = p.fit.objective.check().map_err(FitError::from)?;
+    if objective != TargetWeight::L2 {
+        let all: Vec<usize> = (0..n).collect();
+        let cells = fit_cells(coll, &all, &p.fit)?;
+        if cells.is_empty() {
+            return Err(FitError::NoCells {
+                mask: p.fit.mask,
+                stride: p.fit.stride,
+            }
+            .into());
+        }
+        let grams = shared_weight_grams(backend, coll, &cells, objective, progress)?;
+        return Ok(empirical_from_grams(coll, p, &grams)?);
     }
     if CollectionGrams::needed(coll, p.fit.gram) {
         let g = CollectionGrams::grid(backend, coll, &p.fit, progress)?;
-        return empirical_from_grams(coll, p, &g.grams);
+        return Ok(empirical_from_grams(coll, p, &g.grams)?);
     }
     let all: Vec<usize> = (0..n).collect();
     let cells = fit_cells(coll, &all, &p.fit)?;
@@ -72,7 +96,7 @@ pub fn empirical(
         let sep = separable_lobes(&lobes).expect("every lobe of an analytic collection");
         separable_gram_all(&mom, &sep)
     });
-    empirical_from_grams(coll, p, &fulls)
+    Ok(empirical_from_grams(coll, p, &fulls)?)
 }
 
 /// Algorithm 1 from the Gram matrices of `coll` per channel (`(N + 1)^2`, the Lambertian

@@ -12,7 +12,8 @@
 //!   `runs` runs, lowest Davies-Bouldin index): on the distance matrix (computed once for
 //!   all N) restricted to the training materials.
 //! * `empirical`: the leave-one-out fits of the training materials by the other training
-//!   materials; the basis is the k materials contributing to the most fits (ties:
+//!   materials (from the objective's Gram matrices: under `relative` or `log`, the
+//!   shared weights of `select --method empirical`); the basis is the k materials contributing to the most fits (ties:
 //!   collection order).
 //! * `random`: k training materials drawn uniformly (seed `seed + 1000 fold + k`).
 //!

@@ -181,6 +181,27 @@ pub(crate) fn shared_weights(
     Ok(out)
 }
 
+/// The Gram matrices of `coll` under SPEC 11's shared weights of `weight` over `cells`
+/// ([`shared_weights`]): per channel `(N + 1)^2`, column 0 the Lambertian `1/pi`, column
+/// `j + 1` material `j`, one back-end pass per channel with that channel's weights.
+pub(crate) fn shared_weight_grams(
+    backend: &dyn Backend,
+    coll: &Collection,
+    cells: &CellSet,
+    weight: TargetWeight,
+    progress: Progress<'_>,
+) -> Result<[Vec<f64>; 3], SelectionError> {
+    let weighted = shared_weights(backend, coll, cells, weight)?;
+    let lobes = crate::fit::collection_lobes(coll);
+    let mut out: [Vec<f64>; 3] = Default::default();
+    for ((o, l), cw) in out.iter_mut().zip(lobes).zip(&weighted) {
+        *o = backend
+            .gram(&l, cw, coll.len() + 1, progress)
+            .map_err(crate::fit::FitError::from)?;
+    }
+    Ok(out)
+}
+
 /// The median of `v` (NaN-free, non-empty: the mean of the two middle values for an even
 /// length), in f64; reorders `v`.
 fn median_f32(v: &mut [f32]) -> f64 {
@@ -241,15 +262,7 @@ impl Objective {
             )));
         }
         let grams = if p.objective != TargetWeight::L2 {
-            let weighted = shared_weights(backend, coll, &cells, p.objective)?;
-            let lobes = crate::fit::collection_lobes(coll);
-            let mut out: [Vec<f64>; 3] = Default::default();
-            for ((o, l), cw) in out.iter_mut().zip(lobes).zip(&weighted) {
-                *o = backend
-                    .gram(&l, cw, n + 1, progress)
-                    .map_err(crate::fit::FitError::from)?;
-            }
-            out
+            shared_weight_grams(backend, coll, &cells, p.objective, progress)?
         } else if CollectionGrams::needed(coll, p.gram) {
             CollectionGrams::over(backend, coll, &cells, progress)?
         } else {
