@@ -469,9 +469,65 @@ mod tests {
         assert_eq!(function_shape(2, &[0.0; 4]), vec![1.0, 0.0, 0.0, 1.0]);
     }
 
+    /// The identity shape gives the plain ridge's normal equations bit for bit.
+    #[test]
+    fn the_identity_shape_is_the_plain_ridge() {
+        let m = 4;
+        let rows = [0.3, 1.0, 0.2, 0.7, 0.3, 0.1, 0.9, 0.4];
+        let (y, w) = ([0.8, 0.5], [1.0, 2.5]);
+        let mean = [0.2, 0.3, 0.2, 0.2];
+        let lambda = 0.05;
+        // Identity shape: the plain ridge (diagonal mu, h + mu mean) bit for bit.
+        let eye: Vec<f64> = (0..m * m)
+            .map(|i| if i % (m + 1) == 0 { 1.0 } else { 0.0 })
+            .collect();
+        let shaped = solve_rows_toward(
+            m,
+            &rows,
+            &y,
+            &w,
+            Some(Toward {
+                mean: &mean,
+                shape: &eye,
+                lambda,
+            }),
+        )
+        .unwrap();
+        let mut g = vec![0.0; m * m];
+        let mut h = vec![0.0; m];
+        let mut bb = 0.0;
+        for ((row, &yv), &wv) in rows.chunks_exact(m).zip(&y).zip(&w) {
+            for i in 0..m {
+                let wi = wv * row[i];
+                h[i] += wi * yv;
+                for j in 0..=i {
+                    g[i * m + j] += wi * row[j];
+                }
+            }
+            bb += wv * yv * yv;
+        }
+        for i in 0..m {
+            for j in 0..i {
+                g[j * m + i] = g[i * m + j];
+            }
+        }
+        let mu = lambda * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
+        for i in 0..m {
+            g[i * m + i] += mu;
+            h[i] += mu * mean[i];
+            bb += mu * mean[i] * mean[i];
+        }
+        let plain = lawson_hanson::solve(
+            &GramProblem::new(m, &g, &h, bb).unwrap(),
+            &lawson_hanson::LhParams::default(),
+        )
+        .unwrap();
+        assert_eq!(shaped.x, plain.x);
+        assert_eq!(shaped.objective.to_bits(), plain.objective.to_bits());
+    }
+
     /// With fewer samples than columns, the ridge's solution is the exact optimum of the
-    /// penalised problem (every active set enumerated in f64), and the identity shape
-    /// gives the plain ridge's normal equations bit for bit.
+    /// penalised problem (every active set enumerated in f64).
     #[test]
     fn the_shaped_ridge_reaches_the_penalised_optimum() {
         let m = 4;
@@ -562,52 +618,5 @@ mod tests {
         for (g, e) in got.iter().zip(&want) {
             assert!((g - e).abs() < 1e-10, "{got:?} vs {want:?}");
         }
-        // Identity shape: the plain ridge (diagonal mu, h + mu mean) bit for bit.
-        let eye: Vec<f64> = (0..m * m)
-            .map(|i| if i % (m + 1) == 0 { 1.0 } else { 0.0 })
-            .collect();
-        let shaped = solve_rows_toward(
-            m,
-            &rows,
-            &y,
-            &w,
-            Some(Toward {
-                mean: &mean,
-                shape: &eye,
-                lambda,
-            }),
-        )
-        .unwrap();
-        let mut g = vec![0.0; m * m];
-        let mut h = vec![0.0; m];
-        let mut bb = 0.0;
-        for ((row, &yv), &wv) in rows.chunks_exact(m).zip(&y).zip(&w) {
-            for i in 0..m {
-                let wi = wv * row[i];
-                h[i] += wi * yv;
-                for j in 0..=i {
-                    g[i * m + j] += wi * row[j];
-                }
-            }
-            bb += wv * yv * yv;
-        }
-        for i in 0..m {
-            for j in 0..i {
-                g[j * m + i] = g[i * m + j];
-            }
-        }
-        let mu = lambda * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
-        for i in 0..m {
-            g[i * m + i] += mu;
-            h[i] += mu * mean[i];
-            bb += mu * mean[i] * mean[i];
-        }
-        let plain = lawson_hanson::solve(
-            &GramProblem::new(m, &g, &h, bb).unwrap(),
-            &lawson_hanson::LhParams::default(),
-        )
-        .unwrap();
-        assert_eq!(shaped.x, plain.x);
-        assert_eq!(shaped.objective.to_bits(), plain.objective.to_bits());
     }
 }

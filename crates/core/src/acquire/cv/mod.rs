@@ -242,6 +242,7 @@ pub struct AcqShowcase {
 type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
 
 mod fold;
+mod prior;
 mod showcase;
 
 use fold::{FoldRows, Shared};
@@ -259,7 +260,7 @@ pub fn acquisition_cv(
     let s = Shared::new(backend, coll, p)?;
     let names = &s.names;
     let mut show_chosen: Vec<Vec<Candidate>> = vec![Vec::new(); s.folds.len()];
-    let mut show_prior: Vec<Option<fold::RidgePrior>> = vec![None; s.folds.len()];
+    let mut show_prior: Vec<Option<prior::RidgePrior>> = vec![None; s.folds.len()];
     let mut results = Vec::new();
     for (mi, m) in p.methods.iter().enumerate() {
         // Each fold returns its rows, merged in fold order.

@@ -1,7 +1,8 @@
 //! The showcase of an acquisition cross-validation: renders of one held-out material, its
 //! dense fit and its reconstructions from each n of one plan.
 
-use super::fold::{measure, sample_coefficients};
+use super::fold::measure;
+use super::prior::sample_coefficients;
 use super::*;
 
 /// What the showcase renders need.
@@ -12,7 +13,7 @@ pub(super) struct Showcase<'a> {
     pub(super) folds: &'a [Vec<usize>],
     pub(super) bases: &'a [Vec<usize>],
     pub(super) chosen: &'a [Vec<Candidate>],
-    pub(super) prior: &'a [Option<super::fold::RidgePrior>],
+    pub(super) prior: &'a [Option<super::prior::RidgePrior>],
     pub(super) cellset: &'a crate::merl::grid::CellSet,
     pub(super) cands: &'a [Candidate],
     pub(super) rp: &'a RenderParams,
