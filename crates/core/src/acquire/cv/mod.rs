@@ -70,7 +70,7 @@ pub struct AcqCvParams {
     pub appearance: bool,
     /// Fits from fewer samples than unknowns with a ridge toward the training materials'
     /// mean material, measured on the whole grid under the shared weights
-    /// ([`function_shape`]), its strength chosen per fold, plan and n on the training
+    /// (the basis's shared-weight Gram matrix), its strength chosen per fold, plan and n on the training
     /// materials, each left out of the prior it is judged with ([`RIDGE_STRENGTHS`]);
     /// `false`: plain NNLS.
     pub ridge: bool,
