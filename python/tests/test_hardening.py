@@ -21,7 +21,7 @@ def test_progress_is_a_bool_none_or_a_callable():
         with pytest.raises(TypeError, match=r"progress: expected True, False, None or a callable"):
             bb.distance_matrix(c, stride=8, backend="cpu", progress=bad)
     for ok in [True, False, None]:
-        assert bb.distance_matrix(c, stride=8, backend="cpu", progress=ok).shape[0] == len(c.names())
+        assert bb.distance_matrix(c, stride=8, backend="cpu", progress=ok).shape[0] == len(c.names)
 
 
 def test_fit_result_save_refuses_a_symbolic_link(tmp_path):
