@@ -65,11 +65,11 @@ impl RglMaterial {
             })
             .collect();
         let limit = f64::from(f32::MAX);
-        if let Some((cell, v)) = cells
-            .iter()
-            .enumerate()
-            .find_map(|(c, v)| v.iter().find(|x| !(x.abs() <= limit)).map(|&x| (c, x)))
-        {
+        if let Some((cell, v)) = cells.iter().enumerate().find_map(|(c, v)| {
+            v.iter()
+                .find(|x| x.abs() > limit || x.is_nan())
+                .map(|&x| (c, x))
+        }) {
             let (wi, wo) = cell_directions(cell);
             let deg = |d: [f64; 3]| (d[2].acos().to_degrees(), d[1].atan2(d[0]).to_degrees());
             let ((ti, pi), (to, po)) = (deg(wi), deg(wo));

@@ -69,7 +69,10 @@ impl Nbrdf {
                 self.eval_cells(run, false, [&mut r[..n], &mut g[..n], &mut b[..n]]);
             }
             for (c, row) in out.iter().enumerate() {
-                let Some(k) = row[..n].iter().position(|v| !(v.abs() < MAX_OUTPUT)) else {
+                let Some(k) = row[..n]
+                    .iter()
+                    .position(|v| v.abs() >= MAX_OUTPUT || v.is_nan())
+                else {
                     continue;
                 };
                 let (th, td, pd) = cell_angles(run[k] as usize);
