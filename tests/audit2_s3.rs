@@ -9,13 +9,13 @@ use std::path::Path;
 use std::process::Output;
 use std::time::Duration;
 
-const CSV: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n\
+pub(crate) const CSV: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n\
     plastic,0.2,0.1,0.05,0.3,0.3,0.3,0.04,120\n\
     metal,0,0,0,0.9,0.7,0.4,0.8,2500\n\
     satin,0.05,0.05,0.08,0.2,0.25,0.3,0.1,15\n\
     target,0.12,0.07,0.06,0.5,0.4,0.3,0.2,400\n";
 
-fn run(dir: &Path, args: &[&str]) -> Output {
+pub(crate) fn run(dir: &Path, args: &[&str]) -> Output {
     let mut cmd = bin();
     cmd.args(["--quiet", "--backend", "cpu"])
         .args(args)
@@ -24,13 +24,13 @@ fn run(dir: &Path, args: &[&str]) -> Output {
         .unwrap_or_else(|| panic!("brdf-basis {args:?} hangs"))
 }
 
-fn stderr(o: &Output) -> String {
+pub(crate) fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// A refusal: exit status 1 (not a panic's 101 or a signal) and a message holding every
 /// one of `parts`.
-fn refused(dir: &Path, args: &[&str], parts: &[&str]) -> String {
+pub(crate) fn refused(dir: &Path, args: &[&str], parts: &[&str]) -> String {
     let o = run(dir, args);
     let e = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{args:?}: {:?}\n{e}", o.status);
@@ -401,4 +401,215 @@ fn select_on_distances_too_large_to_add_names_the_overflow() {
         &["too large to add up", "overflows to infinity"],
     );
     assert!(!e.contains("distance 0"), "{e}");
+}
+
+/// T7: `render --fit` and `plot --fit` refuse the JSON of a fit from samples, saying why
+/// and how to render it (the old code said "no material named `s`", or, with the samples
+/// file named like a collection material, compared the fit with that other material and
+/// exited 0). A samples file named like a collection material is fitted with a warning.
+#[test]
+fn render_and_plot_refuse_a_fit_from_samples() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    let mut s = String::from("theta_i,phi_i,theta_o,phi_o,r,g,b\n");
+    for (ti, to) in [(10, 20), (20, 25), (30, 31), (40, 45), (50, 10), (60, 70)] {
+        s += &format!("{ti},0,{to},180,0.2,0.1,0.1\n");
+    }
+    // `s` is no collection material, `target` one outside the basis, `plastic` a basis one.
+    for (name, warned) in [
+        ("s", None),
+        ("target", Some("a")),
+        ("plastic", Some("a basis")),
+    ] {
+        let samples = format!("{name}.csv");
+        write(d, &samples, &s);
+        let json = format!("f-{name}.json");
+        let args = [
+            "fit",
+            "c.csv",
+            "--basis",
+            "plastic,metal",
+            "--samples",
+            &samples,
+            "--json",
+            &json,
+        ];
+        let o = run(d, &args);
+        let e = stderr(&o);
+        assert!(o.status.success(), "{e}");
+        let w = format!("{} material of the collection", warned.unwrap_or("?"));
+        assert_eq!(e.contains(&w), warned.is_some(), "{name}: {e}");
+        if warned.is_some() {
+            assert!(e.contains(&format!("named `{name}` after the samples file {samples}")));
+        }
+        let parts = [
+            &format!("{json}: a fit from samples (`{samples}`, 6 samples)") as &str,
+            "has no material in the collection to compare with",
+            &format!("--samples {samples} --export DIR"),
+            &format!("`DIR/{name}.binary` as the collection, with `--material {name}`"),
+        ];
+        let render = [
+            "render",
+            "c.csv",
+            "--material",
+            name,
+            "--fit",
+            &json,
+            "--out",
+            "r.exr",
+            "--png",
+            "r.png",
+            "--heatmap",
+            "h.png",
+            "--size",
+            "16",
+        ];
+        let e = refused(d, &render, &parts);
+        assert!(!e.contains("normalized image error"), "{e}");
+        refused(
+            d,
+            &[
+                "plot",
+                "c.csv",
+                "--material",
+                name,
+                "--fit",
+                &json,
+                "--out",
+                "p.svg",
+            ],
+            &parts,
+        );
+        for f in ["r.exr", "r.png", "h.png", "p.svg"] {
+            assert!(!d.join(f).exists(), "{f}");
+        }
+    }
+    // The way the message gives works.
+    let args = [
+        "fit",
+        "c.csv",
+        "--basis",
+        "plastic,metal",
+        "--samples",
+        "s.csv",
+        "--json",
+        "g.json",
+        "--export",
+        "x",
+    ];
+    assert!(run(d, &args).status.success());
+    let o = run(
+        d,
+        &[
+            "render",
+            "x/s.binary",
+            "--material",
+            "s",
+            "--out",
+            "r.exr",
+            "--size",
+            "16",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// T13: an RGL file whose reflectance overflows f32 is refused when it is read, naming the
+/// file, the field and the cause (the old code: "invalid distance inf between ..." from
+/// `distance`, naming neither).
+#[test]
+fn rgl_values_beyond_f32_are_refused_naming_the_file() {
+    let dir = tmp();
+    let d = dir.path();
+    let b = crate::rgl::with(|v| {
+        let f = crate::rgl::field_mut(v, "rgb");
+        let n = f.data.len() / 4;
+        f.data = crate::rgl::f32_bytes(std::iter::repeat_n(3e38f32, n));
+    });
+    std::fs::create_dir(d.join("m")).expect("dir");
+    let f = write(&d.join("m"), "rgb_huge.bsdf", &b);
+    let parts = [
+        "rgb_huge.bsdf: field `rgb`: the reflectance it gives reaches",
+        "beyond the f32 range",
+    ];
+    for args in [
+        &["info", "m/rgb_huge.bsdf"][..],
+        &["distance", "m", "--out", "d.npy"],
+    ] {
+        let e = refused(d, args, &parts);
+        assert!(!e.contains("invalid distance"), "{e}");
+    }
+    assert!(!d.join("d.npy").exists());
+    let e = brdf_basis::rgl::RglMaterial::load(&f).unwrap_err();
+    assert!(
+        matches!(e, brdf_basis::error::RglError::OutOfRange { .. }),
+        "{e}"
+    );
+    // The file's own values at 1e30 are in range and read.
+    let b = crate::rgl::with(|v| {
+        let f = crate::rgl::field_mut(v, "rgb");
+        let n = f.data.len() / 4;
+        f.data = crate::rgl::f32_bytes(std::iter::repeat_n(1e30f32, n));
+    });
+    let f = write(d, "rgb_big.bsdf", &b);
+    assert!(brdf_basis::rgl::RglMaterial::load(&f).is_ok());
+}
+
+/// T13: a neural BRDF set whose outputs pass the f32 range (b3 = 1e30: infinite in f32;
+/// b3 = 100: e^100, which the old code clamped to e^88 without a word and `tabulate`
+/// wrote as 2.48e41) is refused when it is read, naming the set, the material and the
+/// cause, for every command and back-end alike.
+#[test]
+fn nbrdf_outputs_beyond_f32_are_refused_naming_the_set() {
+    use brdf_basis::brdf::{nbrdf::NBRDF_PARTS, Nbrdf};
+    let dir = tmp();
+    let d = dir.path();
+    let n = d.join("n");
+    std::fs::create_dir(&n).expect("dir");
+    let ok = crate::nbrdf::random_net(3);
+    crate::nbrdf::write_set(&n, "fine", &ok);
+    assert!(ok.check_output_range().is_ok());
+    let part = |name: &str| NBRDF_PARTS.iter().find(|p| p.0 == name).expect("part").2;
+    for (b3, zero_fc3, shown) in [(1e30f32, false, "inf"), (100.0, true, "2.688e43")] {
+        let mut w = ok.weights().to_vec();
+        w[part("b3")..].fill(b3);
+        if zero_fc3 {
+            w[part("fc3")..part("b3")].fill(0.0);
+        }
+        let net = Nbrdf::from_weights(w).expect("finite weights");
+        let e = net.check_output_range().unwrap_err();
+        assert!(e.contains(&format!("reaches {shown}")), "{e}");
+        crate::nbrdf::write_set(&n, "huge", &net);
+        let parts = [
+            "huge_*.npy: material `huge`: the network's red output",
+            "beyond the f32 range",
+        ];
+        for args in [
+            &["info", "n"][..],
+            &["distance", "n", "--out", "d.npy"],
+            &["tabulate", "n", "--material", "huge", "--out", "t.binary"],
+        ] {
+            let e = refused(d, args, &parts);
+            assert!(!e.contains("invalid distance"), "{e}");
+        }
+        // The GPU back-end alike (the set is refused as it is read, before any kernel).
+        let mut cmd = bin();
+        cmd.args([
+            "--quiet",
+            "--backend",
+            "gpu",
+            "distance",
+            "n",
+            "--out",
+            "d.npy",
+        ])
+        .current_dir(d);
+        let o = output_within(&mut cmd, Duration::from_secs(300)).expect("hangs");
+        let e = stderr(&o);
+        assert!(e.contains(parts[0]) || e.contains("adapter"), "{e}");
+        for f in ["d.npy", "t.binary"] {
+            assert!(!d.join(f).exists(), "{f}");
+        }
+    }
 }

@@ -117,11 +117,11 @@ fn rgl_eval_matches_mitsuba() {
 
 /// One field of a container: name, dtype code, shape, data bytes.
 #[derive(Clone)]
-struct Fld {
+pub(crate) struct Fld {
     name: String,
     dtype: u8,
     shape: Vec<u64>,
-    data: Vec<u8>,
+    pub(crate) data: Vec<u8>,
 }
 
 fn fld(name: &str, dtype: u8, shape: &[u64], data: Vec<u8>) -> Fld {
@@ -133,7 +133,7 @@ fn fld(name: &str, dtype: u8, shape: &[u64], data: Vec<u8>) -> Fld {
     }
 }
 
-fn f32_bytes(v: impl IntoIterator<Item = f32>) -> Vec<u8> {
+pub(crate) fn f32_bytes(v: impl IntoIterator<Item = f32>) -> Vec<u8> {
     v.into_iter().flat_map(f32::to_le_bytes).collect()
 }
 
@@ -267,13 +267,13 @@ fn parse_err(bytes: Vec<u8>, name: &str) -> (brdf_basis::error::RglError, String
     (e, text)
 }
 
-fn with(f: impl FnOnce(&mut Vec<Fld>)) -> Vec<u8> {
+pub(crate) fn with(f: impl FnOnce(&mut Vec<Fld>)) -> Vec<u8> {
     let mut v = synthetic_fields();
     f(&mut v);
     container(&v)
 }
 
-fn field_mut<'a>(v: &'a mut [Fld], name: &str) -> &'a mut Fld {
+pub(crate) fn field_mut<'a>(v: &'a mut [Fld], name: &str) -> &'a mut Fld {
     v.iter_mut().find(|f| f.name == name).expect("field")
 }
 

@@ -30,7 +30,7 @@ from typing import Any, Callable, Optional, Sequence, Union
 import os as _os
 import tempfile as _tempfile
 
-import numpy as np
+import numpy as _np
 
 # Mesa's Vulkan loader (probed by backend="auto" and "gpu") complains on every probe
 # without a runtime directory; the command line makes a private one too.
@@ -136,10 +136,10 @@ class TargetFit:
     """The fit of one target: ``lambertian`` (3,), ``coefficients`` (k, 3) in basis order."""
 
     material: str
-    lambertian: np.ndarray
-    coefficients: np.ndarray
+    lambertian: _np.ndarray
+    coefficients: _np.ndarray
     mae: float
-    residual: np.ndarray
+    residual: _np.ndarray
 
 
 @dataclass(frozen=True)
@@ -163,22 +163,22 @@ class FitResult:
         targets = [
             TargetFit(
                 material=t["material"],
-                lambertian=np.array(t["lambertian"], dtype=np.float64),
-                coefficients=np.array([t["coefficients"][b] for b in basis], dtype=np.float64).reshape(len(basis), 3),
+                lambertian=_np.array(t["lambertian"], dtype=_np.float64),
+                coefficients=_np.array([t["coefficients"][b] for b in basis], dtype=_np.float64).reshape(len(basis), 3),
                 mae=t["mae"],
-                residual=np.array(t["residual"], dtype=np.float64),
+                residual=_np.array(t["residual"], dtype=_np.float64),
             )
             for t in d["targets"]
         ]
         return cls(basis, d["mask"], d["weighting"], targets, d, text)
 
     @property
-    def coefficients(self) -> np.ndarray:
-        return np.stack([np.vstack([t.lambertian, t.coefficients]) for t in self.targets])
+    def coefficients(self) -> _np.ndarray:
+        return _np.stack([_np.vstack([t.lambertian, t.coefficients]) for t in self.targets])
 
     @property
-    def mae(self) -> np.ndarray:
-        return np.array([t.mae for t in self.targets])
+    def mae(self) -> _np.ndarray:
+        return _np.array([t.mae for t in self.targets])
 
     @property
     def objective(self) -> str:
@@ -197,9 +197,25 @@ class FitResult:
         return self._json
 
     def save(self, path) -> None:
-        """Writes the JSON (readable by ``brdf-basis render --fit`` and ``Brdf.fitted``)."""
-        with open(path, "w", encoding="utf-8") as f:
-            f.write(self._json)
+        """Writes the JSON (readable by ``brdf-basis render --fit`` and ``Brdf.fitted``),
+        atomically (a temporary file renamed into place). As the command line, it refuses a
+        symbolic link (writing through it would replace the file it points to) and anything
+        but a regular file (``ValueError``)."""
+        p = _os.fspath(path)
+        if _os.path.islink(p):
+            raise ValueError(f"{p}: is a symbolic link; give the file itself or a new name")
+        if _os.path.exists(p) and not _os.path.isfile(p):
+            raise ValueError(f"{p}: exists and is not a regular file; give a file name")
+        fd, tmp = _tempfile.mkstemp(prefix=".brdf-basis-", dir=_os.path.dirname(p) or ".")
+        try:
+            with _os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(self._json)
+            # mkstemp's 0600 would make the file private: keep a replaced file's mode.
+            _os.chmod(tmp, _os.stat(p).st_mode & 0o777 if _os.path.exists(p) else 0o644)
+            _os.replace(tmp, p)
+        except BaseException:
+            _os.unlink(tmp)
+            raise
 
 
 @dataclass(frozen=True)
@@ -322,9 +338,9 @@ class Plan:
     _json: str = field(repr=False, default="")
 
     @property
-    def angles(self) -> np.ndarray:
+    def angles(self) -> _np.ndarray:
         """The samples' ``(theta_i, phi_i, theta_o, phi_o)`` in degrees, shape (n, 4)."""
-        return np.array([[s["theta_i"], s["phi_i"], s["theta_o"], s["phi_o"]] for s in self.samples], dtype=np.float64)
+        return _np.array([[s["theta_i"], s["phi_i"], s["theta_o"], s["phi_o"]] for s in self.samples], dtype=_np.float64)
 
     def to_json(self) -> str:
         """The JSON text, as ``brdf-basis plan --json`` writes it."""
@@ -404,7 +420,7 @@ class SampleFit:
     condition number of the sampled design (a rank below its columns or a large condition
     means the samples do not determine the fit)."""
 
-    coefficients: np.ndarray
+    coefficients: _np.ndarray
     residual: tuple
     mae: float
     relative_residual: float
@@ -424,8 +440,8 @@ def fit_samples(
 
     >>> c = Collection.default(); b = ["polished-gold", "matte-white-paint"]
     >>> f = Brdf.material(c, "matte-white-paint")
-    >>> a = np.array([[10, 0, 20, 180], [30, 0, 40, 90], [50, 0, 10, 0], [0, 0, 60, 45]], float)
-    >>> y = np.array([f.eval1(_dir(t[0], t[1]), _dir(t[2], t[3])) for t in a])
+    >>> a = _np.array([[10, 0, 20, 180], [30, 0, 40, 90], [50, 0, 10, 0], [0, 0, 60, 45]], float)
+    >>> y = _np.array([f.eval1(_dir(t[0], t[1]), _dir(t[2], t[3])) for t in a])
     >>> r = fit_samples(c, b, a, y)
     >>> bool(abs(r.coefficients[2] - 1).max() < 1e-6)
     True
@@ -436,14 +452,14 @@ def fit_samples(
     coef, res, mae, rel, rank, cond = _native.fit_samples(
         collection, _names(basis, "basis"), [tuple(r) for r in a], [tuple(r) for r in y], s, objective, eps
     )
-    return SampleFit(np.asarray(coef), tuple(res), mae, rel, rank, cond)
+    return SampleFit(_np.asarray(coef), tuple(res), mae, rel, rank, cond)
 
 
-def _rows(x, cols: int, what: str, columns: str) -> np.ndarray:
+def _rows(x, cols: int, what: str, columns: str) -> _np.ndarray:
     """``x`` as a float64 array of shape (n, cols), or a ValueError naming its shape: an
     array is never reshaped, so a transposed one (channels first) is refused rather than
     read as other samples."""
-    a = np.asarray(x, dtype=np.float64)
+    a = _np.asarray(x, dtype=_np.float64)
     if a.ndim == 2 and a.shape[1] == cols:
         return a
     hint = ""
@@ -474,8 +490,8 @@ def _name_options(options: dict) -> dict:
 
 def _dir(theta_deg: float, phi_deg: float) -> tuple:
     """Unit direction of polar angle ``theta`` and azimuth ``phi`` in degrees."""
-    t, p = np.radians(theta_deg), np.radians(phi_deg)
-    return (float(np.sin(t) * np.cos(p)), float(np.sin(t) * np.sin(p)), float(np.cos(t)))
+    t, p = _np.radians(theta_deg), _np.radians(phi_deg)
+    return (float(_np.sin(t) * _np.cos(p)), float(_np.sin(t) * _np.sin(p)), float(_np.cos(t)))
 
 
 def cross_validate(collection: Collection, **options) -> CvResult:
@@ -489,7 +505,7 @@ def cross_validate(collection: Collection, **options) -> CvResult:
 
 
 def kmedoids(
-    d: np.ndarray,
+    d: _np.ndarray,
     k: int,
     *,
     seed: int = 1,
@@ -512,7 +528,7 @@ def kmedoids(
     comparisons (default 1e-6; 0 compares strictly, as the package).
 
     >>> import numpy as np
-    >>> x = np.array([0.0, 0.1, 5.0, 5.2]); d = np.abs(x[:, None] - x[None, :])
+    >>> x = _np.array([0.0, 0.1, 5.0, 5.2]); d = _np.abs(x[:, None] - x[None, :])
     >>> round(kmedoids(d, 2).loss, 12)
     0.3
     """
@@ -520,7 +536,7 @@ def kmedoids(
         raise TypeError(f"medoids must be a sequence of item indices, not {type(medoids).__name__} {medoids!r}")
     start = None if medoids is None else [int(m) for m in medoids]
     m, l, loss, it, db = _native.kmedoids(
-        np.ascontiguousarray(d, dtype=np.float64),
+        _np.ascontiguousarray(d, dtype=_np.float64),
         k,
         seed=seed,
         init=init,
@@ -539,12 +555,18 @@ def wilcoxon(x: Sequence[float], y: Sequence[float]) -> WilcoxonResult:
     return WilcoxonResult(**_fields(WilcoxonResult, _json.loads(_native.wilcoxon_json(list(map(float, x)), list(map(float, y))))))
 
 
-def friedman(blocks: np.ndarray) -> FriedmanResult:
+def friedman(blocks: _np.ndarray) -> FriedmanResult:
     """Friedman test; ``blocks[r, j]`` is treatment ``j`` in block ``r``."""
-    b = np.ascontiguousarray(blocks, dtype=np.float64)
+    b = _np.ascontiguousarray(blocks, dtype=_np.float64)
     return FriedmanResult(**_fields(FriedmanResult, _json.loads(_native.friedman_json(b))))
 
 
 def mann_whitney(x: Sequence[float], y: Sequence[float]) -> MannWhitneyResult:
     """Mann-Whitney U test of two independent samples."""
     return MannWhitneyResult(**_fields(MannWhitneyResult, _json.loads(_native.mann_whitney_json(list(map(float, x)), list(map(float, y))))))
+
+
+# The names the module imports for its own use are not part of the package's namespace
+# (audit 2, U15): `numpy` is `_np`, and the annotations' helpers (strings under
+# `from __future__ import annotations`, never evaluated) go once the classes are made.
+del annotations, dataclass, field, Any, Callable, Optional, Sequence, Union

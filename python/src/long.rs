@@ -20,8 +20,20 @@ impl<'py> Report<'py> {
         Ok(match progress {
             None => Report::None,
             Some(p) if p.is_callable() => Report::Callable(p),
-            Some(p) if p.is_truthy()? => Report::Stderr(label.to_string()),
-            Some(_) => Report::None,
+            // Only a bool turns the line on or off (`progress=5` was taken as on).
+            Some(p) if p.is_instance_of::<pyo3::types::PyBool>() => {
+                if p.is_truthy()? {
+                    Report::Stderr(label.to_string())
+                } else {
+                    Report::None
+                }
+            }
+            Some(p) => {
+                return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                    "progress: expected True, False, None or a callable f(done, total), got {}",
+                    p.repr()?
+                )))
+            }
         })
     }
 

@@ -302,5 +302,8 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     if let Some(m) = &a.markdown {
         println!("wrote {}", m.display());
     }
+    if let Some(f) = &a.figure {
+        println!("wrote {}", f.display());
+    }
     Ok(())
 }

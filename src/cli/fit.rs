@@ -335,9 +335,9 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     })?;
     out.commit()?;
     println!(
-        "wrote {} ({} samples, rank {} of {}, condition number {}, relative residual on the samples {})",
+        "wrote {} ({}, rank {} of {}, condition number {}, relative residual on the samples {})",
         a.json.display(),
-        fitted.samples,
+        brdf_basis::error::plural(fitted.samples, "sample", "samples"),
         d.rank,
         d.columns,
         brdf_basis::stats::num(d.condition),

@@ -5,6 +5,7 @@ use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::GpuContext;
 use brdf_basis::backend::Backend;
 use brdf_basis::backend::BackendChoice;
+use brdf_basis::error::plural;
 
 /// Arguments of `info`.
 #[derive(clap::Args, Debug)]
@@ -76,11 +77,17 @@ pub(crate) fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
         let kinds: Vec<String> = coll
             .kind_counts()
             .iter()
-            .map(|(k, n)| format!("{n} {k}"))
+            .map(|(k, n)| {
+                plural(
+                    *n,
+                    k,
+                    &format!("{k}{}", if *k == "MERL table" { "s" } else { "" }),
+                )
+            })
             .collect();
         println!(
-            "collection: {} materials ({})",
-            coll.len(),
+            "collection: {} ({})",
+            plural(coll.len(), "material", "materials"),
             kinds.join(", ")
         );
         for m in coll.materials() {

@@ -49,12 +49,12 @@ pub(crate) fn run(g: &Global, a: MergeArgs) -> anyhow::Result<()> {
     out.commit()?;
     let _ = g;
     println!(
-        "wrote {} ({} x {} {}, from {} tiles)",
+        "wrote {} ({} x {} {}, from {})",
         a.out.display(),
         side.n,
         side.n,
         side.settings.metric,
-        a.tiles.len()
+        brdf_basis::error::plural(a.tiles.len(), "tile", "tiles")
     );
     println!("wrote {}", sidecar_path(&a.out).display());
     Ok(())

@@ -82,6 +82,12 @@ impl PlanArgs {
 pub(crate) fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     let req = a.request(g);
     req.check()?;
+    if super::extension(&a.out) != "csv" {
+        anyhow::bail!(
+            "--out {}: writes the plan as a samples-file CSV (theta_i,phi_i,theta_o,phi_o) and its name must end in .csv",
+            a.out.display()
+        );
+    }
     let mut op = OutputPlan::new(&a.collection);
     for (path, noun) in req.input_files() {
         op.input_named(&path, noun);
@@ -117,13 +123,15 @@ pub(crate) fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     }
     out.commit()?;
     println!(
-        "planned {} samples ({}, {} of {} candidates per step, {:.2} s); mean training score after the last: {}",
-        pl.n,
+        "planned {} ({}, {} of {} per step, {:.2} s); mean training score after the last: {}",
+        brdf_basis::error::plural(pl.n, "sample", "samples"),
         pl.criterion.as_str(),
         pl.candidates_per_step,
-        pl.candidates,
+        brdf_basis::error::plural(pl.candidates, "candidate", "candidates"),
         secs,
-        pl.history.last().map_or("n/a".into(), |&v| brdf_basis::stats::num(v))
+        pl.history
+            .last()
+            .map_or("n/a".into(), |&v| brdf_basis::stats::num(v))
     );
     println!("wrote {}", a.out.display());
     if let Some(j) = &a.json {

@@ -79,6 +79,10 @@ pub(crate) fn run(g: &Global, a: PlotArgs) -> anyhow::Result<()> {
     }
     plan.file(&a.out, "--out")?;
     let mut out = plan.into_set()?;
+    for f in &a.fit {
+        // A fit from samples has no collection material to compare with (audit 2, T7).
+        FitFile::read(f)?.refuse_samples_fit(f)?;
+    }
     let coll = super::load_collection(&a.collection)?;
     let idx = coll.index_of(&a.material)?;
     let mut curves = vec![(

@@ -111,6 +111,11 @@ pub(crate) fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
         }
     }
     let mut out = plan.into_set()?;
+    if let Some(f) = &a.fit {
+        // A fit from samples has no collection material to compare with (audit 2, T7):
+        // said before the material is looked up.
+        FitFile::read(f)?.refuse_samples_fit(f)?;
+    }
     let coll = super::load_collection(&a.collection)?;
     let target = coll.index_of(&a.material)?;
     let params = RenderParams::default()

@@ -25,6 +25,12 @@ pub(crate) struct TabulateArgs {
 
 /// Writes the material on the full MERL grid (invalid cells = -1).
 pub(crate) fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
+    if super::extension(&a.out) != "binary" {
+        anyhow::bail!(
+            "--out {}: writes a MERL table and its name must end in .binary (a collection directory reads a .bsdf as an RGL-EPFL file and a .npy as part of a neural BRDF)",
+            a.out.display()
+        );
+    }
     let mut plan = OutputPlan::new(&a.collection);
     plan.file(&a.out, "--out")?;
     let mut out = plan.into_set()?;

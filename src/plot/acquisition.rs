@@ -53,12 +53,16 @@ impl Draw for RhoVsN<'_> {
         }
         // The axis spans at most OFF_SCALE times the dense limit: an ill-posed plan's mean
         // (random plans reach 1e28) would otherwise flatten every other line onto the
-        // limit. Larger means sit on the top edge as open triangles with their value.
+        // limit. Larger means sit on the top edge as triangles with their value, their
+        // lines leaving the plot there (never at a height that reads as a value).
         let dense = rows.iter().map(|r| r.mean_dense_rho).next().unwrap_or(lo);
         let cap = if dense > 0.0 { dense * OFF_SCALE } else { hi };
         let hi = hi.min(cap);
         let lo = lo.min(hi);
         let nmax = rows.iter().map(|r| r.n).max().unwrap_or(1) as f64;
+        // Headroom above the data (a third of the plot's height on the log axis) holds
+        // the legend (upper left), so that it never covers a line.
+        let top = hi * 1.5 * (hi / lo).max(10.0).powf(0.5);
         let mut b = ChartBuilder::on(root);
         b.margin(12);
         if text {
@@ -73,12 +77,7 @@ impl Draw for RhoVsN<'_> {
             .y_label_area_size(70);
         }
         let mut chart = b
-            // Headroom above the data (a third of the plot's height on the log axis) holds
-            // the legend (upper left), so that it never covers a line.
-            .build_cartesian_2d(
-                0.0..nmax * 1.05,
-                (lo / 1.5..hi * 1.5 * (hi / lo).max(10.0).powf(0.5)).log_scale(),
-            )
+            .build_cartesian_2d(0.0..nmax * 1.05, (lo / 1.5..top).log_scale())
             .map_err(|e| e2s(&e))?;
         if text {
             chart
@@ -86,7 +85,16 @@ impl Draw for RhoVsN<'_> {
                 .x_desc("samples n")
                 .y_desc("mean rho (log)")
                 .y_label_formatter(&|v| format!("{v:.0e}"))
-                .x_label_formatter(&|v| format!("{v:.0}"))
+                // Integer sample counts only: at most one label per integer (n = 1 gave
+                // "0 0 0 0 0 0 1 1 1 1 1").
+                .x_labels((nmax as usize + 1).clamp(2, 11))
+                .x_label_formatter(&|v| {
+                    if (v - v.round()).abs() < 1e-9 {
+                        format!("{v:.0}")
+                    } else {
+                        String::new()
+                    }
+                })
                 .label_style((FONT, 12))
                 .draw()
                 .map_err(|e| e2s(&e))?;
@@ -97,7 +105,10 @@ impl Draw for RhoVsN<'_> {
                 .filter(|r| r.plan.as_str() == *plan)
                 .map(|r| (r.n as f64, r.mean_rho))
                 .collect();
-            let pts: Vec<(f64, f64)> = raw.iter().map(|&(x, y)| (x, y.min(cap))).collect();
+            let pts: Vec<(f64, f64)> = raw
+                .iter()
+                .map(|&(x, y)| (x, if y > cap { top } else { y }))
+                .collect();
             let c = series_colour(i);
             let s = chart
                 .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
@@ -116,13 +127,13 @@ impl Draw for RhoVsN<'_> {
                 .map_err(|e| e2s(&e))?;
             for &(x, y) in raw.iter().filter(|p| p.1 > cap) {
                 chart
-                    .draw_series(std::iter::once(TriangleMarker::new((x, cap), 6, c)))
+                    .draw_series(std::iter::once(TriangleMarker::new((x, top), 6, c)))
                     .map_err(|e| e2s(&e))?;
                 if text {
                     chart
                         .draw_series(std::iter::once(Text::new(
                             format!("{y:.1e}"),
-                            (x + 0.2, cap * 1.8),
+                            (x + 0.015 * nmax, top / (hi / lo).max(10.0).powf(0.05)),
                             (FONT, 11).into_font().color(&c),
                         )))
                         .map_err(|e| e2s(&e))?;

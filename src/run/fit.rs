@@ -252,7 +252,17 @@ impl FitSamplesRequest {
         } else {
             String::new()
         };
-        let warnings = afit::determination_warnings(d, afit::WARN_CONDITION, &hint);
+        let mut warnings = afit::determination_warnings(d, afit::WARN_CONDITION, &hint);
+        let name = self.target_name();
+        if let Some(b) = coll.materials().iter().position(|m| m.name == name) {
+            // Kept a warning (docs/hardening.md, T7): fitting a measured sample of a
+            // material the collection holds is a legitimate check of the basis.
+            warnings.push(format!(
+                "the fitted material is named `{name}` after the samples file {}, as is {} material of the collection: the fit is of the samples, not of the collection's `{name}` (`render --fit` and `plot --fit` refuse a fit from samples); rename the samples file to tell them apart",
+                self.samples.display(),
+                if basis.contains(&b) { "a basis" } else { "a" },
+            ));
+        }
         let p = FitParams {
             mask: self.grid.mask,
             weighting: self.grid.weighting,
@@ -261,7 +271,6 @@ impl FitSamplesRequest {
             gram: self.gram,
             objective: self.objective,
         };
-        let name = self.target_name();
         let target = sf.target_fit(&name);
         let mut file = FitFile::new(coll, &basis, std::slice::from_ref(&target), &p);
         file.samples = Some(samples.len());

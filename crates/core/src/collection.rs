@@ -465,10 +465,19 @@ pub fn read_nbrdf_set(dir: &Path, name: &str) -> Result<Nbrdf, CollectionError> 
         debug_assert_eq!(flat.len(), offset);
         flat.extend_from_slice(&a.data);
     }
-    Nbrdf::from_weights(flat).map_err(|message| CollectionError::Neural {
-        path: dir.join(format!("{name}_*.npy")),
+    let at = || dir.join(format!("{name}_*.npy"));
+    let net = Nbrdf::from_weights(flat).map_err(|message| CollectionError::Neural {
+        path: at(),
         message,
-    })
+    })?;
+    // Outputs beyond what the f32 evaluations hold are refused here, once for every
+    // back-end (audit 2, T13), not clamped by one and infinite in the other.
+    net.check_output_range()
+        .map_err(|message| CollectionError::Neural {
+            path: at(),
+            message: format!("material `{}`: {message}", crate::error::short_name(name)),
+        })?;
+    Ok(net)
 }
 
 /// Largest analytic CSV read (a table of 10,000 materials is about 1 MB).

@@ -35,6 +35,20 @@ pub fn short_name(name: &str) -> ShortName<'_> {
     ShortName(name)
 }
 
+/// `"1 sample"`, `"3 samples"`: `n` and the noun `one` or `many` as `n` is 1 or not.
+pub fn plural(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// `": line N"`, or nothing for line 0 (an error about a whole file, not one of its lines).
+pub(crate) fn at_line(line: u64) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(": line {line}")
+    }
+}
+
 /// See [`short_name`].
 #[derive(Clone, Copy, Debug)]
 pub struct ShortName<'a>(pub &'a str);
@@ -93,7 +107,7 @@ pub enum CollectionError {
         second: usize,
     },
     /// A row is malformed (wrong number of fields, bad quoting).
-    #[error("{path}: line {line}: malformed row: {message}")]
+    #[error("{path}{}: malformed row: {message}", at_line(*.line))]
     Malformed {
         /// File.
         path: PathBuf,
@@ -121,7 +135,7 @@ pub enum CollectionError {
         message: String,
     },
     /// Two materials share one name.
-    #[error("{path}: line {line}: duplicate material name `{}` (first seen in {first})", short_name(.material))]
+    #[error("{path}{}: duplicate material name `{}` (first seen in {first})", at_line(*.line), short_name(.material))]
     Duplicate {
         /// File where the duplicate was found.
         path: PathBuf,
@@ -365,6 +379,17 @@ pub enum RglError {
         value: f64,
         /// What is wrong.
         message: String,
+    },
+    /// The reflectance the file gives, tabulated on the MERL grid, is beyond the f32
+    /// range of the table.
+    #[error("{path}: field `rgb`: the reflectance it gives reaches {value:.3e} at {at} (a cell of the MERL grid): a value beyond the f32 range (largest 3.40e38) that the table holds")]
+    OutOfRange {
+        /// File.
+        path: PathBuf,
+        /// The value (f64).
+        value: f64,
+        /// The cell's directions, in words.
+        at: String,
     },
     /// An anisotropic file (more than one `phi_i` slice).
     #[error("{path}: anisotropic material ({count} phi_i slices): only isotropic RGL-EPFL files (one phi_i slice) are supported for now")]

@@ -18,6 +18,7 @@ use super::linalg::singular_values;
 use super::samples::Sample;
 use super::AcquireError;
 use crate::collection::Collection;
+use crate::error::plural;
 use crate::fit::{TargetFit, TargetWeight};
 use crate::nnls::{lawson_hanson, GramProblem, NnlsError, NnlsSolution};
 use std::f64::consts::FRAC_1_PI;
@@ -383,11 +384,11 @@ pub fn determination_warnings(d: &Determination, bound: f64, where_: &str) -> Ve
     // missing count is that of the rank.
     if d.samples < d.columns {
         w.push(format!(
-            "{} samples for {} unknowns per channel (the Lambertian term and {} basis materials): the samples cannot determine the fit; NNLS returns the non-negative combination closest to them, often a good one, but {} more samples would determine it{at}",
-            d.samples,
+            "{} for {} unknowns per channel (the Lambertian term and {}): the samples cannot determine the fit; NNLS returns the non-negative combination closest to them, often a good one, but {} would determine it{at}",
+            plural(d.samples, "sample", "samples"),
             d.columns,
-            d.columns - 1,
-            d.columns - d.rank.min(d.samples)
+            plural(d.columns - 1, "basis material", "basis materials"),
+            plural(d.columns - d.rank.min(d.samples), "more sample", "more samples")
         ));
     } else if d.rank < d.columns {
         w.push(format!(

@@ -68,7 +68,7 @@ pub enum AcquireError {
         source: std::io::Error,
     },
     /// A samples file is malformed (line 1 is the header; columns count from 1).
-    #[error("{path}: line {line}{}: {message}", .column.as_ref().map(|c| format!(", column `{c}`")).unwrap_or_default())]
+    #[error("{path}{}{}: {message}", crate::error::at_line(*.line as u64), .column.as_ref().map(|c| format!(", column `{c}`")).unwrap_or_default())]
     Parse {
         /// File.
         path: PathBuf,

@@ -81,9 +81,13 @@ pub struct PlannedSample {
 }
 
 impl From<&Candidate> for PlannedSample {
+    /// The candidate's angles, re-derived from its unit vectors and rounded to 1e-9
+    /// degrees (a candidate at 30 degrees is written 30, not 29.999999999999993; a phi of
+    /// 720 is written 0, not -0.000000000000028), azimuths in (-180, 180].
     fn from(c: &Candidate) -> Self {
-        let (theta_i, phi_i) = angles_deg(c.wi);
-        let (theta_o, phi_o) = angles_deg(c.wo);
+        let round = |v: f64| (v * 1e9).round() / 1e9 + 0.0;
+        let ((theta_i, phi_i), (theta_o, phi_o)) = (angles_deg(c.wi), angles_deg(c.wo));
+        let [theta_i, phi_i, theta_o, phi_o] = [theta_i, phi_i, theta_o, phi_o].map(round);
         Self {
             theta_i,
             phi_i,

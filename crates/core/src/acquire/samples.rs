@@ -245,7 +245,23 @@ pub fn read_samples(path: &Path) -> Result<Vec<Sample>, AcquireError> {
 /// measure one direction several times (rows equal to 1e-9 in the unit vectors; at
 /// theta 0 every phi is one direction).
 pub fn read_candidates(path: &Path) -> Result<Vec<DirectionPair>, AcquireError> {
-    let s = read(path, Purpose::Candidates)?;
+    unique_pairs(read(path, Purpose::Candidates)?, path)
+}
+
+/// [`read_samples`] on the bytes of a file already read (`path` names it in errors and
+/// picks the format by its extension): what the fuzz targets run.
+pub fn parse_samples(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError> {
+    parse(bytes, path, Purpose::Samples)
+}
+
+/// [`read_candidates`] on the bytes of a file already read, as [`parse_samples`].
+pub fn parse_candidates(bytes: &[u8], path: &Path) -> Result<Vec<DirectionPair>, AcquireError> {
+    unique_pairs(parse(bytes, path, Purpose::Candidates)?, path)
+}
+
+/// The direction pairs of candidates `s`, each at most once (else an error naming both
+/// lines).
+fn unique_pairs(s: Vec<Sample>, path: &Path) -> Result<Vec<DirectionPair>, AcquireError> {
     let key = |v: &[f64; 3]| v.map(|x| (x * 1e9).round() as i64);
     let mut seen = std::collections::HashMap::with_capacity(s.len());
     for x in &s {
@@ -288,13 +304,18 @@ fn read(path: &Path, purpose: Purpose) -> Result<Vec<Sample>, AcquireError> {
             message: other.to_string(),
         },
     })?;
+    parse(&bytes, path, purpose)
+}
+
+/// The samples (or candidates) in the bytes of a file named `path`.
+fn parse(bytes: &[u8], path: &Path, purpose: Purpose) -> Result<Vec<Sample>, AcquireError> {
     let astm = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("astm"));
     let (s, sigma_columns) = if astm {
-        (parse_astm_for(&bytes, path, purpose)?, None)
+        (parse_astm_for(bytes, path, purpose)?, None)
     } else {
-        parse_csv_for(&bytes, path, purpose)?
+        parse_csv_for(bytes, path, purpose)?
     };
     if s.is_empty() {
         return Err(AcquireError::NoSamples {

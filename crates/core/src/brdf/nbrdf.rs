@@ -22,6 +22,7 @@
 //! (`recheck_windows` and `recheck_cell` in the source).
 
 mod forward;
+mod range;
 mod recheck;
 use forward::*;
 use recheck::*;

@@ -62,6 +62,21 @@ pub enum FitFileError {
         /// File.
         path: PathBuf,
     },
+    /// The file is a fit from samples (`fit --samples`): its target is not a material of
+    /// any collection, so there is nothing to compare its reconstruction with.
+    #[error("{path}: a fit from samples (`{}`, {samples} samples): its target was fitted from measured samples and has no material in the collection to compare with (a collection material of the same name is another material); to render or plot the fit, export it with `brdf-basis fit --samples {} --export DIR` and give `DIR/{}` as the collection, with `--material {}`", .fitted_from, .fitted_from, .file, .material)]
+    FromSamples {
+        /// File.
+        path: PathBuf,
+        /// The samples file it was fitted from.
+        fitted_from: String,
+        /// Number of samples.
+        samples: usize,
+        /// The target's name.
+        material: String,
+        /// The file `--export` writes for it.
+        file: String,
+    },
     /// A basis material of the file is not in the collection.
     #[error("{path}: basis material: {source}")]
     Basis {
@@ -254,7 +269,28 @@ impl FitFile {
         Ok(())
     }
 
-    /// The fitted BRDF of `material`: the file at `path` read, checked against `coll`
+    /// Refuses a fit from samples (`fit --samples`, [`FitFile::samples`] or
+    /// [`FitFile::fitted_from`] set): its target is no collection material, and one that
+    /// shares its name (the samples file's stem) is another material.
+    pub fn refuse_samples_fit(&self, path: &Path) -> Result<(), FitFileError> {
+        if self.samples.is_none() && self.fitted_from.is_none() {
+            return Ok(());
+        }
+        let material = self
+            .targets
+            .first()
+            .map_or_else(|| "samples".into(), |t| t.material.clone());
+        Err(FitFileError::FromSamples {
+            path: path.to_path_buf(),
+            fitted_from: self.fitted_from.clone().unwrap_or_else(|| "?".into()),
+            samples: self.samples.unwrap_or(0),
+            file: crate::fit::export::export_file_names(&[material.as_str()]).remove(0),
+            material,
+        })
+    }
+
+    /// The fitted BRDF of `material`: the file at `path` read, refused if it is a fit
+    /// from samples ([`FitFile::refuse_samples_fit`]), checked against `coll`
     /// ([`FitFile::check_collection`]), its basis resolved in `coll` and the combination
     /// formed ([`crate::eval::shade::combination_brdf`]).
     pub fn combination_from(
@@ -263,6 +299,7 @@ impl FitFile {
         material: &str,
     ) -> Result<crate::eval::shade::BrdfFn, FitFileError> {
         let file = Self::read(path)?;
+        file.refuse_samples_fit(path)?;
         file.check_collection(coll, path)?;
         let (_, coef) = file.columns_of(material, path)?;
         let basis: Vec<usize> = file

@@ -310,8 +310,10 @@ pub fn read_sidecar(npy: &Path) -> Result<MatrixSidecar, MatrixFileError> {
     let want = side.content_checksum();
     if side.checksum != want {
         return Err(format(format!(
-            "the sidecar's checksum is {}, but its content hashes to {want}: it was edited or damaged after it was written (names, settings or sizes changed); compute the matrix again with `brdf-basis distance`",
-            side.checksum
+            "the sidecar's checksum is {}, but its content hashes to {want}: it was edited or damaged after it was written (names, settings or sizes changed); compute the {} again with `brdf-basis distance{}`",
+            side.checksum,
+            if side.tile.is_some() { "tile" } else { "matrix" },
+            side.tile.as_ref().map_or(String::new(), |t| format!(" --tile {}/{}", t.index, t.count))
         )));
     }
     Ok(side)

@@ -37,7 +37,7 @@ pub struct RglMaterial {
 impl RglMaterial {
     /// Reads, validates and tabulates a `.bsdf` file.
     pub fn load(path: &Path) -> Result<Self, RglError> {
-        Ok(Self::new(read(path)?))
+        Self::new(read(path)?, path)
     }
 
     /// Tabulates an evaluation on the MERL grid (cell centres of SPEC 2, in parallel).
@@ -48,18 +48,38 @@ impl RglMaterial {
     /// linear sRGB converted from spectra, and a saturated colour outside the sRGB gamut
     /// has a negative channel (`cg_sunflower_rgb`: blue below 0 in 79% of its table, down
     /// to -0.1; `cc_ibiza_sunset_rgb`: 9%, down to -0.01).
-    pub fn new(bsdf: RglBsdf) -> Self {
+    ///
+    /// A value beyond the f32 range of the table (or not finite) is refused, naming
+    /// `path`, the `rgb` field and the cell (audit 2, T13): a table of f32 would hold an
+    /// infinity there, and every distance to the material would be infinite.
+    pub fn new(bsdf: RglBsdf, path: &Path) -> Result<Self, RglError> {
         let valid = geometric_validity();
-        let cells: Vec<[f32; 3]> = (0..N_CELLS)
+        let cells: Vec<[f64; 3]> = (0..N_CELLS)
             .into_par_iter()
             .map(|cell| {
                 if !valid[cell] {
                     return [-1.0; 3];
                 }
                 let (wi, wo) = cell_directions(cell);
-                bsdf.eval(wi, wo).map(|v| v as f32)
+                bsdf.eval(wi, wo)
             })
             .collect();
+        let limit = f64::from(f32::MAX);
+        if let Some((cell, v)) = cells.iter().enumerate().find_map(|(c, v)| {
+            v.iter()
+                .find(|x| x.abs() > limit || x.is_nan())
+                .map(|&x| (c, x))
+        }) {
+            let (wi, wo) = cell_directions(cell);
+            let deg = |d: [f64; 3]| (d[2].acos().to_degrees(), d[1].atan2(d[0]).to_degrees());
+            let ((ti, pi), (to, po)) = (deg(wi), deg(wo));
+            return Err(RglError::OutOfRange {
+                path: path.to_path_buf(),
+                value: v,
+                at: format!("theta_i, phi_i, theta_o, phi_o = {ti:.2}, {pi:.2}, {to:.2}, {po:.2}"),
+            });
+        }
+        let cells: Vec<[f32; 3]> = cells.iter().map(|v| v.map(|x| x as f32)).collect();
         let mut rgb = vec![0f32; 3 * N_CELLS];
         let mut clamped = 0;
         for (cell, v) in cells.iter().enumerate() {
@@ -70,11 +90,11 @@ impl RglMaterial {
                 rgb[c * N_CELLS + cell] = if valid[cell] { v[c].max(0.0) } else { -1.0 };
             }
         }
-        Self {
+        Ok(Self {
             bsdf,
             table: Arc::new(MerlTable { rgb }),
             clamped,
-        }
+        })
     }
 
     /// RGB reflectance `f(wi, wo)` at unit directions (local frame, z = normal), exact

@@ -117,7 +117,7 @@ pub enum SelectionError {
     DuplicateMethod(String),
     /// No target is left outside the basis, so `S` (a mean over them) is undefined.
     #[error(
-        "a basis of {basis} materials can hold all {targets} targets and leave none to score: give fewer basis materials (-k) than targets, or a target that is not a candidate"
+        "a basis of {} can hold all {} and leave none to score: give fewer basis materials (-k) than targets, or a target that is not a candidate", crate::error::plural(*.basis, "material", "materials"), crate::error::plural(*.targets, "target", "targets")
     )]
     NoTargetLeft {
         /// Basis size.

@@ -448,7 +448,7 @@ impl AcqCv {
                     r.method,
                     r.plan.as_str(),
                     r.n,
-                    num(r.noise),
+                    r.noise, // as given (0.02, not 0.02000): a setting, not a result
                     num(r.mean_rho),
                     num(r.median_rho),
                     num(r.mean_dense_rho),
@@ -506,7 +506,7 @@ impl AcqCv {
                 }
             }
             if let (Some(l), Some(a)) = (r.mean_log_rmse, &r.appearance) {
-                let (n, noise) = (r.n.to_string(), num(r.noise));
+                let (n, noise) = (r.n.to_string(), r.noise.to_string());
                 row(&mut s, &r.method, r.plan.as_str(), &n, &noise, l, a);
             }
         }

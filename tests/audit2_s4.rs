@@ -1,0 +1,293 @@
+//! The S4 items of the second hostile audit (review/audit-2.md, Part 2, "S4") done in
+//! issue 36: plurals (U1), no "line 0" in whole-file errors (U2), the extensions of
+//! `plan --out` and `tabulate --out` (U4), the `cv --acquisition` report (U5), the
+//! acquisition figure's ticks (U6), the angles `plan` writes (U7). Each test fails on the
+//! code the audit ran.
+
+use crate::audit2_s3::{refused, run, stderr, CSV};
+use crate::common::*;
+
+fn stdout(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// U1: one of a thing is singular ("1 materials", "planned 1 samples", "(1 samples, ...").
+#[test]
+fn counts_of_one_are_singular() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    write(
+        d,
+        "one.csv",
+        CSV.lines().take(2).collect::<Vec<_>>().join("\n") + "\n",
+    );
+    let o = run(d, &["info", "one.csv"]);
+    assert!(
+        stdout(&o).contains("collection: 1 material (1 analytic)"),
+        "{}",
+        stdout(&o)
+    );
+    write(
+        d,
+        "s.csv",
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n30,0,30,180,0.2,0.2,0.2\n",
+    );
+    let o = run(
+        d,
+        &[
+            "fit",
+            "c.csv",
+            "--basis",
+            "plastic",
+            "--samples",
+            "s.csv",
+            "--json",
+            "f.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("(1 sample, rank 1 of 2"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(
+        stderr(&o).contains(
+            "1 sample for 2 unknowns per channel (the Lambertian term and 1 basis material)"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        stderr(&o).contains("but 1 more sample would"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(
+        d,
+        &[
+            "plan",
+            "c.csv",
+            "--basis",
+            "plastic,metal",
+            "--targets",
+            "satin,target",
+            "-n",
+            "1",
+            "--out",
+            "p.csv",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("planned 1 sample ("), "{}", stdout(&o));
+}
+
+/// U2: an error about a whole file says no "line 0" (an ASTM file without a `VARS` line).
+#[test]
+fn whole_file_errors_name_no_line_0() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    write(
+        d,
+        "a.astm",
+        "SOURCE lab\nNUM_POINTS 1\n0.5,0,0.5,3.1,0.1,0.1,0.1\n",
+    );
+    let e = refused(
+        d,
+        &[
+            "fit",
+            "c.csv",
+            "--basis",
+            "plastic",
+            "--samples",
+            "a.astm",
+            "--json",
+            "f.json",
+        ],
+        &["a.astm", "VARS"],
+    );
+    assert!(!e.contains("line 0"), "{e}");
+}
+
+/// U4: `plan --out` must end in .csv and `tabulate --out` in .binary (the old code wrote
+/// a CSV to `plan_noext` and MERL data to `x.bsdf`, which a directory load then read as an
+/// RGL file).
+#[test]
+fn plan_and_tabulate_outputs_have_their_formats_extension() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    for out in ["p", "p.json"] {
+        refused(
+            d,
+            &[
+                "plan",
+                "c.csv",
+                "--basis",
+                "plastic,metal",
+                "--targets",
+                "satin,target",
+                "-n",
+                "2",
+                "--out",
+                out,
+            ],
+            &[
+                &format!("--out {out}: writes the plan as a samples-file CSV"),
+                "must end in .csv",
+            ],
+        );
+    }
+    for out in ["x.bsdf", "x.npy", "x"] {
+        refused(
+            d,
+            &["tabulate", "c.csv", "--material", "plastic", "--out", out],
+            &[
+                &format!("--out {out}: writes a MERL table"),
+                "must end in .binary",
+            ],
+        );
+        assert!(!d.join(out).exists());
+    }
+}
+
+/// U5 and U6: `cv --acquisition` reports the figure it wrote, prints noise levels as given
+/// (`0.02`, not `0.02000`), and the figure's sample-count axis labels each integer at most
+/// once (n = 1 gave "0 0 0 0 0 0 1 1 1 1 1").
+#[test]
+fn cv_acquisition_reports_its_figure_and_labels_integers_once() {
+    let dir = tmp();
+    let d = dir.path();
+    let mut c = String::from(CSV);
+    c += "rough,0.3,0.3,0.3,0.05,0.05,0.05,0.04,5\n\
+        gold,0,0,0,0.9,0.6,0.2,0.9,1200\n\
+        paint,0.4,0.05,0.05,0.1,0.1,0.1,0.05,60\n\
+        chalk,0.5,0.5,0.45,0.02,0.02,0.02,0.03,3\n";
+    write(d, "c8.csv", c);
+    for (ns, fig) in [("1", "a.svg"), ("1,3", "b.svg"), ("1,3", "b.png")] {
+        let o = run(
+            d,
+            &[
+                "cv",
+                "c8.csv",
+                "--acquisition",
+                "--methods",
+                "random",
+                "-k",
+                "2",
+                "--plans",
+                "random,error",
+                "-n",
+                ns,
+                "--noise",
+                "0,0.02",
+                "--folds",
+                "2",
+                "--stride",
+                "8",
+                "--render-size",
+                "16",
+                "--no-appearance",
+                "--candidates-per-step",
+                "50",
+                "--json",
+                "q.json",
+                "--figure",
+                fig,
+            ],
+        );
+        let out = stdout(&o);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(out.contains(&format!("wrote {fig}")), "{out}");
+        assert!(
+            out.contains("| 0.02 |") && !out.contains("0.02000"),
+            "{out}"
+        );
+        if fig.ends_with(".svg") {
+            let svg = std::fs::read_to_string(d.join(fig)).expect("svg");
+            let ints: Vec<&str> = svg
+                .split("</text>")
+                .filter_map(|t| t.rsplit('>').next().map(str::trim))
+                .filter(|t| !t.is_empty() && t.chars().all(|c| c.is_ascii_digit()))
+                .collect();
+            let mut seen = ints.clone();
+            seen.sort();
+            seen.dedup();
+            assert_eq!(seen.len(), ints.len(), "{ns}: x labels {ints:?}");
+            assert!(ints.contains(&"1"), "{ns}: x labels {ints:?}");
+        }
+    }
+}
+
+/// U7: `plan` writes a candidate's angles as given, not re-derived ones
+/// (29.999999999999993 for 30, -0.000000000000028 for a phi of 720).
+#[test]
+fn plan_writes_candidate_angles_as_given() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    write(
+        d,
+        "k.csv",
+        "theta_i,phi_i,theta_o,phi_o\n30,720,40,180\n60,0,30,180\n45,90,45,-90\n",
+    );
+    let o = run(
+        d,
+        &[
+            "plan",
+            "c.csv",
+            "--basis",
+            "plastic,metal",
+            "--targets",
+            "satin,target",
+            "-n",
+            "3",
+            "--candidates",
+            "k.csv",
+            "--out",
+            "p.csv",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut rows: Vec<String> = std::fs::read_to_string(d.join("p.csv"))
+        .expect("plan")
+        .lines()
+        .skip(1)
+        .map(String::from)
+        .collect();
+    rows.sort();
+    assert_eq!(rows, ["30,0,40,180", "45,90,45,-90", "60,0,30,180"]);
+}
+
+/// U17: a hand-edited tile sidecar is refused with the way to make that tile again (the
+/// old message named `brdf-basis distance` without `--tile`).
+#[test]
+fn an_edited_tile_sidecar_says_how_to_compute_the_tile_again() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    for t in ["1/2", "2/2"] {
+        let out = format!("t{}.npy", &t[..1]);
+        let o = run(
+            d,
+            &[
+                "distance", "c.csv", "--stride", "16", "--tile", t, "--out", &out,
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let side = d.join("t2.names.json");
+    let text = std::fs::read_to_string(&side).expect("sidecar");
+    assert!(text.contains("\"satin\""), "{text}");
+    std::fs::write(&side, text.replace("\"satin\"", "\"satyn\"")).expect("edit");
+    refused(
+        d,
+        &["merge", "t1.npy", "t2.npy", "--out", "m.npy"],
+        &[
+            "edited or damaged",
+            "compute the tile again with `brdf-basis distance --tile 2/2`",
+        ],
+    );
+}
