@@ -82,12 +82,6 @@ impl PlanArgs {
 pub(crate) fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     let req = a.request(g);
     req.check()?;
-    if super::extension(&a.out) != "csv" {
-        anyhow::bail!(
-            "--out {}: writes the plan as a samples-file CSV (theta_i,phi_i,theta_o,phi_o) and its name must end in .csv",
-            a.out.display()
-        );
-    }
     let mut op = OutputPlan::new(&a.collection);
     for (path, noun) in req.input_files() {
         op.input_named(&path, noun);
@@ -97,6 +91,13 @@ pub(crate) fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
         op.file(j, "--json")?;
     }
     let mut out = op.into_set()?;
+    // After the output checks: an output naming an input or a device says so first.
+    if super::extension(&a.out) != "csv" {
+        anyhow::bail!(
+            "--out {}: writes the plan as a samples-file CSV (theta_i,phi_i,theta_o,phi_o) and its name must end in .csv",
+            a.out.display()
+        );
+    }
     let coll = super::load_collection(&a.collection)?;
     let backend = super::backend(g)?;
     let t0 = std::time::Instant::now();

@@ -25,15 +25,16 @@ pub(crate) struct TabulateArgs {
 
 /// Writes the material on the full MERL grid (invalid cells = -1).
 pub(crate) fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
+    let mut plan = OutputPlan::new(&a.collection);
+    plan.file(&a.out, "--out")?;
+    let mut out = plan.into_set()?;
+    // After the output checks: an output naming an input or a device says so first.
     if super::extension(&a.out) != "binary" {
         anyhow::bail!(
             "--out {}: writes a MERL table and its name must end in .binary (a collection directory reads a .bsdf as an RGL-EPFL file and a .npy as part of a neural BRDF)",
             a.out.display()
         );
     }
-    let mut plan = OutputPlan::new(&a.collection);
-    plan.file(&a.out, "--out")?;
-    let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
     let m = coll.get(&a.material)?;
     // Tables are copied as they are; only a material evaluated on the grid needs the
