@@ -288,6 +288,37 @@ pub(crate) fn render_sphere_indexed(
     Ok(render_frame_indexed(params, brdf, &tangent_frame))
 }
 
+/// The sphere's normal at the centre of pixel (`col`, `row`) of a `size` x `size` render
+/// and `cos theta_i` of the light `wi` there, when the pixel is on the sphere and lit.
+#[inline]
+fn lit_normal(col: u32, row: u32, size: u32, wi: [f64; 3]) -> Option<([f64; 3], f64)> {
+    let (x, y) = pixel_centre(col, row, size, size);
+    let r2 = x * x + y * y;
+    if r2 >= 1.0 {
+        return None;
+    }
+    let n = [x, y, (1.0 - r2).sqrt()];
+    let cos_i = dot(n, wi);
+    (cos_i > 0.0).then_some((n, cos_i))
+}
+
+/// The lit sphere pixels of a render with `params`, row-major: each pixel's index (`row *
+/// size + col`) and `cos theta_i`, the factor [`render_sphere`] multiplies the BRDF by
+/// there (the same bits).
+pub(crate) fn lit_pixels(params: &RenderParams) -> Result<Vec<(usize, f64)>, RenderError> {
+    params.check()?;
+    let (size, wi) = (params.size, params.light_direction());
+    let mut out = Vec::new();
+    for row in 0..size {
+        for col in 0..size {
+            if let Some((_, cos_i)) = lit_normal(col, row, size, wi) {
+                out.push((row as usize * size as usize + col as usize, cos_i));
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// [`render_sphere`] with a caller-chosen shading frame (tests check frame independence).
 fn render_with_frame(
     params: &RenderParams,
@@ -313,16 +344,9 @@ fn render_frame_indexed(
         .enumerate()
         .for_each(|(row, out)| {
             for col in 0..size {
-                let (x, y) = pixel_centre(col, row as u32, size, size);
-                let r2 = x * x + y * y;
-                if r2 >= 1.0 {
+                let Some((n, cos_i)) = lit_normal(col, row as u32, size, wi) else {
                     continue;
-                }
-                let n = [x, y, (1.0 - r2).sqrt()];
-                let cos_i = dot(n, wi);
-                if cos_i <= 0.0 {
-                    continue;
-                }
+                };
                 let frame = frame_of(n);
                 let index = row * size as usize + col as usize;
                 let f = brdf(index, to_local(&frame, wi), to_local(&frame, wo));

@@ -81,8 +81,10 @@ pub struct PixelBrdfs {
     brdfs: Vec<BrdfFn>,
     /// The render the table was made for.
     rp: RenderParams,
-    /// Per pixel of that render (`row * size + col`), its row of `values` (`u32::MAX`: none).
-    pixel_rows: Vec<u32>,
+    /// The render's lit pixels that have a row, row-major: index, row of `values` and
+    /// `cos theta_i` (the other pixels of any render from the table are black: a lit pixel
+    /// without a row has a direction below its horizon).
+    lit: Vec<(u32, u32, f64)>,
 }
 
 fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
@@ -125,43 +127,75 @@ impl PixelBrdfs {
             .par_iter()
             .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
             .collect();
+        let lit = crate::eval::render::lit_pixels(rp)?
+            .into_iter()
+            .filter(|&(px, _)| pixel_rows[px] != u32::MAX)
+            .map(|(px, cos_i)| (px as u32, pixel_rows[px], cos_i))
+            .collect();
         Ok(Self {
             index,
             values,
             brdfs,
             rp: *rp,
-            pixel_rows,
+            lit,
         })
-    }
-
-    /// The row of the table of pixel `px` of the table's render.
-    fn pixel_row(&self, px: usize) -> Option<&Vec<[f64; 3]>> {
-        match self.pixel_rows.get(px) {
-            Some(&r) if r != u32::MAX => Some(&self.values[r as usize]),
-            _ => None,
-        }
     }
 
     /// The render (with the parameters the table was made for) of material `m`: the image
-    /// `render_sphere(rp, &self.material(m))` gives, each pixel's value found by its index.
+    /// `render_sphere(rp, &self.material(m))` gives, to the bit.
     pub fn render_material(&self, m: usize) -> Result<Image, RenderError> {
-        render_sphere_indexed(&self.rp, &|px, wi, wo| match self.pixel_row(px) {
-            Some(r) => r[m],
-            None => self.brdfs[m](wi, wo),
-        })
+        Ok(self.render_rows(|r| r[m]))
     }
 
     /// The render (with the parameters the table was made for) of a fitted combination:
-    /// the image `render_sphere(rp, &self.combination(basis, coefficients))` gives, each
-    /// pixel's values found by its index.
+    /// the image `render_sphere(rp, &self.combination(basis, coefficients))` gives, to the
+    /// bit (the same sum in the same order, times the same `cos theta_i`), without the
+    /// render's geometry or a lookup per pixel.
     pub fn render_combination(
         &self,
         basis: &[usize],
         coefficients: &[[f64; 3]],
     ) -> Result<Image, RenderError> {
-        render_sphere_indexed(&self.rp, &|px, wi, wo| {
-            self.combine(self.pixel_row(px), basis, coefficients, wi, wo)
-        })
+        if coefficients.len() != basis.len() + 1 {
+            return Err(RenderError::InvalidParam {
+                name: "coefficients",
+                value: format!("{} for a basis of {}", coefficients.len(), basis.len()),
+                expected: "one per basis material, the Lambertian term's first",
+            });
+        }
+        if let Some(&b) = basis.iter().find(|&&b| b >= self.brdfs.len()) {
+            return Err(RenderError::InvalidParam {
+                name: "basis material",
+                value: b.to_string(),
+                expected: "an index of the table's materials",
+            });
+        }
+        let a0 = [0, 1, 2].map(|c| coefficients[0][c] * std::f64::consts::FRAC_1_PI);
+        Ok(self.render_rows(|r| {
+            let mut v = a0;
+            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
+                let x = r[b];
+                for c in 0..3 {
+                    v[c] += a[c] * x[c];
+                }
+            }
+            v
+        }))
+    }
+
+    /// The render whose lit pixels with a row get `value(row) * cos theta_i`, rounded to
+    /// f32 (the others black), as `render_sphere` writes them.
+    fn render_rows(&self, value: impl Fn(&[[f64; 3]]) -> [f64; 3]) -> Image {
+        let size = self.rp.size;
+        let mut image = Image::black(size, size);
+        for &(px, row, cos_i) in &self.lit {
+            let f = value(&self.values[row as usize]);
+            let o = 3 * px as usize;
+            for c in 0..3 {
+                image.data[o + c] = (f[c] * cos_i) as f32;
+            }
+        }
+        image
     }
 
     /// `a0 / pi + sum_k a_k f_k(wi, wo)`, the values `f_k` from `row` when given.
@@ -211,5 +245,90 @@ impl PixelBrdfs {
             let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
             self.combine(row, basis, coefficients, wi, wo)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::collection::Material;
+    use crate::eval::render::render_sphere;
+    use crate::merl::grid::N_CELLS;
+    use crate::merl::MerlTable;
+    use std::path::Path;
+    use std::sync::Arc;
+
+    /// The embedded default collection and a measured table with invalid cells (a pattern
+    /// of -1 cells: lit pixels without a measurement render black).
+    fn mixed() -> Collection {
+        let mut coll = Collection::embedded_default();
+        let rgb: Vec<f32> = (0..3 * N_CELLS)
+            .map(|i| {
+                if i % 7 == 3 {
+                    -1.0
+                } else {
+                    0.01 + (i % 1000) as f32 * 1e-3
+                }
+            })
+            .collect();
+        let m = Material {
+            name: "measured".into(),
+            data: MaterialData::Measured(Arc::new(MerlTable { rgb })),
+            origin: "test".into(),
+        };
+        coll.push(m, Path::new("test"), 1).unwrap();
+        coll
+    }
+
+    /// The table's renders are `render_sphere`'s of the closures to the bit, at odd and
+    /// even sizes and under the four lights of SPEC 11 (a grazing one included).
+    #[test]
+    fn table_renders_are_render_sphere_bit_for_bit() {
+        let coll = mixed();
+        let n = coll.len();
+        let basis = [n - 1, 0, 5, 9];
+        let coef = [
+            [0.3, 0.2, 0.1],
+            [0.7, 0.0, 0.2],
+            [0.5, 0.4, 0.3],
+            [0.0, 1.2, 0.7],
+            [2.0, 0.1, 0.0],
+        ];
+        for size in [17u32, 40] {
+            for (th, ph) in crate::eval::appearance::LIGHTS {
+                let rp = RenderParams::default().with_size(size).with_light(th, ph);
+                let table = PixelBrdfs::new(&coll, &rp).unwrap();
+                let direct = render_sphere(&rp, &combination_brdf(&coll, &basis, &coef)).unwrap();
+                let fast = table.render_combination(&basis, &coef).unwrap();
+                assert_eq!(fast.mask, direct.mask);
+                let bits = |i: &Image| i.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&fast),
+                    bits(&direct),
+                    "size {size}, light ({th}, {ph})"
+                );
+                for m in [0, n - 1] {
+                    let direct =
+                        render_sphere(&rp, &material_brdf(&coll.materials()[m].data)).unwrap();
+                    assert_eq!(bits(&table.render_material(m).unwrap()), bits(&direct));
+                }
+            }
+        }
+    }
+
+    /// A coefficient count that is not the basis' plus one, or a basis index beyond the
+    /// table, is an error, not a truncated sum or a panic.
+    #[test]
+    fn mismatched_coefficients_are_refused() {
+        let coll = Collection::embedded_default();
+        let table = PixelBrdfs::new(&coll, &RenderParams::default().with_size(8)).unwrap();
+        let e = table
+            .render_combination(&[0, 1], &[[0.1; 3]; 2])
+            .unwrap_err();
+        assert!(e.to_string().contains("coefficients"), "{e}");
+        let e = table
+            .render_combination(&[coll.len()], &[[0.1; 3]; 2])
+            .unwrap_err();
+        assert!(e.to_string().contains("basis material"), "{e}");
     }
 }
