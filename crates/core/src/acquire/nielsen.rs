@@ -515,15 +515,22 @@ impl NielsenModel {
         &'a self,
         coef: &'a [Vec<f64>; 3],
     ) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + 'a {
-        let near = self.near.get_or_init(|| self.nearest_model_cells());
+        let at = self.at_cell(coef);
         move |wi, wo| {
             if wi[2] <= 0.0 || wo[2] <= 0.0 {
                 return [0.0; 3];
             }
-            match near[lookup(wi, wo)] {
-                u32::MAX => [0.0; 3],
-                j => [0, 1, 2].map(|c| self.value(j as usize, &coef[c])),
-            }
+            at(lookup(wi, wo))
+        }
+    }
+
+    /// [`Self::brdf`] on a MERL cell: the reconstruction at its nearest model cell (for
+    /// [`crate::eval::shade::PixelBrdfs::render_cells`]).
+    pub fn at_cell<'a>(&'a self, coef: &'a [Vec<f64>; 3]) -> impl Fn(usize) -> [f64; 3] + 'a {
+        let near = self.near.get_or_init(|| self.nearest_model_cells());
+        move |cell| match near[cell] {
+            u32::MAX => [0.0; 3],
+            j => [0, 1, 2].map(|c| self.value(j as usize, &coef[c])),
         }
     }
 }

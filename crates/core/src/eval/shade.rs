@@ -85,6 +85,8 @@ pub struct PixelBrdfs {
     /// `cos theta_i` (the other pixels of any render from the table are black: a lit pixel
     /// without a row has a direction below its horizon).
     lit: Vec<(u32, u32, f64)>,
+    /// Per row of `values`, the MERL cell of its direction pair ([`lookup`]).
+    cells: Vec<u32>,
 }
 
 fn pair_key(wi: [f64; 3], wo: [f64; 3]) -> [u64; 6] {
@@ -123,6 +125,10 @@ impl PixelBrdfs {
             .iter()
             .map(|m| material_brdf(&m.data))
             .collect();
+        let cells = unique
+            .par_iter()
+            .map(|&(wi, wo)| lookup(wi, wo) as u32)
+            .collect();
         let values = unique
             .par_iter()
             .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
@@ -138,6 +144,7 @@ impl PixelBrdfs {
             brdfs,
             rp: *rp,
             lit,
+            cells,
         })
     }
 
@@ -181,6 +188,31 @@ impl PixelBrdfs {
             }
             v
         }))
+    }
+
+    /// The render (with the parameters the table was made for) of a BRDF that is constant
+    /// on each MERL cell (a tabulated reconstruction), `f(cell)` its value: the image
+    /// `render_sphere` gives of `|wi, wo| if wi[2] <= 0 || wo[2] <= 0 { 0 } else {
+    /// f(lookup(wi, wo)) }`, to the bit, with one lookup per distinct pair of the render.
+    pub fn render_cells(&self, f: impl Fn(usize) -> [f64; 3]) -> Image {
+        let mut rows = self.lit.iter().map(|&(_, row, _)| row).collect::<Vec<_>>();
+        rows.sort_unstable();
+        rows.dedup();
+        // Each row's value once (rows shared by pixels are rare but possible).
+        let mut at = vec![[0.0; 3]; self.values.len()];
+        for r in rows {
+            at[r as usize] = f(self.cells[r as usize] as usize);
+        }
+        let size = self.rp.size;
+        let mut image = Image::black(size, size);
+        for &(px, row, cos_i) in &self.lit {
+            let v = at[row as usize];
+            let o = 3 * px as usize;
+            for c in 0..3 {
+                image.data[o + c] = (v[c] * cos_i) as f32;
+            }
+        }
+        image
     }
 
     /// The render whose lit pixels with a row get `value(row) * cos theta_i`, rounded to
@@ -312,6 +344,38 @@ mod tests {
                         render_sphere(&rp, &material_brdf(&coll.materials()[m].data)).unwrap();
                     assert_eq!(bits(&table.render_material(m).unwrap()), bits(&direct));
                 }
+            }
+        }
+    }
+
+    /// A BRDF constant per MERL cell renders from the table's cells as `render_sphere`
+    /// renders it through the lookup, to the bit (cells of value 0 included).
+    #[test]
+    fn cell_renders_are_render_sphere_bit_for_bit() {
+        let coll = Collection::embedded_default();
+        let f = |cell: usize| {
+            if cell % 5 == 0 {
+                [0.0; 3]
+            } else {
+                [0, 1, 2].map(|c| ((cell * (c + 3)) % 977) as f64 * 1e-3 + 0.01)
+            }
+        };
+        for size in [17u32, 64] {
+            for (th, ph) in crate::eval::appearance::LIGHTS {
+                let rp = RenderParams::default().with_size(size).with_light(th, ph);
+                let table = PixelBrdfs::new(&coll, &rp).unwrap();
+                let direct = render_sphere(&rp, &|wi: [f64; 3], wo: [f64; 3]| {
+                    if wi[2] <= 0.0 || wo[2] <= 0.0 {
+                        [0.0; 3]
+                    } else {
+                        f(lookup(wi, wo))
+                    }
+                })
+                .unwrap();
+                let fast = table.render_cells(f);
+                let bits = |i: &Image| i.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(fast.mask, direct.mask);
+                assert_eq!(bits(&fast), bits(&direct), "size {size}, light ({th}, {ph})");
             }
         }
     }

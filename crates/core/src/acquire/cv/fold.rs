@@ -629,9 +629,11 @@ fn nielsen_rows(
             let looks = if nf.lights.is_empty() {
                 None
             } else {
-                let brdf = nf.model.brdf(&coef);
+                // The reconstruction is constant per MERL cell: each light's render from
+                // its table's cells (render_sphere of `nf.model.brdf(&coef)`, to the bit).
+                let at = nf.model.at_cell(&coef);
                 let mut a =
-                    LightRenders::scores_of(nf.lights, ti, |l| render_sphere(l.params(), &brdf))
+                    LightRenders::scores_of(nf.lights, ti, |l| Ok(l.pixels().render_cells(&at)))
                         .map_err(|e| AcquireError::Render(e.to_string()))?;
                 let mut logs = LogSums::default();
                 for c in 0..3 {

@@ -20,7 +20,6 @@ use crate::stats::{mean, median, StatsError};
 /// The renders of the appearance metrics (SPEC 11): per light, the pixel table of every
 /// material and the render of every material.
 pub(crate) struct LightRenders {
-    rp: RenderParams,
     pixels: PixelBrdfs,
     originals: Vec<Image>,
 }
@@ -40,11 +39,7 @@ impl LightRenders {
                 let originals = (0..coll.len())
                     .map(|t| pixels.render_material(t))
                     .collect::<Result<Vec<_>, _>>()?;
-                Ok(Self {
-                    pixels,
-                    originals,
-                    rp,
-                })
+                Ok(Self { pixels, originals })
             })
             .collect()
     }
@@ -77,9 +72,9 @@ impl LightRenders {
         Ok(Appearance::new(0.0, scores))
     }
 
-    /// The light's render parameters.
-    pub(crate) fn params(&self) -> &RenderParams {
-        &self.rp
+    /// The light's pixel table.
+    pub(crate) fn pixels(&self) -> &PixelBrdfs {
+        &self.pixels
     }
 }
 
