@@ -151,7 +151,7 @@ impl PixelBrdfs {
     /// The render (with the parameters the table was made for) of material `m`: the image
     /// `render_sphere(rp, &self.material(m))` gives, to the bit.
     pub fn render_material(&self, m: usize) -> Result<Image, RenderError> {
-        Ok(self.render_rows(|r| r[m]))
+        Ok(self.render_rows(|r| self.values[r][m]))
     }
 
     /// The render (with the parameters the table was made for) of a fitted combination:
@@ -179,6 +179,7 @@ impl PixelBrdfs {
         }
         let a0 = [0, 1, 2].map(|c| coefficients[0][c] * std::f64::consts::FRAC_1_PI);
         Ok(self.render_rows(|r| {
+            let r = &self.values[r];
             let mut v = a0;
             for (&b, a) in basis.iter().zip(&coefficients[1..]) {
                 let x = r[b];
@@ -203,28 +204,19 @@ impl PixelBrdfs {
         for r in rows {
             at[r as usize] = f(self.cells[r as usize] as usize);
         }
-        let size = self.rp.size;
-        let mut image = Image::black(size, size);
-        for &(px, row, cos_i) in &self.lit {
-            let v = at[row as usize];
-            let o = 3 * px as usize;
-            for c in 0..3 {
-                image.data[o + c] = (v[c] * cos_i) as f32;
-            }
-        }
-        image
+        self.render_rows(|r| at[r])
     }
 
-    /// The render whose lit pixels with a row get `value(row) * cos theta_i`, rounded to
-    /// f32 (the others black), as `render_sphere` writes them.
-    fn render_rows(&self, value: impl Fn(&[[f64; 3]]) -> [f64; 3]) -> Image {
+    /// The render whose lit pixels with a row get `value(row) * cos theta_i` (`row` of
+    /// `values`), rounded to f32 (the others black), as `render_sphere` writes them.
+    fn render_rows(&self, value: impl Fn(usize) -> [f64; 3]) -> Image {
         let size = self.rp.size;
         let mut image = Image::black(size, size);
         for &(px, row, cos_i) in &self.lit {
-            let f = value(&self.values[row as usize]);
+            let f = value(row as usize);
             let o = 3 * px as usize;
-            for c in 0..3 {
-                image.data[o + c] = (f[c] * cos_i) as f32;
+            for (d, v) in image.data[o..o + 3].iter_mut().zip(f) {
+                *d = (v * cos_i) as f32;
             }
         }
         image
@@ -354,7 +346,7 @@ mod tests {
     fn cell_renders_are_render_sphere_bit_for_bit() {
         let coll = Collection::embedded_default();
         let f = |cell: usize| {
-            if cell % 5 == 0 {
+            if cell.is_multiple_of(5) {
                 [0.0; 3]
             } else {
                 [0, 1, 2].map(|c| ((cell * (c + 3)) % 977) as f64 * 1e-3 + 0.01)
@@ -375,7 +367,11 @@ mod tests {
                 let fast = table.render_cells(f);
                 let bits = |i: &Image| i.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(fast.mask, direct.mask);
-                assert_eq!(bits(&fast), bits(&direct), "size {size}, light ({th}, {ph})");
+                assert_eq!(
+                    bits(&fast),
+                    bits(&direct),
+                    "size {size}, light ({th}, {ph})"
+                );
             }
         }
     }
