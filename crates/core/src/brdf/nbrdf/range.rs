@@ -48,10 +48,10 @@ impl Nbrdf {
         std::array::from_fn(|c| layer(&hi2, B3, FC3, 3, c))
     }
 
-    /// Refuses a network whose output reaches [`MAX_OUTPUT`] at a geometrically valid cell
+    /// Refuses a network whose output reaches `MAX_OUTPUT` (1.6e38) at a geometrically valid cell
     /// of the MERL grid (every cell a distance, fit or tabulation evaluates): the message
     /// gives the channel, the cell's angles and the output in f64. Most networks are
-    /// proved in range by [`Nbrdf::output_bound`]; the others are evaluated on the grid.
+    /// proved in range by an interval bound of the last layer; the others are evaluated on the grid.
     pub fn check_output_range(&self) -> Result<(), String> {
         if self.output_bound().iter().all(|&z| z < MAX_Z) {
             return Ok(());
