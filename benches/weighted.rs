@@ -48,6 +48,7 @@ fn run(
                 &channel_lobes(&targets, c),
                 cells,
                 w,
+                &|_, _| {},
             )
             .expect("weighted systems")
         })

@@ -387,4 +387,25 @@ fn acquisition_cv_runs_the_nielsen_baseline() {
     assert_eq!(sh.plan, Criterion::Condition);
     assert_eq!(sh.tiles.len(), 3, "dense fit, n = 3, n = 6");
     assert_eq!(acquisition_cv(&CpuBackend::new(), &c, &p).unwrap(), r);
+
+    // Audit 2, T12: progress in steps (shared state, per method and fold each plan and
+    // the scores, the showcase), never backwards, ending at its total; the same result.
+    let seen = std::sync::Mutex::new(Vec::new());
+    let with =
+        brdf_basis::acquire::acquisition_cv_with_progress(&CpuBackend::new(), &c, &p, &|d, t| {
+            seen.lock().unwrap().push((d, t))
+        })
+        .unwrap();
+    assert_eq!(with, r);
+    let seen = seen.into_inner().unwrap();
+    let total = 2 + 2 * (2 + 1);
+    assert!(seen.iter().all(|&(d, t)| t == total && d <= t), "{seen:?}");
+    assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "{seen:?}");
+    assert_eq!(seen.first(), Some(&(0, total)));
+    assert_eq!(seen.last(), Some(&(total, total)));
+    assert!(
+        seen.len() > 2 * total as usize,
+        "pulses inside the steps: {}",
+        seen.len()
+    );
 }

@@ -525,7 +525,13 @@ fn plan_refuses_targets_all_in_the_basis_and_duplicates() {
     refused(
         d,
         &plan(&["--basis", "plastic,metal", "--targets", "metal"]),
-        &["a basis of 2 materials holds all 1 targets and leaves none to score"],
+        &["a basis of 2 materials holds the only target and leaves none to score"],
+    );
+    // Audit 2, U1: counts of one are singular here too.
+    refused(
+        d,
+        &plan(&["--basis", "metal", "--targets", "metal"]),
+        &["a basis of 1 material holds the only target and leaves none to score"],
     );
     refused(
         d,

@@ -221,6 +221,63 @@ fn cv_acquisition_reports_its_figure_and_labels_integers_once() {
     }
 }
 
+/// The acquisition figure of a run without a noise-free level (`--noise 0.02` alone) drew
+/// an empty chart: it plotted only the noise-free rows. It now draws the lowest noise
+/// level, named in the caption, with as many lines as a noise-free run.
+#[test]
+fn cv_acquisition_figure_without_a_noise_free_level_is_not_empty() {
+    let dir = tmp();
+    let d = dir.path();
+    let mut c = String::from(CSV);
+    c += "rough,0.3,0.3,0.3,0.05,0.05,0.05,0.04,5\n\
+        gold,0,0,0,0.9,0.6,0.2,0.9,1200\n";
+    write(d, "c6.csv", c);
+    let mut lines = Vec::new();
+    for (noise, fig) in [("0", "z.svg"), ("0.02", "y.svg")] {
+        let o = run(
+            d,
+            &[
+                "cv",
+                "c6.csv",
+                "--acquisition",
+                "--methods",
+                "random",
+                "-k",
+                "2",
+                "--plans",
+                "random,error",
+                "-n",
+                "1,3",
+                "--noise",
+                noise,
+                "--folds",
+                "2",
+                "--stride",
+                "8",
+                "--render-size",
+                "16",
+                "--no-appearance",
+                "--candidates-per-step",
+                "50",
+                "--json",
+                &format!("{fig}.json"),
+                "--figure",
+                fig,
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let svg = std::fs::read_to_string(d.join(fig)).expect("svg");
+        lines.push(svg.matches("<polyline").count());
+        if noise == "0.02" {
+            assert!(
+                svg.contains("samples at 2% noise"),
+                "caption names the noise"
+            );
+        }
+    }
+    assert!(lines[0] > 0 && lines[0] == lines[1], "{lines:?}");
+}
+
 /// U7: `plan` writes a candidate's angles as given, not re-derived ones
 /// (29.999999999999993 for 30, -0.000000000000028 for a phi of 720).
 #[test]

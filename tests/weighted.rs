@@ -64,6 +64,7 @@ fn weighted_systems_by_hand() {
         std::slice::from_ref(&a),
         &cells,
         TargetWeight::L2,
+        &|_, _| {},
     )
     .expect("reference");
     let g = s.gram(0);
@@ -101,6 +102,7 @@ fn weighted_systems_by_hand() {
             std::slice::from_ref(&half),
             &one,
             w,
+            &|_, _| {},
         )
         .expect("reference");
         // The half lobe tabulates to exactly half the lobe (a power of two).
@@ -145,21 +147,32 @@ fn gpu_weighted_systems_match_the_f64_reference() {
         TargetWeight::Relative { eps: 0.01 },
         TargetWeight::Log,
     ] {
-        let want = reference(&CpuBackend::new(), &basis, &targets, &cells, w).expect("cpu");
+        let want =
+            reference(&CpuBackend::new(), &basis, &targets, &cells, w, &|_, _| {}).expect("cpu");
         let got = g
-            .weighted_systems(&basis, &targets, &cells, w)
+            .weighted_systems(&basis, &targets, &cells, w, &|_, _| {})
             .expect("gpu");
         assert_close(&format!("{w:?}"), &got, &want);
         // The CPU back-end's own method is the reference.
         let cpu = CpuBackend::new()
-            .weighted_systems(&basis, &targets, &cells, w)
+            .weighted_systems(&basis, &targets, &cells, w, &|_, _| {})
             .expect("cpu method");
         assert_eq!(cpu, want);
     }
     // A bad eps is refused by both.
     let bad = TargetWeight::Relative { eps: 0.0 };
-    assert!(g.weighted_systems(&basis, &targets, &cells, bad).is_err());
-    assert!(reference(&CpuBackend::new(), &basis, &targets, &cells, bad).is_err());
+    assert!(g
+        .weighted_systems(&basis, &targets, &cells, bad, &|_, _| {})
+        .is_err());
+    assert!(reference(
+        &CpuBackend::new(),
+        &basis,
+        &targets,
+        &cells,
+        bad,
+        &|_, _| {}
+    )
+    .is_err());
 }
 
 #[test]
@@ -179,8 +192,11 @@ fn gpu_weighted_systems_of_neural_targets_match_the_f64_reference() {
     let (basis, targets) = lobes.split_at(5);
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 4);
     for w in [TargetWeight::L2, TargetWeight::Relative { eps: 0.01 }] {
-        let want = reference(&CpuBackend::new(), basis, targets, &cells, w).expect("cpu");
-        let got = g.weighted_systems(basis, targets, &cells, w).expect("gpu");
+        let want =
+            reference(&CpuBackend::new(), basis, targets, &cells, w, &|_, _| {}).expect("cpu");
+        let got = g
+            .weighted_systems(basis, targets, &cells, w, &|_, _| {})
+            .expect("gpu");
         // The networks themselves agree within SPEC 9 between back-ends (1e-5 relative
         // per value), on top of the kernel's summation.
         let rel = max_rel(&got.values, &want.values, 1e-30);

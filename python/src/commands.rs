@@ -358,8 +358,8 @@ pub(crate) fn acquisition_cv_json<'py>(
     req.seed = seed;
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
-    let res = run_long(py, progress, "cv --acquisition", |_| {
-        req.run(backend.as_ref(), &coll)
+    let res = run_long(py, progress, "cv --acquisition", |pr| {
+        req.run_with_progress(backend.as_ref(), &coll, pr)
     })?;
     let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")

@@ -193,6 +193,49 @@ def test_plan_over_every_candidate_answers_ctrl_c_within_a_second():
     assert took < 1.0, took
 
 
+def test_acquisition_cv_answers_ctrl_c_within_a_second():
+    """Audit 2, U16 (and issue 36's "Ctrl-C in every long call within a second"):
+    ``acquisition_cv`` reports progress in steps and, inside a step, at every plan
+    candidate, render and fit, so SIGINT stops it with KeyboardInterrupt promptly. Run in a
+    child so that code which ignores it fails in 20 s instead of hanging the session."""
+    import queue
+    import signal
+    import sys
+    import threading
+    import time
+
+    code = (
+        "import brdf_basis as bb\n"
+        "c = bb.Collection.default()\n"
+        "try:\n"
+        "    bb.acquisition_cv(c, backend='cpu',\n"
+        "                      progress=lambda d, t: print('progress', d, t, flush=True))\n"
+        "    print('finished', flush=True)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', flush=True)\n"
+    )
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=os.environ.copy())
+    lines = queue.Queue()
+    reader = threading.Thread(target=lambda: [lines.put(l) for l in p.stdout], daemon=True)
+    reader.start()
+    try:
+        first = lines.get(timeout=20)
+        assert first.startswith("progress 0 "), first
+        time.sleep(1.5)  # into the fold bases or the first fold's plans
+        t0 = time.time()
+        p.send_signal(signal.SIGINT)
+        p.wait(timeout=20)
+        took = time.time() - t0
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    reader.join(timeout=5)
+    out = "".join(lines.queue)
+    assert "interrupted" in out and "finished" not in out, out
+    assert took < 1.0, took
+
+
 @pytest.mark.parametrize("objective", ["l2", "relative", "log"])
 def test_fit_samples_under_an_objective_is_scipys_weighted_nnls(objective):
     """SPEC 11: a fit from samples weights each sample by the objective's weight at its

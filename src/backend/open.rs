@@ -97,8 +97,10 @@ impl Backend for AutoBackend {
         targets: &[Lobe],
         cells: &CellSet,
         weight: crate::backend::weighted::TargetWeight,
+        progress: Progress<'_>,
     ) -> Result<crate::backend::weighted::WeightedSystems, BackendError> {
-        self.gpu.weighted_systems(basis, targets, cells, weight)
+        self.gpu
+            .weighted_systems(basis, targets, cells, weight, progress)
     }
 
     fn nnls_pgd(

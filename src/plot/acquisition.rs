@@ -12,7 +12,7 @@ use plotters::prelude::*;
 
 const FONT: &str = "sans-serif";
 
-/// [`AcqCv`] drawn as rho against n (first method, noise 0).
+/// [`AcqCv`] drawn as rho against n (first method, noise 0, else the lowest noise level).
 pub struct RhoVsN<'a> {
     /// The cross-validation.
     pub cv: &'a AcqCv,
@@ -31,12 +31,26 @@ impl Draw for RhoVsN<'_> {
         let Some(method) = self.cv.results.first().map(|r| r.method.clone()) else {
             return Ok(());
         };
+        // The noise-free rows; without a noise-free level (`--noise 0.02` alone), the
+        // lowest noise level, named in the caption (the chart was left empty).
+        let noise = self
+            .cv
+            .results
+            .iter()
+            .filter(|r| r.method == method)
+            .map(|r| r.noise)
+            .fold(f64::INFINITY, f64::min);
         let rows: Vec<_> = self
             .cv
             .results
             .iter()
-            .filter(|r| r.method == method && r.noise == 0.0 && r.mean_rho > 0.0)
+            .filter(|r| r.method == method && r.noise == noise && r.mean_rho > 0.0)
             .collect();
+        let samples = if noise == 0.0 {
+            "noise-free samples".to_string()
+        } else {
+            format!("samples at {}% noise", noise * 100.0)
+        };
         let mut plans: Vec<&str> = Vec::new();
         for r in &rows {
             if !plans.contains(&r.plan.as_str()) {
@@ -68,7 +82,7 @@ impl Draw for RhoVsN<'_> {
         if text {
             b.caption(
                 format!(
-                    "Held-out mean rho from n noise-free samples ({method}, k = {})",
+                    "Held-out mean rho from n {samples} ({method}, k = {})",
                     self.cv.k
                 ),
                 (FONT, 18),

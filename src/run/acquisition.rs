@@ -1,8 +1,9 @@
 //! `cv --acquisition`: acquisition cross-validation (SPEC 10).
 
 use super::{check_restarts, Grid};
-use crate::acquire::{acquisition_cv, AcqCv, AcqCvParams, Criterion};
+use crate::acquire::{acquisition_cv_with_progress, AcqCv, AcqCvParams, Criterion};
 use crate::backend::Backend;
+use crate::backend::Progress;
 use crate::collection::Collection;
 use crate::fit::TargetWeight;
 use crate::select::{CvMethod, ObjectiveParams};
@@ -132,7 +133,28 @@ impl AcquisitionRequest {
     /// # Errors
     /// The settings' errors before any work, then the stages' errors.
     pub fn run(&self, backend: &dyn Backend, coll: &Collection) -> Result<AcqCv> {
+        self.run_with_progress(backend, coll, &|_, _| {})
+    }
+
+    /// [`Self::run`], reporting `progress(steps done, steps)`: the shared state, each
+    /// plan of each method and fold, each fold's scores, the showcase. The callback is
+    /// also called, with the same position, while a step runs (a caller may cancel from
+    /// it: the command line's bar, Python's Ctrl-C).
+    ///
+    /// # Errors
+    /// As [`Self::run`].
+    pub fn run_with_progress(
+        &self,
+        backend: &dyn Backend,
+        coll: &Collection,
+        progress: Progress<'_>,
+    ) -> Result<AcqCv> {
         self.check()?;
-        Ok(acquisition_cv(backend, coll, &self.params())?)
+        Ok(acquisition_cv_with_progress(
+            backend,
+            coll,
+            &self.params(),
+            progress,
+        )?)
     }
 }

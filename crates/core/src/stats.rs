@@ -520,6 +520,10 @@ pub fn wilcoxon_signed_rank(x: &[f64], y: &[f64]) -> Result<WilcoxonResult, Stat
             y: y.len(),
         });
     }
+    // Audit 2, U15: no pairs at all is not "every paired difference is zero".
+    if x.is_empty() {
+        return Err(StatsError::EmptySample { sample: "x" });
+    }
     check_finite(x, || "x".into())?;
     check_finite(y, || "y".into())?;
     let diffs: Vec<f64> = x

@@ -179,6 +179,7 @@ impl Backend for GpuBackend {
         targets: &[Lobe],
         cells: &CellSet,
         weight: brdf_basis_core::backend::weighted::TargetWeight,
+        progress: Progress<'_>,
     ) -> Result<brdf_basis_core::backend::weighted::WeightedSystems, BackendError> {
         let weight = weight.check()?;
         Ok(self.weighted.run(
@@ -189,6 +190,7 @@ impl Backend for GpuBackend {
             targets,
             cells,
             weight,
+            progress,
         )?)
     }
 

@@ -13,7 +13,7 @@ use super::pairwise::DeviceSums;
 use super::tabulate::{PackTarget, TabulateKernel};
 use super::{dispatch, GpuContext, PipelineCache, TEX_W};
 use brdf_basis_core::backend::weighted::{cos_theta_i, TargetWeight, WeightedSystems};
-use brdf_basis_core::backend::{Lobe, LobeParams};
+use brdf_basis_core::backend::{Lobe, LobeParams, Progress};
 use brdf_basis_core::error::GpuError;
 use brdf_basis_core::merl::CellSet;
 
@@ -182,6 +182,7 @@ impl WeightedKernel {
         targets: &[Lobe],
         cells: &CellSet,
         weight: TargetWeight,
+        progress: Progress<'_>,
     ) -> Result<WeightedSystems, GpuError> {
         let (k, t_count) = (basis.len(), targets.len());
         let m = k + 1;
@@ -255,8 +256,12 @@ impl WeightedKernel {
         let sums = DeviceSums::new(ctx, reduce, t_count * stride);
         let (code, eps) = weight.code();
         let mut in_flight = None;
+        let mut done = 0usize;
         for (cc, cw) in cells.cells.chunks(chunk).zip(cells.weights.chunks(chunk)) {
             let len = cc.len();
+            // Encoded, not yet summed: the position of the chunks handed to the device.
+            done += len;
+            progress(done as u64, cells.cells.len() as u64);
             let mut enc = tab.encode_pack(ctx, &prepared, &target, cc);
             self.pack_measured(ctx, &target, &layout, &rows, cc, chunk)?;
             if let Some((kernel, prepared, ncells)) = neural_pass.as_mut() {

@@ -22,7 +22,7 @@ pub mod plan;
 mod plan_types;
 pub mod samples;
 
-pub use cv::{acquisition_cv, AcqCv, AcqCvParams};
+pub use cv::{acquisition_cv, acquisition_cv_with_progress, AcqCv, AcqCvParams};
 pub use eval::material_at;
 pub use fit::{fit_samples, SampleFit, SampleFitParams};
 pub use plan::{plan, plan_with_progress};
@@ -107,7 +107,9 @@ pub enum AcquireError {
     /// Every training target of a plan is in its basis: each is fitted exactly by itself,
     /// its score is 0 whatever the samples, and nothing is left to choose samples by.
     #[error(
-        "a basis of {basis} materials holds all {targets} targets and leaves none to score (a basis material fits itself exactly, so its score is 0 at any samples): give --targets outside the basis, or leave --targets out to use every material outside the basis"
+        "a basis of {} holds {} and leaves none to score (a basis material fits itself exactly, so its score is 0 at any samples): give --targets outside the basis, or leave --targets out to use every material outside the basis",
+        crate::error::plural(*.basis, "material", "materials"),
+        if *.targets == 1 { "the only target".to_string() } else { format!("all {} targets", .targets) }
     )]
     NoTargetLeft {
         /// Basis size.

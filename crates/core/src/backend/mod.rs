@@ -132,15 +132,17 @@ pub trait Backend: Send + Sync {
 
     /// Every target's weighted normal equations (SPEC 11) for a fit by `basis` plus the
     /// Lambertian column, over `cells`, under `weight` ([`weighted`]). By default the f64
-    /// reference ([`weighted::reference`]); the GPU back-end runs its kernel.
+    /// reference ([`weighted::reference`]); the GPU back-end runs its kernel. `progress`
+    /// is called with (cells done, cells) after each chunk of cells.
     fn weighted_systems(
         &self,
         basis: &[Lobe],
         targets: &[Lobe],
         cells: &CellSet,
         weight: weighted::TargetWeight,
+        progress: Progress<'_>,
     ) -> Result<weighted::WeightedSystems, BackendError> {
-        weighted::reference(self, basis, targets, cells, weight)
+        weighted::reference(self, basis, targets, cells, weight, progress)
     }
 
     /// Batched accelerated projected-gradient NNLS for many targets sharing one Gram

@@ -226,6 +226,7 @@ pub fn reference<B: Backend + ?Sized>(
     targets: &[Lobe],
     cells: &CellSet,
     weight: TargetWeight,
+    progress: super::Progress<'_>,
 ) -> Result<WeightedSystems, BackendError> {
     use rayon::prelude::*;
     let weight = weight.check()?;
@@ -233,6 +234,7 @@ pub fn reference<B: Backend + ?Sized>(
     let stride = WeightedSystems::stride_for(m);
     let mut values = vec![0f64; targets.len() * stride];
     let lambert = std::f32::consts::FRAC_1_PI as f64;
+    let mut done = 0usize;
     for (cc, cw) in cells
         .cells
         .chunks(REFERENCE_CHUNK)
@@ -268,6 +270,8 @@ pub fn reference<B: Backend + ?Sized>(
                     v[q + m] += w * yc * yc;
                 }
             });
+        done += n;
+        progress(done as u64, cells.cells.len() as u64);
     }
     Ok(WeightedSystems { columns: m, values })
 }

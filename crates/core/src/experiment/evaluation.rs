@@ -328,7 +328,7 @@ fn fit_all(
                     })
             })
             .collect();
-        let sums = cell_sums::<true, false>(&cpu, coll, &pending[first].1, &jobs);
+        let sums = cell_sums::<true, false>(&cpu, coll, &pending[first].1, &jobs, &|| {});
         drop(jobs);
         let mut sums = sums.into_iter();
         for &i in &group {

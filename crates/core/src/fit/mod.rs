@@ -325,7 +325,7 @@ pub fn fit(
     let mut target_l1 = vec![0.0; targets.len()];
     for c in 0..3 {
         let sols = if weighted {
-            let ws = weighted_channel(backend, coll, basis, targets, &cells, c, weight)?;
+            let ws = weighted_channel(backend, coll, basis, targets, &cells, c, weight, progress)?;
             for (o, s) in objective_sums.iter_mut().zip(&ws) {
                 o[0] += s.objective;
                 o[1] += s.yy;
@@ -413,11 +413,12 @@ pub(crate) fn weighted_channel(
     cells: &CellSet,
     c: usize,
     weight: TargetWeight,
+    progress: Progress<'_>,
 ) -> Result<Vec<WeightedFit>, FitError> {
     let lobe = |i: usize| channel_lobe(&coll.materials()[i].data, c);
     let basis_lobes: Vec<Lobe> = basis.iter().map(|&i| lobe(i)).collect();
     let target_lobes: Vec<Lobe> = targets.iter().map(|&i| lobe(i)).collect();
-    let sys = backend.weighted_systems(&basis_lobes, &target_lobes, cells, weight)?;
+    let sys = backend.weighted_systems(&basis_lobes, &target_lobes, cells, weight, progress)?;
     let m = basis.len() + 1;
     let lh = lawson_hanson::LhParams::default();
     targets

@@ -276,6 +276,10 @@ fn wilcoxon_rejects_bad_input() {
         wilcoxon_signed_rank(&[1.0, 2.0], &[1.0, 2.0]),
         Err(StatsError::AllZeroDifferences)
     );
+    assert_eq!(
+        wilcoxon_signed_rank(&[], &[]),
+        Err(StatsError::EmptySample { sample: "x" })
+    );
     let err = wilcoxon_signed_rank(&[1.0, 2.0], &[f64::INFINITY, 2.0]).unwrap_err();
     assert_eq!(
         err,

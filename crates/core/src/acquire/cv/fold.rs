@@ -74,6 +74,7 @@ impl<'a> Shared<'a> {
         backend: &'a dyn Backend,
         coll: &'a Collection,
         p: &'a AcqCvParams,
+        tick: &Ticker<'_>,
     ) -> Result<Self, AcquireError> {
         let n = coll.len();
         let nmax = p.ns.iter().copied().max().unwrap_or(0);
@@ -110,7 +111,8 @@ impl<'a> Shared<'a> {
             objective: TargetWeight::L2,
             ..fp_obj.clone()
         };
-        let obj = Objective::new(backend, coll, &p.objective.check()?, &|_, _| {})?;
+        let pulse = |_: u64, _: u64| tick.pulse();
+        let obj = Objective::new(backend, coll, &p.objective.check()?, &pulse)?;
         let dist = if p.methods.iter().any(|m| m.clustering()) {
             let dp = DistanceParams::default()
                 .metric(vp.params().metric)
@@ -120,14 +122,14 @@ impl<'a> Shared<'a> {
                 .check(coll)
                 .map_err(crate::select::SelectionError::from)?;
             Some(
-                distance_matrix(backend, coll, &dp, &|_, _| {})
+                distance_matrix(backend, coll, &dp, &pulse)
                     .map_err(crate::select::SelectionError::from)?,
             )
         } else {
             None
         };
         let folds = make_folds(n, p.folds, p.seed);
-        let bases = fold_bases(&obj, dist.as_ref(), &folds, &vp, &|_, _| {})?;
+        let bases = fold_bases(&obj, dist.as_ref(), &folds, &vp, &pulse)?;
         let grid = GridEval::new(coll, &fp);
         let rp = RenderParams::default()
             .with_size(p.render_size)
@@ -135,7 +137,10 @@ impl<'a> Shared<'a> {
         let display = DisplayParams::default();
         let pixels = PixelBrdfs::new(coll, &rp).map_err(|e| AcquireError::Render(e.to_string()))?;
         let originals: Vec<_> = (0..n)
-            .map(|t| render_sphere(&rp, &pixels.material(t)))
+            .map(|t| {
+                tick.pulse();
+                render_sphere(&rp, &pixels.material(t))
+            })
             .collect::<Result<_, _>>()
             .map_err(|e| AcquireError::Render(e.to_string()))?;
         let names = coll.names();
@@ -143,7 +148,8 @@ impl<'a> Shared<'a> {
         let cands = cell_candidates(coll, &all, &fp)?;
         let cellset = fit_cells(coll, &all, &fp)?;
         let lights = if p.appearance {
-            LightRenders::all(coll).map_err(|e| AcquireError::Render(e.to_string()))?
+            LightRenders::all_ticking(coll, &|| tick.pulse())
+                .map_err(|e| AcquireError::Render(e.to_string()))?
         } else {
             Vec::new()
         };
@@ -184,6 +190,7 @@ impl<'a> Shared<'a> {
         mi: usize,
         f: usize,
         held: &[usize],
+        tick: &Ticker<'_>,
     ) -> Result<FoldRows, AcquireError> {
         let (p, coll, n) = (self.p, self.coll, self.n);
         let basis = &self.bases[mi][0][f];
@@ -191,7 +198,9 @@ impl<'a> Shared<'a> {
         let train: Vec<usize> = (0..n)
             .filter(|i| held.binary_search(i).is_err() && !basis.contains(i))
             .collect();
-        let dense = Dense::new(self.backend, coll, basis, held, &self.fp)?;
+        let dense = Dense::new(self.backend, coll, basis, held, &self.fp, &|_, _| {
+            tick.pulse()
+        })?;
         let prior = if p.ridge && !train.is_empty() {
             // On the CPU twin, as the limits: the same ridge on every back-end.
             Some(Prior::new(
@@ -200,11 +209,12 @@ impl<'a> Shared<'a> {
                 basis,
                 &train,
                 &self.fp_obj,
+                &|_, _| tick.pulse(),
             )?)
         } else {
             None
         };
-        let dense_x = self.dense_limits(basis, held, &dense)?;
+        let dense_x = self.dense_limits(basis, held, &dense, tick)?;
         let at = FoldAt {
             mi,
             f,
@@ -214,8 +224,9 @@ impl<'a> Shared<'a> {
         };
         let mut acc = self.empty_cells();
         let mut ridges: Vec<Vec<Option<f64>>> = vec![vec![None; p.ns.len()]; p.plans.len()];
-        let (recs, show) = self.our_plans(&at, prior.as_ref(), &mut acc, &mut ridges)?;
-        let sc = self.score(&at, &dense, &dense_x, &recs)?;
+        let (recs, show) = self.our_plans(&at, prior.as_ref(), &mut acc, &mut ridges, tick)?;
+        let sc = self.score(&at, &dense, &dense_x, &recs, tick)?;
+        tick.step();
         let (names, (maes, ies, looks, dense_rho)) =
             (&self.names, (&sc.maes, &sc.ies, &sc.looks, &sc.dense_rho));
         for (r, (pi, ni, si, t, x)) in recs.iter().enumerate() {
@@ -233,7 +244,7 @@ impl<'a> Shared<'a> {
                 dense_appearance: looks[*t].clone(),
             });
         }
-        self.nielsen_plans(&at, &sc, &mut acc)?;
+        self.nielsen_plans(&at, &sc, &mut acc, tick)?;
         Ok((named, show, acc, ridges, prior.map(|p| p.ridge)))
     }
 
@@ -246,6 +257,7 @@ impl<'a> Shared<'a> {
         basis: &[usize],
         held: &[usize],
         dense: &Dense,
+        tick: &Ticker<'_>,
     ) -> Result<Vec<[Vec<f64>; 3]>, AcquireError> {
         let (coll, mm) = (self.coll, basis.len() + 1);
         Ok(if self.weight != TargetWeight::L2 {
@@ -255,7 +267,7 @@ impl<'a> Shared<'a> {
                 basis,
                 held,
                 &self.fp_obj,
-                &|_, _| {},
+                &|_, _| tick.pulse(),
             )?
             .into_iter()
             .map(|tf| [0, 1, 2].map(|c| tf.coefficients.iter().map(|a| a[c]).collect()))
@@ -291,6 +303,7 @@ impl<'a> Shared<'a> {
         prior: Option<&Prior>,
         acc: &mut [Vec<Vec<Cell>>],
         ridges: &mut [Vec<Option<f64>>],
+        tick: &Ticker<'_>,
     ) -> Result<(Vec<Rec>, Vec<Candidate>), AcquireError> {
         let (p, coll, backend, nmax, weight) =
             (self.p, self.coll, self.backend, self.nmax, self.weight);
@@ -334,10 +347,12 @@ impl<'a> Shared<'a> {
                         cands,
                         &pp,
                         Some(&pr.dense),
-                        &|_, _| {},
+                        &|_, _| tick.pulse(),
                     )?
                 }
-                _ => plan(backend, coll, basis, train_of, cands, &pp)?,
+                _ => plan_with_progress(backend, coll, basis, train_of, cands, &pp, &|_, _| {
+                    tick.pulse()
+                })?,
             }
             .chosen;
             let samples: Vec<PlannedSample> = chosen.iter().map(PlannedSample::from).collect();
@@ -348,23 +363,7 @@ impl<'a> Shared<'a> {
             mats.extend_from_slice(held);
             let vals = values_at(coll, &mats, &chosen)?;
             let cos: Vec<f64> = chosen.iter().map(|c| c.wi[2]).collect();
-            let lambdas: Vec<f64> = match &prior {
-                Some(pr) => {
-                    let tv = values_at(coll, train, &chosen)?;
-                    // With at least as many samples as unknowns the samples
-                    // determine the fit: no prior.
-                    p.ns.iter()
-                        .map(|&ns| {
-                            if ns.min(nmax) >= mm {
-                                Ok(0.0)
-                            } else {
-                                pr.choose(&vals, &tv, ns.min(nmax), weight, &cos)
-                            }
-                        })
-                        .collect::<Result<_, AcquireError>>()?
-                }
-                None => vec![0.0; p.ns.len()],
-            };
+            let lambdas = self.ridge_strengths(prior, train, &chosen, &vals, &cos, mm)?;
             if prior.is_some() {
                 for (ni, &l) in lambdas.iter().enumerate() {
                     ridges[pi][ni] = Some(l);
@@ -387,6 +386,7 @@ impl<'a> Shared<'a> {
                     let xs: Vec<[Vec<f64>; 3]> = (0..held.len())
                         .into_par_iter()
                         .map(|t| {
+                            tick.pulse();
                             sample_coefficients(
                                 basis.len(),
                                 &vals,
@@ -402,8 +402,38 @@ impl<'a> Shared<'a> {
                     acc[pi][ni][si].1.push(samples[..ns].to_vec());
                 }
             }
+            tick.step();
         }
         Ok((recs, show))
+    }
+
+    /// The ridge strength of each n for one plan's samples `chosen` (values `vals` of the
+    /// basis and held-out materials, `cos` their cos theta_i), chosen on the training
+    /// materials `train`; 0 without a prior and where the samples determine the fit
+    /// (n >= the basis size + 1).
+    fn ridge_strengths(
+        &self,
+        prior: Option<&Prior>,
+        train: &[usize],
+        chosen: &[Candidate],
+        vals: &[Vec<Vec<f64>>; 3],
+        cos: &[f64],
+        mm: usize,
+    ) -> Result<Vec<f64>, AcquireError> {
+        let (p, nmax) = (self.p, self.nmax);
+        let Some(pr) = prior else {
+            return Ok(vec![0.0; p.ns.len()]);
+        };
+        let tv = values_at(self.coll, train, chosen)?;
+        p.ns.iter()
+            .map(|&ns| {
+                if ns.min(nmax) >= mm {
+                    Ok(0.0)
+                } else {
+                    pr.choose(vals, &tv, ns.min(nmax), self.weight, cos)
+                }
+            })
+            .collect()
     }
 
     /// MAE, image error and appearance of the fold's dense fits (first) and of every
@@ -414,6 +444,7 @@ impl<'a> Shared<'a> {
         dense: &Dense,
         dense_x: &[[Vec<f64>; 3]],
         recs: &[Rec],
+        tick: &Ticker<'_>,
     ) -> Result<Scored, AcquireError> {
         let (p, basis, held, mm) = (self.p, at.basis, at.held, at.basis.len() + 1);
         let (grid, lights, pixels, rp, display, originals) = (
@@ -446,15 +477,16 @@ impl<'a> Shared<'a> {
             })
             .collect();
         let (maes, logs): (Vec<f64>, Vec<f64>) = if p.appearance {
-            grid.sums(&jobs).into_iter().unzip()
+            grid.sums(&jobs, &|| tick.pulse()).into_iter().unzip()
         } else {
-            (grid.maes(&jobs), Vec::new())
+            (grid.maes(&jobs, &|| tick.pulse()), Vec::new())
         };
         let looks: Vec<Option<Appearance>> = if p.appearance {
             coefs
                 .par_iter()
                 .enumerate()
                 .map(|(i, coef)| {
+                    tick.pulse();
                     let mut a = LightRenders::scores(lights, target(i), basis, coef)
                         .map_err(|e| AcquireError::Render(e.to_string()))?;
                     a.log_rmse = logs[i];
@@ -468,6 +500,7 @@ impl<'a> Shared<'a> {
             .par_iter()
             .enumerate()
             .map(|(i, coef)| {
+                tick.pulse();
                 render_error(pixels, rp, display, &originals[target(i)], basis, coef).map(|r| r.1)
             })
             .collect::<Result<_, _>>()?;
@@ -488,6 +521,7 @@ impl<'a> Shared<'a> {
         at: &FoldAt<'_>,
         sc: &Scored,
         acc: &mut [Vec<Vec<Cell>>],
+        tick: &Ticker<'_>,
     ) -> Result<(), AcquireError> {
         let (p, coll, n, nmax) = (self.p, self.coll, self.n, self.nmax);
         let (f, held, names, cands, cellset) =
@@ -520,7 +554,10 @@ impl<'a> Shared<'a> {
             };
             let per: Vec<Vec<Vec<Scores>>> = held
                 .par_iter()
-                .map(|&ti| nielsen_rows(&nf, p, ti, &originals[ti]))
+                .map(|&ti| {
+                    tick.pulse();
+                    nielsen_rows(&nf, p, ti, &originals[ti])
+                })
                 .collect::<Result<_, _>>()?;
             for (ni, &ns) in p.ns.iter().enumerate() {
                 for si in 0..p.noises.len() {
@@ -545,6 +582,7 @@ impl<'a> Shared<'a> {
                         .push(samples[..ns.min(samples.len())].to_vec());
                 }
             }
+            tick.step();
         }
         Ok(())
     }

@@ -11,8 +11,8 @@
 use super::fit::{function_shape, solve_rows_toward, Toward, RIDGE_STRENGTHS};
 use super::nielsen::{nielsen_per_step, NielsenModel, ETA};
 use super::plan::{
-    cell_candidates, plan, plan_given_dense, values_at, Candidate, Criterion, Dense, PlanParams,
-    PlannedSample,
+    cell_candidates, plan_given_dense, plan_with_progress, values_at, Candidate, Criterion, Dense,
+    PlanParams, PlannedSample,
 };
 use super::AcquireError;
 use crate::backend::cpu::CpuBackend;
@@ -33,6 +33,7 @@ use crate::stats::{mean, median};
 use rand::SeedableRng;
 use rayon::prelude::*;
 use std::f64::consts::FRAC_1_PI;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Parameters of [`acquisition_cv`]. Defaults: greedy, k = 12, plans error, condition,
 /// random; n = 5, 10, 20; noise 0 and 2%; 5 folds; 10,000 candidates per step.
@@ -257,7 +258,65 @@ pub fn acquisition_cv(
     coll: &Collection,
     p: &AcqCvParams,
 ) -> Result<AcqCv, AcquireError> {
-    let s = Shared::new(backend, coll, p)?;
+    acquisition_cv_with_progress(backend, coll, p, &|_, _| {})
+}
+
+/// The progress of an acquisition cross-validation, in steps: the shared state, then per
+/// method and fold each plan of ours with its fits, the scores, each `nielsen` plan with
+/// its scores, and the showcase. Work inside a step calls [`Ticker::pulse`], which reports
+/// the same position again: a caller that cancels from its progress callback (Python's
+/// Ctrl-C) is heard within one render or one plan candidate, not one step.
+pub(super) struct Ticker<'a> {
+    progress: crate::backend::Progress<'a>,
+    done: AtomicU64,
+    total: AtomicU64,
+}
+
+impl<'a> Ticker<'a> {
+    fn new(progress: crate::backend::Progress<'a>, p: &AcqCvParams) -> Self {
+        let t = Self {
+            progress,
+            done: AtomicU64::new(0),
+            total: AtomicU64::new(0),
+        };
+        t.set_folds(p, p.folds);
+        t.pulse();
+        t
+    }
+
+    /// The number of steps once the folds are made.
+    fn set_folds(&self, p: &AcqCvParams, folds: usize) {
+        let per_fold = p.plans.len() as u64 + 1;
+        let total = 2 + (p.methods.len() * folds) as u64 * per_fold;
+        self.total.store(total, Ordering::Relaxed);
+    }
+
+    /// Reports the current position again (work is going on inside a step).
+    pub(super) fn pulse(&self) {
+        let total = self.total.load(Ordering::Relaxed);
+        (self.progress)(self.done.load(Ordering::Relaxed).min(total), total);
+    }
+
+    /// One step done.
+    pub(super) fn step(&self) {
+        self.done.fetch_add(1, Ordering::Relaxed);
+        self.pulse();
+    }
+}
+
+/// [`acquisition_cv`], reporting `progress(steps done, steps)` (see the CLI's bar); the
+/// callback is also called while a step runs, with the same position, so that a caller
+/// can cancel from it (it may unwind; the work holds no state outside its stack).
+pub fn acquisition_cv_with_progress(
+    backend: &dyn Backend,
+    coll: &Collection,
+    p: &AcqCvParams,
+    progress: crate::backend::Progress<'_>,
+) -> Result<AcqCv, AcquireError> {
+    let tick = Ticker::new(progress, p);
+    let s = Shared::new(backend, coll, p, &tick)?;
+    tick.set_folds(p, s.folds.len());
+    tick.step();
     let names = &s.names;
     let mut show_chosen: Vec<Vec<Candidate>> = vec![Vec::new(); s.folds.len()];
     let mut show_prior: Vec<Option<prior::RidgePrior>> = vec![None; s.folds.len()];
@@ -268,7 +327,7 @@ pub fn acquisition_cv(
             .folds
             .iter()
             .enumerate()
-            .map(|(f, held)| s.fold(mi, f, held))
+            .map(|(f, held)| s.fold(mi, f, held, &tick))
             .collect::<Result<_, _>>()?;
         // rows[plan][n][noise] accumulated over folds.
         let mut acc = s.empty_cells();
@@ -313,6 +372,7 @@ pub fn acquisition_cv(
         originals: &s.originals,
     };
     let showcase = show.build(&results)?;
+    tick.step();
     Ok(AcqCv {
         showcase,
         folds: s

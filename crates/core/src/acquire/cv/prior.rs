@@ -68,8 +68,9 @@ impl Prior {
         basis: &[usize],
         train: &[usize],
         fp: &FitParams,
+        progress: crate::backend::Progress<'_>,
     ) -> Result<Self, AcquireError> {
-        let dense = Dense::new(backend, coll, basis, train, fp)?;
+        let dense = Dense::new(backend, coll, basis, train, fp, progress)?;
         let m = dense.m;
         let nt = train.len();
         let mut coefs: [Vec<Vec<f64>>; 3] = Default::default();

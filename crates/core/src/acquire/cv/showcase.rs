@@ -68,7 +68,7 @@ impl Showcase<'_> {
             objective: TargetWeight::L2,
             ..fp_obj.clone()
         };
-        let dense = Dense::new(self.backend, coll, basis, &[ti], &fp)?;
+        let dense = Dense::new(self.backend, coll, basis, &[ti], &fp, &|_, _| {})?;
         let mm = basis.len() + 1;
         let x = if weight == TargetWeight::L2 {
             let x = [0, 1, 2].map(|c| {

@@ -202,7 +202,15 @@ pub fn plan_with_progress(
     let dense = if targets.is_empty() {
         None
     } else {
-        Some(Dense::new(backend, coll, basis, targets, &p.fit)?)
+        // The back-end passes report no step: the position stays at 0 of the steps.
+        let paths = if p.criterion == Criterion::Error {
+            p.restarts.max(1)
+        } else {
+            1
+        };
+        let total = (p.n * paths) as u64;
+        let pulse = |_: u64, _: u64| progress(0, total);
+        Some(Dense::new(backend, coll, basis, targets, &p.fit, &pulse)?)
     };
     plan_given_dense(coll, basis, targets, cands, p, dense.as_ref(), progress)
 }
@@ -550,7 +558,15 @@ mod tests {
             ..FitParams::default()
         };
         let (basis, targets) = ([0, 1, 2, 3], [4, 5, 6, 7, 8, 9, 10]);
-        let d = Dense::new(&CpuBackend::new(), &coll, &basis, &targets, &fit).unwrap();
+        let d = Dense::new(
+            &CpuBackend::new(),
+            &coll,
+            &basis,
+            &targets,
+            &fit,
+            &|_, _| {},
+        )
+        .unwrap();
         let (m, nt) = (basis.len() + 1, targets.len());
         let floors = d.floors(nt);
         assert!(floors.iter().all(|&f| f > 0.0));

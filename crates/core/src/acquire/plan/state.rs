@@ -19,13 +19,15 @@ impl Dense {
     /// per channel: the objective's weight at the median over the basis and the targets
     /// ([`crate::select::shared_weights`] of those materials), so that `rho` is `rho_W`
     /// with the weights a plan can know before the material is measured; one back-end
-    /// pass per channel (the weights are not separable).
+    /// pass per channel (the weights are not separable). `progress` is the back-end
+    /// passes' (a caller's cancel).
     pub(crate) fn new(
         backend: &dyn Backend,
         coll: &Collection,
         basis: &[usize],
         targets: &[usize],
         fit: &FitParams,
+        progress: crate::backend::Progress<'_>,
     ) -> Result<Self, AcquireError> {
         let mut all = basis.to_vec();
         all.extend_from_slice(targets);
@@ -39,6 +41,7 @@ impl Dense {
                 &coll.subset(&all),
                 &cells,
                 fit.objective,
+                progress,
             )?;
             (
                 [&shared[0], &shared[1], &shared[2]],
@@ -54,7 +57,7 @@ impl Dense {
                 per_channel[c],
                 c,
                 mode,
-                &|_, _| {},
+                progress,
             )
         });
         let [a, b, c] = g;

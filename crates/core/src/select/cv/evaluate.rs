@@ -28,6 +28,14 @@ impl LightRenders {
     /// Every material of `coll` rendered under each of the four lights ([`LIGHTS`], SPEC
     /// 11's size), with the pixel tables of the fits' renders.
     pub(crate) fn all(coll: &Collection) -> Result<Vec<Self>, crate::eval::render::RenderError> {
+        Self::all_ticking(coll, &|| {})
+    }
+
+    /// [`Self::all`], calling `tick` once per render (a caller's cancel).
+    pub(crate) fn all_ticking(
+        coll: &Collection,
+        tick: Tick<'_>,
+    ) -> Result<Vec<Self>, crate::eval::render::RenderError> {
         LIGHTS
             .iter()
             .map(|&(th, ph)| {
@@ -37,7 +45,10 @@ impl LightRenders {
                 let rp = render_params((th, ph));
                 let pixels = PixelBrdfs::new(coll, &rp)?;
                 let originals = (0..coll.len())
-                    .map(|t| pixels.render_material(t))
+                    .map(|t| {
+                        tick();
+                        pixels.render_material(t)
+                    })
                     .collect::<Result<Vec<_>, _>>()?;
                 Ok(Self { pixels, originals })
             })
@@ -249,7 +260,7 @@ impl<'a> Evaluator<'a> {
                 coef,
             })
             .collect();
-        let sums = self.grid.sums(&jobs);
+        let sums = self.grid.sums(&jobs, &|| {});
         drop(jobs);
         for ((&(_, m, k, _), mut h), (mae, log_rmse)) in runs.iter().zip(fits).zip(sums) {
             h.mae = mae;
@@ -375,6 +386,10 @@ pub(crate) struct MaeJob<'j> {
 /// Most cells tabulated at once by [`GridEval::maes`] (100 materials: 37 MiB of f64 values
 /// for their three channels).
 const MAE_BLOCK: usize = 1 << 14;
+
+/// Called while a long pass runs (once per block of cells and job): a caller's progress
+/// pulse, through which it may cancel.
+pub(crate) type Tick<'a> = &'a (dyn Fn() + Sync);
 /// Bytes of tabulated values [`cell_sums`] keeps per block at most (its blocks shrink, down
 /// to 1,024 cells, as the materials it needs grow: the sums do not depend on the blocks).
 const MAE_BLOCK_BYTES: usize = 64 << 20;
@@ -422,11 +437,11 @@ impl<'a> GridEval<'a> {
     /// block's cells to its running sums in cell order. The sums are those of
     /// `fit::cell_errors` term by term, in the same order, so every MAE is the same to the
     /// bit as a pass over all cells per job.
-    pub(crate) fn maes(&self, jobs: &[MaeJob<'_>]) -> Vec<f64> {
+    pub(crate) fn maes(&self, jobs: &[MaeJob<'_>], tick: Tick<'_>) -> Vec<f64> {
         if let Some(mom) = &self.moments {
             return jobs.par_iter().map(|j| self.analytic_mae(mom, j)).collect();
         }
-        cell_sums::<false, false>(&self.cpu, self.coll, &self.cells, jobs)
+        cell_sums::<false, false>(&self.cpu, self.coll, &self.cells, jobs, tick)
             .iter()
             .map(|s| s.iter().fold(0.0, |mae, e| mae + e.absolute / 3.0))
             .collect()
@@ -434,9 +449,9 @@ impl<'a> GridEval<'a> {
 
     /// The MAE ([`Self::maes`], the same bits) and the log-RMSE (SPEC 11) of every job, in
     /// job order: one pass over the cells (the MAE of an analytic collection from its
-    /// moments).
-    pub(crate) fn sums(&self, jobs: &[MaeJob<'_>]) -> Vec<(f64, f64)> {
-        let cells = cell_sums::<false, true>(&self.cpu, self.coll, &self.cells, jobs);
+    /// moments). `tick` is called once per block of cells and job (a caller's cancel).
+    pub(crate) fn sums(&self, jobs: &[MaeJob<'_>], tick: Tick<'_>) -> Vec<(f64, f64)> {
+        let cells = cell_sums::<false, true>(&self.cpu, self.coll, &self.cells, jobs, tick);
         let logs = cells.iter().map(|s| {
             let mut l = LogSums::default();
             s.iter().for_each(|e| l.merge(&e.log));
@@ -523,6 +538,7 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
     coll: &Collection,
     cells: &CellSet,
     jobs: &[MaeJob<'_>],
+    tick: Tick<'_>,
 ) -> Vec<[CellSums; 3]> {
     let mut slot: Vec<Option<usize>> = vec![None; coll.len()];
     let mut needed = Vec::new();
@@ -565,6 +581,7 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
         sums.par_iter_mut().zip(jobs).for_each_init(
             || vec![0.0f64; 3 * len],
             |fit, (sum, j)| {
+                tick();
                 fit.resize(3 * len, 0.0);
                 // The fitted values of every cell, column by column (Lambertian first, then
                 // basis order, as `cell_errors` is given them): per cell the same products

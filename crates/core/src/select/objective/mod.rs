@@ -141,8 +141,10 @@ pub(crate) fn shared_weights(
     coll: &Collection,
     cells: &CellSet,
     weight: TargetWeight,
+    progress: Progress<'_>,
 ) -> Result<[CellSet; 3], SelectionError> {
     let lobes = crate::fit::collection_lobes(coll);
+    let total = 3 * cells.cells.len() as u64;
     let n = coll.len();
     let block = (SHARED_WEIGHT_BLOCK_BYTES / (4 * n.max(1))).clamp(256, 1 << 16);
     let mut out: [CellSet; 3] = std::array::from_fn(|_| cells.clone());
@@ -167,6 +169,7 @@ pub(crate) fn shared_weights(
                 *ow *= wv;
             }
             at += len;
+            progress((c * cells.cells.len() + at) as u64, total);
         }
         let total: f64 = o.weights.iter().sum();
         if !(total.is_finite() && total > 0.0) {
@@ -191,7 +194,7 @@ pub(crate) fn shared_weight_grams(
     weight: TargetWeight,
     progress: Progress<'_>,
 ) -> Result<[Vec<f64>; 3], SelectionError> {
-    let weighted = shared_weights(backend, coll, cells, weight)?;
+    let weighted = shared_weights(backend, coll, cells, weight, progress)?;
     let lobes = crate::fit::collection_lobes(coll);
     let mut out: [Vec<f64>; 3] = Default::default();
     for ((o, l), cw) in out.iter_mut().zip(lobes).zip(&weighted) {
