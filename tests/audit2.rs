@@ -659,3 +659,37 @@ fn matrix_change_child() {
     }
     println!("CHILD-OK {mode}");
 }
+
+/// Audit 2, U9: an ASTM file whose header or comment lines are Latin-1 (a `SOURCE` with
+/// "Müller" as an instrument writes it) is read as it would be in UTF-8; a data row that is
+/// not text is refused naming its line.
+#[test]
+fn astm_headers_in_latin1_are_read_and_bad_data_rows_named() {
+    let dir = tmp();
+    let d = dir.path();
+    astm(d, "u.astm", "theta_i,phi_i,theta_s,phi_s,R,G,B", |_| {
+        "0.1,0.2,0.3".into()
+    });
+    let utf8 = std::fs::read(d.join("u.astm")).expect("read");
+    let latin1 = [b"SOURCE M\xfcller gonio\n".as_slice(), &utf8].concat();
+    std::fs::write(d.join("l.astm"), &latin1).expect("write");
+    let a = brdf_basis::acquire::read_samples(&d.join("u.astm")).expect("utf-8");
+    let b = brdf_basis::acquire::read_samples(&d.join("l.astm")).expect("latin-1 header");
+    // The same samples, one line further down (the extra SOURCE line).
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!((x.wi, x.wo, x.rgb, x.line + 1), (y.wi, y.wo, y.rgb, y.line));
+    }
+    let mut bad = latin1.clone();
+    let at = bad.len() - 2;
+    bad[at] = 0xff;
+    std::fs::write(d.join("b.astm"), &bad).expect("write");
+    let e = brdf_basis::acquire::read_samples(&d.join("b.astm"))
+        .unwrap_err()
+        .to_string();
+    let last = latin1.split(|&c| c == b'\n').count() - 1;
+    assert!(
+        e.contains(&format!("line {last}")) && e.contains("must be ASCII or UTF-8"),
+        "{e}"
+    );
+}

@@ -348,3 +348,38 @@ fn an_edited_tile_sidecar_says_how_to_compute_the_tile_again() {
         ],
     );
 }
+
+/// U3 (in part): `cv --acquisition -n 0` said "plans / methods / n = 3 / 1 / [0]"; the
+/// request now names the flag in its own words.
+#[test]
+fn cv_acquisition_refuses_a_zero_sample_count_in_the_flags_words() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    refused(
+        d,
+        &[
+            "cv",
+            "c.csv",
+            "--acquisition",
+            "-n",
+            "0",
+            "--json",
+            "q.json",
+        ],
+        &["-n: give sample counts of at least 1 (got 0)"],
+    );
+    refused(
+        d,
+        &[
+            "cv",
+            "c.csv",
+            "--acquisition",
+            "-n",
+            "5,0",
+            "--json",
+            "q.json",
+        ],
+        &["-n: give sample counts of at least 1 (got 5,0)"],
+    );
+}

@@ -683,6 +683,16 @@ fn an_export_replaces_an_earlier_export_and_nothing_else() {
     std::fs::write(work.path().join("out/notes.txt"), "mine").expect("write");
     let o = fit("m3");
     assert!(o.status.success(), "{}", text(&o.stderr));
+    // Audit 2, U10: what the export removed is said, not done silently.
+    let said = text(&o.stdout);
+    for gone in ["m4.binary", "m5.binary"] {
+        let line = format!(
+            "removed {}",
+            std::path::Path::new("out").join(gone).display()
+        );
+        assert!(said.contains(&line), "{said}");
+    }
+    assert!(!said.contains("removed out/m3"), "{said}");
     let mut names: Vec<String> = std::fs::read_dir(work.path().join("out"))
         .expect("ls")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())

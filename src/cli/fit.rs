@@ -107,12 +107,13 @@ pub(crate) fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     plan.file(&a.json, "--json")?;
     let coll = super::load_collection(&a.collection)?;
     let (_, targets) = req.indices(&coll)?;
+    let mut removed = Vec::new();
     if let Some(dir) = &a.export {
         let names: Vec<&str> = targets
             .iter()
             .map(|&t| coll.materials()[t].name.as_str())
             .collect();
-        plan_export(&mut plan, dir, &export_file_names(&names))?;
+        removed = plan_export(&mut plan, dir, &export_file_names(&names))?;
     }
     let mut out = plan.into_set()?;
     let backend = super::backend(g)?;
@@ -162,12 +163,23 @@ pub(crate) fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     if let Some(line) = appearance_summary(&fitted.appearance) {
         println!("{line}");
     }
-    if let Some(dir) = &a.export {
-        for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
-            println!("wrote {}", dir.join(file).display());
-        }
-    }
+    print_export(a.export.as_deref(), &files, &removed);
     Ok(())
+}
+
+/// The lines of an export: every file written, then every file of an earlier export
+/// that this one removed (audit 2, U10: they went silently).
+fn print_export(dir: Option<&Path>, files: &[String], removed: &[String]) {
+    let Some(dir) = dir else { return };
+    for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
+        println!("wrote {}", dir.join(file).display());
+    }
+    for file in removed {
+        println!(
+            "removed {} (listed by the earlier export's {EXPORT_INDEX}; this export does not write it)",
+            dir.join(file).display()
+        );
+    }
 }
 
 /// `wrote FILE (N targets, mean MAE .., mean relative residual .., mean relative MAE ..)`,
@@ -215,9 +227,9 @@ fn appearance_summary(a: &[brdf_basis::eval::appearance::Appearance]) -> Option<
 /// Plans `--export DIR` with the export file names `files`: DIR (created if missing),
 /// its `index.csv` and the `.binary` files. DIR may hold an earlier export: its index
 /// and the files that index lists are ours and replaced, and the listed files this
-/// export does not write are removed at commit (no stale material survives). Any other
-/// file of a name this export writes is refused, never replaced.
-fn plan_export(plan: &mut OutputPlan, dir: &Path, files: &[String]) -> anyhow::Result<()> {
+/// export does not write are removed at commit (no stale material survives; returned, to
+/// be printed). Any other file of a name this export writes is refused, never replaced.
+fn plan_export(plan: &mut OutputPlan, dir: &Path, files: &[String]) -> anyhow::Result<Vec<String>> {
     plan.dir(dir, "--export")?;
     let index = dir.join(EXPORT_INDEX);
     let earlier = if index.is_file() {
@@ -240,10 +252,12 @@ fn plan_export(plan: &mut OutputPlan, dir: &Path, files: &[String]) -> anyhow::R
             |_| owned.contains(f),
         )?;
     }
+    let mut removed = Vec::new();
     for stale in owned.iter().filter(|f| !files.contains(f)) {
         plan.remove(&dir.join(stale), "--export")?;
+        removed.push(stale.clone());
     }
-    Ok(())
+    Ok(removed)
 }
 
 /// The files an export index lists, when `path` is one (`material,file` header, plain
@@ -312,8 +326,9 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     out_plan.file(&a.json, "--json")?;
     let stem = req.target_name();
     let files = export_file_names(&[stem.as_str()]);
+    let mut removed = Vec::new();
     if let Some(dir) = &a.export {
-        plan_export(&mut out_plan, dir, &files)?;
+        removed = plan_export(&mut out_plan, dir, &files)?;
     }
     let mut out = out_plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
@@ -343,10 +358,6 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         brdf_basis::stats::num(d.condition),
         brdf_basis::stats::num(fitted.fit.relative_residual)
     );
-    if let Some(dir) = &a.export {
-        for file in files.iter().map(String::as_str).chain([EXPORT_INDEX]) {
-            println!("wrote {}", dir.join(file).display());
-        }
-    }
+    print_export(a.export.as_deref(), &files, &removed);
     Ok(())
 }

@@ -157,7 +157,8 @@ pub(crate) fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
     }
     out.commit()?;
     if let Some(err) = err {
-        println!("normalized image error: {err:.6}");
+        // The crate's number format: a small error is not printed as 0.000000.
+        println!("normalized image error: {}", brdf_basis::stats::num(err));
     }
     let _ = g;
     for p in [Some(&a.out), a.png.as_ref(), a.heatmap.as_ref()]

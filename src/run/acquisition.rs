@@ -107,7 +107,29 @@ impl AcquisitionRequest {
         let plans: Vec<&str> = self.plans.iter().map(|c| c.as_str()).collect();
         once("--plans", "plan", &plans, |c| format!("`{c}`"))?;
         once("-n", "sample count", &self.ns, |n| n.to_string())?;
-        once("--noise", "noise level", &self.noises, |x| x.to_string())
+        once("--noise", "noise level", &self.noises, |x| x.to_string())?;
+        // Audit 2, U3: in the flags' words, not "plans / methods / n = 3 / 1 / [0]".
+        if self.plans.is_empty() {
+            super::refuse!("--plans: give at least one plan (error, condition, random, nielsen)");
+        }
+        if self.methods.is_empty() {
+            super::refuse!("--methods: give at least one selection method");
+        }
+        if self.ns.is_empty() || self.ns.contains(&0) {
+            super::refuse!(
+                "-n: give sample counts of at least 1 (got {})",
+                if self.ns.is_empty() {
+                    "none".to_string()
+                } else {
+                    self.ns
+                        .iter()
+                        .map(|n| n.to_string())
+                        .collect::<Vec<_>>()
+                        .join(",")
+                }
+            );
+        }
+        Ok(())
     }
 }
 

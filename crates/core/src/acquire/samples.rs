@@ -489,6 +489,37 @@ pub fn parse_astm(bytes: &[u8], path: &Path) -> Result<Vec<Sample>, AcquireError
     parse_astm_for(bytes, path, Purpose::Samples)
 }
 
+/// The text of an ASTM file: UTF-8, or else (audit 2, U9) header and comment lines in
+/// Latin-1 (ISO 8859-1, as instruments write a `SOURCE` or an operator's name), each byte
+/// one character; the `VARS` line and the rows after it must still be text (ASCII or
+/// UTF-8), and one that is not is refused naming its line.
+fn astm_text<'a>(bytes: &'a [u8], path: &Path) -> Result<std::borrow::Cow<'a, str>, AcquireError> {
+    if let Ok(t) = std::str::from_utf8(bytes) {
+        return Ok(std::borrow::Cow::Borrowed(t));
+    }
+    let mut out = String::with_capacity(bytes.len());
+    let mut data = false;
+    for (k, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        data |= line.trim_ascii_start().starts_with(b"VARS");
+        match std::str::from_utf8(line) {
+            Ok(t) => out.push_str(t),
+            Err(e) if data => {
+                return Err(AcquireError::Parse {
+                    path: path.to_path_buf(),
+                    line: k + 1,
+                    column: None,
+                    message: format!(
+                        "not text: {e} (header and comment lines may be Latin-1; the VARS line and the data rows must be ASCII or UTF-8)"
+                    ),
+                })
+            }
+            Err(_) => out.extend(line.iter().map(|&b| char::from(b))),
+        }
+        out.push('\n');
+    }
+    Ok(std::borrow::Cow::Owned(out))
+}
+
 /// Long function: one check per header line and per value, each with its own error
 /// naming the file, line and column, read top to bottom as the format lays them out (as
 /// `parse_csv_for`).
@@ -503,10 +534,8 @@ fn parse_astm_for(
         column: column.map(str::to_string),
         message,
     };
-    let text = std::str::from_utf8(bytes).map_err(|e| AcquireError::File {
-        path: path.to_path_buf(),
-        message: format!("not UTF-8 text: {e}"),
-    })?;
+    let text = astm_text(bytes, path)?;
+    let text = text.as_ref();
     let split = |t: &str| -> Vec<String> {
         t.split(|c: char| c == ',' || c.is_whitespace())
             .filter(|s| !s.is_empty())

@@ -24,7 +24,8 @@ pub fn combination_grid(coll: &Collection, basis: &[usize], f: &TargetFit) -> Ve
 /// A file name for material `name` that no name can turn into another path: ASCII
 /// letters, digits, `-`, `_` and `.` are kept, anything else (`/`, `\`, spaces, control
 /// characters, non-ASCII) becomes `_`; leading dots are dropped (no `..`, no hidden
-/// file); at most 100 characters; an empty result becomes `material`.
+/// file); a leading `-` becomes `_` (no name that a shell command reads as an option:
+/// `rm *` in the directory); at most 100 characters; an empty result becomes `material`.
 pub(crate) fn file_stem_for(name: &str) -> String {
     let mut s: String = name
         .chars()
@@ -37,6 +38,9 @@ pub(crate) fn file_stem_for(name: &str) -> String {
         })
         .collect();
     s = s.trim_start_matches('.').chars().take(100).collect();
+    if s.starts_with('-') {
+        s.replace_range(..1, "_");
+    }
     if s.is_empty() {
         s = "material".into();
     }
@@ -88,6 +92,10 @@ mod tests {
     fn names_never_choose_a_path_and_are_unique() {
         assert_eq!(file_stem_for("../etc/passwd"), "_etc_passwd");
         assert_eq!(file_stem_for("..."), "material");
+        // Audit 2, U8: never a name that starts like an option.
+        assert_eq!(file_stem_for("-rf"), "_rf");
+        assert_eq!(file_stem_for(".-rf"), "_rf");
+        assert_eq!(file_stem_for("a-b"), "a-b");
         assert_eq!(
             export_file_names(&["a/b", "a_b", "A_B", "x"]),
             ["a_b.binary", "a_b-2.binary", "A_B-3.binary", "x.binary"]
