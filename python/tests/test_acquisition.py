@@ -150,35 +150,35 @@ def test_fit_samples_out_of_range_is_a_value_error_not_a_panic():
         np.testing.assert_allclose(bb.fit_samples(c, BASIS, a, y, sigma=s * k).coefficients, ref, rtol=1e-9, atol=1e-12)
 
 
-def test_plan_over_every_candidate_answers_ctrl_c_within_a_second():
-    """Audit 2, M3: ``plan`` with ``candidates_per_step=0, shortlist=0`` (minutes of work)
-    stops with KeyboardInterrupt within a second of SIGINT. Run in a child so that old code,
-    which ignored it, fails in 20 s instead of hanging the session."""
+def _ctrl_c_latency(call, expect_first, wait):
+    """Runs ``call`` (a ``bb.…(c, …, progress=report)`` expression, ``c`` the embedded
+    default) in a child, sends SIGINT ``wait`` seconds after its first progress report
+    (which must start with ``expect_first``) and returns the seconds until it exits and its
+    output. A child, so that code which ignores SIGINT fails in 20 s instead of hanging."""
+    import queue
     import signal
     import sys
+    import threading
     import time
 
     code = (
         "import brdf_basis as bb\n"
         "c = bb.Collection.default()\n"
+        "report = lambda d, t: print('progress', d, t, flush=True)\n"
         "try:\n"
-        f"    bb.plan(c, {BASIS!r}, 20, candidates_per_step=0, shortlist=0, backend='cpu',\n"
-        "            progress=lambda d, t: print('progress', d, t, flush=True))\n"
+        f"    {call}\n"
         "    print('finished', flush=True)\n"
         "except KeyboardInterrupt:\n"
         "    print('interrupted', flush=True)\n"
     )
-    import queue
-    import threading
-
     p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=os.environ.copy())
     lines = queue.Queue()
     reader = threading.Thread(target=lambda: [lines.put(l) for l in p.stdout], daemon=True)
     reader.start()
     try:
         first = lines.get(timeout=20)
-        assert first.startswith("progress 0 20"), first
-        time.sleep(1.0)  # into the first step's exact fits of every candidate
+        assert first.startswith(expect_first), first
+        time.sleep(wait)
         t0 = time.time()
         p.send_signal(signal.SIGINT)
         p.wait(timeout=20)
@@ -188,7 +188,18 @@ def test_plan_over_every_candidate_answers_ctrl_c_within_a_second():
             p.kill()
             p.wait()
     reader.join(timeout=5)
-    out = "".join(lines.queue)
+    return took, "".join(lines.queue)
+
+
+def test_plan_over_every_candidate_answers_ctrl_c_within_a_second():
+    """Audit 2, M3: ``plan`` with ``candidates_per_step=0, shortlist=0`` (minutes of work)
+    stops with KeyboardInterrupt within a second of SIGINT, sent 1 s into the first step's
+    exact fits of every candidate."""
+    took, out = _ctrl_c_latency(
+        f"bb.plan(c, {BASIS!r}, 20, candidates_per_step=0, shortlist=0, backend='cpu', progress=report)",
+        "progress 0 20",
+        1.0,
+    )
     assert "interrupted" in out and "finished" not in out, out
     assert took < 1.0, took
 
@@ -196,42 +207,11 @@ def test_plan_over_every_candidate_answers_ctrl_c_within_a_second():
 def test_acquisition_cv_answers_ctrl_c_within_a_second():
     """Audit 2, U16 (and issue 36's "Ctrl-C in every long call within a second"):
     ``acquisition_cv`` reports progress in steps and, inside a step, at every plan
-    candidate, render and fit, so SIGINT stops it with KeyboardInterrupt promptly. Run in a
-    child so that code which ignores it fails in 20 s instead of hanging the session."""
-    import queue
-    import signal
-    import sys
-    import threading
-    import time
-
-    code = (
-        "import brdf_basis as bb\n"
-        "c = bb.Collection.default()\n"
-        "try:\n"
-        "    bb.acquisition_cv(c, backend='cpu',\n"
-        "                      progress=lambda d, t: print('progress', d, t, flush=True))\n"
-        "    print('finished', flush=True)\n"
-        "except KeyboardInterrupt:\n"
-        "    print('interrupted', flush=True)\n"
+    candidate, render and fit, so SIGINT (1.5 s in: the fold bases or the first fold's
+    plans) stops it with KeyboardInterrupt promptly."""
+    took, out = _ctrl_c_latency(
+        "bb.acquisition_cv(c, backend='cpu', progress=report)", "progress 0 ", 1.5
     )
-    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=os.environ.copy())
-    lines = queue.Queue()
-    reader = threading.Thread(target=lambda: [lines.put(l) for l in p.stdout], daemon=True)
-    reader.start()
-    try:
-        first = lines.get(timeout=20)
-        assert first.startswith("progress 0 "), first
-        time.sleep(1.5)  # into the fold bases or the first fold's plans
-        t0 = time.time()
-        p.send_signal(signal.SIGINT)
-        p.wait(timeout=20)
-        took = time.time() - t0
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    reader.join(timeout=5)
-    out = "".join(lines.queue)
     assert "interrupted" in out and "finished" not in out, out
     assert took < 1.0, took
 

@@ -275,16 +275,8 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     let backend = super::backend(g)?;
     let t0 = std::time::Instant::now();
     let pb = super::progress_bar(g, 1, "cv --acq");
-    // Called inside the steps too (with the same position): the bar, behind a lock,
-    // only when a step completes.
-    let shown = std::sync::atomic::AtomicU64::new(u64::MAX);
-    let progress = |done: u64, total: u64| {
-        if shown.swap(done, std::sync::atomic::Ordering::Relaxed) != done {
-            pb.set_length(total);
-            pb.set_position(done);
-        }
-    };
-    let res = req.run_with_progress(backend.as_ref(), &coll, &progress)?;
+    // Called inside the steps too: the bar only when a step completes.
+    let res = req.run_with_progress(backend.as_ref(), &coll, &super::step_progress(&pb))?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&res)?;

@@ -188,6 +188,19 @@ pub(crate) fn progress_bar(g: &Global, total: u64, what: &str) -> indicatif::Pro
     pb
 }
 
+/// The progress callback of `pb` for work that also calls it inside a step with the same
+/// position (its cancel check, per candidate or render): the bar, behind a lock, is set
+/// only when the position changes.
+pub(crate) fn step_progress(pb: &indicatif::ProgressBar) -> impl Fn(u64, u64) + Sync + '_ {
+    let shown = std::sync::atomic::AtomicU64::new(u64::MAX);
+    move |done, total| {
+        if shown.swap(done, std::sync::atomic::Ordering::Relaxed) != done {
+            pb.set_length(total);
+            pb.set_position(done);
+        }
+    }
+}
+
 /// The extension of an output path, lower-case (`""` when none).
 pub(crate) fn extension(path: &Path) -> String {
     path.extension()
