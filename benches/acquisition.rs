@@ -7,7 +7,7 @@
 //!
 //! `cargo bench --bench acquisition` (`BENCH_QUICK=1`: skip the cross-validation)
 
-use brdf_basis::acquire::plan::cell_candidates;
+use brdf_basis::acquire::cell_candidates;
 use brdf_basis::acquire::{
     acquisition_cv, fit_samples, plan, AcqCvParams, Criterion, PlanParams, Sample,
 };
@@ -101,8 +101,13 @@ fn main() {
                 let mut last = None;
                 for _ in 0..reps {
                     last = Some(
-                        fit_samples(&coll, &basis, &samples, brdf_basis::fit::TargetWeight::L2)
-                            .expect("fit"),
+                        fit_samples(
+                            &coll,
+                            &basis,
+                            &samples,
+                            brdf_basis::backend::weighted::TargetWeight::L2,
+                        )
+                        .expect("fit"),
                     );
                 }
                 last.expect("one fit")

@@ -9,7 +9,8 @@
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::GpuBackend;
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
+use brdf_basis::backend::{Backend, Lobe};
+use brdf_basis::brdf::LobeParams;
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use std::time::Instant;
 
@@ -76,8 +77,8 @@ fn worst_relative(a: &[f64], b: &[f64]) -> f64 {
 /// Raw rate (evaluated pairs x cells / s, padding and diagonal blocks included) of each
 /// kernel shape on `n` lobes, and the shape `KernelShape::choose` picks.
 fn shapes(g: &GpuBackend, n: usize, cells: &CellSet) {
-    use brdf_basis::backend::blocks::{all_blocks, PairOp};
     use brdf_basis::backend::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
+    use brdf_basis::backend::{all_blocks, PairOp};
     let l = lobes(n);
     let ctx = g.context();
     let kernel = PairwiseKernel::new();

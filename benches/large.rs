@@ -24,7 +24,7 @@ use brdf_basis::collection::Collection;
 use brdf_basis::distance::{distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS};
 use brdf_basis::io::saved::write_npy_with_sidecar;
 use brdf_basis::io::sidecar::MatrixSettings;
-use brdf_basis::select::empirical::{empirical, EmpiricalParams};
+use brdf_basis::select::{empirical, EmpiricalParams};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -101,7 +101,7 @@ fn matrix_path(dir: &Path, n: usize) -> PathBuf {
 /// 1,000) also the exhaustive greedy of SPEC 8, and whether both chose the same basis in
 /// the same order with the same scores; a one-line summary.
 fn stage_greedy(coll: &Collection) -> Option<String> {
-    use brdf_basis::select::greedy::{greedy_exhaustive, greedy_with_counts};
+    use brdf_basis::select::{greedy_exhaustive, greedy_with_counts};
     use brdf_basis::select::{Objective, ObjectiveParams, SearchParams};
     let cpu = CpuBackend::new();
     let stride = env_usize("BENCH_GREEDY_STRIDE", 3);

@@ -21,7 +21,7 @@ use brdf_basis::backend::gpu::GpuBackend;
 use brdf_basis::backend::{Backend, Lobe};
 use brdf_basis::brdf::Nbrdf;
 use brdf_basis::collection::{Collection, MaterialData};
-use brdf_basis::merl::grid::N_CELLS;
+use brdf_basis::merl::N_CELLS;
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use std::path::PathBuf;
 use std::process::Command;
@@ -137,7 +137,7 @@ fn main() {
     println!(
         "tabulate 100 NBRDF x RGB x {N_CELLS} cells, {}, network kernel {}: {t_cpu:.2} s wall, {c_cpu:.2} s CPU, load {load_before} -> {} ({:.1} M network evaluations/s)",
         cpu.name(),
-        brdf_basis::brdf::nbrdf::cpu_kernel(),
+        brdf_basis::brdf::cpu_kernel(),
         load(),
         cell_evals / t_cpu / 1e6
     );

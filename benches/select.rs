@@ -8,9 +8,8 @@
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::brdf::AshikhminShirley;
 use brdf_basis::collection::{Collection, Material, MaterialData};
-use brdf_basis::select::{
-    cross_validate, ga, greedy, swap, CvParams, GaParams, Objective, ObjectiveParams, SearchParams,
-};
+use brdf_basis::select::cv::{cross_validate, CvParams};
+use brdf_basis::select::{ga, greedy, swap, GaParams, Objective, ObjectiveParams, SearchParams};
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 use std::time::Instant;

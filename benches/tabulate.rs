@@ -7,8 +7,9 @@
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::GpuBackend;
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
-use brdf_basis::merl::grid::N_CELLS;
+use brdf_basis::backend::{Backend, Lobe};
+use brdf_basis::brdf::LobeParams;
+use brdf_basis::merl::N_CELLS;
 use std::time::Instant;
 
 fn main() {

@@ -35,9 +35,9 @@ pub use crate::collection::Collection;
 pub use crate::distance::{DistanceMatrix, DistanceParams, Distances, Metric};
 pub use crate::fit::{FitParams, GramMode, Solver, TargetFit};
 pub use crate::merl::{Mask, Weighting};
+pub use crate::select::cv::{CvMethod, CvParams, CvResult};
 pub use crate::select::{
-    CvMethod, CvParams, CvResult, Empirical, EmpiricalParams, GaParams, Objective, ObjectiveParams,
-    SearchParams, Selection,
+    Empirical, EmpiricalParams, GaParams, Objective, ObjectiveParams, SearchParams, Selection,
 };
 
 /// Any error of the library: the error of the module that failed, unchanged (its message
@@ -74,7 +74,7 @@ pub enum Error {
     Selection(#[from] crate::select::SelectionError),
     /// A selection result file.
     #[error(transparent)]
-    SelectFile(#[from] crate::select::output::SelectFileError),
+    SelectFile(#[from] crate::select::SelectFileError),
     /// A command's request refused before any work ([`crate::run`]).
     #[error(transparent)]
     Request(#[from] crate::error::RequestError),
@@ -243,7 +243,7 @@ pub fn fit(
 /// [`Error::Selection`] for parameters that do not fit the collection or a failed stage.
 pub fn cross_validate(backend: &dyn Backend, coll: &Collection, p: &CvParams) -> Result<CvResult> {
     let valid = p.check(coll.len())?;
-    Ok(crate::select::cross_validate(
+    Ok(crate::select::cv::cross_validate(
         backend,
         coll,
         &valid,
@@ -278,7 +278,7 @@ pub struct NotFiniteError {
 }
 
 /// Material `name` of `coll` on the full MERL grid, as `brdf-basis tabulate` writes it:
-/// `rgb[c * N_CELLS + cell]` (channel-major, [`crate::merl::grid::flat`] cell order),
+/// `rgb[c * N_CELLS + cell]` (channel-major, [`crate::merl::flat`] cell order),
 /// invalid cells `-1`. Analytic materials are tabulated on `backend`; measured ones are
 /// their table.
 ///
@@ -287,7 +287,7 @@ pub struct NotFiniteError {
 /// [`Error::NotFinite`] when the parameters overflow f32 in some valid cell.
 pub fn tabulate(backend: &dyn Backend, coll: &Collection, name: &str) -> Result<Vec<f32>> {
     use crate::collection::MaterialData;
-    use crate::merl::grid::{cell_info, N_CELLS};
+    use crate::merl::{cell_info, N_CELLS};
     let m = coll.get(name)?;
     match &m.data {
         MaterialData::Measured(t) => Ok(t.rgb.clone()),
@@ -400,7 +400,7 @@ pub fn fit_from_arrays(
     angles: &[[f64; 4]],
     rgb: &[[f64; 3]],
     sigma: Option<&[[f64; 3]]>,
-    objective: crate::fit::TargetWeight,
+    objective: crate::backend::weighted::TargetWeight,
 ) -> Result<SampleFit> {
     let b: Vec<usize> = basis
         .iter()
@@ -419,7 +419,7 @@ pub fn fit_from_arrays(
         .zip(rgb)
         .enumerate()
         .map(|(i, (a, v))| {
-            crate::acquire::samples::sample_from_degrees(
+            crate::acquire::sample_from_degrees(
                 std::path::Path::new("<arrays>"),
                 i + 1,
                 *a,
@@ -429,7 +429,7 @@ pub fn fit_from_arrays(
             )
         })
         .collect::<std::result::Result<_, _>>()?;
-    crate::acquire::samples::check_sigma_range(
+    crate::acquire::check_sigma_range(
         std::path::Path::new("<arrays>"),
         &samples,
         ["sigma_r", "sigma_g", "sigma_b"],
@@ -500,7 +500,7 @@ mod tests {
     /// overflow f32 are refused with the material's name.
     #[test]
     fn tabulate_is_the_model_on_valid_cells_and_minus_one_elsewhere() {
-        use crate::merl::grid::{cell_directions, cell_info, N_CELLS};
+        use crate::merl::{cell_directions, cell_info, N_CELLS};
         let cpu = CpuBackend::new();
         let coll = Collection::embedded_default();
         let name = "polished-gold";

@@ -4,13 +4,14 @@
 //! reconstruction, the `nielsen` baseline's included.
 
 use crate::objectives::brute_force_nnls;
-use brdf_basis::acquire::plan::cell_candidates;
+use brdf_basis::acquire::cell_candidates;
 use brdf_basis::acquire::{
     acquisition_cv, fit_samples, material_at, plan, AcqCvParams, Criterion, PlanParams, Sample,
 };
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::collection::Collection;
-use brdf_basis::fit::{FitParams, TargetWeight};
+use brdf_basis::fit::FitParams;
 use brdf_basis::select::ObjectiveParams;
 use std::f64::consts::FRAC_1_PI;
 

@@ -432,7 +432,7 @@ fn samples_beyond_the_fits_range_are_refused_not_panicked() {
         &angles,
         &rgb,
         None,
-        brdf_basis::fit::TargetWeight::L2,
+        brdf_basis::backend::weighted::TargetWeight::L2,
     )
     .expect_err("refused")
     .to_string();
@@ -474,7 +474,7 @@ fn scaling_every_sigma_by_one_constant_changes_nothing() {
             &angles,
             &rgb,
             Some(&sigma(scale)),
-            brdf_basis::fit::TargetWeight::L2,
+            brdf_basis::backend::weighted::TargetWeight::L2,
         )
         .unwrap_or_else(|e| panic!("scale {scale}: {e}"))
     };

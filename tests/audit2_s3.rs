@@ -364,7 +364,7 @@ fn rgl_field_names_are_escaped_and_cut_in_messages() {
             .all(|c| c.is_ascii_graphic() || c == ' ' || c == '\n'),
         "{e}"
     );
-    let err = brdf_basis::rgl::tensor::TensorFile::parse(b, &f).unwrap_err();
+    let err = brdf_basis::rgl::TensorFile::parse(b, &f).unwrap_err();
     assert!(err.to_string().contains("... ("), "{err}");
 }
 
@@ -562,7 +562,7 @@ fn rgl_values_beyond_f32_are_refused_naming_the_file() {
 /// cause, for every command and back-end alike.
 #[test]
 fn nbrdf_outputs_beyond_f32_are_refused_naming_the_set() {
-    use brdf_basis::brdf::{nbrdf::NBRDF_PARTS, Nbrdf};
+    use brdf_basis::brdf::{Nbrdf, NBRDF_PARTS};
     let dir = tmp();
     let d = dir.path();
     let n = d.join("n");

@@ -5,8 +5,8 @@ use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::collection::Collection;
 use brdf_basis::distance::{distance_matrix, DistanceParams};
 use brdf_basis::io::saved::load_saved_matrix;
-use brdf_basis::merl::binary::{read_binary, FILE_BYTES, SCALE};
-use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS, N_PD, N_TD, N_TH};
+use brdf_basis::merl::{cell_directions, cell_info, N_CELLS, N_PD, N_TD, N_TH};
+use brdf_basis::merl::{read_binary, FILE_BYTES, SCALE};
 
 fn backend_flag() -> &'static str {
     if gpu("cli backend").is_some() {

@@ -12,11 +12,11 @@
 //! orders are the same.
 
 use crate::common::*;
-use brdf_basis::backend::blocks::{all_blocks, gram_blocks, PairOp};
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::pairwise::{KernelShape, PairPlan, PairwiseKernel, PlanLimits};
 use brdf_basis::backend::gpu::CONTRACTION_TOLERANCE;
 use brdf_basis::backend::Backend;
+use brdf_basis::backend::{all_blocks, gram_blocks, PairOp};
 use brdf_basis::cluster::{GcukParams, KMedoidsAlgorithm, KMedoidsInit, KMedoidsParams};
 use brdf_basis::collection::Collection;
 use brdf_basis::distance::{distance_matrix, DistanceMatrix, DistanceParams, LobeKind};

@@ -7,7 +7,7 @@ use brdf_basis::backend::Backend;
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::*;
 use brdf_basis::nnls::{lawson_hanson, GramProblem};
-use brdf_basis::select::empirical::{empirical, EmpiricalParams};
+use brdf_basis::select::{empirical, EmpiricalParams};
 use std::path::Path;
 
 /// The paper's kmedoids5 basis (Table I), by Ngan names.
@@ -316,8 +316,8 @@ fn rejects_bad_fits() {
         "99 columns is within the PGD limit"
     );
     // Non-finite measured data.
-    let mut rgb = vec![0.1f32; 3 * brdf_basis::merl::grid::N_CELLS];
-    rgb[brdf_basis::merl::grid::flat(10, 10, 10)] = f32::INFINITY;
+    let mut rgb = vec![0.1f32; 3 * brdf_basis::merl::N_CELLS];
+    rgb[brdf_basis::merl::flat(10, 10, 10)] = f32::INFINITY;
     let mut m = Collection::new();
     m.push(c.materials()[0].clone(), Path::new("x"), 0)
         .expect("push");

@@ -4,11 +4,13 @@
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::pairwise::{
-    KernelShape, PairPlan, PlanLimits, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
+    KernelShape, PairPlan, PlanLimits, MAX_PACKED_BYTES, MAX_RUN_ITERS,
 };
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
-use brdf_basis::brdf::ashikhmin_shirley::rho_s_angles;
-use brdf_basis::merl::grid::{cell_directions, cell_info, N_CELLS};
+use brdf_basis::backend::gpu::TEX_W;
+use brdf_basis::backend::{Backend, Lobe};
+use brdf_basis::brdf::rho_s_angles;
+use brdf_basis::brdf::LobeParams;
+use brdf_basis::merl::{cell_directions, cell_info, N_CELLS};
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 use rayon::prelude::*;
 
@@ -221,8 +223,8 @@ fn every_kernel_shape_matches_cpu() {
     let Some(gpu) = gpu("every_kernel_shape_matches_cpu") else {
         return;
     };
-    use brdf_basis::backend::blocks::{all_blocks, PairOp};
     use brdf_basis::backend::gpu::pairwise::{PairwiseKernel, RowLayout};
+    use brdf_basis::backend::{all_blocks, PairOp};
     let Some(ngan) = ngan_or_skip("every_kernel_shape_matches_cpu") else {
         return;
     };

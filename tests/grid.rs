@@ -1,7 +1,7 @@
 //! The MERL grid: lookups, counts, weights (SPEC 2-3).
 
 use brdf_basis::brdf::AshikhminShirley;
-use brdf_basis::merl::grid::*;
+use brdf_basis::merl::*;
 use brdf_basis::merl::{CellSet, GridTables, Mask, Weighting};
 use std::f64::consts::PI;
 

@@ -7,8 +7,8 @@ use crate::common::*;
 use brdf_basis::backend::cpu::{max_threads, CpuBackend};
 use brdf_basis::collection::Collection;
 use brdf_basis::error::{short_name, CollectionError, MerlError};
-use brdf_basis::merl::binary::{read_binary, FILE_BYTES, SCALE};
-use brdf_basis::merl::grid::{cell_info, N_CELLS};
+use brdf_basis::merl::{cell_info, N_CELLS};
+use brdf_basis::merl::{read_binary, FILE_BYTES, SCALE};
 use std::time::Duration;
 
 const HEADER: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n";
@@ -316,11 +316,8 @@ fn a_stride_that_leaves_no_cell_says_so() {
         );
     }
     // The largest stride that leaves cells is named, and works.
-    let msg = brdf_basis::merl::grid::no_cells_reason(
-        brdf_basis::merl::Mask::Evaluation,
-        90,
-        "the collection",
-    );
+    let msg =
+        brdf_basis::merl::no_cells_reason(brdf_basis::merl::Mask::Evaluation, 90, "the collection");
     let s: usize = msg
         .split("use --stride ")
         .nth(1)

@@ -35,6 +35,7 @@ mod nbrdf_gpu;
 mod objectives;
 mod output_aliases;
 mod outputs;
+mod public_paths;
 mod reproduce;
 mod reproduce_appearance;
 mod requests;

@@ -7,8 +7,8 @@ use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::{Backend, Lobe};
 use brdf_basis::collection::{Collection, MaterialData};
 use brdf_basis::error::{CollectionError, MerlError};
-use brdf_basis::merl::binary::{read_binary, write_binary, FILE_BYTES};
-use brdf_basis::merl::grid::{cell_info, flat, N_CELLS};
+use brdf_basis::merl::{cell_info, flat, N_CELLS};
+use brdf_basis::merl::{read_binary, write_binary, FILE_BYTES};
 use std::path::{Path, PathBuf};
 
 /// A valid file's bytes: constant reflectance 0.25 in every valid cell, -1 elsewhere.
@@ -18,7 +18,7 @@ fn valid_bytes() -> Vec<u8> {
         b.extend_from_slice(&d.to_le_bytes());
     }
     for c in 0..3 {
-        let scale = brdf_basis::merl::binary::SCALE[c];
+        let scale = brdf_basis::merl::SCALE[c];
         for cell in 0..N_CELLS {
             let v = if cell_info(cell).valid {
                 0.25 / scale
@@ -259,7 +259,7 @@ fn synthetic(
             .collect();
         let mut rgb = cpu.tabulate(&lobes, &cells).expect("tab");
         for cell in 0..N_CELLS {
-            let masked = mask_row.is_some_and(|j| brdf_basis::merl::grid::unflat(cell).1 == j);
+            let masked = mask_row.is_some_and(|j| brdf_basis::merl::unflat(cell).1 == j);
             for ch in 0..3 {
                 let v = &mut rgb[ch * N_CELLS + cell];
                 if !cell_info(cell).valid || masked {
@@ -395,7 +395,7 @@ fn masked_and_noisy_measured_materials_measure_like_their_originals() {
     let keep: Vec<bool> = cells
         .cells
         .iter()
-        .map(|&c| brdf_basis::merl::grid::unflat(c as usize).1 != 40)
+        .map(|&c| brdf_basis::merl::unflat(c as usize).1 != 40)
         .collect();
     let mut k = keep.iter();
     cells.cells.retain(|_| *k.next().expect("k"));

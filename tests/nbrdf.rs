@@ -6,12 +6,12 @@
 use crate::common;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::{Backend, Lobe};
-use brdf_basis::brdf::nbrdf::{features, NBRDF_PARTS};
+use brdf_basis::brdf::{features, NBRDF_PARTS};
 use brdf_basis::brdf::{Nbrdf, NBRDF_WEIGHTS};
 use brdf_basis::collection::{Collection, MaterialData};
-use brdf_basis::io::npy::npy_f32_bytes;
-use brdf_basis::merl::grid::{cell_angles, N_CELLS};
+use brdf_basis::merl::{cell_angles, N_CELLS};
 use brdf_basis::merl::{CellSet, Mask, Weighting};
+use brdf_basis::npy_format::npy_f32_bytes;
 use rand::Rng;
 use std::path::Path;
 use std::sync::Arc;
@@ -182,7 +182,7 @@ fn mixed_directory_of_sets_and_binary_files_loads_every_kind() {
     let all: Vec<u32> = (0..N_CELLS as u32).collect();
     let mut rgb = CpuBackend::new().tabulate(&lobes, &all).expect("tab");
     for cell in 0..N_CELLS {
-        if !brdf_basis::merl::grid::cell_info(cell).valid {
+        if !brdf_basis::merl::cell_info(cell).valid {
             for c in 0..3 {
                 rgb[c * N_CELLS + cell] = -1.0;
             }
@@ -462,7 +462,7 @@ fn tabulate_of_a_network_reads_back_as_the_same_material() {
     let want = CpuBackend::new().tabulate(&lobes, &all).expect("tab");
     let mut valid = 0;
     for cell in 0..N_CELLS {
-        if brdf_basis::merl::grid::cell_info(cell).valid {
+        if brdf_basis::merl::cell_info(cell).valid {
             valid += 1;
             for c in 0..3 {
                 assert_eq!(

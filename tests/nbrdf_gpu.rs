@@ -11,9 +11,10 @@ use brdf_basis::backend::gpu::neural::{
     PAD_SLOT, REGION_BYTES, SOURCE,
 };
 use brdf_basis::backend::gpu::{kernel_source, GpuContext};
-use brdf_basis::backend::{condensed_index, Backend, Lobe, LobeParams};
+use brdf_basis::backend::{condensed_index, Backend, Lobe};
+use brdf_basis::brdf::LobeParams;
 use brdf_basis::brdf::Nbrdf;
-use brdf_basis::merl::grid::{cell_angles, N_CELLS};
+use brdf_basis::merl::{cell_angles, N_CELLS};
 use brdf_basis::merl::{CellSet, GridTables, Mask, Weighting};
 use rayon::prelude::*;
 use std::path::Path;

@@ -4,8 +4,9 @@
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::weighted::cos_theta_i;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::collection::Collection;
-use brdf_basis::fit::{channel_lobe, fit, fit_cells, FitParams, TargetWeight, LAMBERTIAN};
+use brdf_basis::fit::{channel_lobe, fit, fit_cells, FitParams, LAMBERTIAN};
 
 /// The exact optimum of `min sum_s W_s (sum_j x_j a_j(s) - b_s)^2, x >= 0` by enumerating
 /// every set of free columns (m <= 5): the unconstrained least squares on the set (normal

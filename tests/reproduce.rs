@@ -6,7 +6,7 @@ use crate::common::*;
 use brdf_basis::experiment::bases::Basis;
 use brdf_basis::experiment::statistics::Statistics;
 use brdf_basis::fit::file::FitFile;
-use brdf_basis::select::runs::ClusteringSet;
+use brdf_basis::select::ClusteringSet;
 use std::path::Path;
 use std::process::Command;
 

@@ -632,7 +632,7 @@ fn rgl_reader_fuzz() {
 // Collections, tabulation and the commands.
 
 use brdf_basis::collection::{Collection, MaterialData};
-use brdf_basis::merl::grid::{cell_directions, geometric_validity, N_CELLS};
+use brdf_basis::merl::{cell_directions, geometric_validity, N_CELLS};
 
 /// Kind counts in a fixed order (the collection's order of kinds is its own business).
 fn sorted(mut v: Vec<(&'static str, usize)>) -> Vec<(&'static str, usize)> {

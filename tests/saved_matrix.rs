@@ -315,7 +315,7 @@ fn save_random(path: &Path, n: usize, seed: u64) -> brdf_basis::distance::Distan
 fn mapped_matrix_clusters_bit_for_bit_like_the_loaded_one() {
     use brdf_basis::cluster::{GcukParams, KMedoidsAlgorithm, KMedoidsParams};
     use brdf_basis::io::saved::{load_saved_matrix_with, MatrixLoad};
-    use brdf_basis::select::runs::{gcuk_runs, kmedoids_runs, named_runs};
+    use brdf_basis::select::{gcuk_runs, kmedoids_runs, named_runs};
     let dir = tmp();
     let npy = dir.path().join("r.npy");
     let m = save_random(&npy, 240, 7);

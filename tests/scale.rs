@@ -7,7 +7,7 @@ use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
-use brdf_basis::distance::band::tile_rows;
+use brdf_basis::distance::tile_rows;
 use brdf_basis::distance::{distance_matrix_banded, distance_tile, DistanceParams};
 use std::path::Path;
 
@@ -137,7 +137,7 @@ mod greedy_at_scale {
     use crate::common::*;
     use brdf_basis::backend::cpu::CpuBackend;
     use brdf_basis::collection::Collection;
-    use brdf_basis::select::greedy::{greedy_exhaustive, greedy_with_counts};
+    use brdf_basis::select::{greedy_exhaustive, greedy_with_counts};
     use brdf_basis::select::{swap, Objective, ObjectiveParams, SearchParams};
 
     fn objective(coll: &Collection, stride: usize) -> Objective {

@@ -2,8 +2,8 @@
 //! before the fix (noted per test).
 
 use crate::common::{bin, shared_or_skip};
-use brdf_basis::select::runs::{best_index, best_run, ClusteringRun};
 use brdf_basis::select::SelectOutput;
+use brdf_basis::select::{best_index, best_run, ClusteringRun};
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
@@ -452,7 +452,7 @@ fn reproduce_k_max_message_reads_right() {
 /// `cross_validate(CvParams::default())` and `brdf-basis cv` used different folds.
 #[test]
 fn library_default_seeds_agree_with_the_command_line() {
-    assert_eq!(brdf_basis::select::CvParams::default().seed, 1);
+    assert_eq!(brdf_basis::select::cv::CvParams::default().seed, 1);
     assert_eq!(brdf_basis::select::GaParams::default().seed, 1);
     assert_eq!(brdf_basis::cluster::KMedoidsParams::new(3).seed, 1);
     assert_eq!(brdf_basis::cluster::GcukParams::default().seed, 1);

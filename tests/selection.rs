@@ -6,9 +6,9 @@ use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::{channel_lobe, fit, fit_cells};
+use brdf_basis::select::cv::{cross_validate, CvMethod, CvParams};
 use brdf_basis::select::{
-    cross_validate, ga, greedy, swap, CvMethod, CvParams, GaParams, Objective, ObjectiveParams,
-    SearchParams, SelectionError,
+    ga, greedy, swap, GaParams, Objective, ObjectiveParams, SearchParams, SelectionError,
 };
 use std::path::Path;
 

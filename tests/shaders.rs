@@ -55,8 +55,14 @@ fn tabulate_shader_validates_and_matches_rust_structs() {
         assert_eq!((n.as_str(), *o as usize), (rn, ro));
     }
     assert!(tabulate::SOURCE.contains(&format!("const BPI: u32 = {}u;", tabulate::BPI)));
-    assert!(tabulate::SOURCE.contains(&format!("const NIJ: u32 = {}u;", tabulate::NIJ)));
-    assert!(pairwise::SOURCE.contains(&format!("const NIJ: u32 = {}u;", tabulate::NIJ)));
+    assert!(tabulate::SOURCE.contains(&format!(
+        "const NIJ: u32 = {}u;",
+        brdf_basis::backend::gpu::NIJ
+    )));
+    assert!(pairwise::SOURCE.contains(&format!(
+        "const NIJ: u32 = {}u;",
+        brdf_basis::backend::gpu::NIJ
+    )));
     // The grid-table uniform holds exactly TABLE_LEN f32.
     let tables = m
         .global_variables
@@ -171,7 +177,7 @@ fn shared_constants_agree() {
         ("T_SIN_D", TABLE_SIN_D),
         ("T_ABS_COS_P", TABLE_ABS_COS_P),
         ("T_LEN", TABLE_LEN),
-        ("TEX_W", pairwise::TEX_W),
+        ("TEX_W", brdf_basis::backend::gpu::TEX_W),
     ];
     let wgsl = u32_consts(COMMON_WGSL);
     assert_eq!(

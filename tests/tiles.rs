@@ -5,7 +5,7 @@ use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
-use brdf_basis::distance::band::tile_rows;
+use brdf_basis::distance::tile_rows;
 use brdf_basis::distance::{distance_matrix_banded, distance_tile, lobes, DistanceParams};
 use std::path::{Path, PathBuf};
 

@@ -7,7 +7,8 @@ use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::weighted::{
     cos_theta_i, reference, TargetWeight, WeightedSystems, WEIGHTED_TOLERANCE,
 };
-use brdf_basis::backend::{Backend, Lobe, LobeParams};
+use brdf_basis::backend::{Backend, Lobe};
+use brdf_basis::brdf::LobeParams;
 use brdf_basis::merl::{CellSet, Mask, Weighting};
 
 fn lobe(kd: f32, ks: f32, f0: f32, n: f32) -> Lobe {
@@ -119,7 +120,7 @@ fn weighted_systems_by_hand() {
 
 #[test]
 fn cos_theta_i_is_the_incoming_cosine_of_the_merl_convention() {
-    use brdf_basis::merl::grid::{phi_d, theta_d, theta_h, N_PD, N_TD};
+    use brdf_basis::merl::{phi_d, theta_d, theta_h, N_PD, N_TD};
     // theta_h near 0 (the first row's centre, 4.8e-5 rad): the incoming direction is the
     // difference vector, cos theta_i ~ cos theta_d.
     for j in [0, 30, 89] {

@@ -3,7 +3,7 @@
 //! every accepted pair is two unit directions above the horizon, and no pair is given
 //! twice.
 #![no_main]
-use brdf_basis::acquire::samples::parse_candidates;
+use brdf_basis::acquire::parse_candidates;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -3,7 +3,7 @@
 //! every accepted sample has unit directions above the horizon, a finite reflectance in
 //! range and positive finite sigmas.
 #![no_main]
-use brdf_basis::acquire::samples::{parse_samples, MAX_VALUE};
+use brdf_basis::acquire::{parse_samples, MAX_VALUE};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

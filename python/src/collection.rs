@@ -122,9 +122,9 @@ pub(crate) fn coll_of(c: &Bound<'_, Collection>) -> Arc<bb::Collection> {
 #[pyo3(signature = (name = "evaluation"))]
 pub(crate) fn mask<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
     let m: bb::Mask = parse(name)?;
-    let v: Vec<bool> = (0..bb::merl::grid::N_CELLS)
+    let v: Vec<bool> = (0..bb::merl::N_CELLS)
         .map(|c| {
-            let info = bb::merl::grid::cell_info(c);
+            let info = bb::merl::cell_info(c);
             match m {
                 bb::Mask::Evaluation => info.evaluation,
                 _ => info.valid,

@@ -117,9 +117,14 @@ pub(crate) fn select_json<'py>(
 /// `solver`: `exact` or `pgd`.
 /// The fit objective (SPEC 11) of `objective=` and `eps=`: `None` is the default
 /// objective (`relative`) with `eps`.
-pub(crate) fn objective_of(objective: Option<&str>, eps: f64) -> PyResult<bb::fit::TargetWeight> {
+pub(crate) fn objective_of(
+    objective: Option<&str>,
+    eps: f64,
+) -> PyResult<bb::backend::weighted::TargetWeight> {
     let kind = match objective {
-        Some(o) => o.parse::<bb::fit::ObjectiveKind>().map_err(value_err)?,
+        Some(o) => o
+            .parse::<bb::backend::weighted::ObjectiveKind>()
+            .map_err(value_err)?,
         None => bb::run::DEFAULT_OBJECTIVE.kind(),
     };
     kind.weight(eps)

@@ -4,7 +4,7 @@ use super::Global;
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::distance::Metric;
 use brdf_basis::run::{AcquisitionRequest, CvRequest};
-use brdf_basis::select::CvMethod;
+use brdf_basis::select::cv::CvMethod;
 use std::path::PathBuf;
 
 /// The requests' defaults, for `--help`.

@@ -82,20 +82,20 @@ pub(crate) struct ObjectiveArgs {
     /// reflectance, the paper's) or log (an L2 in log(1 + f cos theta_i)) [default:
     /// relative].
     #[arg(long, value_enum)]
-    pub objective: Option<brdf_basis::fit::ObjectiveKind>,
+    pub objective: Option<brdf_basis::backend::weighted::ObjectiveKind>,
     /// eps of `--objective relative`, in MERL reflectance units (> 0).
-    #[arg(long, default_value_t = brdf_basis::fit::TargetWeight::DEFAULT_EPS)]
+    #[arg(long, default_value_t = brdf_basis::backend::weighted::TargetWeight::DEFAULT_EPS)]
     pub eps: f64,
 }
 
 impl ObjectiveArgs {
     /// The objective these flags give (the default objective when none is given).
-    pub(crate) fn weight(&self) -> brdf_basis::fit::TargetWeight {
+    pub(crate) fn weight(&self) -> brdf_basis::backend::weighted::TargetWeight {
         match self.objective {
             Some(k) => k.weight(self.eps),
             None => match brdf_basis::run::DEFAULT_OBJECTIVE {
-                brdf_basis::fit::TargetWeight::Relative { .. } => {
-                    brdf_basis::fit::TargetWeight::Relative { eps: self.eps }
+                brdf_basis::backend::weighted::TargetWeight::Relative { .. } => {
+                    brdf_basis::backend::weighted::TargetWeight::Relative { eps: self.eps }
                 }
                 w => w,
             },

@@ -1,7 +1,7 @@
 //! `brdf-basis plan`: where to measure a new material (SPEC 10).
 
 use super::Global;
-use brdf_basis::acquire::plan::plan_csv;
+use brdf_basis::acquire::plan_csv;
 use brdf_basis::acquire::Criterion;
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::run::PlanRequest;

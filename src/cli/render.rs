@@ -99,7 +99,7 @@ pub(crate) fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
             anyhow::bail!(
                 "--fit {}: is {}, not a regular file (give the JSON written by `brdf-basis fit`)",
                 f.display(),
-                brdf_basis::merl::binary::file_kind(&meta)
+                brdf_basis::merl::file_kind(&meta)
             );
         }
         plan.input_named(f, "fit file");

@@ -34,7 +34,7 @@ use crate::io::saved::{write_csv, write_npy_with_sidecar};
 use crate::io::sidecar::{sidecar_path, MatrixSettings};
 use crate::merl::Weighting;
 use crate::plot::colour_bar::{font_registered, with_colour_bar};
-use crate::select::runs as clustering;
+use crate::select as clustering;
 use crate::select::EmpiricalOutput;
 use std::path::{Path, PathBuf};
 

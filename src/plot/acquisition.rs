@@ -5,7 +5,7 @@
 //! fold, basis and plan).
 
 use super::{figure, series_colour, Draw, Figure, PlotError};
-use crate::acquire::cv::{AcqCv, AcqShowcase};
+use crate::acquire::{AcqCv, AcqShowcase};
 use crate::eval::image_error::{display_image, DisplayParams, Rgb8Image};
 use plotters::coord::Shift;
 use plotters::prelude::*;

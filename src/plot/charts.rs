@@ -5,7 +5,7 @@ use super::legend::{self, tick_label, Entry, Marker};
 use super::{e2s, figure, series_colour, Draw, Figure, PlotError};
 use crate::experiment::evaluation::BasisErrors;
 use crate::experiment::statistics::FriedmanSummary;
-use crate::select::runs::ClusteringSet;
+use crate::select::ClusteringSet;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;

@@ -2,11 +2,12 @@
 
 use super::{check_restarts, Grid};
 use crate::acquire::{acquisition_cv_with_progress, AcqCv, AcqCvParams, Criterion};
+use crate::backend::weighted::TargetWeight;
 use crate::backend::Backend;
 use crate::backend::Progress;
 use crate::collection::Collection;
-use crate::fit::TargetWeight;
-use crate::select::{CvMethod, ObjectiveParams};
+use crate::select::cv::CvMethod;
+use crate::select::ObjectiveParams;
 use crate::Result;
 
 /// `brdf-basis cv --acquisition`: its settings, with the defaults of `cv --help`

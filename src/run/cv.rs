@@ -4,7 +4,8 @@ use super::Grid;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::distance::Metric;
-use crate::select::{cross_validate, CvMethod, CvParams, CvResult, GaParams, ObjectiveParams};
+use crate::select::cv::{cross_validate, CvMethod, CvParams, CvResult};
+use crate::select::{GaParams, ObjectiveParams};
 use crate::Result;
 
 /// `brdf-basis cv` (without `--acquisition`): its settings, with the defaults of
@@ -34,7 +35,7 @@ pub struct CvRequest {
     pub seed: u64,
     /// `--objective` and `--eps` (SPEC 11): the selection's shared weights and the
     /// held-out fits' per-target weights.
-    pub objective: crate::fit::TargetWeight,
+    pub objective: crate::backend::weighted::TargetWeight,
     /// The appearance metrics of the held-out fits (`--no-appearance` turns them off).
     pub appearance: bool,
 }

@@ -3,7 +3,7 @@
 use super::{refuse, Grid};
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
-use crate::distance::band::{check_band_rows, tile_rows};
+use crate::distance::{check_band_rows, tile_rows};
 use crate::distance::{
     distance_matrix_banded, distance_tile, DistanceMatrix, DistanceParams, LobeKind, Metric, Tile,
     ValidDistanceParams, DEFAULT_BAND_ROWS,

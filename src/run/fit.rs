@@ -2,12 +2,13 @@
 
 use super::{all_others, indices_of, refuse, Grid};
 use crate::acquire::SampleFit;
+use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::eval::appearance::Appearance;
 use crate::fit::diagnostics::fit_warnings;
 use crate::fit::file::FitFile;
-use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit, TargetWeight};
+use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit};
 use crate::Result;
 use std::path::PathBuf;
 
@@ -232,7 +233,7 @@ impl FitSamplesRequest {
     /// # Errors
     /// An unknown material, an unreadable or invalid samples file, a failed fit.
     pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
-        use crate::acquire::{fit as afit, plan, read_samples};
+        use crate::acquire::{self as afit, read_samples};
         self.objective.check()?;
         let basis = indices_of(coll, &self.basis)?;
         let samples = read_samples(&self.samples)?;
@@ -248,7 +249,7 @@ impl FitSamplesRequest {
             3
         };
         let hint = if d.rank < d.columns || d.condition > afit::WARN_CONDITION {
-            plan::suggest(coll, &basis, &samples, more, self.seed)?
+            afit::suggest(coll, &basis, &samples, more, self.seed)?
         } else {
             String::new()
         };

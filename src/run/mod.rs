@@ -45,8 +45,8 @@ pub use plan::PlanRequest;
 pub use reproduce::{ReproduceRequest, Reproduction};
 pub use select::{SelectMethod, SelectRequest};
 
+use crate::backend::weighted::TargetWeight;
 use crate::collection::Collection;
-use crate::fit::TargetWeight;
 use crate::merl::{Mask, Weighting};
 
 /// The fit objective of `fit`, `select` and `cv` when none is given (SPEC 11): `relative`

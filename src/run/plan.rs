@@ -1,11 +1,12 @@
 //! `plan`: where to measure a new material (SPEC 10).
 
 use super::{all_others, check_restarts, indices_of, refuse};
-use crate::acquire::plan::{cell_candidates, plan_with_progress, Candidate};
+use crate::acquire::{cell_candidates, plan_with_progress, Candidate};
 use crate::acquire::{read_candidates, Criterion, Plan, PlanParams};
+use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
-use crate::fit::{FitParams, TargetWeight};
+use crate::fit::FitParams;
 use crate::Result;
 use std::path::PathBuf;
 
@@ -95,7 +96,7 @@ impl PlanRequest {
 
     /// Plans the samples on `coll` (the Gram quantities on `backend`) and returns the plan
     /// (`plan --json` is its JSON, `plan --out` its
-    /// [`crate::acquire::plan::plan_csv`]).
+    /// [`crate::acquire::plan_csv`]).
     ///
     /// # Errors
     /// [`crate::error::RequestError`], an unknown material, an unreadable candidates file, then

@@ -1,7 +1,7 @@
 //! `reproduce`: the paper's section VI end to end ([`crate::experiment`]), then the
 //! acquisition cross-validation of the report with its settings policy.
 
-use crate::acquire::cv::AcqSelect;
+use crate::acquire::AcqSelect;
 use crate::acquire::{acquisition_cv, AcqCv, AcqCvParams, Criterion};
 use crate::backend::Backend;
 use crate::collection::Collection;

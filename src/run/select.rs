@@ -9,8 +9,8 @@ use crate::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
 use crate::error::RequestError;
 use crate::experiment::ExperimentParams;
 use crate::fit::FitParams;
-use crate::select::output::ErrorDrivenOutput;
-use crate::select::runs::{gcuk_runs, kmedoids_runs, named_runs};
+use crate::select::ErrorDrivenOutput;
+use crate::select::{gcuk_runs, kmedoids_runs, named_runs};
 use crate::select::{
     ClusteringOutput, EmpiricalOutput, EmpiricalParams, GaParams, Objective, ObjectiveParams,
     SearchParams, SelectOutput,
@@ -144,7 +144,7 @@ pub struct SelectRequest {
     /// `empirical` makes its leave-one-out fits, under the objective's shared weights
     /// (`l2`: the paper's fits). The clustering methods work on distances: the objective
     /// does not change them.
-    pub objective: crate::fit::TargetWeight,
+    pub objective: crate::backend::weighted::TargetWeight,
 }
 
 impl SelectRequest {

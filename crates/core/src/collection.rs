@@ -2,7 +2,7 @@
 //! rows of a CSV, SPEC 1), measured (MERL `.binary` tables, SPEC 2) or neural (NBRDF
 //! sets of six float32 `.npy` files, SPEC 9).
 
-use crate::brdf::nbrdf::NBRDF_PARTS;
+use crate::brdf::NBRDF_PARTS;
 use crate::brdf::{AshikhminShirley, Nbrdf, NBRDF_WEIGHTS};
 use crate::error::CollectionError;
 use crate::merl::{read_binary, MerlTable};
@@ -57,7 +57,7 @@ impl MaterialData {
             MaterialData::Neural(n) => Some(n.eval_dirs(wi, wo)),
             MaterialData::Rgl(r) => Some(r.eval_dirs(wi, wo)),
             MaterialData::Measured(t) => {
-                let cell = crate::merl::grid::lookup(wi, wo);
+                let cell = crate::merl::lookup(wi, wo);
                 t.is_valid(cell)
                     .then(|| [0, 1, 2].map(|c| t.value(c, cell) as f64))
             }
@@ -494,7 +494,7 @@ pub(crate) fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, CollectionE
     if !meta.is_file() {
         return Err(CollectionError::NotRegular {
             path: path.to_path_buf(),
-            kind: crate::merl::binary::file_kind(&meta),
+            kind: crate::merl::file_kind(&meta),
         });
     }
     if meta.len() > max {

@@ -342,7 +342,7 @@ pub(crate) fn read_npy_f32(path: &Path, max_values: usize) -> Result<NpyF32, Str
     if !meta.is_file() {
         return Err(bad(format!(
             "is {}, not a regular file",
-            crate::merl::binary::file_kind(&meta)
+            crate::merl::file_kind(&meta)
         )));
     }
     // The header is at most 1 MiB (checked by `read_header_text`).

@@ -16,8 +16,8 @@
 //! cell costs one multiply-add from the per-(i, j) tables of the fit and of the target.
 
 use crate::brdf::LobeParams;
-use crate::merl::grid::{N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
+use crate::merl::{N_TD, N_TH};
 use rayon::prelude::*;
 
 const NIJ: usize = N_TH * N_TD;

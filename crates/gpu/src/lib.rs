@@ -2,7 +2,7 @@
 //! one module per kernel. Kernels live beside their host module (`<name>.wgsl`), each compiled together
 //! with `common.wgsl`; each kernel module owns its pipeline and a CPU twin.
 
-pub mod backend;
+mod backend;
 #[doc(hidden)]
 pub mod neural;
 #[doc(hidden)]
@@ -68,7 +68,7 @@ const PACK_BUDGET: usize = 16 << 20;
 const PACK_BUDGET_HARDWARE: usize = 64 << 20;
 /// Texels of one lobe's separable beta table: one per (theta_h, theta_d) row pair,
 /// 90 x 90 (the alpha texel follows it).
-pub const NIJ: usize = brdf_basis_core::merl::grid::N_TH * brdf_basis_core::merl::grid::N_TD;
+pub const NIJ: usize = brdf_basis_core::merl::N_TH * brdf_basis_core::merl::N_TD;
 
 /// The grid tables as the f32 array the kernels read (each entry computed in f64 and
 /// rounded once).

@@ -23,7 +23,7 @@ use super::{GpuContext, TEX_W};
 use brdf_basis_core::backend::Lobe;
 use brdf_basis_core::brdf::Nbrdf;
 use brdf_basis_core::error::GpuError;
-use brdf_basis_core::merl::grid::{phi_d, theta_d, theta_h, N_PD, N_TD, N_TH};
+use brdf_basis_core::merl::{phi_d, theta_d, theta_h, N_PD, N_TD, N_TH};
 use std::sync::Arc;
 
 /// WGSL source of the kernel.

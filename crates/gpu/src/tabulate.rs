@@ -111,8 +111,7 @@ pub(crate) fn separable_texels(t: &GridTables, rows: &[Option<LobeParams>]) -> V
     texels
 }
 
-/// Texels of one lobe's beta table (defined in [`crate`], beside `TEX_W`).
-pub use super::NIJ;
+use super::NIJ;
 
 /// The compiled kernel and its grid tables.
 #[derive(Debug)]

@@ -13,7 +13,8 @@ use super::pairwise::DeviceSums;
 use super::tabulate::{PackTarget, TabulateKernel};
 use super::{dispatch, GpuContext, PipelineCache, TEX_W};
 use brdf_basis_core::backend::weighted::{cos_theta_i, TargetWeight, WeightedSystems};
-use brdf_basis_core::backend::{Lobe, LobeParams, Progress};
+use brdf_basis_core::backend::{Lobe, Progress};
+use brdf_basis_core::brdf::LobeParams;
 use brdf_basis_core::error::GpuError;
 use brdf_basis_core::merl::CellSet;
 

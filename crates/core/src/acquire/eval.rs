@@ -4,7 +4,7 @@ use super::AcquireError;
 use crate::collection::Material;
 #[cfg(any(doc, test))]
 use crate::collection::MaterialData;
-use crate::merl::grid::lookup;
+use crate::merl::lookup;
 
 /// Checks that `d` is a finite direction above the horizon and returns it normalised.
 pub(crate) fn unit_above(what: &'static str, d: [f64; 3]) -> Result<[f64; 3], AcquireError> {
@@ -23,7 +23,7 @@ pub(crate) fn unit_above(what: &'static str, d: [f64; 3]) -> Result<[f64; 3], Ac
 /// normalised here), by the one evaluation of every kind
 /// ([`MaterialData::eval_dirs`]): analytic and neural materials exactly, RGL files by their
 /// own evaluation, MERL tables by the cell the MERL lookup returns
-/// ([`crate::merl::grid::lookup`]); a table with no measurement in that cell is an error,
+/// ([`crate::merl::lookup`]); a table with no measurement in that cell is an error,
 /// as is a direction below the horizon.
 pub fn material_at(m: &Material, wi: [f64; 3], wo: [f64; 3]) -> Result<[f64; 3], AcquireError> {
     let wi = unit_above("incoming", wi)?;
@@ -56,8 +56,8 @@ pub(crate) fn angles_deg(d: [f64; 3]) -> (f64, f64) {
 mod tests {
     use super::*;
     use crate::brdf::AshikhminShirley;
-    use crate::merl::grid::{cell_directions, flat, N_CELLS};
     use crate::merl::MerlTable;
+    use crate::merl::{cell_directions, flat, N_CELLS};
     use std::sync::Arc;
 
     fn analytic() -> Material {

@@ -17,9 +17,10 @@ use super::eval::material_at;
 use super::linalg::singular_values;
 use super::samples::Sample;
 use super::AcquireError;
+use crate::backend::weighted::TargetWeight;
 use crate::collection::Collection;
 use crate::error::plural;
-use crate::fit::{TargetFit, TargetWeight};
+use crate::fit::TargetFit;
 use crate::nnls::{lawson_hanson, GramProblem, NnlsError, NnlsSolution};
 use std::f64::consts::FRAC_1_PI;
 

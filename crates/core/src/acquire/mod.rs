@@ -1,33 +1,33 @@
 //! Acquisition (SPEC 10): a material from a few measured samples, and where to measure.
 //!
-//! * [`eval`]: a material at an arbitrary direction pair (SPEC 9): analytic rows exactly,
+//! * [`material_at`]: a material at an arbitrary direction pair (SPEC 9): analytic rows exactly,
 //!   MERL tables by the cell of the MERL lookup (an invalid cell is an error).
-//! * [`samples`]: the samples file (CSV of SPEC 10, or ASTM E1392 `.astm`), validated with
+//! * [`read_samples`], [`read_candidates`]: the samples file (CSV of SPEC 10, or ASTM E1392 `.astm`), validated with
 //!   errors naming the line and column.
-//! * [`fit`]: the per-channel weighted NNLS of SPEC 10 on the samples (section 5's problem
+//! * [`fit_samples`]: the per-channel weighted NNLS of SPEC 10 on the samples (section 5's problem
 //!   on the samples instead of the grid; the crate's Lawson-Hanson solver), its warnings
 //!   (fewer samples than columns, a rank-deficient or ill-conditioned sampled design) and
 //!   the score of a reconstruction on the whole fit mask.
-//! * [`plan`](mod@plan): where to measure: `error` (greedy on the mean training score), `condition`
+//! * [`plan()`]: where to measure: `error` (greedy on the mean training score), `condition`
 //!   (greedy on the condition number of the sampled design) and `random`.
-//! * [`cv`]: acquisition cross-validation (folds of SPEC 8; basis and plan chosen on the
+//! * [`acquisition_cv`]: acquisition cross-validation (folds of SPEC 8; basis and plan chosen on the
 //!   training materials, held-out materials measured at the plan and scored).
 
-pub mod cv;
-pub mod eval;
-pub mod fit;
+mod cv;
+mod eval;
+mod fit;
 pub mod linalg;
 pub mod nielsen;
-pub mod plan;
+mod plan;
 mod plan_types;
-pub mod samples;
+mod samples;
 
-pub use cv::{acquisition_cv, acquisition_cv_with_progress, AcqCv, AcqCvParams};
-pub use eval::material_at;
-pub use fit::{fit_samples, SampleFit, SampleFitParams};
-pub use plan::{plan, plan_with_progress};
+pub use cv::*;
+pub use eval::*;
+pub use fit::*;
+pub use plan::*;
 pub use plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
-pub use samples::{read_candidates, read_samples, Sample};
+pub use samples::*;
 
 use std::path::PathBuf;
 

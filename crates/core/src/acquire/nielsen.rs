@@ -32,7 +32,7 @@ use super::AcquireError;
 use crate::backend::cpu::CpuBackend;
 use crate::collection::{Collection, MaterialData};
 use crate::fit::channel_lobe;
-use crate::merl::grid::{cell_directions, flat, lookup, unflat, N_CELLS, N_PD, N_TD, N_TH};
+use crate::merl::{cell_directions, flat, lookup, unflat, N_CELLS, N_PD, N_TD, N_TH};
 use rand::SeedableRng;
 use rayon::prelude::*;
 

@@ -42,7 +42,7 @@ use super::blocks::{add_block, PairOp, BLOCK};
 use super::{Backend, Lobe, LobeParams, Progress};
 use crate::brdf::Nbrdf;
 use crate::error::BackendError;
-use crate::merl::grid::{unflat, N_TD, N_TH};
+use crate::merl::{unflat, N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
 use crate::separable::SeparableLobe;
 use rayon::prelude::*;

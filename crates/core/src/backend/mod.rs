@@ -5,18 +5,18 @@
 //! crate `brdf-basis-gpu`, which implements the same trait). Both stream the grid in chunks of cells so that memory stays bounded
 //! whatever the number of cells.
 
-pub mod blocks;
+mod blocks;
 pub mod cpu;
 pub mod weighted;
 
-pub use blocks::{PairOp, BLOCK};
+pub use blocks::*;
 
 use crate::brdf::Nbrdf;
 use crate::error::BackendError;
 use crate::merl::{CellSet, MerlTable};
 use std::sync::Arc;
 
-pub use crate::brdf::LobeParams;
+use crate::brdf::LobeParams;
 
 /// One function on the grid to tabulate or compare.
 #[derive(Clone, Debug)]
@@ -45,7 +45,7 @@ impl Lobe {
     pub fn eval_f64(&self, tables: &crate::merl::GridTables, cell: usize) -> f64 {
         match self {
             Lobe::Analytic(p) => {
-                let (i, j, k) = crate::merl::grid::unflat(cell);
+                let (i, j, k) = crate::merl::unflat(cell);
                 p.kd as f64 * std::f64::consts::FRAC_1_PI
                     + p.ks as f64 * tables.rho_s(i, j, k, p.f0 as f64, p.n as f64)
             }
@@ -54,7 +54,7 @@ impl Lobe {
                 None => (0..3).map(|c| table.value(c, cell) as f64).sum::<f64>() / 3.0,
             },
             Lobe::Neural { net, channel } => {
-                let (th, td, pd) = crate::merl::grid::cell_angles(cell);
+                let (th, td, pd) = crate::merl::cell_angles(cell);
                 let v = net.eval_f64(th, td, pd);
                 match channel {
                     Some(c) => v[*c],

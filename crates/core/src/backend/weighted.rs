@@ -148,7 +148,7 @@ impl TargetWeight {
 /// convention: the difference vector rotated about the binormal by `theta_h`):
 /// `cos theta_h cos theta_d - sin theta_h sin theta_d cos phi_d`.
 pub fn cos_theta_i(cell: usize) -> f64 {
-    use crate::merl::grid::{phi_d, theta_d, theta_h, N_PD, N_TD};
+    use crate::merl::{phi_d, theta_d, theta_h, N_PD, N_TD};
     let (i, j, k) = (cell / (N_TD * N_PD), (cell / N_PD) % N_TD, cell % N_PD);
     let (th, td, pd) = (theta_h(i), theta_d(j), phi_d(k));
     th.cos() * td.cos() - th.sin() * td.sin() * pd.cos()

@@ -102,7 +102,7 @@ struct GridFeatures {
 }
 
 fn grid_features() -> &'static GridFeatures {
-    use crate::merl::grid::{phi_d, theta_d, theta_h, N_PD, N_TD, N_TH};
+    use crate::merl::{phi_d, theta_d, theta_h, N_PD, N_TD, N_TH};
     static G: std::sync::OnceLock<GridFeatures> = std::sync::OnceLock::new();
     G.get_or_init(|| {
         let h64: Vec<[f64; 2]> = (0..N_TH)
@@ -124,7 +124,7 @@ fn grid_features() -> &'static GridFeatures {
 }
 
 /// Cells of one theta_h row of the grid.
-const ROW_CELLS: usize = crate::merl::grid::N_TD * crate::merl::grid::N_PD;
+const ROW_CELLS: usize = crate::merl::N_TD * crate::merl::N_PD;
 
 /// [`features`] of a flat grid cell (at its centre, SPEC 2).
 #[inline]
@@ -243,14 +243,14 @@ impl Nbrdf {
     }
 
     /// RGB reflectance at a direction pair (unit vectors, local frame): the angles of
-    /// `crate::merl::grid::half_diff`, then [`Self::eval_f64`]. Below the horizon
+    /// `crate::merl::half_diff`, then [`Self::eval_f64`]. Below the horizon
     /// (`wi.z <= 0` or `wo.z <= 0`) a BRDF is 0, and so is this (the network's raw output
     /// there means nothing).
     pub fn eval_dirs(&self, wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
         if wi[2] <= 0.0 || wo[2] <= 0.0 {
             return [0.0; 3];
         }
-        let (th, td, pd) = crate::merl::grid::half_diff(wi, wo);
+        let (th, td, pd) = crate::merl::half_diff(wi, wo);
         self.eval_f64(th, td, pd)
     }
 

@@ -395,7 +395,7 @@ impl ValidGcukParams {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cluster::validity::tests::Line;
+    use crate::cluster::tests::Line;
 
     /// Six tight groups of four items on a line: 0, 10, ..., 50 plus 0.0..0.3.
     fn six_groups() -> Line {

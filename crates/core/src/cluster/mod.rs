@@ -7,23 +7,21 @@
 //! driven by a [`rand_chacha::ChaCha8Rng`] seeded from the parameters, so the same seed
 //! always gives the same result.
 //!
-//! * [`validity`]: medoid of a cluster, nearest-medoid assignment, k-medoids loss and the
+//! * [`medoid_of`], [`assign`], [`loss`], [`davies_bouldin`]: medoid of a cluster, nearest-medoid assignment, k-medoids loss and the
 //!   medoid Davies-Bouldin index (Davies & Bouldin 1979, doi:10.1109/TPAMI.1979.4766909).
-//! * [`kmedoids`]: FasterPAM (Schubert & Rousseeuw 2021, doi:10.1016/j.is.2021.101804,
+//! * [`KMedoids`]: FasterPAM (Schubert & Rousseeuw 2021, doi:10.1016/j.is.2021.101804,
 //!   the default) and PAM, BUILD + SWAP (Kaufman & Rousseeuw 1990,
 //!   doi:10.1002/9780470316801.ch2), with seeded random restarts.
-//! * [`gcuk`]: Genetic Clustering for Unknown K (Bandyopadhyay & Maulik 2002,
+//! * [`Gcuk`]: Genetic Clustering for Unknown K (Bandyopadhyay & Maulik 2002,
 //!   doi:10.1016/S0031-3203(01)00108-X) as modified by the paper (no mutation, medoids).
 
-pub mod gcuk;
+mod gcuk;
 pub mod indices;
-pub mod kmedoids;
-pub mod validity;
+mod kmedoids;
+mod validity;
 
-pub use gcuk::{Gcuk, GcukParams, ValidGcukParams};
-pub use kmedoids::{
-    KMedoids, KMedoidsAlgorithm, KMedoidsInit, KMedoidsOrder, KMedoidsParams, ValidKMedoidsParams,
-};
+pub use gcuk::*;
+pub use kmedoids::*;
 
 /// Default relative margin of the loss and fitness comparisons of the clustering
 /// algorithms: two values `a < b` with `b - a <= TIE_TOLERANCE x |b|` count as a tie,
@@ -41,8 +39,7 @@ pub(crate) fn clearly_lower(a: f64, b: f64, tolerance: f64) -> bool {
         a < b
     }
 }
-pub use validity::loss;
-pub use validity::{assign, davies_bouldin, medoid_of};
+pub use validity::*;
 
 /// Errors of the clustering algorithms and validity indices.
 #[non_exhaustive]

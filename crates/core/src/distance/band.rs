@@ -9,7 +9,7 @@
 //! bounded by the call size (`2 x band_rows` lobes) plus the output.
 
 use super::{cell_set, lobes, DistanceMatrix, Metric, ValidDistanceParams};
-use crate::backend::{blocks, Backend, PairOp, Progress, BLOCK};
+use crate::backend::{Backend, PairOp, Progress, BLOCK};
 use crate::collection::{Collection, MaterialData};
 use crate::error::DistanceError;
 use std::ops::Range;
@@ -140,7 +140,7 @@ pub(crate) fn distance_rows(
             let cells = cell_set(coll, p);
             if cells.is_empty() {
                 return Err(DistanceError::Backend(crate::error::BackendError::Invalid(
-                    crate::merl::grid::no_cells_reason(p.mask(), p.stride(), "the collection"),
+                    crate::merl::no_cells_reason(p.mask(), p.stride(), "the collection"),
                 )));
             }
             let all = lobes(coll, p.lobe());
@@ -166,8 +166,13 @@ pub(crate) fn distance_rows(
                 let len = sub.len();
                 let base = done_calls * per_call;
                 let pr = |d: u64, _t: u64| progress(base + d, total);
-                let full =
-                    backend.reduce_pairs(sub, &cells, &blocks::all_blocks(len), PairOp::L1, &pr)?;
+                let full = backend.reduce_pairs(
+                    sub,
+                    &cells,
+                    &crate::backend::all_blocks(len),
+                    PairOp::L1,
+                    &pr,
+                )?;
                 for (r, i) in ra.clone().enumerate() {
                     for (q, j) in ra.clone().enumerate().skip(r + 1) {
                         sink(i, j, full[r * len + q]);

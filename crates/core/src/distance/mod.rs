@@ -2,15 +2,16 @@
 //! full lobe, over the evaluation mask or every valid cell, with uniform or solid-angle
 //! weights, and the Euclidean (F0, n) baseline.
 
-pub mod band;
-pub mod matrix;
+mod band;
+mod matrix;
 
-pub use band::{distance_matrix_banded, distance_tile, Tile, DEFAULT_BAND_ROWS};
+pub use band::*;
 
+pub use matrix::*;
 pub(crate) use matrix::{check_entries, entry_fault};
-pub use matrix::{BadEntry, DistanceMatrix, Distances, EntryFault};
 
-use crate::backend::{condensed_index, Backend, Lobe, LobeParams, Progress};
+use crate::backend::{condensed_index, Backend, Lobe, Progress};
+use crate::brdf::LobeParams;
 use crate::collection::{Collection, MaterialData};
 use crate::error::DistanceError;
 use crate::merl::{CellSet, Mask, Weighting};
@@ -223,7 +224,7 @@ pub fn cell_set(coll: &Collection, p: &ValidDistanceParams) -> CellSet {
 }
 
 /// Computes the distance matrix of `coll` on `backend`, in super-blocks of
-/// [`DEFAULT_BAND_ROWS`] materials ([`band`]).
+/// [`DEFAULT_BAND_ROWS`] materials ([`distance_matrix_banded`]).
 pub fn distance_matrix(
     backend: &dyn Backend,
     coll: &Collection,

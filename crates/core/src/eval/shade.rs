@@ -3,7 +3,7 @@
 
 use crate::collection::{Collection, MaterialData};
 use crate::eval::render::{render_sphere_indexed, Image, RenderError, RenderParams};
-use crate::merl::grid::lookup;
+use crate::merl::lookup;
 
 /// A BRDF `f(wi, wo) -> RGB` for the renderer.
 pub type BrdfFn = Box<dyn Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + Send>;
@@ -277,8 +277,8 @@ mod tests {
     use super::*;
     use crate::collection::Material;
     use crate::eval::render::render_sphere;
-    use crate::merl::grid::N_CELLS;
     use crate::merl::MerlTable;
+    use crate::merl::N_CELLS;
     use std::path::Path;
     use std::sync::Arc;
 

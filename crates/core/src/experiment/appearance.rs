@@ -9,14 +9,14 @@
 //!
 //! The stage is additive: the paper's stages ([`super::run`]) keep `l2` and do not see it.
 
+use crate::backend::weighted::{ObjectiveKind, TargetWeight};
 use crate::backend::Backend;
 use crate::collection::Collection;
 use crate::eval::appearance::{render_params, Reference};
 use crate::eval::render::Image;
 use crate::eval::shade::PixelBrdfs;
-use crate::fit::{ObjectiveKind, TargetWeight};
 use crate::select::cv::{cross_validate_on, CvMethod, CvParams, CvResult, HeldOut};
-use crate::select::objective::{Objective, ObjectiveParams};
+use crate::select::{Objective, ObjectiveParams};
 use crate::stats::mean;
 
 use super::ExperimentError;

@@ -7,8 +7,8 @@
 
 use super::ExperimentError;
 use crate::collection::Collection;
-use crate::select::empirical::Empirical;
-use crate::select::runs::{best_run, ClusteringSet};
+use crate::select::Empirical;
+use crate::select::{best_run, ClusteringSet};
 use std::path::Path;
 
 /// Where a basis comes from.
@@ -123,7 +123,7 @@ pub(crate) fn our_bases(
 
 /// The basis of an error-driven selection (`greedy-k5`, `swap-k12`, ...), with its
 /// in-sample score in the note.
-pub(crate) fn error_driven_basis(s: &crate::select::search::Selection) -> Basis {
+pub(crate) fn error_driven_basis(s: &crate::select::Selection) -> Basis {
     let source = if s.method == "swap" {
         BasisSource::Swap
     } else {

@@ -178,7 +178,7 @@ fn clustering(e: &Experiment, ctx: &ReportContext, s: &mut String) {
             .iter()
             .filter(|c| c.metric == m.label && c.method.starts_with("kmedoids"))
             .collect();
-        let pick = |f: &dyn Fn(&crate::select::runs::ClusteringSet) -> f64| {
+        let pick = |f: &dyn Fn(&crate::select::ClusteringSet) -> f64| {
             km.iter()
                 .map(|c| (f(c), c.best.k))
                 .max_by(|a, b| a.0.total_cmp(&b.0))
@@ -341,7 +341,7 @@ fn acquisition(_: &Experiment, ctx: &ReportContext, s: &mut String) {
 /// lowest mean image error without appearance metrics) against `nielsen`, metric by
 /// metric, in words.
 fn against_nielsen(cv: &crate::acquire::AcqCv) -> Vec<String> {
-    use crate::acquire::{cv::AcqResult, Criterion};
+    use crate::acquire::{AcqResult, Criterion};
     let first = cv
         .results
         .first()

@@ -1,7 +1,7 @@
 //! Statistical comparison of the clustering runs (paper VI-C), as written to
 //! `statistics.json` (SPEC-cli keys: `gcuk-euclidean-vs-brdf-it`, `friedman-<metric>`).
 
-use crate::select::runs::ClusteringSet;
+use crate::select::ClusteringSet;
 use crate::stats::{friedman, mann_whitney_u, median, nemenyi, wilcoxon_signed_rank, PMethod};
 use std::collections::BTreeMap;
 

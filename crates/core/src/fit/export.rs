@@ -3,7 +3,7 @@
 
 use super::{combination_values, TargetFit};
 use crate::collection::Collection;
-use crate::merl::grid::{cell_info, N_CELLS};
+use crate::merl::{cell_info, N_CELLS};
 
 /// The fitted combination on the full grid, channel-planar (invalid cells -1), as
 /// `write_binary` takes it.

@@ -59,7 +59,7 @@ pub(crate) fn gram_grid_rgb(
     basis: usize,
     progress: Progress<'_>,
 ) -> Result<[Vec<f64>; 3], FitError> {
-    use crate::backend::blocks::{gram_blocks, BLOCK};
+    use crate::backend::{gram_blocks, BLOCK};
     let n = lobes[0].len();
     if lobes.iter().any(|l| l.len() != n) {
         return Err(FitError::Backend(BackendError::Invalid(
@@ -84,13 +84,7 @@ pub(crate) fn gram_grid_rgb(
         let off = (c * n_pad / BLOCK) as u32;
         blocks.extend(per.iter().map(|&[bi, bj]| [bi + off, bj + off]));
     }
-    let big = backend.reduce_pairs(
-        &all,
-        cells,
-        &blocks,
-        crate::backend::blocks::PairOp::Dot,
-        progress,
-    )?;
+    let big = backend.reduce_pairs(&all, cells, &blocks, crate::backend::PairOp::Dot, progress)?;
     let w = 3 * n_pad;
     Ok(std::array::from_fn(|c| {
         let o = c * n_pad;

@@ -8,8 +8,9 @@
 //! are computed on the grid in f64.
 
 use crate::backend::cpu::CpuBackend;
-pub use crate::backend::weighted::{ObjectiveKind, TargetWeight};
-use crate::backend::{Backend, Lobe, LobeParams, Progress};
+use crate::backend::weighted::TargetWeight;
+use crate::backend::{Backend, Lobe, Progress};
+use crate::brdf::LobeParams;
 use crate::collection::{Collection, MaterialData};
 use crate::error::BackendError;
 use crate::merl::{CellSet, GridTables, Mask, Weighting};
@@ -61,7 +62,7 @@ pub enum FitError {
     },
     /// The fit mask holds no cell valid in every material involved (measured tables
     /// with disjoint valid cells, or a grid stride that skips every valid cell).
-    #[error("{}", crate::merl::grid::no_cells_reason(*.mask, *.stride, "the fit"))]
+    #[error("{}", crate::merl::no_cells_reason(*.mask, *.stride, "the fit"))]
     NoCells {
         /// The mask.
         mask: Mask,

@@ -181,7 +181,7 @@ fn stamp(path: &Path) -> Result<(u64, Option<std::time::SystemTime>), MatrixFile
             path: path.to_path_buf(),
             message: format!(
                 "is {}, not a regular .npy file",
-                crate::merl::binary::file_kind(&meta)
+                crate::merl::file_kind(&meta)
             ),
         });
     }

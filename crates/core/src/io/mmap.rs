@@ -40,7 +40,7 @@
 //! multiple of 8, a big-endian machine, a file system that refuses it), the loader falls
 //! back to reading the matrix into memory, with the same checks and the same values.
 
-use crate::distance::matrix::SharedValues;
+use crate::distance::SharedValues;
 use std::fs::File;
 use std::io;
 

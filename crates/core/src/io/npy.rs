@@ -14,11 +14,9 @@ use crate::hash::{Hasher, HashingWriter};
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
-#[doc(hidden)]
-pub use crate::npy_format::npy_f32_bytes;
 pub(crate) use crate::npy_format::parse_header_dict;
 use crate::npy_format::read_header_text;
-pub use crate::npy_format::NpyF32;
+use crate::npy_format::NpyF32;
 
 /// Size and checksum of a `.npy` file as written or read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -481,7 +479,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("tmp");
         let p = dir.path().join("a.npy");
         let data: Vec<f32> = (0..12).map(|i| i as f32 * 0.5 - 1.0).collect();
-        let bytes = npy_f32_bytes(&[3, 4], &data);
+        let bytes = crate::npy_format::npy_f32_bytes(&[3, 4], &data);
         std::fs::write(&p, &bytes).expect("write");
         let a = read_npy_f32(&p, 100).expect("read");
         assert_eq!((a.shape, a.data), (vec![3, 4], data.clone()));

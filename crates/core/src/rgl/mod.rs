@@ -1,22 +1,22 @@
 //! RGL-EPFL measured materials (`.bsdf` files of the RGL material database; Dupuy & Jakob
-//! 2018, doi:10.1145/3272127.3275059): the `tensor_file` container ([`tensor`]), the
-//! evaluation of the paper's adaptive parameterisation ([`bsdf`]), and a material that
+//! 2018, doi:10.1145/3272127.3275059): the `tensor_file` container ([`TensorFile`]), the
+//! evaluation of the paper's adaptive parameterisation ([`RglBsdf`]), and a material that
 //! holds both the exact evaluation and its tabulation on the MERL grid (SPEC 9).
 //!
 //! Units: the files' `rgb` tables give `f cos theta_o` divided by the sampling density
-//! (see [`bsdf`]); [`RglBsdf::eval`] returns reflectance `f` per steradian, the unit of
+//! (see [`RglBsdf`]); [`RglBsdf::eval`] returns reflectance `f` per steradian, the unit of
 //! a MERL table's values times its channel scales (SPEC 2), which is what
 //! [`crate::merl::MerlTable`] holds. No rescaling is applied.
 
-pub mod bsdf;
-pub mod tensor;
+mod bsdf;
+mod tensor;
 
-pub use bsdf::RglBsdf;
-pub use tensor::TensorFile;
+pub use bsdf::*;
+pub use tensor::*;
 
 use crate::error::RglError;
-use crate::merl::grid::{cell_directions, geometric_validity, N_CELLS};
 use crate::merl::MerlTable;
+use crate::merl::{cell_directions, geometric_validity, N_CELLS};
 use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
@@ -130,7 +130,7 @@ pub fn read(path: &Path) -> Result<RglBsdf, RglError> {
     if !meta.is_file() {
         return Err(RglError::NotRegular {
             path: path.to_path_buf(),
-            kind: crate::merl::binary::file_kind(&meta),
+            kind: crate::merl::file_kind(&meta),
         });
     }
     if meta.len() > MAX_BSDF_BYTES {

@@ -2,11 +2,11 @@
 //! fitted by all the others; each material that contributes (a coefficient > 0 in some
 //! channel) gets a count; the basis is the materials counted more than a threshold.
 
+use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::{
     collection_lobes, fit_cells, separable_lobes, CollectionGrams, FitError, FitParams,
-    TargetWeight,
 };
 use crate::merl::GridTables;
 use crate::nnls::lawson_hanson::{self, LeaveOneOut};

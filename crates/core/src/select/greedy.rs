@@ -124,7 +124,7 @@ pub fn greedy_with_counts(
 mod tests {
     use super::*;
     use crate::backend::cpu::CpuBackend;
-    use crate::select::objective::ObjectiveParams;
+    use crate::select::ObjectiveParams;
 
     #[test]
     fn best_first_keeps_the_ties_of_the_exhaustive_greedy() {

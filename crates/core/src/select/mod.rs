@@ -1,11 +1,11 @@
 //! Basis selection, every method in one tree (SPEC 5, 6, 8; the paper's Alg. 1 and VI-C):
 //!
-//! * [`empirical`](mod@empirical): the paper's Algorithm 1 (leave-one-out contributions).
-//! * [`runs`]: seeded multi-run k-medoids and GCUK on a distance matrix (the clustering
-//!   algorithms live in [`crate::cluster`]), with the one best-run rule ([`runs::best_run`]:
+//! * [`empirical()`]: the paper's Algorithm 1 (leave-one-out contributions).
+//! * [`ClusteringSet`]: seeded multi-run k-medoids and GCUK on a distance matrix (the clustering
+//!   algorithms live in [`crate::cluster`]), with the one best-run rule ([`best_run`]:
 //!   lowest Davies-Bouldin index, ties within [`crate::cluster::TIE_TOLERANCE`] to the
 //!   earliest run) used by `select`, `reproduce` and `cv` alike.
-//! * [`objective`]: the SPEC 8 objective. For a basis `B` and targets `T`, the relative
+//! * [`Objective`]: the SPEC 8 objective. For a basis `B` and targets `T`, the relative
 //!   residual of a target
 //!
 //!   ```text
@@ -16,11 +16,11 @@
 //!   from one Gram matrix of all N materials per channel ([`Objective`]); every candidate
 //!   basis is then a small NNLS on a sub-matrix of it, never a pass over the grid (the
 //!   incremental solver is [`crate::nnls::incremental`]).
-//! * [`greedy`](mod@greedy), [`swap`](mod@swap), [`ga`](mod@ga): searches over k-subsets on `S` ([`search`] holds their
+//! * [`greedy()`], [`swap()`], [`ga()`]: searches over k-subsets on `S` ([`SearchParams`] holds their
 //!   shared parameters and the [`Selection`] result).
 //! * [`cv`]: K-fold cross-validation over materials of every method (greedy, swap, ga,
 //!   kmedoids, gcuk, empirical, random), with paired Wilcoxon tests and a Markdown summary.
-//! * [`output`]: the typed result of `brdf-basis select` ([`SelectOutput`]), written and read
+//! * [`SelectOutput`]: the typed result of `brdf-basis select`, written and read
 //!   back by the same type, with the fingerprint of the collection or matrix it came from.
 //!
 //! ```no_run
@@ -39,27 +39,24 @@
 //! ```
 
 pub mod cv;
-pub mod empirical;
-pub mod ga;
-pub mod greedy;
-pub mod objective;
-pub mod output;
-pub mod runs;
-pub mod search;
-pub mod swap;
+mod empirical;
+mod ga;
+mod greedy;
+mod objective;
+mod output;
+mod runs;
+mod search;
+mod swap;
 
 pub(crate) use cv::make_folds;
-pub use cv::{
-    cross_validate, CvMethod, CvMethodResult, CvParams, CvResult, CvTest, HeldOut, ValidCvParams,
-};
-pub use empirical::{empirical, Empirical, EmpiricalParams};
-pub use ga::{ga, GaParams, ValidGaParams};
-pub use greedy::greedy;
-pub use objective::{Objective, ObjectiveFit, ObjectiveParams};
-pub use output::{ClusteringOutput, EmpiricalOutput, SelectOutput};
-pub use runs::{best_run, ClusteringRun, ClusteringSet};
-pub use search::{SearchParams, Selection, ValidSearchParams};
-pub use swap::swap;
+pub use empirical::*;
+pub use ga::*;
+pub use greedy::*;
+pub use objective::*;
+pub use output::*;
+pub use runs::*;
+pub use search::*;
+pub use swap::*;
 
 /// Errors of error-driven selection and cross-validation.
 #[derive(Debug, thiserror::Error)]

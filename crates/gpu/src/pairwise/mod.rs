@@ -38,8 +38,9 @@ pub use shape::{kernel_source, KernelShape, TILED_SOURCE};
 use super::neural::NeuralKernel;
 use super::tabulate::separable_texels;
 use super::{dispatch, GpuContext, PipelineCache};
-use brdf_basis_core::backend::blocks::{add_block, PairOp};
-use brdf_basis_core::backend::{Lobe, LobeParams, Progress};
+use brdf_basis_core::backend::{add_block, PairOp};
+use brdf_basis_core::backend::{Lobe, Progress};
+use brdf_basis_core::brdf::LobeParams;
 use brdf_basis_core::error::GpuError;
 use brdf_basis_core::merl::{CellSet, GridTables};
 use neural_rows::NeuralPass;
@@ -48,8 +49,8 @@ pub(crate) use reduce::DeviceSums;
 
 /// WGSL template of the kernel (see [`kernel_source`]).
 pub const SOURCE: &str = include_str!("pairwise.wgsl");
-pub use super::TEX_W;
-pub use brdf_basis_core::backend::blocks::BLOCK;
+use super::TEX_W;
+use brdf_basis_core::backend::BLOCK;
 /// Most loop iterations of one invocation (lavapipe silently ends loops after 65,535).
 pub const MAX_RUN_ITERS: u32 = 1024;
 /// Most cells per streamed chunk on a software adapter.

@@ -4,8 +4,8 @@
 use super::{
     KernelShape, BLOCK, MAX_CHUNK, MAX_CHUNK_HARDWARE, MAX_PACKED_BYTES, MAX_RUN_ITERS, TEX_W,
 };
-use crate::tabulate::NIJ;
 use crate::GpuContext;
+use crate::NIJ;
 use brdf_basis_core::backend::cpu::CANONICAL_RUN;
 use brdf_basis_core::backend::Lobe;
 use brdf_basis_core::error::GpuError;
@@ -256,8 +256,8 @@ pub(crate) fn covering_blocks(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use brdf_basis_core::backend::blocks::all_blocks;
-    use brdf_basis_core::backend::LobeParams;
+    use brdf_basis_core::backend::all_blocks;
+    use brdf_basis_core::brdf::LobeParams;
     use brdf_basis_core::merl::MerlTable;
     use std::sync::Arc;
 

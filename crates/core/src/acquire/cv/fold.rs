@@ -44,7 +44,7 @@ pub(super) struct Shared<'a> {
     pub(super) originals: Vec<Image>,
     pub(super) names: Vec<String>,
     pub(super) cands: Vec<Candidate>,
-    pub(super) cellset: crate::merl::grid::CellSet,
+    pub(super) cellset: crate::merl::CellSet,
     lights: Vec<LightRenders>,
 }
 

@@ -10,12 +10,11 @@
 
 use super::fit::{function_shape, solve_rows_toward, Toward, RIDGE_STRENGTHS};
 use super::nielsen::{nielsen_per_step, NielsenModel, ETA};
-use super::plan::{
-    cell_candidates, plan_given_dense, plan_with_progress, values_at, Candidate, Criterion, Dense,
-    PlanParams, PlannedSample,
-};
+use super::plan::{cell_candidates, plan_given_dense, plan_with_progress, values_at, Dense};
 use super::AcquireError;
+use super::{Candidate, Criterion, PlanParams, PlannedSample};
 use crate::backend::cpu::CpuBackend;
+use crate::backend::weighted::TargetWeight;
 use crate::backend::Backend;
 use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceParams};
@@ -23,12 +22,13 @@ use crate::eval::appearance::{Appearance, LogSums};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{render_sphere, Image, RenderParams};
 use crate::eval::shade::{combination_brdf, PixelBrdfs};
-use crate::fit::{fit_cells, FitParams, TargetWeight};
+use crate::fit::{fit_cells, FitParams};
 use crate::nnls::{lawson_hanson, GramProblem};
 use crate::select::cv::evaluate::{means_of, GridEval, LightRenders, MaeJob};
 use crate::select::cv::folds::fold_bases;
 use crate::select::cv::AppearanceMeans;
-use crate::select::{make_folds, CvMethod, CvParams, Objective, ObjectiveParams};
+use crate::select::cv::{CvMethod, CvParams};
+use crate::select::{make_folds, Objective, ObjectiveParams};
 use crate::stats::{mean, median};
 use rand::SeedableRng;
 use rayon::prelude::*;

@@ -14,7 +14,7 @@ pub(super) struct Showcase<'a> {
     pub(super) bases: &'a [Vec<usize>],
     pub(super) chosen: &'a [Vec<Candidate>],
     pub(super) prior: &'a [Option<super::prior::RidgePrior>],
-    pub(super) cellset: &'a crate::merl::grid::CellSet,
+    pub(super) cellset: &'a crate::merl::CellSet,
     pub(super) cands: &'a [Candidate],
     pub(super) rp: &'a RenderParams,
     pub(super) display: &'a DisplayParams,

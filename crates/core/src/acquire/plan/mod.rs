@@ -37,14 +37,14 @@
 
 use super::eval::material_at;
 use super::linalg::{condition_number, sym_eigen};
-pub use super::plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
+use super::plan_types::{Candidate, Criterion, Plan, PlanParams, PlannedSample};
 use super::samples::Sample;
 use super::AcquireError;
 use crate::backend::cpu::CpuBackend;
 use crate::backend::Backend;
 use crate::collection::{Collection, MaterialData};
 use crate::fit::{channel_gram, channel_lobe, fit_cells, ChannelGram, FitParams};
-use crate::merl::grid::cell_directions;
+use crate::merl::cell_directions;
 use crate::nnls::lawson_hanson;
 use rand::SeedableRng;
 use rayon::prelude::*;

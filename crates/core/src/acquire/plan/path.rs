@@ -19,7 +19,7 @@ pub(super) fn plan_path(
     steps: &Steps<'_>,
 ) -> Result<Plan, AcquireError> {
     let m = basis.len() + 1;
-    let weighted = p.fit.objective != crate::fit::TargetWeight::L2;
+    let weighted = p.fit.objective != crate::backend::weighted::TargetWeight::L2;
     let mut mats = basis.to_vec();
     mats.extend_from_slice(targets);
     let per_step = if p.candidates_per_step == 0 {
@@ -248,7 +248,7 @@ pub(super) fn plan_path(
 fn sample_weights(
     vals: &[Vec<Vec<f64>>; 3],
     sub: &[Candidate],
-    w: crate::fit::TargetWeight,
+    w: crate::backend::weighted::TargetWeight,
     tick: &(dyn Fn() + Sync),
 ) -> [Vec<f64>; 3] {
     [0, 1, 2].map(|c| {

@@ -33,10 +33,10 @@ impl Dense {
         all.extend_from_slice(targets);
         let cells = fit_cells(coll, &all, fit)?;
         let shared;
-        let (per_channel, mode) = if fit.objective == crate::fit::TargetWeight::L2 {
+        let (per_channel, mode) = if fit.objective == crate::backend::weighted::TargetWeight::L2 {
             ([&cells; 3], fit.gram)
         } else {
-            shared = crate::select::objective::shared_weights(
+            shared = crate::select::shared_weights(
                 backend,
                 &coll.subset(&all),
                 &cells,

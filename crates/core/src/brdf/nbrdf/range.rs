@@ -4,7 +4,7 @@
 //! read rather than clamped in one back-end and infinite in the other.
 
 use super::{Nbrdf, B1, B2, B3, FC1, FC1_ROWS, FC2, FC3, HIDDEN};
-use crate::merl::grid::{cell_angles, geometric_validity};
+use crate::merl::{cell_angles, geometric_validity};
 
 /// The largest output the f32 evaluations represent: `expm1f` clamps its argument at 88
 /// (`e^88 - 1` = 1.65e38; f32 ends at 3.40e38).

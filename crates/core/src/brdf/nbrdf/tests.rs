@@ -1,5 +1,5 @@
 use super::*;
-use crate::merl::grid::N_CELLS;
+use crate::merl::N_CELLS;
 
 /// A network with seeded pseudo-random weights of about the trained networks' size.
 fn net(seed: u64) -> Nbrdf {
@@ -44,7 +44,7 @@ fn f32_twin_matches_the_f64_network_within_spec_9() {
         };
         n.eval_cells(&cells, false, [r, g, b]);
         for (k, &c) in cells.iter().enumerate() {
-            let (th, td, pd) = crate::merl::grid::cell_angles(c as usize);
+            let (th, td, pd) = crate::merl::cell_angles(c as usize);
             let want = n.eval_raw_f64(th, td, pd);
             for ch in 0..3 {
                 let (got, want) = (out[ch][k] as f64, want[ch]);
@@ -336,8 +336,8 @@ fn bad_weights_are_refused_with_the_part_named() {
 fn directions_and_angles_agree_and_below_the_horizon_is_zero() {
     let n = net(3);
     for cell in [0usize, 12345, 700_000, 1_000_001] {
-        let (th, td, pd) = crate::merl::grid::cell_angles(cell);
-        let (wi, wo) = crate::merl::grid::cell_directions(cell);
+        let (th, td, pd) = crate::merl::cell_angles(cell);
+        let (wi, wo) = crate::merl::cell_directions(cell);
         if wi[2] <= 0.0 || wo[2] <= 0.0 {
             assert_eq!(n.eval_dirs(wi, wo), [0.0; 3]);
             continue;

@@ -1,5 +1,5 @@
 use super::*;
-use crate::cluster::validity::tests::{Line, Matrix};
+use crate::cluster::tests::{Line, Matrix};
 use rand::Rng;
 
 fn random_points(n: usize, seed: u64) -> Matrix {

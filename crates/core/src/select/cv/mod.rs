@@ -25,11 +25,11 @@
 
 pub mod evaluate;
 pub mod folds;
-pub mod params;
+mod params;
 pub mod report;
 
 pub(crate) use folds::make_folds;
-pub use params::{CvMethod, CvParams, ValidCvParams};
+pub use params::*;
 
 use super::objective::Objective;
 use super::SelectionError;

@@ -18,8 +18,8 @@
 //! cross terms `<beta_a, M_1>` reduce the same way to 90-vectors.
 
 use crate::collection::Collection;
-use crate::merl::grid::{N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
+use crate::merl::{N_TD, N_TH};
 use crate::separable::CellMoments;
 use rayon::prelude::*;
 
@@ -210,7 +210,7 @@ fn mirror_upper(g: &mut [f64], m: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backend::LobeParams;
+    use crate::brdf::LobeParams;
     use crate::separable::SeparableLobe;
 
     /// The Gram of one channel from the per-pair moment tables ([`CellMoments::gram`]:

@@ -17,9 +17,10 @@
 //! candidate is evaluated by bordering its Cholesky factor by one column
 //! ([`crate::nnls::incremental`]): `O(p^2)` per target and channel, with `p <= k + 1`.
 
+use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
-use crate::fit::{fit_cells, CollectionGrams, FitParams, GramMode, TargetWeight};
+use crate::fit::{fit_cells, CollectionGrams, FitParams, GramMode};
 use crate::merl::CellSet;
 use crate::merl::{Mask, Weighting};
 use crate::nnls::incremental::{self, ChanState, Cosine};
@@ -29,9 +30,9 @@ use rayon::prelude::*;
 use super::SelectionError;
 
 mod gram;
-pub mod screen;
+mod screen;
 use gram::analytic_grams;
-pub use screen::Chain;
+pub use screen::*;
 
 /// Parameters of the objective: the fit cells and how the Gram matrices are computed.
 /// Defaults: evaluation mask, uniform weights, full grid (stride 1), automatic Gram
@@ -257,7 +258,7 @@ impl Objective {
         let cells = fit_cells(coll, &all, &p.fit_params())?;
         if cells.is_empty() {
             return Err(SelectionError::Fit(crate::fit::FitError::Backend(
-                crate::error::BackendError::Invalid(crate::merl::grid::no_cells_reason(
+                crate::error::BackendError::Invalid(crate::merl::no_cells_reason(
                     p.mask,
                     p.stride,
                     "the collection",

@@ -98,7 +98,7 @@ pub const TAU: f64 = 5e-11;
 /// Largest relative rounding error of `d2` for which the tight bound is used.
 pub const EPS_MAX: f64 = 1e-2;
 
-/// The argmin chain of [`crate::select::search`]: the earliest lowest score, a later
+/// The argmin chain of the searches ([`crate::select::swap`]): the earliest lowest score, a later
 /// one winning only by more than `tol` relative.
 #[derive(Clone, Copy, Debug)]
 pub struct Chain {
@@ -455,8 +455,8 @@ mod tests {
     use super::*;
     use crate::backend::cpu::CpuBackend;
     use crate::collection::Collection;
-    use crate::select::objective::argmin;
-    use crate::select::objective::ObjectiveParams;
+    use crate::select::argmin;
+    use crate::select::ObjectiveParams;
 
     /// Asserts that every candidate's bound, loose and tight, is at most its exact score for
     /// `basis`, and returns how many tight bounds exceed the best exact score (rule their
