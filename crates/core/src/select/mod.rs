@@ -26,6 +26,7 @@
 //! ```no_run
 //! use brdf_basis_core::backend::cpu::CpuBackend;
 //! use brdf_basis_core::collection::Collection;
+//! use brdf_basis_core::select::cv::{cross_validate, CvParams};
 //! use brdf_basis_core::select::*;
 //! let coll = Collection::embedded_default();
 //! let cpu = CpuBackend::new();
