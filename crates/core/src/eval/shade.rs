@@ -73,19 +73,21 @@ pub fn combination_brdf(coll: &Collection, basis: &[usize], coefficients: &[[f64
 /// [`material_brdf`]'s at the same pairs and [`Self::combination`] sums them as
 /// [`combination_brdf`] does: the renders are the same to the bit.
 pub struct PixelBrdfs {
-    /// Direction pair (bits of `wi`, `wo`) to its row of `values`.
+    /// Direction pair (bits of `wi`, `wo`) to its row (the pairs in their bits' order).
     index: std::collections::HashMap<[u64; 6], usize>,
-    /// Per pair (in the pairs' bit order), every material's RGB.
-    values: Vec<Vec<[f64; 3]>>,
+    /// Per material, its RGB at every row: a combination's render streams the basis
+    /// materials' columns (a multiply-add per row, in the basis order of
+    /// [`combination_brdf`]'s sum).
+    columns: Vec<Vec<[f64; 3]>>,
     /// Every material's BRDF (for pairs not in the table).
     brdfs: Vec<BrdfFn>,
     /// The render the table was made for.
     rp: RenderParams,
-    /// The render's lit pixels that have a row, row-major: index, row of `values` and
+    /// The render's lit pixels that have a row, row-major: index, row and
     /// `cos theta_i` (the other pixels of any render from the table are black: a lit pixel
     /// without a row has a direction below its horizon).
     lit: Vec<(u32, u32, f64)>,
-    /// Per row of `values`, the MERL cell of its direction pair ([`lookup`]).
+    /// Per row, the MERL cell of its direction pair ([`lookup`]).
     cells: Vec<u32>,
 }
 
@@ -129,9 +131,9 @@ impl PixelBrdfs {
             .par_iter()
             .map(|&(wi, wo)| lookup(wi, wo) as u32)
             .collect();
-        let values = unique
-            .par_iter()
-            .map(|&(wi, wo)| brdfs.iter().map(|f| f(wi, wo)).collect())
+        let columns = brdfs
+            .iter()
+            .map(|f| unique.par_iter().map(|&(wi, wo)| f(wi, wo)).collect())
             .collect();
         let lit = crate::eval::render::lit_pixels(rp)?
             .into_iter()
@@ -140,7 +142,7 @@ impl PixelBrdfs {
             .collect();
         Ok(Self {
             index,
-            values,
+            columns,
             brdfs,
             rp: *rp,
             lit,
@@ -151,7 +153,7 @@ impl PixelBrdfs {
     /// The render (with the parameters the table was made for) of material `m`: the image
     /// `render_sphere(rp, &self.material(m))` gives, to the bit.
     pub fn render_material(&self, m: usize) -> Result<Image, RenderError> {
-        Ok(self.render_rows(|r| self.values[r][m]))
+        Ok(self.render_rows(|r| self.columns[m][r]))
     }
 
     /// The render (with the parameters the table was made for) of a fitted combination:
@@ -178,17 +180,17 @@ impl PixelBrdfs {
             });
         }
         let a0 = [0, 1, 2].map(|c| coefficients[0][c] * std::f64::consts::FRAC_1_PI);
-        Ok(self.render_rows(|r| {
-            let r = &self.values[r];
-            let mut v = a0;
-            for (&b, a) in basis.iter().zip(&coefficients[1..]) {
-                let x = r[b];
+        // Every row's sum, one basis material at a time: per row the same terms in the
+        // same order as `combination_brdf`'s (the same bits).
+        let mut sums = vec![a0; self.cells.len()];
+        for (&b, a) in basis.iter().zip(&coefficients[1..]) {
+            for (v, x) in sums.iter_mut().zip(&self.columns[b]) {
                 for c in 0..3 {
                     v[c] += a[c] * x[c];
                 }
             }
-            v
-        }))
+        }
+        Ok(self.render_rows(|r| sums[r]))
     }
 
     /// The render (with the parameters the table was made for) of a BRDF that is constant
@@ -200,15 +202,15 @@ impl PixelBrdfs {
         rows.sort_unstable();
         rows.dedup();
         // Each row's value once (rows shared by pixels are rare but possible).
-        let mut at = vec![[0.0; 3]; self.values.len()];
+        let mut at = vec![[0.0; 3]; self.cells.len()];
         for r in rows {
             at[r as usize] = f(self.cells[r as usize] as usize);
         }
         self.render_rows(|r| at[r])
     }
 
-    /// The render whose lit pixels with a row get `value(row) * cos theta_i` (`row` of
-    /// `values`), rounded to f32 (the others black), as `render_sphere` writes them.
+    /// The render whose lit pixels with a row get `value(row) * cos theta_i`, rounded to
+    /// f32 (the others black), as `render_sphere` writes them.
     fn render_rows(&self, value: impl Fn(usize) -> [f64; 3]) -> Image {
         let size = self.rp.size;
         let mut image = Image::black(size, size);
@@ -222,11 +224,12 @@ impl PixelBrdfs {
         image
     }
 
-    /// `a0 / pi + sum_k a_k f_k(wi, wo)`, the values `f_k` from `row` when given.
+    /// `a0 / pi + sum_k a_k f_k(wi, wo)`, the values `f_k` from the table's `row` when
+    /// given.
     #[inline]
     fn combine(
         &self,
-        row: Option<&Vec<[f64; 3]>>,
+        row: Option<usize>,
         basis: &[usize],
         coefficients: &[[f64; 3]],
         wi: [f64; 3],
@@ -238,7 +241,7 @@ impl PixelBrdfs {
         let mut v = [0, 1, 2].map(|c| coefficients[0][c] * std::f64::consts::FRAC_1_PI);
         for (&b, a) in basis.iter().zip(&coefficients[1..]) {
             let x = match row {
-                Some(r) => r[b],
+                Some(r) => self.columns[b][r],
                 None => self.brdfs[b](wi, wo),
             };
             for c in 0..3 {
@@ -251,7 +254,7 @@ impl PixelBrdfs {
     /// Material `m`'s [`material_brdf`], from the table.
     pub fn material(&self, m: usize) -> impl Fn([f64; 3], [f64; 3]) -> [f64; 3] + Sync + '_ {
         move |wi, wo| match self.index.get(&pair_key(wi, wo)) {
-            Some(&r) => self.values[r][m],
+            Some(&r) => self.columns[m][r],
             None => self.brdfs[m](wi, wo),
         }
     }
@@ -266,7 +269,7 @@ impl PixelBrdfs {
             if wi[2] <= 0.0 || wo[2] <= 0.0 {
                 return [0.0; 3];
             }
-            let row = self.index.get(&pair_key(wi, wo)).map(|&r| &self.values[r]);
+            let row = self.index.get(&pair_key(wi, wo)).copied();
             self.combine(row, basis, coefficients, wi, wo)
         }
     }

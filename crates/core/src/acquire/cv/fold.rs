@@ -139,7 +139,7 @@ impl<'a> Shared<'a> {
         let originals: Vec<_> = (0..n)
             .map(|t| {
                 tick.pulse();
-                render_sphere(&rp, &pixels.material(t))
+                pixels.render_material(t)
             })
             .collect::<Result<_, _>>()
             .map_err(|e| AcquireError::Render(e.to_string()))?;
@@ -447,11 +447,10 @@ impl<'a> Shared<'a> {
         tick: &Ticker<'_>,
     ) -> Result<Scored, AcquireError> {
         let (p, basis, held, mm) = (self.p, at.basis, at.held, at.basis.len() + 1);
-        let (grid, lights, pixels, rp, display, originals) = (
+        let (grid, lights, pixels, display, originals) = (
             &self.grid,
             &self.lights,
             &self.pixels,
-            &self.rp,
             &self.display,
             &self.originals,
         );
@@ -482,17 +481,38 @@ impl<'a> Shared<'a> {
             (grid.maes(&jobs, &|| tick.pulse()), Vec::new())
         };
         let looks: Vec<Option<Appearance>> = if p.appearance {
-            coefs
+            // Per held-out material, its dense fit and reconstructions against the
+            // references of its renders, prepared once per light.
+            let mut of: Vec<Vec<usize>> = vec![Vec::new(); held.len()];
+            for i in 0..coefs.len() {
+                of[if i < held.len() {
+                    i
+                } else {
+                    recs[i - held.len()].3
+                }]
+                .push(i);
+            }
+            let scored = of
                 .par_iter()
-                .enumerate()
-                .map(|(i, coef)| {
-                    tick.pulse();
-                    let mut a = LightRenders::scores(lights, target(i), basis, coef)
-                        .map_err(|e| AcquireError::Render(e.to_string()))?;
-                    a.log_rmse = logs[i];
-                    Ok(Some(a))
+                .map(|is| {
+                    let each = LightRenders::scores_of_each(
+                        lights,
+                        target(is[0]),
+                        is.len(),
+                        |l, k| l.pixels().render_combination(basis, &coefs[is[k]]),
+                        &|| tick.pulse(),
+                    );
+                    each.map_err(|e| AcquireError::Render(e.to_string()))
                 })
-                .collect::<Result<_, AcquireError>>()?
+                .collect::<Result<Vec<_>, AcquireError>>()?;
+            let mut looks = vec![None; coefs.len()];
+            for (is, each) in of.iter().zip(scored) {
+                for (&i, mut a) in is.iter().zip(each) {
+                    a.log_rmse = logs[i];
+                    looks[i] = Some(a);
+                }
+            }
+            looks
         } else {
             vec![None; coefs.len()]
         };
@@ -501,7 +521,7 @@ impl<'a> Shared<'a> {
             .enumerate()
             .map(|(i, coef)| {
                 tick.pulse();
-                render_error(pixels, rp, display, &originals[target(i)], basis, coef).map(|r| r.1)
+                image_error_of(pixels, display, &originals[target(i)], basis, coef)
             })
             .collect::<Result<_, _>>()?;
         let dense_rho: Vec<f64> = (0..held.len()).map(|t| dense.rho(t, &dense_x[t])).collect();
@@ -526,8 +546,8 @@ impl<'a> Shared<'a> {
         let (p, coll, n, nmax) = (self.p, self.coll, self.n, self.nmax);
         let (f, held, names, cands, cellset) =
             (at.f, at.held, &self.names, &self.cands, &self.cellset);
-        let (rp, display, lights, originals) =
-            (&self.rp, &self.display, &self.lights, &self.originals);
+        let (pixels, display, lights, originals) =
+            (&self.pixels, &self.display, &self.lights, &self.originals);
         let (maes, ies, looks, dense_rho) = (&sc.maes, &sc.ies, &sc.looks, &sc.dense_rho);
         let seed_f = p.seed.wrapping_add(1000 * f as u64);
         for (pi, &crit) in p.plans.iter().enumerate() {
@@ -548,7 +568,7 @@ impl<'a> Shared<'a> {
                 model: &model,
                 chosen: &chosen,
                 weights: &cellset.weights,
-                rp,
+                pixels,
                 display,
                 lights,
             };
@@ -618,7 +638,8 @@ struct NielsenFold<'a> {
     model: &'a NielsenModel,
     chosen: &'a [usize],
     weights: &'a [f64],
-    rp: &'a RenderParams,
+    /// The pixel table of the renders of SPEC 7 (`rp`).
+    pixels: &'a PixelBrdfs,
     display: &'a DisplayParams,
     lights: &'a [LightRenders],
 }
@@ -645,65 +666,79 @@ fn nielsen_rows(
         })
         .sum();
     let nmax = nf.chosen.len();
-    let mut out = vec![Vec::with_capacity(p.noises.len()); p.ns.len()];
+    // Every (n, noise) reconstruction in loop order: its coefficients, rho, MAE, image
+    // error and log-RMSE sums.
+    let mut recs = Vec::with_capacity(p.noises.len() * p.ns.len());
     for (si, &sigma) in p.noises.iter().enumerate() {
         let y = measure(p.seed, ti, si, sigma, nmax, |c, s| tv[c][nf.chosen[s]]);
-        for (ni, &ns) in p.ns.iter().enumerate() {
+        for &ns in &p.ns {
             let ns = ns.min(nmax);
             let coef: [Vec<f64>; 3] =
                 [0, 1, 2].map(|c| nf.model.coefficients(&nf.chosen[..ns], &y[c][..ns], ETA));
             let (mut sq, mut ab) = (0.0, 0.0);
+            let mut logs = LogSums::default();
             for c in 0..3 {
                 for (j, (&t, &w)) in tv[c].iter().zip(nf.weights).enumerate() {
-                    let r = nf.model.value(j, &coef[c]) - t;
+                    let v = nf.model.value(j, &coef[c]);
+                    let r = v - t;
                     sq += w * r * r;
                     ab += w * r.abs();
-                }
-            }
-            let img = render_sphere(nf.rp, &nf.model.brdf(&coef))
-                .map_err(|e| AcquireError::Render(e.to_string()))?;
-            let ie = normalized_image_error(original, &img, nf.display)
-                .map_err(|e| AcquireError::Render(e.to_string()))?;
-            let looks = if nf.lights.is_empty() {
-                None
-            } else {
-                // The reconstruction is constant per MERL cell: each light's render from
-                // its table's cells (render_sphere of `nf.model.brdf(&coef)`, to the bit).
-                let at = nf.model.at_cell(&coef);
-                let mut a =
-                    LightRenders::scores_of(nf.lights, ti, |l| Ok(l.pixels().render_cells(&at)))
-                        .map_err(|e| AcquireError::Render(e.to_string()))?;
-                let mut logs = LogSums::default();
-                for c in 0..3 {
-                    for (j, (&t, &w)) in tv[c].iter().zip(nf.weights).enumerate() {
+                    if !nf.lights.is_empty() {
                         let cos = crate::backend::weighted::cos_theta_i(nf.model.cells[j] as usize);
-                        logs.add(nf.model.value(j, &coef[c]), t, w, cos);
+                        logs.add(v, t, w, cos);
                     }
                 }
-                a.log_rmse = logs.value();
-                Some(a)
-            };
-            out[ni].push((if e > 0.0 { sq / e } else { 0.0 }, ab / 3.0, ie, looks));
+            }
+            // The reconstruction is constant per MERL cell: its renders from the pixel
+            // tables' cells (`render_sphere` of `nf.model.brdf(&coef)`, to the bit).
+            let img = nf.pixels.render_cells(nf.model.at_cell(&coef));
+            let ie = normalized_image_error(original, &img, nf.display)
+                .map_err(|e| AcquireError::Render(e.to_string()))?;
+            let rho = if e > 0.0 { sq / e } else { 0.0 };
+            recs.push((coef, rho, ab / 3.0, ie, logs));
         }
+    }
+    // Each light's reference prepared once for every reconstruction.
+    let looks: Vec<Option<Appearance>> = if nf.lights.is_empty() {
+        vec![None; recs.len()]
+    } else {
+        let each = LightRenders::scores_of_each(
+            nf.lights,
+            ti,
+            recs.len(),
+            |l, k| Ok(l.pixels().render_cells(nf.model.at_cell(&recs[k].0))),
+            &|| {},
+        )
+        .map_err(|e| AcquireError::Render(e.to_string()))?;
+        each.into_iter()
+            .zip(&recs)
+            .map(|(mut a, r)| {
+                a.log_rmse = r.4.value();
+                Some(a)
+            })
+            .collect()
+    };
+    let mut out = vec![Vec::with_capacity(p.noises.len()); p.ns.len()];
+    for (k, ((_, rho, mae, ie, _), look)) in recs.into_iter().zip(looks).enumerate() {
+        out[k % p.ns.len()].push((rho, mae, ie, look));
     }
     Ok(out)
 }
 
-/// The render of `combination_brdf(coll, basis, coef)` from `pixels` and its image error
-/// against `original`.
-pub(super) fn render_error(
+/// The image error against `original` of the render of `combination_brdf(coll, basis,
+/// coef)` with the parameters `pixels` was made for (from the table: the same bits as
+/// `render_sphere` of the combination, without a lookup per pixel).
+fn image_error_of(
     pixels: &PixelBrdfs,
-    rp: &RenderParams,
     display: &DisplayParams,
     original: &Image,
     basis: &[usize],
     coef: &[[f64; 3]],
-) -> Result<(Image, f64), AcquireError> {
-    let img = render_sphere(rp, &pixels.combination(basis, coef))
+) -> Result<f64, AcquireError> {
+    let img = pixels
+        .render_combination(basis, coef)
         .map_err(|e| AcquireError::Render(e.to_string()))?;
-    let ie = normalized_image_error(original, &img, display)
-        .map_err(|e| AcquireError::Render(e.to_string()))?;
-    Ok((img, ie))
+    normalized_image_error(original, &img, display).map_err(|e| AcquireError::Render(e.to_string()))
 }
 
 /// A standard normal draw (Box-Muller on two uniform draws in (0, 1]).

@@ -9,7 +9,9 @@ use crate::backend::cpu::CpuBackend;
 use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Lobe};
 use crate::collection::{Collection, MaterialData};
-use crate::eval::appearance::{light_scores, render_params, Appearance, LogSums, LIGHTS};
+use crate::eval::appearance::{
+    light_scores, render_params, Appearance, LogSums, Reference, LIGHTS,
+};
 use crate::eval::image_error::{normalized_image_error, DisplayParams};
 use crate::eval::render::{Image, RenderParams};
 use crate::eval::shade::PixelBrdfs;
@@ -82,6 +84,28 @@ impl LightRenders {
             .map(|(l, light)| light_scores(&l.originals[t], &render(l)?, light))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Appearance::new(0.0, scores))
+    }
+
+    /// [`Self::scores_of`] of `count` reconstructions of material `t` at once, `render(l,
+    /// k)` the render of the k-th under light `l`: each light's reference prepared once
+    /// for all of them (the same values: [`light_scores`] prepares it per call). `tick`
+    /// is called before each render.
+    pub(crate) fn scores_of_each(
+        lights: &[Self],
+        t: usize,
+        count: usize,
+        render: impl Fn(&Self, usize) -> Result<Image, crate::eval::render::RenderError>,
+        tick: &dyn Fn(),
+    ) -> Result<Vec<Appearance>, crate::eval::render::RenderError> {
+        let mut per = vec![Vec::with_capacity(lights.len()); count];
+        for (l, light) in lights.iter().zip(LIGHTS) {
+            let reference = Reference::new(&l.originals[t])?;
+            for (k, scores) in per.iter_mut().enumerate() {
+                tick();
+                scores.push(reference.scores(&render(l, k)?, light)?);
+            }
+        }
+        Ok(per.into_iter().map(|s| Appearance::new(0.0, s)).collect())
     }
 
     /// The light's pixel table.

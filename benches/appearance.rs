@@ -1,0 +1,61 @@
+//! The appearance metrics' unit costs (SPEC 11: 256 x 256 renders under four lights), to
+//! size `reproduce` and `cv --acquisition --appearance`: per image, the render of a
+//! 12-material combination from the pixel table, the prepared reference, and the scores
+//! of one render against it (image error, CIEDE2000, and NVIDIA's FLIP through `nv-flip`),
+//! FLIP alone beside them. One thread; the embedded default collection.
+//!
+//! `cargo bench --bench appearance`
+
+use brdf_basis::collection::Collection;
+use brdf_basis::eval::appearance::{mean_flip, Reference, LIGHTS, RENDER_SIZE};
+use brdf_basis::eval::image_error::DisplayParams;
+use brdf_basis::eval::render::RenderParams;
+use brdf_basis::eval::shade::PixelBrdfs;
+use std::time::Instant;
+
+/// Mean seconds of `f` over `reps` calls (after one warm-up call).
+fn per_call<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
+    std::hint::black_box(f());
+    let t = Instant::now();
+    for _ in 0..reps {
+        std::hint::black_box(f());
+    }
+    t.elapsed().as_secs_f64() / reps as f64
+}
+
+fn main() {
+    let coll = Collection::embedded_default();
+    let light = LIGHTS[0];
+    let rp = RenderParams::default()
+        .with_size(RENDER_SIZE)
+        .with_light(light.0, light.1);
+    let t = Instant::now();
+    let pixels = PixelBrdfs::new(&coll, &rp).expect("pixel table");
+    println!(
+        "pixel table of {} materials at {RENDER_SIZE}^2: {:.3} s",
+        coll.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let k = 12.min(coll.len() - 1);
+    let basis: Vec<usize> = (1..=k).collect();
+    let coef: Vec<[f64; 3]> = (0..=k)
+        .map(|j| [0.1 + 0.01 * j as f64, 0.05, 0.2 / (1.0 + j as f64)])
+        .collect();
+    let target = pixels.render_material(0).expect("render");
+    let test = pixels.render_combination(&basis, &coef).expect("render");
+    let reps = 20;
+    let render = per_call(reps, || pixels.render_combination(&basis, &coef));
+    let prepare = per_call(reps, || Reference::new(&target).is_ok());
+    let reference = Reference::new(&target).expect("reference");
+    let scores = per_call(reps, || reference.scores(&test, light));
+    let flip = per_call(reps, || {
+        mean_flip(&target, &test, &DisplayParams::default())
+    });
+    println!("per image, one thread (ms): render of k = {k} {:.2}, reference {:.2}, scores {:.2} (`mean_flip` alone {:.2})",
+        1e3 * render, 1e3 * prepare, 1e3 * scores, 1e3 * flip);
+    println!(
+        "scores of 1,000 reconstructions under the four lights: {:.1} CPU-s ({:.1} in FLIP)",
+        4e3 * (render + scores),
+        4e3 * flip
+    );
+}
