@@ -203,12 +203,7 @@ pub fn plan_with_progress(
         None
     } else {
         // The back-end passes report no step: the position stays at 0 of the steps.
-        let paths = if p.criterion == Criterion::Error {
-            p.restarts.max(1)
-        } else {
-            1
-        };
-        let total = (p.n * paths) as u64;
+        let total = (p.n * paths(p, true)) as u64;
         let pulse = |_: u64, _: u64| progress(0, total);
         Some(Dense::new(backend, coll, basis, targets, &p.fit, &pulse)?)
     };
@@ -228,7 +223,7 @@ pub(crate) fn plan_given_dense(
     dense: Option<&Dense>,
     progress: crate::backend::Progress<'_>,
 ) -> Result<Plan, AcquireError> {
-    if p.restarts <= 1 || p.criterion != Criterion::Error || dense.is_none() {
+    if paths(p, dense.is_some()) == 1 {
         let steps = Steps::new(progress, 0, p.n as u64);
         return plan_path(coll, basis, targets, cands, p, dense, &steps);
     }
@@ -255,6 +250,17 @@ pub(crate) fn plan_given_dense(
     let mut best = best.expect("at least two restarts");
     best.restarts = p.restarts;
     Ok(best)
+}
+
+/// How many greedy paths a plan runs (and its progress counts `n` steps of each): `error`
+/// with training materials (`trained`) runs `p.restarts` seeded paths, every other plan
+/// one.
+fn paths(p: &PlanParams, trained: bool) -> usize {
+    if p.criterion == Criterion::Error && trained {
+        p.restarts.max(1)
+    } else {
+        1
+    }
 }
 
 /// A path's place in the plan's progress: its steps start at `base` of `total`.
