@@ -4,6 +4,7 @@ use crate::common;
 use brdf_basis::acquire::{
     cell_candidates, fit_samples, material_at, plan, Criterion, PlanParams, Sample,
 };
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::{fit, FitParams};
 use brdf_basis::merl::cell_directions;
@@ -72,13 +73,7 @@ fn samples_of_an_exact_combination_give_its_coefficients() {
             }
         })
         .collect();
-    let f = fit_samples(
-        &c,
-        &basis,
-        &samples,
-        brdf_basis::backend::weighted::TargetWeight::L2,
-    )
-    .unwrap();
+    let f = fit_samples(&c, &basis, &samples, TargetWeight::L2).unwrap();
     for (k, row) in a.iter().enumerate() {
         for ch in 0..3 {
             let got = f.coefficients[k][ch];
@@ -134,13 +129,7 @@ fn samples_at_all_cell_centres_give_the_grid_fit() {
             }
         })
         .collect();
-    let f = fit_samples(
-        &c,
-        &basis,
-        &samples,
-        brdf_basis::backend::weighted::TargetWeight::L2,
-    )
-    .unwrap();
+    let f = fit_samples(&c, &basis, &samples, TargetWeight::L2).unwrap();
     for k in 0..4 {
         for ch in 0..3 {
             let (a, b) = (f.coefficients[k][ch], grid[0].coefficients[k][ch]);

@@ -21,7 +21,8 @@ use std::path::{Path, PathBuf};
 /// A module path from the crate root: `["io", "matrix"]` for `src/io/matrix.rs`.
 type ModPath = Vec<String>;
 
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+/// Every `.rs` file under `dir`, in path order.
+pub(crate) fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let mut entries: Vec<_> = std::fs::read_dir(dir)
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
         .map(|e| e.expect("entry").path())

@@ -5,22 +5,8 @@
 //! line. The facade crate `brdf-basis` re-exports the core's modules under the same
 //! paths on purpose (docs/architecture.md) and is not scanned.
 
-use std::path::{Path, PathBuf};
-
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let mut entries: Vec<_> = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .map(|e| e.expect("dir entry").path())
-        .collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
-            out.push(p);
-        }
-    }
-}
+use crate::hygiene::rust_files;
+use std::path::Path;
 
 /// `(line, path)` of every `pub use` in `code` that gives an item a second public path.
 fn second_paths(code: &str) -> Vec<(usize, String)> {
