@@ -563,6 +563,15 @@ impl<'a> Shared<'a> {
                 .iter()
                 .map(|&j| PlannedSample::from(&cands[j]))
                 .collect();
+            let cos_i: Vec<f64> = if lights.is_empty() {
+                Vec::new()
+            } else {
+                model
+                    .cells
+                    .iter()
+                    .map(|&c| crate::backend::weighted::cos_theta_i(c as usize))
+                    .collect()
+            };
             let nf = NielsenFold {
                 coll,
                 model: &model,
@@ -571,6 +580,7 @@ impl<'a> Shared<'a> {
                 pixels,
                 display,
                 lights,
+                cos_i: &cos_i,
             };
             let per: Vec<Vec<Vec<Scores>>> = held
                 .par_iter()
@@ -642,6 +652,8 @@ struct NielsenFold<'a> {
     pixels: &'a PixelBrdfs,
     display: &'a DisplayParams,
     lights: &'a [LightRenders],
+    /// `cos theta_i` of every model cell (empty without `lights`: no log-RMSE).
+    cos_i: &'a [f64],
 }
 
 /// Held-out material `ti` reconstructed by the `nielsen` baseline from its first n samples,
@@ -665,6 +677,19 @@ fn nielsen_rows(
                 .sum::<f64>()
         })
         .sum();
+    // The target's terms of the log-RMSE, once for all its reconstructions.
+    let target_logs: Vec<Vec<f64>> = if nf.lights.is_empty() {
+        Vec::new()
+    } else {
+        tv.iter()
+            .map(|t| {
+                t.iter()
+                    .zip(nf.cos_i)
+                    .map(|(&v, &ci)| LogSums::target_log(v, ci))
+                    .collect()
+            })
+            .collect()
+    };
     let nmax = nf.chosen.len();
     // Every (n, noise) reconstruction in loop order: its coefficients, rho, MAE, image
     // error and log-RMSE sums.
@@ -683,9 +708,8 @@ fn nielsen_rows(
                     let r = v - t;
                     sq += w * r * r;
                     ab += w * r.abs();
-                    if !nf.lights.is_empty() {
-                        let cos = crate::backend::weighted::cos_theta_i(nf.model.cells[j] as usize);
-                        logs.add(v, t, w, cos);
+                    if let Some(tl) = target_logs.get(c) {
+                        logs.add_against(v, tl[j], w, nf.cos_i[j]);
                     }
                 }
             }

@@ -602,6 +602,30 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
             .par_iter()
             .map(|&m| material_values(cpu, coll, m, block))
             .collect();
+        // The targets' terms of the log-RMSE, once per target and block (a target is
+        // compared with many fits: its dense fit and every reconstruction).
+        let target_logs: Vec<Option<[Vec<f64>; 3]>> = if LOG {
+            let mut is_target = vec![false; needed.len()];
+            for j in jobs {
+                is_target[slot[j.target].expect("targets have slots")] = true;
+            }
+            values
+                .par_iter()
+                .zip(&is_target)
+                .map(|(v, &t)| {
+                    t.then(|| {
+                        [0, 1, 2].map(|c| {
+                            v[c].iter()
+                                .zip(&cos_i)
+                                .map(|(&b, &ci)| LogSums::target_log(b, ci))
+                                .collect()
+                        })
+                    })
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         let len = block.len();
         sums.par_iter_mut().zip(jobs).for_each_init(
             || vec![0.0f64; 3 * len],
@@ -629,7 +653,9 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
                 }
                 // Then each channel's sums in cell order (the three channels are independent
                 // sums, interleaved here).
-                let b = &values[slot[j.target].expect("targets have slots")];
+                let ts = slot[j.target].expect("targets have slots");
+                let b = &values[ts];
+                let tl = if LOG { target_logs[ts].as_ref() } else { None };
                 for (i, &w) in w.iter().enumerate() {
                     for (c, e) in sum.iter_mut().enumerate() {
                         let bv = b[c][i];
@@ -641,8 +667,8 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
                         if ALL {
                             e.target += w * bv.abs();
                         }
-                        if LOG {
-                            e.log.add(fit[c * len + i], bv, w, cos_i[i]);
+                        if let Some(tl) = tl {
+                            e.log.add_against(fit[c * len + i], tl[c][i], w, cos_i[i]);
                         }
                     }
                 }
