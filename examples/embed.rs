@@ -16,6 +16,23 @@ use brdf_basis::{Collection, CpuBackend, DistanceParams, Distances, FitParams, G
 use brdf_basis::{KMedoidsInit, KMedoidsParams, Metric};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // 0. A headless host without XDG_RUNTIME_DIR: the Vulkan loader's Wayland probe would
+    //    print "error: XDG_RUNTIME_DIR is invalid or not set" twice. Point it at a private
+    //    directory first, as the `brdf-basis` binary does (docs/formats.md); before any
+    //    thread exists.
+    let _runtime = match std::env::var_os("XDG_RUNTIME_DIR") {
+        Some(d) if std::path::Path::new(&d).is_absolute() && std::path::Path::new(&d).is_dir() => {
+            None
+        }
+        _ => {
+            let dir = tempfile::Builder::new()
+                .prefix("brdf-basis-runtime-")
+                .tempdir()?;
+            std::env::set_var("XDG_RUNTIME_DIR", dir.path());
+            Some(dir)
+        }
+    };
+
     // 1. The host program's own device (any adapter; lavapipe in CI).
     let instance =
         wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());

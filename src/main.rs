@@ -33,11 +33,11 @@ fn main() -> std::process::ExitCode {
     let ignored = [libc::SIGINT, libc::SIGHUP].map(|sig| (sig, is_ignored(sig)));
     let handler_dir = runtime.0.clone();
     let _ = ctrlc::set_handler(move || {
-        brdf_basis::atomic::remove_pending();
+        let cleanup = brdf_basis::atomic::remove_pending();
         if let Some(d) = &handler_dir {
             let _ = std::fs::remove_dir_all(d);
         }
-        eprintln!("error: interrupted; the outputs not yet in place were removed");
+        eprintln!("error: {}", cleanup.message());
         std::process::exit(130);
     });
     #[cfg(unix)]

@@ -1,7 +1,8 @@
 //! The S4 items of the second hostile audit (review/audit-2.md, Part 2, "S4") done in
 //! issue 36: plurals (U1), no "line 0" in whole-file errors (U2), the extensions of
 //! `plan --out` and `tabulate --out` (U4), the `cv --acquisition` report (U5), the
-//! acquisition figure's ticks (U6), the angles `plan` writes (U7). Each test fails on the
+//! acquisition figure's ticks (U6), the angles `plan` writes (U7); and later the note on
+//! mixing channel scales (U14) and the k checks before loading (U17). Each test fails on the
 //! code the audit ran.
 
 use crate::audit2_s3::{refused, run, stderr, CSV};
@@ -382,4 +383,124 @@ fn cv_acquisition_refuses_a_zero_sample_count_in_the_flags_words() {
         ],
         &["-n: give sample counts of at least 1 (got 5,0)"],
     );
+}
+
+/// U14: analytic rows mixed with measured materials get a warning about the channel scales
+/// (before: nothing); one kind alone gets none.
+#[test]
+fn mixing_analytic_and_measured_materials_warns_about_channel_scales() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    let o = run(
+        d,
+        &[
+            "tabulate",
+            "c.csv",
+            "--material",
+            "plastic",
+            "--out",
+            "m.binary",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(d, &["info", "c.csv"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("channel scales"), "{}", stderr(&o));
+    let o = run(d, &["info", "c.csv", "m.binary"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    let analytic = CSV.lines().skip(1).filter(|l| !l.trim().is_empty()).count();
+    assert!(
+        e.contains(&format!(
+            "mixes {analytic} analytic material(s) with 1 measured or neural one(s)"
+        )) && e.contains("channel scales"),
+        "{e}"
+    );
+}
+
+/// U17: `reproduce` checks its k ranges against the number of materials before it loads
+/// them (before: 4 RGL-EPFL files were read and tabulated for 7 s, then `--k-max 12` was
+/// refused). The files here are not valid `.bsdf` files, so a load would fail first.
+#[test]
+fn reproduce_refuses_k_max_before_loading_the_collection() {
+    let dir = tmp();
+    let d = dir.path();
+    std::fs::create_dir(d.join("rgl")).unwrap();
+    for name in ["a", "b", "c", "d"] {
+        write(
+            &d.join("rgl"),
+            &format!("{name}.bsdf"),
+            b"not a tensor file",
+        );
+    }
+    let o = run(d, &["reproduce", "rgl", "--k-max", "12", "--out", "out"]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("--k-max") && e.contains("below the number of materials (4)"),
+        "{e}"
+    );
+    assert!(!e.contains("a.bsdf"), "{e}");
+    assert!(!d.join("out").exists());
+    // Settings that fit: the load runs and names the bad file.
+    let o = run(
+        d,
+        &[
+            "reproduce",
+            "rgl",
+            "--k-min",
+            "2",
+            "--k-max",
+            "2",
+            "--gcuk-k-max",
+            "3",
+            "--cv-folds",
+            "2",
+            "--out",
+            "out",
+        ],
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("a.bsdf"), "{}", stderr(&o));
+}
+
+/// U11: a signal that arrives once the outputs are committed says so (before: "the
+/// outputs not yet in place were removed" although every output had been replaced).
+/// `remove_pending` ends every later write of its process, so the check runs in a child
+/// process: this test binary, running this test alone.
+#[test]
+fn a_signal_after_the_commit_says_the_outputs_are_in_place() {
+    use brdf_basis::atomic::{remove_pending, OutputPlan};
+    const CHILD: &str = "BRDF_BASIS_TEST_U11_CHILD";
+    if std::env::var_os(CHILD).is_none() {
+        let o = std::process::Command::new(std::env::current_exe().unwrap())
+            .args([
+                "--exact",
+                "audit2_s4::a_signal_after_the_commit_says_the_outputs_are_in_place",
+                "--test-threads",
+                "1",
+            ])
+            .env(CHILD, "1")
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success() && out.contains("1 passed"), "{out}");
+        return;
+    }
+    let dir = tmp();
+    let target = dir.path().join("a.json");
+    let mut plan = OutputPlan::new(&[]);
+    plan.file(&target, "--json").unwrap();
+    let mut set = plan.into_set().unwrap();
+    set.stage(&target, |w| w.write_all(b"{}")).unwrap();
+    set.commit().unwrap();
+    let c = remove_pending();
+    assert_eq!(c.removed, 0);
+    assert!(c.in_place);
+    assert_eq!(
+        c.message(),
+        "interrupted after the outputs were in place; nothing was removed"
+    );
+    assert_eq!(std::fs::read(&target).unwrap(), b"{}");
 }

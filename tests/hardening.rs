@@ -627,6 +627,11 @@ fn an_interrupted_export_leaves_nothing() {
     let o = child.wait_with_output().expect("wait");
     assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
     assert!(
+        stderr(&o).contains("interrupted; the outputs not yet in place were removed"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
         files_under(dir.path()).is_empty(),
         "{:?}",
         files_under(dir.path())

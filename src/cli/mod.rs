@@ -159,7 +159,20 @@ pub(crate) fn run(cli: Cli) -> anyhow::Result<()> {
 
 /// Loads the COLLECTION arguments (none: the embedded default).
 pub(crate) fn load_collection(paths: &[PathBuf]) -> anyhow::Result<Collection> {
-    Ok(Collection::load_many(paths)?)
+    let coll = Collection::load_many(paths)?;
+    if let Some(note) = mixing_note(&coll) {
+        eprintln!("{note}");
+    }
+    Ok(coll)
+}
+
+/// The warning printed when a collection mixes analytic rows with measured or neural
+/// materials (their channel scales differ; brdf-basis rescales nothing).
+fn mixing_note(coll: &Collection) -> Option<String> {
+    let (analytic, other) = coll.mixed_scales()?;
+    Some(format!(
+        "warning: the collection mixes {analytic} analytic material(s) with {other} measured or neural one(s); the Ngan 2005 table's albedos leave out MERL's channel scales (1, 1.15, 1.66 for R, G, B) that measured data include, so scale the analytic G and B parameters first or keep the kinds apart (docs/selection.md, \"Mixing analytic and measured materials\")"
+    ))
 }
 
 /// Opens the back-end chosen by `--backend`.

@@ -116,6 +116,11 @@ pub(crate) fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
         plan.input_named(p, "paper-bases file");
     }
     plan.tree(&a.out, "--out", a.force, layout::is_output)?;
+    // The k ranges and folds against the number of materials before the collection is
+    // loaded (and its RGL-EPFL files or networks tabulated).
+    req.check_count(brdf_basis::collection::Collection::count_many(
+        &a.collection,
+    )?)?;
     let coll = super::load_collection(&a.collection)?;
     let params = req.check(&coll)?;
     brdf_basis::plot::font()?; // an unusable BRDF_BASIS_FONT is refused before any work

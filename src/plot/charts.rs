@@ -343,6 +343,19 @@ impl Draw for DbVsK<'_> {
     }
 }
 
+/// The rank axis's height in a CD diagram, pixels from the top.
+const CD_AXIS_Y: i32 = 70;
+/// Pixels between the label rows of a CD diagram.
+const CD_ROW: i32 = 30;
+
+/// The height of the first label row of a CD diagram with `groups` clique bars (6 pixels
+/// each below the axis).
+fn cd_first_row(groups: usize) -> i32 {
+    // The labels sit 16 pixels above their row's line: 24 pixels below the last bar keep
+    // the bars clear of the first labels.
+    CD_AXIS_Y + 12 + 6 * groups as i32 + 24 + 16
+}
+
 /// Nemenyi critical-difference diagram (Demšar 2006, Fig. 1): methods on the axis of mean
 /// ranks; a bar joins methods whose ranks differ by less than the critical difference.
 pub struct CdDiagram<'a> {
@@ -382,10 +395,10 @@ impl Draw for CdDiagram<'_> {
     ) -> Result<(), String> {
         let f = self.friedman;
         let k = f.methods.len();
-        let (w, h) = root.dim_in_pixel();
+        let (w, _) = root.dim_in_pixel();
         let (left, right) = (60.0, w as f64 - 60.0);
         let x_of = |r: f64| left + (r - 1.0) / (k as f64 - 1.0).max(1.0) * (right - left);
-        let axis_y = 70i32;
+        let axis_y = CD_AXIS_Y;
         let style = (FONT, 13).into_font();
         if text {
             root.draw(&Text::new(
@@ -433,8 +446,8 @@ impl Draw for CdDiagram<'_> {
         }
         let (order, groups) = cd_groups(f);
         // Methods, sorted by rank: first half labelled on the left, second on the right.
-        let top = axis_y + 30 + 6 * groups.len() as i32;
-        let row = (h as i32 - top - 10) / ((k as i32 + 1) / 2 + 1).max(1);
+        let top = cd_first_row(groups.len());
+        let row = CD_ROW;
         for (pos, &i) in order.iter().enumerate() {
             let x = x_of(f.mean_ranks[i]) as i32;
             let half = pos < k.div_ceil(2);
@@ -682,10 +695,13 @@ pub fn db_vs_k(metrics: &[String], sets: &[ClusteringSet]) -> Result<Figure, Plo
 
 /// Nemenyi critical-difference diagram of one metric.
 pub fn cd_diagram(metric: &str, friedman: &FriedmanSummary) -> Result<Figure, PlotError> {
-    let h = 190 + 30 * friedman.methods.len().div_ceil(2) as u32;
+    // As tall as the label rows need: the first row below the clique bars, then one row
+    // per method of the longer side, and a margin under the last label.
+    let levels = friedman.methods.len().div_ceil(2).max(1) as i32;
+    let h = cd_first_row(cd_groups(friedman).1.len()) + CD_ROW * (levels - 1) + 24;
     figure(
         &format!("cd-{metric}"),
-        (900, h),
+        (900, h as u32),
         &CdDiagram { metric, friedman },
     )
 }

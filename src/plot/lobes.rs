@@ -4,8 +4,8 @@
 //! Light comes from `wi = (sin theta_i, 0, cos theta_i)`; the curve is `f(wi, wo)`
 //! (mean over RGB) for `wo = (sin theta_o, 0, cos theta_o)`, `theta_o` in `[-89.75,
 //! 89.75]` deg, so the mirror direction is at `theta_o = -theta_i` (left of the normal).
-//! The radius is logarithmic: [`DECADES`] decades below the panel's largest value, with a
-//! guide circle per decade.
+//! The radius is logarithmic: [`DECADES`] decades below the largest value of all panels
+//! (one scale for the panels side by side), with a guide circle per decade.
 
 use super::legend::{self, Entry, Marker};
 use super::{e2s, figure, series_colour, Draw, Figure, PlotError};
@@ -111,8 +111,20 @@ impl Draw for LobePlot<'_> {
         let (w, h) = root.dim_in_pixel();
         let (body, legend_area) = root.split_vertically(h - self.legend_height(w));
         let panels = body.split_evenly((1, self.angles.len().max(1)));
-        for (&a, area) in self.angles.iter().zip(panels) {
-            self.panel(&area, a, text)?;
+        // Every panel's curves first: one radial scale for all panels.
+        let samples: Vec<Vec<Vec<(f64, f64)>>> = self
+            .angles
+            .iter()
+            .map(|&a| {
+                self.curves
+                    .iter()
+                    .map(|(_, f)| lobe_samples(f, a))
+                    .collect()
+            })
+            .collect();
+        let top = samples.iter().map(|s| largest(s)).fold(0.0, f64::max);
+        for ((&a, s), area) in self.angles.iter().zip(&samples).zip(panels) {
+            self.panel(&area, a, s, top, text)?;
         }
         legend::draw_flow(&legend_area, &self.legend(), LEGEND_SIZE, text)
     }
@@ -131,24 +143,17 @@ impl Draw for LobePlot<'_> {
 }
 
 impl LobePlot<'_> {
-    /// One panel: guide circles, surface, normal, incident direction and the curves.
+    /// One panel at the incident angle `a`: guide circles, surface, normal, incident
+    /// direction and the curves' `samples`, on the radial scale of `top` (the largest
+    /// value of all panels).
     fn panel<DB: DrawingBackend>(
         &self,
         area: &DrawingArea<DB, Shift>,
         a: f64,
+        samples: &[Vec<(f64, f64)>],
+        top: f64,
         text: bool,
     ) -> Result<(), String> {
-        let samples: Vec<Vec<(f64, f64)>> = self
-            .curves
-            .iter()
-            .map(|(_, f)| lobe_samples(f, a))
-            .collect();
-        let top = samples
-            .iter()
-            .flatten()
-            .map(|p| p.1)
-            .filter(|v| v.is_finite())
-            .fold(0.0, f64::max);
         let log_top = if top > 0.0 { top.log10().ceil() } else { 0.0 };
         let radius = |v: f64| (v.max(1e-300).log10() - (log_top - DECADES)).max(0.0);
         let mut b = ChartBuilder::on(area);
@@ -202,7 +207,7 @@ impl LobePlot<'_> {
                 INCIDENT.stroke_width(1),
             ))
             .map_err(e2s)?;
-        if top <= 0.0 {
+        if largest(samples) <= 0.0 {
             if text {
                 chart
                     .draw_series([Text::new(
@@ -232,6 +237,16 @@ impl LobePlot<'_> {
         }
         Ok(())
     }
+}
+
+/// The largest finite value of a panel's curves (0 when none is positive).
+fn largest(samples: &[Vec<(f64, f64)>]) -> f64 {
+    samples
+        .iter()
+        .flatten()
+        .map(|p| p.1)
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max)
 }
 
 /// Lobe plot of `curves` (the first is the material) at `angles` (degrees).

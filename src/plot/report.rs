@@ -64,7 +64,7 @@ pub fn report_figures(e: &Experiment) -> Result<ReportFigures, PlotError> {
         lobes::lobe_plot(
             "lobes-showcase",
             &format!(
-                "{}: BRDF in the plane of incidence (mean RGB, log radius, 4 decades) and its fits",
+                "{}: BRDF in the plane of incidence (mean RGB, log radius over 4 decades, one scale for all panels) and its fits",
                 ev.showcase.material
             ),
             &showcase_curves(e)?,

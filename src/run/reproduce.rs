@@ -105,7 +105,24 @@ impl ReproduceRequest {
             Some(p) => read_paper_bases(p, coll)?,
             None => vec![],
         };
-        Ok(ExperimentParams {
+        Ok(self.experiment_params(paper_bases).check(coll)?)
+    }
+
+    /// The checks of [`Self::check`] that need only the number of materials `n`
+    /// ([`ExperimentParams::check_count`]), for a caller that has not loaded the collection
+    /// yet ([`Collection::count_many`]).
+    ///
+    /// # Errors
+    /// [`crate::experiment::ExperimentError`] naming the setting that does not fit.
+    pub fn check_count(&self, n: usize) -> Result<()> {
+        Ok(self.experiment_params(vec![]).check_count(n)?)
+    }
+
+    fn experiment_params(
+        &self,
+        paper_bases: Vec<crate::experiment::bases::Basis>,
+    ) -> ExperimentParams {
+        ExperimentParams {
             runs: self.runs,
             stride: self.stride,
             k_min: self.k_min,
@@ -120,7 +137,6 @@ impl ReproduceRequest {
             cv_runs: self.cv_runs,
             ..Default::default()
         }
-        .check(coll)?)
     }
 
     /// Runs the experiment on `coll` with the checked `params` ([`Self::check`]), then the

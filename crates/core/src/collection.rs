@@ -151,6 +151,44 @@ impl Collection {
         Ok(c)
     }
 
+    /// How many materials [`Self::load_many`] would load from `paths`, without reading the
+    /// material files (directories are listed, CSV tables parsed): a command checks its
+    /// settings against the count before it loads, which for RGL-EPFL files and neural
+    /// BRDFs means tabulating. A file `load_many` would refuse may still count; the load
+    /// names it.
+    ///
+    /// # Errors
+    /// An unreadable path, an unknown kind, an empty directory, a malformed CSV table.
+    pub fn count_many(paths: &[PathBuf]) -> Result<usize, CollectionError> {
+        if paths.is_empty() {
+            return Ok(Self::embedded_default().len());
+        }
+        let mut n = 0;
+        for path in paths {
+            let meta = std::fs::metadata(path).map_err(|source| CollectionError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            n += if meta.is_dir() {
+                dir_entries(path)?.len()
+            } else {
+                match path.extension().and_then(|e| e.to_str()) {
+                    Some("binary" | "bsdf") => 1,
+                    Some("csv") => {
+                        let bytes = read_regular(path, MAX_CSV_BYTES)?;
+                        parse_csv(&bytes, path)?.materials.len()
+                    }
+                    _ => {
+                        return Err(CollectionError::UnknownKind {
+                            path: path.to_path_buf(),
+                        })
+                    }
+                }
+            };
+        }
+        Ok(n)
+    }
+
     fn extend_from(&mut self, path: &Path) -> Result<(), CollectionError> {
         let io = |source| CollectionError::Io {
             path: path.to_path_buf(),
@@ -183,56 +221,7 @@ impl Collection {
     /// all sorted by material name; other files are ignored, except a `.npy` that is not
     /// part of a set (an error naming it).
     fn extend_from_dir(&mut self, path: &Path) -> Result<(), CollectionError> {
-        let io = |source| CollectionError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-            .map_err(io)?
-            .map(|e| e.map(|e| e.path()).map_err(io))
-            .collect::<Result<_, _>>()?;
-        files.sort();
-        // (material name, what it is): a `.binary` file or the first file of an NBRDF set.
-        enum Entry {
-            Binary(PathBuf),
-            Rgl(PathBuf),
-            Neural(PathBuf),
-        }
-        let mut entries: Vec<(String, Entry)> = Vec::new();
-        let mut sets: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
-        for f in files {
-            match f.extension().and_then(|e| e.to_str()) {
-                Some("binary") => entries.push((stem(&f), Entry::Binary(f))),
-                Some("bsdf") => entries.push((stem(&f), Entry::Rgl(f))),
-                Some("npy") => {
-                    let st = stem(&f);
-                    let name = NBRDF_PARTS.iter().find_map(|(part, _, _)| {
-                        st.strip_suffix(part)?
-                            .strip_suffix('_')
-                            .filter(|n| !n.is_empty())
-                    });
-                    match name {
-                        Some(n) => sets.entry(n.to_string()).or_default().push(f),
-                        None => {
-                            return Err(CollectionError::Neural {
-                                path: f,
-                                message: "a .npy file that is not part of a neural BRDF set (a set is NAME_fc1.npy, NAME_b1.npy, NAME_fc2.npy, NAME_b2.npy, NAME_fc3.npy and NAME_b3.npy)".into(),
-                            })
-                        }
-                    }
-                }
-                _ => {}
-            }
-        }
-        for (name, files) in sets {
-            entries.push((name, Entry::Neural(files[0].clone())));
-        }
-        if entries.is_empty() {
-            return Err(CollectionError::EmptyDir {
-                path: path.to_path_buf(),
-            });
-        }
-        entries.sort_by(|a, b| a.0.cmp(&b.0));
+        let entries = dir_entries(path)?;
         for (name, e) in entries {
             match e {
                 Entry::Binary(f) => self.push_measured(&f)?,
@@ -297,6 +286,20 @@ impl Collection {
     /// Number of materials.
     pub fn len(&self) -> usize {
         self.materials.len()
+    }
+
+    /// How many materials are analytic and how many are not (MERL tables, RGL-EPFL files,
+    /// neural BRDFs), when the collection holds both kinds; `None` otherwise. The Ngan 2005
+    /// table's albedos leave out MERL's channel scales, which the measured kinds include
+    /// (`docs/selection.md`, "Mixing analytic and measured materials").
+    pub fn mixed_scales(&self) -> Option<(usize, usize)> {
+        let analytic = self
+            .materials
+            .iter()
+            .filter(|m| matches!(m.data, MaterialData::Analytic(_)))
+            .count();
+        let other = self.materials.len() - analytic;
+        (analytic > 0 && other > 0).then_some((analytic, other))
     }
 
     /// True when empty.
@@ -416,6 +419,64 @@ fn file_name(f: &Path) -> Result<String, CollectionError> {
         message,
     })?;
     Ok(name)
+}
+
+/// A material of a directory ([`dir_entries`]): a `.binary` file, a `.bsdf` file or the
+/// first file of an NBRDF set.
+enum Entry {
+    Binary(PathBuf),
+    Rgl(PathBuf),
+    Neural(PathBuf),
+}
+
+/// The materials of directory `path` by name, sorted, without reading them
+/// ([`Collection::load`]'s listing).
+fn dir_entries(path: &Path) -> Result<Vec<(String, Entry)>, CollectionError> {
+    let io = |source| CollectionError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+        .map_err(io)?
+        .map(|e| e.map(|e| e.path()).map_err(io))
+        .collect::<Result<_, _>>()?;
+    files.sort();
+    let mut entries: Vec<(String, Entry)> = Vec::new();
+    let mut sets: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
+    for f in files {
+        match f.extension().and_then(|e| e.to_str()) {
+            Some("binary") => entries.push((stem(&f), Entry::Binary(f))),
+            Some("bsdf") => entries.push((stem(&f), Entry::Rgl(f))),
+            Some("npy") => {
+                let st = stem(&f);
+                let name = NBRDF_PARTS.iter().find_map(|(part, _, _)| {
+                    st.strip_suffix(part)?
+                        .strip_suffix('_')
+                        .filter(|n| !n.is_empty())
+                });
+                match name {
+                    Some(n) => sets.entry(n.to_string()).or_default().push(f),
+                    None => {
+                        return Err(CollectionError::Neural {
+                            path: f,
+                            message: "a .npy file that is not part of a neural BRDF set (a set is NAME_fc1.npy, NAME_b1.npy, NAME_fc2.npy, NAME_b2.npy, NAME_fc3.npy and NAME_b3.npy)".into(),
+                        })
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    for (name, files) in sets {
+        entries.push((name, Entry::Neural(files[0].clone())));
+    }
+    if entries.is_empty() {
+        return Err(CollectionError::EmptyDir {
+            path: path.to_path_buf(),
+        });
+    }
+    entries.sort_by(|a, b| a.0.cmp(&b.0));
+    Ok(entries)
 }
 
 /// The file stem of `f` (a material name), lossily as text.

@@ -105,6 +105,34 @@ static COMMIT: Mutex<()> = Mutex::new(());
 static SEQ: AtomicUsize = AtomicUsize::new(0);
 /// Set by [`remove_pending`]: no file or directory is created any more.
 static ABORTING: AtomicBool = AtomicBool::new(false);
+/// Set when an [`OutputSet`] of this process committed (its outputs are in place).
+static IN_PLACE: AtomicBool = AtomicBool::new(false);
+
+/// What [`remove_pending`] found: what a signal handler tells the user.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[doc(hidden)]
+pub struct Cleanup {
+    /// Temporary files, staging directories and created directories removed.
+    pub removed: usize,
+    /// Whether any output of this process was already in place (committed or written).
+    pub in_place: bool,
+}
+
+impl Cleanup {
+    /// The sentence a signal handler prints: what was removed and what stays.
+    pub fn message(&self) -> &'static str {
+        match (self.removed > 0, self.in_place) {
+            (true, false) => "interrupted; the outputs not yet in place were removed",
+            (true, true) => "interrupted; the outputs not yet in place were removed (those already in place stay)",
+            (false, true) => "interrupted after the outputs were in place; nothing was removed",
+            (false, false) => "interrupted before any output was written",
+        }
+    }
+}
+
+fn mark_in_place() {
+    IN_PLACE.store(true, Ordering::SeqCst);
+}
 
 /// Whether [`remove_pending`] has run (a signal arrived): the process is about to exit,
 /// and every later write fails.
@@ -139,12 +167,17 @@ fn unregister(p: &Pending) {
 
 /// Removes every temporary file, staging directory and created (still empty) directory
 /// that this process has not yet put in place, newest first. For signal handlers: call
-/// it, then exit. A commit in progress is finished first.
+/// it, print [`Cleanup::message`], then exit. A commit in progress is finished first (so
+/// a signal at the commit leaves every output of the command in place, and says so).
 #[doc(hidden)]
-pub fn remove_pending() {
+pub fn remove_pending() -> Cleanup {
     ABORTING.store(true, Ordering::SeqCst);
     let _commit = lock(&COMMIT);
     let v = std::mem::take(&mut *lock(&PENDING));
+    let cleanup = Cleanup {
+        removed: v.len(),
+        in_place: IN_PLACE.load(Ordering::SeqCst),
+    };
     for p in v.iter().rev() {
         match p {
             Pending::File(f) => {
@@ -156,6 +189,7 @@ pub fn remove_pending() {
             }
         }
     }
+    cleanup
 }
 
 /// `remove_dir_all`, retried: another thread may still be writing into it.

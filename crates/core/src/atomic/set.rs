@@ -165,6 +165,7 @@ impl OutputSet {
         for d in std::mem::take(&mut self.created) {
             unregister(&Pending::Created(d));
         }
+        mark_in_place();
         Ok(())
     }
 

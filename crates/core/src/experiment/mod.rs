@@ -182,7 +182,24 @@ fn invalid(name: &'static str, value: impl ToString, expected: String) -> Experi
 impl ExperimentParams {
     /// Checks every parameter against `coll` before any work.
     pub fn check(&self, coll: &Collection) -> Result<ValidExperimentParams, ExperimentError> {
-        let n = coll.len();
+        self.check_count(coll.len())?;
+        let showcase = match &self.showcase {
+            Some(s) => Some(coll.index_of(s).map_err(ExperimentError::Showcase)?),
+            None => None,
+        };
+        Ok(ValidExperimentParams {
+            p: self.clone(),
+            showcase,
+        })
+    }
+
+    /// The checks of [`Self::check`] that need only the number of materials `n` (all but
+    /// the showcase's name): a caller can run them before it loads (and tabulates) the
+    /// collection ([`Collection::count_many`]).
+    ///
+    /// # Errors
+    /// The parameter that does not fit `n` materials, named.
+    pub fn check_count(&self, n: usize) -> Result<(), ExperimentError> {
         if self.runs == 0 {
             return Err(invalid(
                 "--runs",
@@ -243,14 +260,7 @@ impl ExperimentParams {
         if self.cv_folds > 0 && self.cv_runs == 0 {
             return Err(invalid("--cv-runs", 0, "at least 1 run per fold".into()));
         }
-        let showcase = match &self.showcase {
-            Some(s) => Some(coll.index_of(s).map_err(ExperimentError::Showcase)?),
-            None => None,
-        };
-        Ok(ValidExperimentParams {
-            p: self.clone(),
-            showcase,
-        })
+        Ok(())
     }
 }
 
