@@ -410,7 +410,7 @@ pub fn fit_from_arrays(
         return Err(crate::acquire::AcquireError::InvalidParam {
             name: "sample arrays",
             value: format!("{} angles, {} values", angles.len(), rgb.len()),
-            expected: "one row of angles, values (and sigmas) per sample",
+            expected: "one row of angles, values (and sigmas) per sample".into(),
         }
         .into());
     }

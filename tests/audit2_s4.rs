@@ -504,3 +504,50 @@ fn a_signal_after_the_commit_says_the_outputs_are_in_place() {
     );
     assert_eq!(std::fs::read(&target).unwrap(), b"{}");
 }
+
+/// U3 (the rest): `plan -n` beyond the candidates names their number; a plan by the error
+/// criterion with every material in the basis says what to do, not "targets = none:
+/// training materials outside the basis for the error criterion".
+#[test]
+fn plan_messages_give_the_number_of_candidates_and_the_way_out() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "c.csv", CSV);
+    write(
+        d,
+        "k.csv",
+        "theta_i,phi_i,theta_o,phi_o\n30,0,40,180\n60,0,30,180\n45,90,45,-90\n",
+    );
+    refused(
+        d,
+        &[
+            "plan",
+            "c.csv",
+            "--basis",
+            "plastic,metal",
+            "--targets",
+            "satin,target",
+            "-n",
+            "5",
+            "--candidates",
+            "k.csv",
+            "--out",
+            "p.csv",
+        ],
+        &["n = 5: at least 1 and at most the number of candidates (3)"],
+    );
+    let all: Vec<&str> = CSV
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').next())
+        .filter(|n| !n.is_empty())
+        .collect();
+    let basis = all.join(",");
+    refused(
+        d,
+        &[
+            "plan", "c.csv", "--basis", &basis, "-n", "3", "--out", "p.csv",
+        ],
+        &["give a basis that leaves some out, or the condition or random criterion"],
+    );
+}

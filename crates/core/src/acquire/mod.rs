@@ -102,7 +102,7 @@ pub enum AcquireError {
         /// Value given.
         value: String,
         /// What is expected.
-        expected: &'static str,
+        expected: String,
     },
     /// Every training target of a plan is in its basis: each is fitted exactly by itself,
     /// its score is 0 whatever the samples, and nothing is left to choose samples by.

@@ -164,7 +164,7 @@ impl NielsenModel {
             return Err(AcquireError::InvalidParam {
                 name: "training materials",
                 value: "none".into(),
-                expected: "at least one training material for the nielsen baseline",
+                expected: "at least one training material for the nielsen baseline".into(),
             });
         }
         let cpu = CpuBackend::new();
@@ -552,15 +552,20 @@ pub(crate) fn plan_criterion(
         .map(|c| c.cell)
         .collect::<Option<_>>()
         .ok_or(AcquireError::InvalidParam {
-            name: "candidates",
-            value: "directions off the cell centres".into(),
-            expected: "cell centres for the nielsen criterion (its PCA and local moves live on the MERL grid)",
-        })?;
+        name: "candidates",
+        value: "directions off the cell centres".into(),
+        expected:
+            "cell centres for the nielsen criterion (its PCA and local moves live on the MERL grid)"
+                .into(),
+    })?;
     if p.n == 0 || p.n > cells.len() {
         return Err(AcquireError::InvalidParam {
             name: "n",
             value: p.n.to_string(),
-            expected: "at least 1 and at most the number of candidates",
+            expected: format!(
+                "at least 1 and at most the number of candidates ({})",
+                cells.len()
+            ),
         });
     }
     let mut train = basis.to_vec();

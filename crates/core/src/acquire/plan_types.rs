@@ -49,7 +49,7 @@ impl std::str::FromStr for Criterion {
         .ok_or_else(|| AcquireError::InvalidParam {
             name: "criterion",
             value: s.into(),
-            expected: "one of error, condition, random, nielsen",
+            expected: "one of error, condition, random, nielsen".into(),
         })
     }
 }

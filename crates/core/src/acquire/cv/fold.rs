@@ -78,18 +78,32 @@ impl<'a> Shared<'a> {
     ) -> Result<Self, AcquireError> {
         let n = coll.len();
         let nmax = p.ns.iter().copied().max().unwrap_or(0);
-        if nmax == 0 || p.plans.is_empty() || p.methods.is_empty() {
+        let empty = |name: &'static str, expected: &str| AcquireError::InvalidParam {
+            name,
+            value: "none".into(),
+            expected: expected.into(),
+        };
+        if p.plans.is_empty() {
+            return Err(empty("plans", "at least one plan criterion"));
+        }
+        if p.methods.is_empty() {
+            return Err(empty("methods", "at least one selection method"));
+        }
+        if p.ns.is_empty() {
+            return Err(empty("n", "at least one sample count"));
+        }
+        if p.ns.contains(&0) {
             return Err(AcquireError::InvalidParam {
-                name: "plans / methods / n",
-                value: format!("{} / {} / {:?}", p.plans.len(), p.methods.len(), p.ns),
-                expected: "at least one plan, one method and one n >= 1",
+                name: "n",
+                value: format!("{:?}", p.ns),
+                expected: "sample counts of at least 1".into(),
             });
         }
         if let Some(s) = p.noises.iter().find(|s| !s.is_finite() || **s < 0.0) {
             return Err(AcquireError::InvalidParam {
                 name: "noise",
                 value: s.to_string(),
-                expected: "finite relative noise levels >= 0",
+                expected: "finite relative noise levels >= 0".into(),
             });
         }
         let vp = CvParams {

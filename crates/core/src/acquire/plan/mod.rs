@@ -302,14 +302,17 @@ pub(crate) fn check(
         return Err(AcquireError::InvalidParam {
             name: "basis size",
             value: basis.len().to_string(),
-            expected: "at most 15 materials",
+            expected: "at most 15 materials".into(),
         });
     }
     if p.n == 0 || p.n > cands.len() {
         return Err(AcquireError::InvalidParam {
             name: "n",
             value: p.n.to_string(),
-            expected: "at least 1 and at most the number of candidates",
+            expected: format!(
+                "at least 1 and at most the number of candidates ({})",
+                cands.len()
+            ),
         });
     }
     for (what, list) in [("basis", basis), ("targets", targets)] {
@@ -334,14 +337,14 @@ pub(crate) fn check(
         return Err(AcquireError::InvalidParam {
             name: "targets",
             value: "none".into(),
-            expected: "training materials outside the basis for the error criterion",
+            expected: "the error criterion scores samples by fitting training materials outside the basis, and there are none: give a basis that leaves some out, or the condition or random criterion".into(),
         });
     }
     if p.restarts == 0 {
         return Err(AcquireError::InvalidParam {
             name: "restarts",
             value: "0".into(),
-            expected: "at least 1",
+            expected: "at least 1".into(),
         });
     }
     Ok(())
