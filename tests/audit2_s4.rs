@@ -293,20 +293,7 @@ fn plan_writes_candidate_angles_as_given() {
     );
     let o = run(
         d,
-        &[
-            "plan",
-            "c.csv",
-            "--basis",
-            "plastic,metal",
-            "--targets",
-            "satin,target",
-            "-n",
-            "3",
-            "--candidates",
-            "k.csv",
-            "--out",
-            "p.csv",
-        ],
+        &plan_args(&["-n", "3", "--candidates", "k.csv", "--out", "p.csv"]),
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let mut rows: Vec<String> = std::fs::read_to_string(d.join("p.csv"))
@@ -520,20 +507,7 @@ fn plan_messages_give_the_number_of_candidates_and_the_way_out() {
     );
     refused(
         d,
-        &[
-            "plan",
-            "c.csv",
-            "--basis",
-            "plastic,metal",
-            "--targets",
-            "satin,target",
-            "-n",
-            "5",
-            "--candidates",
-            "k.csv",
-            "--out",
-            "p.csv",
-        ],
+        &plan_args(&["-n", "5", "--candidates", "k.csv", "--out", "p.csv"]),
         &["n = 5: at least 1 and at most the number of candidates (3)"],
     );
     let all: Vec<&str> = CSV
@@ -550,4 +524,18 @@ fn plan_messages_give_the_number_of_candidates_and_the_way_out() {
         ],
         &["give a basis that leaves some out, or the condition or random criterion"],
     );
+}
+
+/// `plan c.csv` with the basis plastic, metal and the targets satin, target, then `rest`.
+fn plan_args<'a>(rest: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec![
+        "plan",
+        "c.csv",
+        "--basis",
+        "plastic,metal",
+        "--targets",
+        "satin,target",
+    ];
+    a.extend_from_slice(rest);
+    a
 }
