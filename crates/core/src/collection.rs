@@ -165,55 +165,26 @@ impl Collection {
         }
         let mut n = 0;
         for path in paths {
-            let meta = std::fs::metadata(path).map_err(|source| CollectionError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
-            n += if meta.is_dir() {
-                dir_entries(path)?.len()
-            } else {
-                match path.extension().and_then(|e| e.to_str()) {
-                    Some("binary" | "bsdf") => 1,
-                    Some("csv") => {
-                        let bytes = read_regular(path, MAX_CSV_BYTES)?;
-                        parse_csv(&bytes, path)?.materials.len()
-                    }
-                    _ => {
-                        return Err(CollectionError::UnknownKind {
-                            path: path.to_path_buf(),
-                        })
-                    }
-                }
+            n += match source_of(path)? {
+                Source::Dir => dir_entries(path)?.len(),
+                Source::Binary | Source::Rgl => 1,
+                Source::Csv => read_csv(path)?.materials.len(),
             };
         }
         Ok(n)
     }
 
     fn extend_from(&mut self, path: &Path) -> Result<(), CollectionError> {
-        let io = |source| CollectionError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        // The file type first, from metadata (never opening a FIFO, which would block, or
-        // a device): directories are listed, regular files read, anything else refused.
-        let meta = std::fs::metadata(path).map_err(io)?;
-        if meta.is_dir() {
-            return self.extend_from_dir(path);
-        }
-        match path.extension().and_then(|e| e.to_str()) {
-            Some("binary") => self.push_measured(path),
-            Some("bsdf") => self.push_rgl(path),
-            Some("csv") => {
-                let bytes = read_regular(path, MAX_CSV_BYTES)?;
-                let parsed = parse_csv(&bytes, path)?;
-                for (m, line) in parsed.materials.into_iter().zip(2u64..) {
+        match source_of(path)? {
+            Source::Dir => self.extend_from_dir(path),
+            Source::Binary => self.push_measured(path),
+            Source::Rgl => self.push_rgl(path),
+            Source::Csv => {
+                for (m, line) in read_csv(path)?.materials.into_iter().zip(2u64..) {
                     self.push(m, path, line)?;
                 }
                 Ok(())
             }
-            _ => Err(CollectionError::UnknownKind {
-                path: path.to_path_buf(),
-            }),
         }
     }
 
@@ -419,6 +390,41 @@ fn file_name(f: &Path) -> Result<String, CollectionError> {
         message,
     })?;
     Ok(name)
+}
+
+/// What a COLLECTION argument is, from its metadata and extension.
+enum Source {
+    Dir,
+    Binary,
+    Rgl,
+    Csv,
+}
+
+/// The kind of `path`: the file type first, from metadata (never opening a FIFO, which
+/// would block, or a device): directories are listed, regular files read by extension,
+/// anything else refused.
+fn source_of(path: &Path) -> Result<Source, CollectionError> {
+    let meta = std::fs::metadata(path).map_err(|source| CollectionError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if meta.is_dir() {
+        return Ok(Source::Dir);
+    }
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("binary") => Ok(Source::Binary),
+        Some("bsdf") => Ok(Source::Rgl),
+        Some("csv") => Ok(Source::Csv),
+        _ => Err(CollectionError::UnknownKind {
+            path: path.to_path_buf(),
+        }),
+    }
+}
+
+/// The analytic table `path`, read and parsed.
+fn read_csv(path: &Path) -> Result<Collection, CollectionError> {
+    let bytes = read_regular(path, MAX_CSV_BYTES)?;
+    parse_csv(&bytes, path)
 }
 
 /// A material of a directory ([`dir_entries`]): a `.binary` file, a `.bsdf` file or the
