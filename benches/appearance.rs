@@ -1,13 +1,18 @@
 //! The appearance metrics' unit costs (SPEC 11: 256 x 256 renders under four lights), to
 //! size `reproduce` and `cv --acquisition --appearance`: per image, the render of a
 //! 12-material combination from the pixel table, the prepared reference, and the scores
-//! of one render against it (image error, CIEDE2000, and NVIDIA's FLIP through `nv-flip`),
-//! FLIP alone beside them. One thread; the embedded default collection.
+//! of one render against it (image error, CIEDE2000 and our FLIP), and FLIP alone: ours
+//! (`eval::flip`: a pair from scratch, and against a prepared reference) beside NVIDIA's
+//! C++ reference through `nv-flip`, with the ratios. One thread; the embedded default
+//! collection.
 //!
 //! `cargo bench --bench appearance`
 
 use brdf_basis::collection::Collection;
-use brdf_basis::eval::appearance::{mean_flip, Reference, LIGHTS, RENDER_SIZE};
+use brdf_basis::eval::appearance::{
+    flip_kernels, mean_flip, Reference, FLIP_PIXELS_PER_DEGREE, LIGHTS, RENDER_SIZE,
+};
+use brdf_basis::eval::flip::FlipReference;
 use brdf_basis::eval::image_error::DisplayParams;
 use brdf_basis::eval::render::RenderParams;
 use brdf_basis::eval::shade::PixelBrdfs;
@@ -57,5 +62,41 @@ fn main() {
         "scores of 1,000 reconstructions under the four lights: {:.1} CPU-s ({:.1} in FLIP)",
         4e3 * (render + scores),
         4e3 * flip
+    );
+
+    // FLIP alone on the 8-bit display images, ours against NVIDIA's, one thread.
+    let d = DisplayParams::default();
+    let to8 = |img: &brdf_basis::eval::render::Image| -> Vec<u8> {
+        img.data.iter().map(|&v| d.map_u8(f64::from(v))).collect()
+    };
+    let (rb, tb) = (to8(&target), to8(&test));
+    let (w, h) = (target.width as usize, target.height as usize);
+    let all = vec![true; w * h];
+    let nvidia = per_call(reps, || {
+        let r = nv_flip::FlipImageRgb8::with_data(w as u32, h as u32, &rb);
+        let t = nv_flip::FlipImageRgb8::with_data(w as u32, h as u32, &tb);
+        nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE).to_vec()
+    });
+    let kernels = flip_kernels();
+    let ours_pair = per_call(reps, || {
+        let r = FlipReference::new(kernels.clone(), &rb, w, h, &all).expect("flip");
+        r.map(&tb, &all).expect("flip")
+    });
+    let ours_sphere = per_call(reps, || {
+        let r = FlipReference::new(kernels.clone(), &rb, w, h, &target.mask).expect("flip");
+        r.mean(&tb, &target.mask).expect("flip")
+    });
+    let prepared = FlipReference::new(kernels.clone(), &rb, w, h, &target.mask).expect("flip");
+    let ours_prepared = per_call(reps, || prepared.mean(&tb, &target.mask).expect("flip"));
+    println!(
+        "FLIP per {RENDER_SIZE}^2 pair, one thread (ms): nv-flip {:.2}; ours, whole map {:.2} ({:.1}x), \
+         sphere mean {:.2} ({:.1}x), against a prepared reference {:.2} ({:.1}x)",
+        1e3 * nvidia,
+        1e3 * ours_pair,
+        nvidia / ours_pair,
+        1e3 * ours_sphere,
+        nvidia / ours_sphere,
+        1e3 * ours_prepared,
+        nvidia / ours_prepared
     );
 }

@@ -9,13 +9,15 @@
 //! * CIEDE2000 and FLIP are averaged over the sphere's pixels (the background is black in
 //!   both images; FLIP's error map is computed on the whole image, so that its filters see
 //!   the sphere's silhouette, and then averaged over the sphere);
-//! * FLIP is NVIDIA's implementation (the `nv-flip` crate, the bindings wgpu's own tests
-//!   use) at [`FLIP_PIXELS_PER_DEGREE`];
+//! * FLIP is the project's own ([`super::flip`]: f32, separable passes, vectorised, each
+//!   reference prepared once) at [`FLIP_PIXELS_PER_DEGREE`]; NVIDIA's implementation (the
+//!   `nv-flip` crate) is its test and bench peer (per-image means within 1e-4, SPEC 11);
 //! * log-RMSE is the root of the weighted mean (cell weights of the fit mask; with uniform
 //!   weights, the plain mean over cells) over cells and channels of
 //!   `(log(1 + max(fhat, 0) c) - log(1 + max(f, 0) c))^2`, `c = max(cos theta_i, 0)`.
 
 use super::color::{ciede2000, srgb_to_lab};
+use super::flip::{FlipKernels, FlipReference};
 use super::image_error::{normalized_image_error, same_shape, DisplayParams};
 use super::render::{Image, RenderError};
 
@@ -109,33 +111,41 @@ pub fn mean_ciede2000(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, Re
     Ok(sum / n as f64)
 }
 
-/// Mean LDR FLIP over the sphere's pixels between the 8-bit display images of `reference`
-/// and `test` (NVIDIA's FLIP through the `nv-flip` crate).
+/// Mean LDR FLIP ([`super::flip`]) over the sphere's pixels between the 8-bit display
+/// images of `reference` and `test`.
 pub fn mean_flip(reference: &Image, test: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
     normalized_image_error(reference, test, d)?;
-    let to8 = |img: &Image| {
-        let bytes: Vec<u8> = img.data.iter().map(|&v| d.map_u8(f64::from(v))).collect();
-        nv_flip::FlipImageRgb8::with_data(img.width, img.height, &bytes)
-    };
-    Ok(flip_mean(to8(reference), to8(test), &reference.mask))
+    let to8 =
+        |img: &Image| -> Vec<u8> { img.data.iter().map(|&v| d.map_u8(f64::from(v))).collect() };
+    let prepared = prepare_flip(reference, &to8(reference))?;
+    flip_mean(&prepared, &to8(test), &reference.mask)
 }
 
-/// The mean of NVIDIA's LDR FLIP map of `test` against `reference` over the pixels of
-/// `mask` (at least one).
-fn flip_mean(
-    reference: nv_flip::FlipImageRgb8,
-    test: nv_flip::FlipImageRgb8,
-    mask: &[bool],
-) -> f64 {
-    let map = nv_flip::flip(reference, test, FLIP_PIXELS_PER_DEGREE).to_vec();
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for (&e, &on) in map.iter().zip(mask) {
-        if on {
-            sum += f64::from(e);
-            n += 1;
-        }
+/// The FLIP filters at SPEC 11's viewing condition, built once per process.
+pub fn flip_kernels() -> std::sync::Arc<FlipKernels> {
+    static KERNELS: std::sync::OnceLock<std::sync::Arc<FlipKernels>> = std::sync::OnceLock::new();
+    KERNELS
+        .get_or_init(|| std::sync::Arc::new(FlipKernels::new(FLIP_PIXELS_PER_DEGREE)))
+        .clone()
+}
+
+/// `image`'s 8-bit display bytes prepared as a FLIP reference over its sphere.
+fn prepare_flip(image: &Image, bytes: &[u8]) -> Result<FlipReference, RenderError> {
+    let (w, h) = (image.width as usize, image.height as usize);
+    FlipReference::new(flip_kernels(), bytes, w, h, &image.mask).map_err(flip_error)
+}
+
+/// The mean FLIP of the 8-bit `test` against a prepared reference over `mask`.
+fn flip_mean(reference: &FlipReference, test: &[u8], mask: &[bool]) -> Result<f64, RenderError> {
+    reference.mean(test, mask).map_err(flip_error)
+}
+
+/// A FLIP refusal as a render error (the images were checked before: an empty mask).
+fn flip_error(e: super::flip::FlipError) -> RenderError {
+    match e {
+        super::flip::FlipError::EmptyMask => RenderError::EmptyMask,
+        other => RenderError::Flip(other),
     }
-    sum / n as f64
 }
 
 /// The image metrics of `test` against `reference`, rendered under the light `(theta, phi)`
@@ -158,6 +168,8 @@ pub struct Reference<'a> {
     display: Vec<f64>,
     /// CIELAB of every sphere pixel, in pixel order.
     lab: Vec<super::color::Lab>,
+    /// The 8-bit display image prepared for FLIP.
+    flip: FlipReference,
 }
 
 impl<'a> Reference<'a> {
@@ -170,10 +182,12 @@ impl<'a> Reference<'a> {
         let d = DisplayParams::default();
         let display = display_values(image, &d);
         let lab = sphere_labs(image, &display);
+        let flip = prepare_flip(image, &to_bytes(&display))?;
         Ok(Self {
             image,
             display,
             lab,
+            flip,
         })
     }
 
@@ -210,18 +224,19 @@ impl<'a> Reference<'a> {
             sum += ciede2000(*la, lb);
         }
         let ciede = sum / self.lab.len() as f64;
-        let to8 = |img: &Image, dv: &[f64]| {
-            let bytes: Vec<u8> = dv.iter().map(|&v| (v * 255.0).round() as u8).collect();
-            nv_flip::FlipImageRgb8::with_data(img.width, img.height, &bytes)
-        };
         Ok(LightScores {
             theta,
             phi,
             image_error,
             ciede2000: ciede,
-            flip: flip_mean(to8(a, &self.display), to8(test, &td), &a.mask),
+            flip: flip_mean(&self.flip, &to_bytes(&td), &a.mask)?,
         })
     }
+}
+
+/// Display values quantised to 8 bits ([`DisplayParams::map_u8`] of the same values).
+fn to_bytes(dv: &[f64]) -> Vec<u8> {
+    dv.iter().map(|&v| (v * 255.0).round() as u8).collect()
 }
 
 /// The CIELAB colour of every sphere pixel of `img` from its display values `dv`.

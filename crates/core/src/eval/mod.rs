@@ -2,6 +2,7 @@
 
 pub mod appearance;
 pub mod color;
+pub mod flip;
 pub mod image_error;
 pub mod render;
 pub mod shade;

@@ -72,6 +72,9 @@ pub enum RenderError {
     /// No pixel lies on the sphere, so there is nothing to compare.
     #[error("no pixel lies on the sphere")]
     EmptyMask,
+    /// FLIP refused the pair (its buffers do not match the size).
+    #[error(transparent)]
+    Flip(super::flip::FlipError),
 }
 
 /// A rendered image: linear RGB radiance and the sphere mask.
