@@ -20,6 +20,7 @@ mod empirical_objective;
 mod figures;
 mod fingerprints;
 mod fit;
+mod flip_gpu;
 mod flip_peer;
 mod gpu_kernels;
 mod grid;

@@ -262,3 +262,25 @@ fn pgd_shader_validates_and_matches_rust_structs() {
     }
     assert!(pgd::SOURCE.contains(&format!("const S_LEN: u32 = {}u;", pgd::STATE_LEN)));
 }
+
+#[test]
+fn flip_shader_validates_and_matches_rust_structs() {
+    use brdf_basis::backend::gpu::flip::{FlipUniforms, SOURCE};
+    let (m, _) = module(SOURCE);
+    let (span, members) = layout(&m, "FlipUniforms");
+    assert_eq!(span as usize, size_of::<FlipUniforms>());
+    let rust = [
+        ("width", offset_of!(FlipUniforms, width)),
+        ("height", offset_of!(FlipUniforms, height)),
+        ("pairs", offset_of!(FlipUniforms, pairs)),
+        ("rs", offset_of!(FlipUniforms, rs)),
+        ("rf", offset_of!(FlipUniforms, rf)),
+        ("cmax", offset_of!(FlipUniforms, cmax)),
+        ("pccmax", offset_of!(FlipUniforms, pccmax)),
+        ("_pad", offset_of!(FlipUniforms, _pad)),
+    ];
+    assert_eq!(members.len(), rust.len());
+    for ((n, o), (rn, ro)) in members.iter().zip(rust) {
+        assert_eq!((n.as_str(), *o as usize), (rn, ro));
+    }
+}

@@ -19,6 +19,7 @@ pub struct GpuBackend {
     pair: PairwiseKernel,
     pgd: super::pgd::PgdKernel,
     weighted: super::weighted::WeightedKernel,
+    flip: super::flip::FlipKernel,
 }
 
 impl GpuBackend {
@@ -38,6 +39,7 @@ impl GpuBackend {
             pair,
             pgd,
             weighted: super::weighted::WeightedKernel::new(),
+            flip: super::flip::FlipKernel::default(),
         })
     }
 
@@ -193,6 +195,16 @@ impl Backend for GpuBackend {
             weight,
             progress,
         )?)
+    }
+
+    fn flip_maps(
+        &self,
+        kernels: &brdf_basis_core::eval::flip::FlipKernels,
+        pairs: &[(&[u8], &[u8])],
+        width: usize,
+        height: usize,
+    ) -> Result<Vec<Vec<f32>>, BackendError> {
+        Ok(self.flip.maps(&self.ctx, kernels, pairs, width, height)?)
     }
 
     fn nnls_pgd(

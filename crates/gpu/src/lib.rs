@@ -3,6 +3,7 @@
 //! with `common.wgsl`; each kernel module owns its pipeline and a CPU twin.
 
 mod backend;
+pub mod flip;
 #[doc(hidden)]
 pub mod neural;
 #[doc(hidden)]

@@ -145,6 +145,21 @@ pub trait Backend: Send + Sync {
         weighted::reference(self, basis, targets, cells, weight, progress)
     }
 
+    /// The LDR FLIP error map ([`crate::eval::flip`]) of every pair `(reference, test)` of
+    /// 8-bit sRGB images (interleaved RGB, `width x height`, row-major) with the filters
+    /// of `kernels`, every pixel scored. By default the CPU implementation, pairs in
+    /// parallel; the GPU back-end scores the batch on its device.
+    fn flip_maps(
+        &self,
+        kernels: &crate::eval::flip::FlipKernels,
+        pairs: &[(&[u8], &[u8])],
+        width: usize,
+        height: usize,
+    ) -> Result<Vec<Vec<f32>>, BackendError> {
+        crate::eval::flip::flip_maps(kernels, pairs, width, height)
+            .map_err(|e| BackendError::Invalid(e.to_string()))
+    }
+
     /// Batched accelerated projected-gradient NNLS for many targets sharing one Gram
     /// matrix (the CPU solver by default; the GPU back-end runs its f32 kernel).
     fn nnls_pgd(

@@ -188,6 +188,39 @@ impl FlipKernels {
         }
     }
 
+    /// Radius of the colour filters (taps `2 r + 1`).
+    pub fn spatial_radius(&self) -> usize {
+        self.spatial_radius
+    }
+
+    /// Radius of the feature filters (taps `2 r + 1`).
+    pub fn feature_radius(&self) -> usize {
+        self.feature_radius
+    }
+
+    /// Every filter's taps in one array, for a kernel on another device: the colour
+    /// filters Y, Cx and Cz's two halves (`2 r_s + 1` each), then the feature filters'
+    /// Gaussian, first and second derivative (`2 r_f + 1` each).
+    pub fn packed_taps(&self) -> Vec<f32> {
+        [
+            &self.g_y,
+            &self.g_cx,
+            &self.g_cz1,
+            &self.g_cz2,
+            &self.f_g,
+            &self.f_dg,
+            &self.f_ddg,
+        ]
+        .into_iter()
+        .flat_map(|v| v.iter().copied())
+        .collect()
+    }
+
+    /// The colour remap's constants: `cmax = HyAB(green, blue)^q_c` and `p_c cmax`.
+    pub fn remap(&self) -> (f32, f32) {
+        (self.cmax, self.pccmax)
+    }
+
     /// The widest radius of the two filter families: how far a pixel's support reaches.
     fn reach(&self) -> usize {
         self.spatial_radius.max(self.feature_radius)
@@ -348,6 +381,23 @@ pub fn flip_map(
         &mask,
     )?
     .map(test, &mask)
+}
+
+/// [`flip_map`] of every pair `(reference, test)` with the filters of `kernels`, pairs in
+/// parallel (threads across images; each pair's work is one thread's).
+pub fn flip_maps(
+    kernels: &FlipKernels,
+    pairs: &[(&[u8], &[u8])],
+    width: usize,
+    height: usize,
+) -> Result<Vec<Vec<f32>>, FlipError> {
+    use rayon::prelude::*;
+    let kernels = std::sync::Arc::new(kernels.clone());
+    let mask = vec![true; width * height];
+    pairs
+        .par_iter()
+        .map(|(r, t)| FlipReference::new(kernels.clone(), r, width, height, &mask)?.map(t, &mask))
+        .collect()
 }
 
 #[cfg(test)]
