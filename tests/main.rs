@@ -44,6 +44,7 @@ mod saved_matrix;
 mod scale;
 mod select_defects;
 mod selection;
+mod settings;
 mod shaders;
 mod slurm;
 mod tiles;
