@@ -530,3 +530,51 @@ fn the_binary_refuses_before_any_work() {
     );
     assert_eq!(std::fs::read_dir(d.path()).expect("dir").count(), 0);
 }
+
+/// `select`'s JSON records what chose the basis (issue 47): the fit objective and its eps
+/// (methods that fit), and the grid (every method); the keys it had keep their values.
+#[test]
+fn select_json_records_what_chose_the_basis() {
+    use brdf_basis::select::SelectOutput;
+    let coll = brdf_basis::Collection::embedded_default();
+    let cpu = brdf_basis::CpuBackend::new();
+    let mut r = SelectRequest::new(SelectMethod::Greedy);
+    r.k = Some(2);
+    r.grid.stride = 8;
+    r.objective.eps = Some(0.02);
+    let out = r.run(&cpu, &coll, &|_, _| {}).expect("greedy");
+    let v: serde_json::Value = serde_json::from_str(&out.to_json()).expect("json");
+    assert_eq!(v["fit_objective"], "relative");
+    assert_eq!(v["eps"], 0.02);
+    assert_eq!(
+        v["objective"], "mean-relative-residual",
+        "the score's name, as before"
+    );
+    assert_eq!(
+        (&v["mask"], &v["weighting"], &v["stride"]),
+        (&"evaluation".into(), &"uniform".into(), &8.into())
+    );
+    assert_eq!(SelectOutput::from_json(&out.to_json()), Ok(out));
+    // l2 has no eps; k-medoids has no fit objective, only the grid of its distances.
+    r.objective = ObjectiveSetting {
+        objective: Some(ObjectiveKind::L2),
+        eps: None,
+    };
+    let v: serde_json::Value =
+        serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("l2").to_json()).expect("json");
+    assert_eq!(v["fit_objective"], "l2");
+    assert!(v.get("eps").is_none(), "{v}");
+    let mut r = SelectRequest::new(SelectMethod::Kmedoids);
+    r.k = Some(2);
+    r.runs = Some(1);
+    r.grid.stride = 8;
+    let v: serde_json::Value =
+        serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("kmedoids").to_json())
+            .expect("json");
+    assert!(
+        v.get("fit_objective").is_none() && v.get("eps").is_none(),
+        "{v}"
+    );
+    assert_eq!(v["stride"], 8);
+    assert_eq!(v["metric"], "brdf-it");
+}

@@ -403,10 +403,31 @@ impl SelectRequest {
     /// returns what `select --json` writes ([`SelectOutput::to_json`]). `progress(done,
     /// total)` is called from the working threads, per stage.
     ///
+    /// The output records what chose the basis: the grid, and the fit objective of the
+    /// methods that fit ([`SelectOutput::record`]).
+    ///
     /// # Errors
     /// [`RequestError`] and the parameters' errors before any work (k out of range, an
     /// unknown material, ...), then the stages' errors.
     pub fn run(
+        &self,
+        backend: &dyn Backend,
+        coll: &Collection,
+        progress: Progress<'_>,
+    ) -> Result<SelectOutput> {
+        let mut out = self.run_unrecorded(backend, coll, progress)?;
+        let objective = if self.method.clustering() {
+            None
+        } else {
+            Some(self.objective.weight()?)
+        };
+        let g = &self.grid;
+        out.record(objective, g.mask, g.weighting, g.stride);
+        Ok(out)
+    }
+
+    /// [`Self::run`] without the record of its settings.
+    fn run_unrecorded(
         &self,
         backend: &dyn Backend,
         coll: &Collection,
@@ -484,7 +505,12 @@ impl SelectRequest {
             }
             .into());
         }
-        out.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+        let mut out = out.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+        if let Some(s) = &saved.sidecar {
+            let g = &s.settings;
+            out.record(None, g.mask, g.weighting, g.stride);
+        }
+        Ok(out)
     }
 
     /// k-medoids or GCUK runs on `d`.
@@ -547,6 +573,11 @@ impl SelectRequest {
         Ok(SelectOutput::ErrorDriven(ErrorDrivenOutput {
             selection,
             collection_fingerprint: fingerprint,
+            fit_objective: None,
+            eps: None,
+            mask: None,
+            weighting: None,
+            stride: None,
         }))
     }
 }
