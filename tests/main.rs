@@ -36,6 +36,7 @@ mod objectives;
 mod output_aliases;
 mod outputs;
 mod public_paths;
+mod readme;
 mod reproduce;
 mod reproduce_appearance;
 mod requests;
