@@ -49,15 +49,12 @@ use crate::backend::weighted::{ObjectiveKind, TargetWeight};
 use crate::collection::Collection;
 use crate::merl::{Mask, Weighting};
 
-/// The fit objective of `fit`, `select` and `cv` when none is given (SPEC 11): `relative`
-/// with `eps` 0.01, the objective with the lowest mean held-out FLIP over the four lights
-/// on merl100 (5 folds, greedy k = 12; README "Appearance" gives the measurement).
-/// `reproduce` keeps `l2` where it reproduces the paper. Fits from samples (`fit
+/// The fit objective of `fit`, `select`, `plan` and `cv` when none is given (SPEC 11):
+/// the library's one default (`relative`, `eps` 0.01), the same for the core's parameter
+/// types. `reproduce` keeps `l2` where it reproduces the paper. Fits from samples (`fit
 /// --samples`, `cv --acquisition`) weigh each sample by the objective at its measured
 /// value, plans (`plan`) by the objective's shared weights (SPEC 11).
-pub const DEFAULT_OBJECTIVE: TargetWeight = TargetWeight::Relative {
-    eps: TargetWeight::DEFAULT_EPS,
-};
+pub use crate::fit::DEFAULT_OBJECTIVE;
 
 /// `--objective` and `--eps` as a door gave them (`None`: not given), the one home of
 /// the fit objective's default and rules for `fit`, `select`, `plan`, `cv` and
