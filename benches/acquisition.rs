@@ -12,6 +12,7 @@ use brdf_basis::acquire::{
     acquisition_cv, fit_samples, plan, AcqCvParams, Criterion, PlanParams, Sample,
 };
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::FitParams;
 use std::path::Path;
@@ -71,6 +72,10 @@ fn main() {
             candidates_per_step: per_step,
             shortlist,
             restarts,
+            fit: brdf_basis::fit::FitParams {
+                objective: TargetWeight::L2,
+                ..Default::default()
+            },
             ..PlanParams::default()
         };
         let (pl, t) = timed(|| plan(&be, &coll, &basis, &targets, &cands, &p).expect("plan"));
@@ -123,6 +128,7 @@ fn main() {
     }
     let p = AcqCvParams {
         noises: vec![0.0],
+        objective: brdf_basis::select::ObjectiveParams::default().objective(TargetWeight::L2),
         ..AcqCvParams::default()
     };
     let (r, t) = timed(|| acquisition_cv(&be, &coll, &p).expect("cv"));

@@ -6,6 +6,7 @@
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::GpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::{channel_gram, fit, fit_cells, FitParams, GramMode};
@@ -33,6 +34,7 @@ fn main() {
         for gram in [GramMode::Auto, GramMode::Grid] {
             let p = FitParams {
                 gram,
+                objective: TargetWeight::L2,
                 ..Default::default()
             };
             let t = Instant::now();
@@ -55,6 +57,7 @@ fn main() {
         .collect();
     let p = FitParams {
         stride: 3,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let cells = fit_cells(&coll, &(0..coll.len()).collect::<Vec<_>>(), &p).expect("cells");

@@ -19,6 +19,7 @@
 //! it as `select --distances` does).
 
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::cluster::{GcukParams, KMedoidsParams};
 use brdf_basis::collection::Collection;
 use brdf_basis::distance::{distance_matrix_banded, DistanceParams, DEFAULT_BAND_ROWS};
@@ -107,6 +108,7 @@ fn stage_greedy(coll: &Collection) -> Option<String> {
     let stride = env_usize("BENCH_GREEDY_STRIDE", 3);
     let t = Instant::now();
     let op = ObjectiveParams::default()
+        .objective(TargetWeight::L2)
         .stride(stride)
         .check()
         .expect("objective params");
@@ -150,6 +152,7 @@ fn stage_swap(coll: &Collection) -> String {
     let stride = env_usize("BENCH_GREEDY_STRIDE", 3);
     let t = Instant::now();
     let op = ObjectiveParams::default()
+        .objective(TargetWeight::L2)
         .stride(stride)
         .check()
         .expect("objective params");
@@ -240,7 +243,13 @@ fn child(stage: &str, n: usize, dir: &Path) {
             let e = empirical(
                 &CpuBackend::new(),
                 &coll,
-                &EmpiricalParams::default(),
+                &EmpiricalParams {
+                    fit: brdf_basis::fit::FitParams {
+                        objective: TargetWeight::L2,
+                        ..Default::default()
+                    },
+                    ..EmpiricalParams::default()
+                },
                 &|_, _| {},
             )
             .expect("empirical");

@@ -6,6 +6,7 @@
 //! `cargo bench --bench select` (`BENCH_QUICK=1`: skip the cv and 1,000-material cases)
 
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::brdf::AshikhminShirley;
 use brdf_basis::collection::{Collection, Material, MaterialData};
 use brdf_basis::select::cv::{cross_validate, CvParams};
@@ -97,7 +98,10 @@ fn main() {
         Collection::embedded_default()
     });
     let cpu = CpuBackend::new();
-    let op = ObjectiveParams::default().check().expect("params");
+    let op = ObjectiveParams::default()
+        .objective(TargetWeight::L2)
+        .check()
+        .expect("params");
     let only_big = std::env::var("BENCH_BIG").is_ok_and(|v| v == "1");
     if !only_big {
         let (obj, t) = timed(|| Objective::new(&cpu, &coll, &op, &|_, _| {}).expect("objective"));
@@ -131,7 +135,11 @@ fn main() {
         if std::env::var("BENCH_QUICK").is_ok_and(|v| v == "1") {
             return;
         }
-        let cp = CvParams::default().seed(1).check(coll.len()).expect("cv");
+        let cp = CvParams::default()
+            .seed(1)
+            .objective(ObjectiveParams::default().objective(TargetWeight::L2))
+            .check(coll.len())
+            .expect("cv");
         let (cv, t) = timed(|| cross_validate(&cpu, &coll, &cp, &|_, _| {}).expect("cv"));
         println!(
             "cv: greedy, swap, kmedoids, gcuk, empirical, random at k = 5, 12, 5 folds: {t}\n{}",

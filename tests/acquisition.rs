@@ -111,6 +111,7 @@ fn samples_at_all_cell_centres_give_the_grid_fit() {
     let basis = [0, 1, 2];
     let p = FitParams {
         stride: 4,
+        objective: TargetWeight::L2,
         ..FitParams::default()
     };
     let grid = fit(&CpuBackend::new(), &c, &basis, &[3], &p, &|_, _| {}).unwrap();
@@ -210,6 +211,7 @@ fn plans_are_deterministic_nested_and_error_plans_lower_the_score() {
         &[0, 1, 2, 3],
         &FitParams {
             stride: 3,
+            objective: TargetWeight::L2,
             ..FitParams::default()
         },
     )
@@ -221,6 +223,10 @@ fn plans_are_deterministic_nested_and_error_plans_lower_the_score() {
             criterion: crit,
             candidates_per_step: 500,
             seed: 7,
+            fit: brdf_basis::fit::FitParams {
+                objective: TargetWeight::L2,
+                ..Default::default()
+            },
             ..PlanParams::default()
         };
         let a = plan(&be, &c, &[0, 1], &[2, 3], &cands, &p).unwrap();
@@ -271,6 +277,7 @@ fn nielsen_reconstructs_a_training_material_and_plans_nested() {
     let c = coll();
     let fp = FitParams {
         stride: 4,
+        objective: TargetWeight::L2,
         ..FitParams::default()
     };
     let cands = cell_candidates(&c, &[0, 1, 2, 3], &fp).unwrap();
@@ -309,6 +316,10 @@ fn nielsen_reconstructs_a_training_material_and_plans_nested() {
         n: 5,
         criterion: Criterion::Nielsen,
         seed: 3,
+        fit: brdf_basis::fit::FitParams {
+            objective: TargetWeight::L2,
+            ..Default::default()
+        },
         ..PlanParams::default()
     };
     let a = plan(&be, &c, &[0], &[1, 2], &cands, &p).unwrap();
@@ -349,7 +360,9 @@ fn acquisition_cv_runs_the_nielsen_baseline() {
         folds: 2,
         candidates_per_step: 300,
         render_size: 16,
-        objective: brdf_basis::select::ObjectiveParams::default().stride(6),
+        objective: brdf_basis::select::ObjectiveParams::default()
+            .objective(TargetWeight::L2)
+            .stride(6),
         appearance: false,
         ..AcqCvParams::default()
     };

@@ -618,7 +618,7 @@ fn matrix_change_child() {
     assert!(len > 5 * 4096 && other.len() as u64 == len, "{len}");
     let mut req = SelectRequest::new(SelectMethod::Kmedoids);
     req.k = Some(5);
-    req.runs = 40;
+    req.runs = Some(40);
     req.distances = Some(path.clone());
     let changed = std::sync::atomic::AtomicBool::new(false);
     let progress = |_: u64, _: u64| {

@@ -313,8 +313,6 @@ fn cv_acquisition_figure_is_written_in_the_format_it_is_named() {
             "--render-size",
             "16",
             "--no-appearance",
-            "--candidates-per-step",
-            "50",
             "--json",
             "q.json",
             "--figure",

@@ -355,7 +355,13 @@ fn empirical_under_l2_keeps_the_paper_basis_of_before() {
     let lib = empirical(
         &CpuBackend::new(),
         &Collection::embedded_default(),
-        &EmpiricalParams::default(),
+        &EmpiricalParams {
+            fit: brdf_basis::fit::FitParams {
+                objective: TargetWeight::L2,
+                ..Default::default()
+            },
+            ..EmpiricalParams::default()
+        },
         &|_, _| {},
     )
     .unwrap();

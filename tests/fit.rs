@@ -3,6 +3,7 @@
 
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::*;
@@ -32,6 +33,7 @@ fn recovers_an_exact_combination() {
     let c = parse_csv(csv.as_bytes(), Path::new("t.csv")).expect("csv");
     let p = FitParams {
         stride: 3,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let f = &fit(&CpuBackend::new(), &c, &[0, 1], &[2], &p, &|_, _| {}).expect("fit")[0];
@@ -67,6 +69,7 @@ fn zero_target_and_lambertian_tie() {
     let c = parse_csv(csv.as_bytes(), Path::new("t.csv")).expect("csv");
     let p = FitParams {
         stride: 4,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let f = fit(&CpuBackend::new(), &c, &[0, 1], &[2, 3], &p, &|_, _| {}).expect("fit");
@@ -146,6 +149,7 @@ fn check_solvers_on(c: &Collection, backend: &dyn Backend, gram: GramMode) {
         let p = FitParams {
             solver,
             gram,
+            objective: TargetWeight::L2,
             ..Default::default()
         };
         let fits = fit(backend, c, &basis, &targets, &p, &|_, _| {}).expect("fit");
@@ -205,7 +209,10 @@ fn gpu_gram_matches_cpu_gram() {
     let Some(c) = ngan_or_skip("gpu_gram_matches_cpu_gram") else {
         return;
     };
-    let p = FitParams::default();
+    let p = FitParams {
+        objective: TargetWeight::L2,
+        ..FitParams::default()
+    };
     let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p).expect("cells");
     let basis = idx(&c, &BASIS5);
     let targets: Vec<usize> = (0..40).collect();
@@ -256,6 +263,7 @@ fn empirical_selection_copes_with_the_rank_deficient_gram_of_all_materials() {
     let p = EmpiricalParams {
         fit: FitParams {
             stride: 2,
+            objective: TargetWeight::L2,
             ..Default::default()
         },
         more_than: 5,
@@ -292,6 +300,7 @@ fn rejects_bad_fits() {
     let cpu = CpuBackend::new();
     let p = FitParams {
         stride: 6,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     assert!(matches!(
@@ -335,6 +344,7 @@ fn rejects_bad_fits() {
     .expect("push");
     let p1 = FitParams {
         stride: 1,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let e = fit(&cpu, &m, &[0], &[1], &p1, &|_, _| {})
@@ -356,6 +366,7 @@ fn separable_gram_matches_the_grid_pass() {
         let p = FitParams {
             weighting,
             stride: 2,
+            objective: TargetWeight::L2,
             ..Default::default()
         };
         let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p).expect("cells");
@@ -431,6 +442,7 @@ fn shared_grams_equal_per_channel_passes(backend: &dyn Backend) {
     let n = c.len();
     let p = FitParams {
         stride: 5,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let shared = CollectionGrams::grid(backend, &c, &p, &|_, _| {}).expect("shared pass");

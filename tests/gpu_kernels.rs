@@ -7,6 +7,7 @@ use brdf_basis::backend::gpu::pairwise::{
     KernelShape, PairPlan, PlanLimits, MAX_PACKED_BYTES, MAX_RUN_ITERS,
 };
 use brdf_basis::backend::gpu::TEX_W;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::backend::{Backend, Lobe};
 use brdf_basis::brdf::rho_s_angles;
 use brdf_basis::brdf::LobeParams;
@@ -306,6 +307,7 @@ fn gpu_pgd_solver_reaches_the_exact_optimum() {
     let targets: Vec<usize> = (0..c.len()).filter(|i| !basis.contains(i)).collect();
     let p = FitParams {
         stride: 2,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let cells = fit_cells(&c, &(0..c.len()).collect::<Vec<_>>(), &p).expect("cells");

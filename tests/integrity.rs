@@ -3,6 +3,7 @@
 //! as NumPy writes them, short files explained, and merges that leave nothing behind.
 
 use crate::common::*;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::collection::Collection;
 use brdf_basis::io::npy::read_npy_2d;
 use brdf_basis::io::saved::load_saved_matrix;
@@ -502,6 +503,7 @@ fn a_fit_with_grid_stride_0_is_an_error() {
     let coll = Collection::embedded_default();
     let p = brdf_basis::fit::FitParams {
         stride: 0,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let e = brdf_basis::fit::fit(

@@ -4,6 +4,7 @@
 
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::backend::{Backend, Lobe};
 use brdf_basis::collection::{Collection, MaterialData};
 use brdf_basis::error::{CollectionError, MerlError};
@@ -316,6 +317,7 @@ fn analytic_basis_reproduces_its_own_members_measured() {
         &targets,
         &FitParams {
             stride: 2,
+            objective: TargetWeight::L2,
             ..Default::default()
         },
         &|_, _| {},

@@ -147,6 +147,7 @@ fn the_l2_objective_is_spec_5s_fit_and_a_weighted_fit_differs() {
     let cpu = CpuBackend::new();
     let p = FitParams {
         stride: 4,
+        objective: TargetWeight::L2,
         ..FitParams::default()
     };
     assert_eq!(p.objective, TargetWeight::L2);

@@ -89,7 +89,7 @@ fn select_rules_are_the_requests() {
     req.k = Some(3);
     req.ga_population = Some(8);
     assert_eq!(cli, req.check().unwrap_err().to_string());
-    assert_eq!(cli, "--ga-population applies to --method ga, not to greedy");
+    assert_eq!(cli, "--ga-population applies to ga, not to --method greedy");
 }
 
 /// `fit --targets X,X`: a target given twice is refused by the request the command line
@@ -124,7 +124,7 @@ fn cli_defaults_are_the_requests() {
     let d = PlanRequest::new(Vec::new());
     assert!(help.contains(&format!("[default: {}]", d.n)), "{help}");
     assert!(
-        help.contains(&format!("[default: {}]", d.candidates_per_step)),
+        help.contains(&format!("[default: {}]", d.candidates_per_step())),
         "{help}"
     );
     // The lists' defaults are written in the help text: they must be the request's.

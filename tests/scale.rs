@@ -136,12 +136,14 @@ fn three_tiles_of_the_embedded_default_merge_into_the_whole_matrix() {
 mod greedy_at_scale {
     use crate::common::*;
     use brdf_basis::backend::cpu::CpuBackend;
+    use brdf_basis::backend::weighted::TargetWeight;
     use brdf_basis::collection::Collection;
     use brdf_basis::select::{greedy_exhaustive, greedy_with_counts};
     use brdf_basis::select::{swap, Objective, ObjectiveParams, SearchParams};
 
     fn objective(coll: &Collection, stride: usize) -> Objective {
         let p = ObjectiveParams::default()
+            .objective(TargetWeight::L2)
             .stride(stride)
             .check()
             .expect("params");

@@ -3,6 +3,7 @@
 
 use crate::common::*;
 use brdf_basis::backend::cpu::CpuBackend;
+use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::{parse_csv, Collection};
 use brdf_basis::fit::{channel_lobe, fit, fit_cells};
@@ -14,6 +15,7 @@ use std::path::Path;
 
 fn objective(coll: &Collection, stride: usize) -> Objective {
     let p = ObjectiveParams::default()
+        .objective(TargetWeight::L2)
         .stride(stride)
         .check()
         .expect("params");
@@ -186,9 +188,13 @@ fn gram_score_equals_grid_residual_score() {
     };
     let coll = ngan.subset(&(0..100).step_by(9).collect::<Vec<_>>());
     for (op, basis) in [
-        (ObjectiveParams::default(), vec![0, 4, 7]),
+        (
+            ObjectiveParams::default().objective(TargetWeight::L2),
+            vec![0, 4, 7],
+        ),
         (
             ObjectiveParams::default()
+                .objective(TargetWeight::L2)
                 .weighting(brdf_basis::merl::Weighting::SolidAngle)
                 .stride(3),
             vec![2, 9],
@@ -384,7 +390,11 @@ fn search_and_cv_params_reject_bad_values() {
     ] {
         assert!(gp.check().is_err(), "{gp:?}");
     }
-    assert!(ObjectiveParams::default().stride(0).check().is_err());
+    assert!(ObjectiveParams::default()
+        .objective(TargetWeight::L2)
+        .stride(0)
+        .check()
+        .is_err());
     let cv = |p: CvParams| p.check(20).expect_err("rejected");
     cv(CvParams::default().folds(1));
     cv(CvParams::default().folds(21));
@@ -423,7 +433,11 @@ fn measured_and_analytic_copies_select_the_same_greedy_basis() {
     let a = greedy(&objective(&coll, 3), &p, &|_, _| {}).unwrap();
     let m = greedy(&objective(&measured, 3), &p, &|_, _| {}).unwrap();
     let gpu_m = gpu("measured greedy").map(|g| {
-        let op = ObjectiveParams::default().stride(3).check().expect("p");
+        let op = ObjectiveParams::default()
+            .objective(TargetWeight::L2)
+            .stride(3)
+            .check()
+            .expect("p");
         let obj =
             Objective::new(g as &dyn Backend, &measured, &op, &|_, _| {}).expect("gpu objective");
         greedy(&obj, &p, &|_, _| {}).unwrap()
@@ -453,7 +467,9 @@ fn cross_validation_is_complete_honest_and_reproducible() {
         ks: vec![2, 3],
         folds: 3,
         seed: 4,
-        objective: ObjectiveParams::default().stride(6),
+        objective: ObjectiveParams::default()
+            .objective(TargetWeight::L2)
+            .stride(6),
         runs: 2,
         ga: GaParams::default().population(6).generations(3),
         render_size: 12,

@@ -429,7 +429,7 @@ class SampleFit:
 
 
 def fit_samples(
-    collection: Collection, basis: Sequence[str], angles, rgb, sigma=None, *, objective=None, eps=0.01
+    collection: Collection, basis: Sequence[str], angles, rgb, sigma=None, *, objective=None, eps=None
 ) -> SampleFit:
     """Fits a new material from its samples (SPEC 10): ``angles`` (n, 4) in degrees
     ``theta_i, phi_i, theta_o, phi_o``, ``rgb`` (n, 3) reflectance in MERL units,

@@ -51,7 +51,7 @@ pub(crate) fn grid(mask: &str, weighting: &str, stride: usize) -> PyResult<bb::r
 /// arguments are the fields of the library's `run::SelectRequest`, which makes every
 /// rule (one wording for the command line, Python and the library).
 #[pyfunction]
-#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = 0.01, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = None, backend = "auto", progress = None))]
 pub(crate) fn select_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -77,7 +77,7 @@ pub(crate) fn select_json<'py>(
     stride: usize,
     seed: u64,
     objective: Option<&str>,
-    eps: f64,
+    eps: Option<f64>,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -86,13 +86,11 @@ pub(crate) fn select_json<'py>(
     req.k = k;
     req.k_min = k_min;
     req.k_max = k_max;
-    req.runs = runs.unwrap_or(req.runs);
-    if let Some(a) = algorithm {
-        req.algorithm = parse(a)?;
-    }
-    req.population = population.unwrap_or(req.population);
-    req.generations = generations.unwrap_or(req.generations);
-    req.more_than = more_than.unwrap_or(req.more_than);
+    req.runs = runs;
+    req.algorithm = algorithm.map(parse).transpose()?;
+    req.population = population;
+    req.generations = generations;
+    req.more_than = more_than;
     req.candidates = candidates;
     req.targets = targets;
     req.init = init;
@@ -100,9 +98,7 @@ pub(crate) fn select_json<'py>(
     req.ga_generations = ga_generations;
     req.ga_crossover = ga_crossover;
     req.ga_mutation = ga_mutation;
-    if let Some(m) = metric {
-        req.metric = parse(m)?;
-    }
+    req.metric = metric.map(parse).transpose()?;
     req.grid = grid(mask, weighting, stride)?;
     req.seed = seed;
     req.objective = objective_of(objective, eps)?;
@@ -114,24 +110,22 @@ pub(crate) fn select_json<'py>(
     Ok(out.to_json())
 }
 
-/// `solver`: `exact` or `pgd`.
-/// The fit objective (SPEC 11) of `objective=` and `eps=`: `None` is the default
-/// objective (`relative`) with `eps`.
+/// `objective=` and `eps=` as given (`None`: not given): the request applies the
+/// defaults and makes the rules (`run::ObjectiveSetting`).
 pub(crate) fn objective_of(
     objective: Option<&str>,
-    eps: f64,
-) -> PyResult<bb::backend::weighted::TargetWeight> {
-    let kind = match objective {
-        Some(o) => o
-            .parse::<bb::backend::weighted::ObjectiveKind>()
+    eps: Option<f64>,
+) -> PyResult<bb::run::ObjectiveSetting> {
+    Ok(bb::run::ObjectiveSetting {
+        objective: objective
+            .map(|o| o.parse::<bb::backend::weighted::ObjectiveKind>())
+            .transpose()
             .map_err(value_err)?,
-        None => bb::run::DEFAULT_OBJECTIVE.kind(),
-    };
-    kind.weight(eps)
-        .check()
-        .map_err(|e| value_err(e.to_string()))
+        eps,
+    })
 }
 
+/// `solver`: `exact` or `pgd`.
 pub(crate) fn solver(s: &str) -> PyResult<bb::Solver> {
     match s {
         "exact" => Ok(bb::Solver::Exact),
@@ -156,7 +150,7 @@ pub(crate) fn gram_mode(s: &str) -> PyResult<bb::GramMode> {
 /// Fits `targets` (default: every material outside the basis) by `basis`: returns the
 /// JSON `brdf-basis fit --json` writes (the library's `run::FitRequest`).
 #[pyfunction]
-#[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", objective = None, eps = 0.01, appearance = true, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", objective = None, eps = None, appearance = true, backend = "auto", progress = None))]
 pub(crate) fn fit_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -168,7 +162,7 @@ pub(crate) fn fit_json<'py>(
     solver: &str,
     gram: &str,
     objective: Option<&str>,
-    eps: f64,
+    eps: Option<f64>,
     appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
@@ -184,6 +178,7 @@ pub(crate) fn fit_json<'py>(
     req.gram = gram_mode(gram)?;
     req.objective = objective_of(objective, eps)?;
     req.appearance = appearance;
+    req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
     let fitted = run_long(py, progress, "fit", |pr| {
         req.run(backend.as_ref(), &coll, pr)
@@ -195,7 +190,7 @@ pub(crate) fn fit_json<'py>(
 /// Plans where to measure a new material (SPEC 10), as `brdf-basis plan --json` on the
 /// evaluation-mask cell centres (the library's `run::PlanRequest`): returns the JSON text.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = 1, restarts = None, objective = None, eps = 0.01, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = 1, restarts = None, objective = None, eps = None, backend = "auto", progress = None))]
 pub(crate) fn plan_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -208,7 +203,7 @@ pub(crate) fn plan_json<'py>(
     seed: u64,
     restarts: Option<usize>,
     objective: Option<&str>,
-    eps: f64,
+    eps: Option<f64>,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -220,9 +215,9 @@ pub(crate) fn plan_json<'py>(
         req.criterion = parse(c)?;
     }
     req.targets = targets;
-    req.candidates_per_step = candidates_per_step.unwrap_or(req.candidates_per_step);
-    req.shortlist = shortlist.unwrap_or(req.shortlist);
-    req.restarts = restarts.unwrap_or(req.restarts);
+    req.candidates_per_step = candidates_per_step;
+    req.shortlist = shortlist;
+    req.restarts = restarts;
     req.seed = seed;
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
@@ -237,7 +232,7 @@ pub(crate) fn plan_json<'py>(
 /// `theta_i, phi_i, theta_o, phi_o`, `rgb` (n, 3), optional `sigma` (n, 3). Returns
 /// `(coefficients (1 + k, 3), residual (3), mae, relative_residual, rank, condition)`.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, angles, rgb, sigma = None, objective = None, eps = 0.01))]
+#[pyo3(signature = (collection, basis, angles, rgb, sigma = None, objective = None, eps = None))]
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub(crate) fn fit_samples<'py>(
     py: Python<'py>,
@@ -247,11 +242,11 @@ pub(crate) fn fit_samples<'py>(
     rgb: Vec<[f64; 3]>,
     sigma: Option<Vec<[f64; 3]>>,
     objective: Option<&str>,
-    eps: f64,
+    eps: Option<f64>,
 ) -> PyResult<(Bound<'py, PyAny>, [f64; 3], f64, f64, usize, f64)> {
     let coll = coll_of(collection);
     let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
-    let w = objective_of(objective, eps)?;
+    let w = objective_of(objective, eps)?.weight().map_err(py_err)?;
     let f =
         bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref(), w).map_err(lib_err)?;
     let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
@@ -271,7 +266,7 @@ pub(crate) fn fit_samples<'py>(
 /// K-fold cross-validation as `brdf-basis cv` (the library's `run::CvRequest`): returns
 /// the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, objective = None, eps = 0.01, appearance = true, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, objective = None, eps = None, appearance = true, backend = "auto", progress = None))]
 pub(crate) fn cross_validate_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -288,7 +283,7 @@ pub(crate) fn cross_validate_json<'py>(
     render_size: Option<u32>,
     seed: u64,
     objective: Option<&str>,
-    eps: f64,
+    eps: Option<f64>,
     appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
@@ -298,18 +293,16 @@ pub(crate) fn cross_validate_json<'py>(
     req.methods = parse_list(methods, &req.methods)?;
     req.ks = ks.unwrap_or(req.ks);
     req.folds = folds.unwrap_or(req.folds);
-    if let Some(m) = metric {
-        req.metric = parse(m)?;
-    }
+    req.metric = metric.map(parse).transpose()?;
     req.grid = grid(mask, weighting, stride)?;
-    req.runs = runs.unwrap_or(req.runs);
-    req.ga_population = ga_population.unwrap_or(req.ga_population);
-    req.ga_generations = ga_generations.unwrap_or(req.ga_generations);
+    req.runs = runs;
+    req.ga_population = ga_population;
+    req.ga_generations = ga_generations;
     req.render_size = render_size.unwrap_or(req.render_size);
     req.seed = seed;
     req.objective = objective_of(objective, eps)?;
     req.appearance = appearance;
-    req.check(coll.len()).map_err(py_err)?;
+    req.check_count(coll.len()).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv", |pr| {
         req.run(backend.as_ref(), &coll, pr)
@@ -321,7 +314,7 @@ pub(crate) fn cross_validate_json<'py>(
 /// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition` (the library's
 /// `run::AcquisitionRequest`): returns the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = 0.01, appearance = true, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = None, appearance = true, backend = "auto", progress = None))]
 pub(crate) fn acquisition_cv_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -340,7 +333,7 @@ pub(crate) fn acquisition_cv_json<'py>(
     stride: usize,
     seed: u64,
     objective: Option<&str>,
-    eps: f64,
+    eps: Option<f64>,
     appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
@@ -355,9 +348,9 @@ pub(crate) fn acquisition_cv_json<'py>(
     req.ns = ns.unwrap_or(req.ns);
     req.noises = noises.unwrap_or(req.noises);
     req.folds = folds.unwrap_or(req.folds);
-    req.candidates_per_step = candidates_per_step.unwrap_or(req.candidates_per_step);
-    req.shortlist = shortlist.unwrap_or(req.shortlist);
-    req.restarts = restarts.unwrap_or(req.restarts);
+    req.candidates_per_step = candidates_per_step;
+    req.shortlist = shortlist;
+    req.restarts = restarts;
     req.render_size = render_size.unwrap_or(req.render_size);
     req.grid = grid(mask, weighting, stride)?;
     req.seed = seed;

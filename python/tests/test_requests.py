@@ -63,3 +63,27 @@ def test_fit_refuses_a_target_given_twice(cli_error, tmp_path):
 def test_restarts_out_of_range_is_refused_by_python_too():
     with pytest.raises(ValueError, match="--restarts 65: give 1 to 64"):
         bb.plan(bb.Collection.default(), ["polished-gold"], 3, restarts=65, backend="cpu")
+
+
+def test_a_setting_the_method_does_not_use_is_refused_as_the_cli_refuses_it(cli_error, tmp_path):
+    """Issue 47: a setting given to a method (objective) that does not use it is refused by
+    the request, in the command line's words, instead of being ignored."""
+    coll = bb.Collection.default()
+    msg = cli_error("select", "--method", "kmedoids", "-k", 3, "--objective", "log", "--json", tmp_path / "k.json")
+    assert msg == "--objective applies to empirical, greedy, swap and ga, not to --method kmedoids"
+    with pytest.raises(ValueError) as e:
+        bb.select(coll, "kmedoids", k=3, objective="log", backend="cpu")
+    assert str(e.value) == msg
+    msg = cli_error("select", "--method", "greedy", "-k", 3, "--runs", 50, "--json", tmp_path / "g.json")
+    with pytest.raises(ValueError) as e:
+        bb.select(coll, "greedy", k=3, runs=50, backend="cpu")
+    assert str(e.value) == msg == "--runs applies to kmedoids and gcuk, not to --method greedy"
+    msg = cli_error("fit", "--basis", "polished-gold", "--all-others", "--objective", "l2", "--eps", 5, "--json", tmp_path / "f.json")
+    with pytest.raises(ValueError) as e:
+        bb.fit(coll, ["polished-gold"], objective="l2", eps=5, backend="cpu")
+    assert str(e.value) == msg
+    assert msg.startswith("--eps 5 applies to --objective relative, not to --objective l2")
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="--eps .*: the relative objective's eps must be a positive number"):
+            bb.fit(coll, ["polished-gold"], eps=bad, backend="cpu")
+    assert not list(tmp_path.iterdir())

@@ -12,9 +12,9 @@ fn defaults() -> CvRequest {
     CvRequest::default()
 }
 
-/// The acquisition request's defaults, for `--help`.
-fn acq() -> AcquisitionRequest {
-    AcquisitionRequest::default()
+/// The acquisition cross-validation's defaults, for `--help`.
+fn acq_defaults() -> brdf_basis::acquire::AcqCvParams {
+    brdf_basis::acquire::AcqCvParams::default()
 }
 
 /// Arguments of `cv`.
@@ -35,21 +35,19 @@ pub(crate) struct CvArgs {
     /// Number of folds.
     #[arg(long, default_value_t = defaults().folds)]
     pub folds: usize,
-    /// Distance of the clustering methods: brdf-it or euclidean.
-    #[arg(long, default_value_t = defaults().metric)]
-    pub metric: Metric,
+    // Optional flags of some methods, so that the request can refuse one that no method
+    // given uses; the help shows the request's defaults.
+    #[arg(long, help = super::with_default("kmedoids, gcuk: distance, brdf-it or euclidean", brdf_basis::select::cv::CvParams::default().metric))]
+    pub metric: Option<Metric>,
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
-    /// k-medoids restarts and GCUK runs per fold.
-    #[arg(long, default_value_t = defaults().runs)]
-    pub runs: usize,
-    /// ga: population size.
-    #[arg(long, default_value_t = defaults().ga_population)]
-    pub ga_population: usize,
-    /// ga: generations.
-    #[arg(long, default_value_t = defaults().ga_generations)]
-    pub ga_generations: usize,
+    #[arg(long, help = super::with_default("kmedoids, gcuk: k-medoids restarts and GCUK runs per fold", brdf_basis::select::cv::CvParams::default().runs))]
+    pub runs: Option<usize>,
+    #[arg(long, help = super::with_default("ga: population size", brdf_basis::select::GaParams::default().population))]
+    pub ga_population: Option<usize>,
+    #[arg(long, help = super::with_default("ga: generations", brdf_basis::select::GaParams::default().generations))]
+    pub ga_generations: Option<usize>,
     /// Render size in pixels for the image errors.
     #[arg(long, default_value_t = defaults().render_size)]
     pub render_size: u32,
@@ -87,17 +85,12 @@ pub(crate) struct CvArgs {
     /// [default: 0,0.02].
     #[arg(long, value_delimiter = ',')]
     pub noise: Vec<f64>,
-    /// --acquisition: candidates examined per plan step (0: all).
-    #[arg(long, default_value_t = acq().candidates_per_step)]
-    pub candidates_per_step: usize,
-    /// --acquisition: error plans fit this many screened candidates exactly per step (0:
-    /// every examined candidate).
-    #[arg(long, default_value_t = acq().shortlist)]
-    pub shortlist: usize,
-    /// --acquisition: error plans compare this many seeded greedy paths, each examining
-    /// its share of --candidates-per-step, and keep the lowest final training score (1 to 64).
-    #[arg(long, default_value_t = acq().restarts)]
-    pub restarts: usize,
+    #[arg(long, help = super::with_default("--acquisition: candidates examined per step of the error, condition and nielsen plans (0: all)", acq_defaults().candidates_per_step))]
+    pub candidates_per_step: Option<usize>,
+    #[arg(long, help = super::with_default("--acquisition: error plans fit this many screened candidates exactly per step (0: every examined candidate)", acq_defaults().shortlist))]
+    pub shortlist: Option<usize>,
+    #[arg(long, help = super::with_default("--acquisition: error plans compare this many seeded greedy paths, each examining its share of --candidates-per-step, and keep the lowest final training score (1 to 64)", acq_defaults().restarts))]
+    pub restarts: Option<usize>,
     /// --acquisition: also write the figure (held-out mean rho against n, one line per
     /// plan, log scale; below it the renders of one held-out material: target, dense fit,
     /// reconstructions from each n by the first plan) as this .svg or .png file.
@@ -136,7 +129,7 @@ impl CvArgs {
         r.ga_generations = self.ga_generations;
         r.render_size = self.render_size;
         r.seed = g.seed;
-        r.objective = self.objective.weight();
+        r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
         Ok(r)
     }
@@ -166,7 +159,7 @@ impl CvArgs {
         r.render_size = self.render_size;
         r.grid = self.grid.grid();
         r.seed = g.seed;
-        r.objective = self.objective.weight();
+        r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
         r.ridge = !self.no_ridge;
         Ok(r)
@@ -175,19 +168,15 @@ impl CvArgs {
 
 /// The `--acquisition` flags given without `--acquisition` (which would ignore them).
 fn acquisition_only(a: &CvArgs) -> Vec<&'static str> {
-    let d = acq();
     [
         ("--plans", !a.plans.is_empty()),
         ("-n", !a.n.is_empty()),
         ("--noise", !a.noise.is_empty()),
         ("--figure", a.figure.is_some()),
         ("--no-ridge", a.no_ridge),
-        (
-            "--candidates-per-step",
-            a.candidates_per_step != d.candidates_per_step,
-        ),
-        ("--shortlist", a.shortlist != d.shortlist),
-        ("--restarts", a.restarts != d.restarts),
+        ("--candidates-per-step", a.candidates_per_step.is_some()),
+        ("--shortlist", a.shortlist.is_some()),
+        ("--restarts", a.restarts.is_some()),
     ]
     .into_iter()
     .filter_map(|(flag, given)| given.then_some(flag))
@@ -209,6 +198,8 @@ pub(crate) fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
             if ignored.len() == 1 { "it" } else { "them" },
         );
     }
+    let req = a.request(g)?;
+    req.check()?;
     // Every output path before the work (two outputs on one path are refused).
     let mut plan = OutputPlan::new(&a.collection);
     plan.file(&a.json, "--json")?;
@@ -217,8 +208,7 @@ pub(crate) fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     }
     let mut out = plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let req = a.request(g)?;
-    req.check(coll.len())?;
+    req.check_count(coll.len())?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "cv");
     let res = req.run(backend.as_ref(), &coll, &|d, t| {
@@ -251,8 +241,37 @@ pub(crate) fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The flags of `cv` without `--acquisition` given with it (which would ignore them).
+fn selection_only(a: &CvArgs) -> Vec<&'static str> {
+    [
+        ("--runs", a.runs.is_some()),
+        ("--metric", a.metric.is_some()),
+        ("--ga-population", a.ga_population.is_some()),
+        ("--ga-generations", a.ga_generations.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(flag, given)| given.then_some(flag))
+    .collect()
+}
+
 /// `cv --acquisition` (SPEC 10).
 fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
+    let ignored = selection_only(&a);
+    if !ignored.is_empty() {
+        anyhow::bail!(
+            "{} {} only without --acquisition (the selection methods' settings of `cv`); `cv --acquisition` chooses its fold bases with each method's defaults and would ignore {}: leave {} out",
+            ignored.join(", "),
+            if ignored.len() == 1 { "applies" } else { "apply" },
+            if ignored.len() == 1 { "it" } else { "them" },
+            if ignored.len() == 1 { "it" } else { "them" },
+        );
+    }
+    if a.k.len() > 1 {
+        anyhow::bail!(
+            "-k {}: cv --acquisition takes one basis size (it would use the first and ignore the others); give one -k",
+            a.k.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(",")
+        );
+    }
     let req = a.acquisition_request(g)?;
     req.check()?;
     let mut plan = OutputPlan::new(&a.collection);

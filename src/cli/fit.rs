@@ -73,7 +73,7 @@ impl FitArgs {
         r.grid = self.grid.grid();
         r.solver = self.solver;
         r.gram = self.gram;
-        r.objective = self.objective.weight();
+        r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
         r
     }
@@ -91,7 +91,7 @@ impl FitArgs {
         r.solver = self.solver;
         r.gram = self.gram;
         r.seed = g.seed;
-        r.objective = self.objective.weight();
+        r.objective = self.objective.setting();
         Ok(r)
     }
 }
@@ -102,6 +102,7 @@ pub(crate) fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         return run_samples(g, a);
     }
     let req = a.request();
+    req.check()?;
     // Output paths before the work: a typo costs no computation.
     let mut plan = OutputPlan::new(&a.collection);
     plan.file(&a.json, "--json")?;
@@ -295,6 +296,7 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 /// samples) and, with `--export`, the whole reconstruction as a MERL `.binary`.
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let req = a.samples_request(g)?;
+    req.check()?;
     // The fit from samples solves over the samples alone: flags of the grid fit would
     // be ignored (and recorded in the JSON as if they had applied).
     let (grid, d) = (&req.grid, FitParams::default());

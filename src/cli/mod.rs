@@ -74,7 +74,8 @@ impl GridArgs {
 }
 
 /// The fit objective (SPEC 11): `--objective` and `--eps` (shared by `fit`, `select`,
-/// `plan` and `cv`).
+/// `plan` and `cv`), as given: the request applies the defaults and refuses what does not
+/// apply ([`brdf_basis::run::ObjectiveSetting`]).
 #[derive(Args, Debug, Clone)]
 pub(crate) struct ObjectiveArgs {
     /// What a fit minimises: relative (weights 1 / (f + eps)^2: every cell counts by its
@@ -83,24 +84,25 @@ pub(crate) struct ObjectiveArgs {
     /// relative].
     #[arg(long, value_enum)]
     pub objective: Option<brdf_basis::backend::weighted::ObjectiveKind>,
-    /// eps of `--objective relative`, in MERL reflectance units (> 0).
-    #[arg(long, default_value_t = brdf_basis::backend::weighted::TargetWeight::DEFAULT_EPS)]
-    pub eps: f64,
+    // eps of `--objective relative` (> 0).
+    #[arg(long, help = with_default("eps of --objective relative, in MERL reflectance units (> 0)", brdf_basis::backend::weighted::TargetWeight::DEFAULT_EPS))]
+    pub eps: Option<f64>,
 }
 
 impl ObjectiveArgs {
-    /// The objective these flags give (the default objective when none is given).
-    pub(crate) fn weight(&self) -> brdf_basis::backend::weighted::TargetWeight {
-        match self.objective {
-            Some(k) => k.weight(self.eps),
-            None => match brdf_basis::run::DEFAULT_OBJECTIVE {
-                brdf_basis::backend::weighted::TargetWeight::Relative { .. } => {
-                    brdf_basis::backend::weighted::TargetWeight::Relative { eps: self.eps }
-                }
-                w => w,
-            },
+    /// The flags as given.
+    pub(crate) fn setting(&self) -> brdf_basis::run::ObjectiveSetting {
+        brdf_basis::run::ObjectiveSetting {
+            objective: self.objective,
+            eps: self.eps,
         }
     }
+}
+
+/// `text` with ` [default: value]`, as clap shows a default: the help of a flag that is
+/// an `Option` (so that a request can tell a setting given from one defaulted).
+fn with_default(text: &str, value: impl std::fmt::Display) -> String {
+    format!("{text} [default: {value}]")
 }
 
 /// `--stride`: 1 (the full grid) to 90 (one cell per axis).

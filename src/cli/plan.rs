@@ -40,17 +40,14 @@ pub(crate) struct PlanArgs {
     /// an ASTM `.astm` file [default: the cell centres of the evaluation mask].
     #[arg(long)]
     pub candidates: Option<PathBuf>,
-    /// Candidates examined per step (0: all).
-    #[arg(long, default_value_t = defaults().candidates_per_step)]
-    pub candidates_per_step: usize,
-    /// error: screened candidates fitted exactly per step (0: all examined).
-    #[arg(long, default_value_t = defaults().shortlist)]
-    pub shortlist: usize,
-    /// error: seeded greedy paths (1 to 64) sharing the candidates of each step, the one of the
-    /// lowest final training score kept (the plan's prefixes are its shorter plans; a run
-    /// at a smaller -n may choose another path).
-    #[arg(long, default_value_t = defaults().restarts)]
-    pub restarts: usize,
+    // Optional flags of some criteria, so that the request can refuse one the criterion
+    // does not use; the help shows the request's defaults.
+    #[arg(long, help = super::with_default("error, condition: candidates examined per step (0: all)", defaults().candidates_per_step()))]
+    pub candidates_per_step: Option<usize>,
+    #[arg(long, help = super::with_default("error: screened candidates fitted exactly per step (0: all examined)", defaults().shortlist()))]
+    pub shortlist: Option<usize>,
+    #[arg(long, help = super::with_default("error: seeded greedy paths (1 to 64) sharing the candidates of each step, the one of the lowest final training score kept (the plan's prefixes are its shorter plans; a run at a smaller -n may choose another path)", defaults().restarts()))]
+    pub restarts: Option<usize>,
     #[command(flatten)]
     pub objective: super::ObjectiveArgs,
     /// Output CSV: the samples-file header and one row per sample, in the order chosen.
@@ -73,7 +70,7 @@ impl PlanArgs {
         r.shortlist = self.shortlist;
         r.restarts = self.restarts;
         r.seed = g.seed;
-        r.objective = self.objective.weight();
+        r.objective = self.objective.setting();
         r
     }
 }

@@ -26,10 +26,9 @@ pub(crate) struct SelectArgs {
     /// Selection method.
     #[arg(long, value_enum)]
     pub method: SelectMethod,
-    /// Distance for clustering: brdf-it or euclidean (with a CSV --distances: the label of
-    /// the matrix's metric).
-    #[arg(long, default_value_t = defaults().metric)]
-    pub metric: Metric,
+    // Distance for clustering.
+    #[arg(long, help = super::with_default("kmedoids, gcuk: distance for clustering, brdf-it or euclidean (with a CSV --distances: the label of the matrix's metric)", defaults().metric()))]
+    pub metric: Option<Metric>,
     /// Grid cells and weights.
     #[command(flatten)]
     pub grid: super::GridArgs,
@@ -46,22 +45,18 @@ pub(crate) struct SelectArgs {
     /// Largest k (k-medoids range [default: 12]; GCUK k_max [default: 20]).
     #[arg(long)]
     pub k_max: Option<usize>,
-    /// Runs per k (k-medoids) or GCUK runs, seeds seed, seed + 1, ... (at least 1).
-    #[arg(long, default_value_t = defaults().runs)]
-    pub runs: usize,
-    /// k-medoids local search: fasterpam (Schubert & Rousseeuw 2021) or pam (BUILD-free
-    /// PAM SWAP, best improvement).
-    #[arg(long, default_value_t = KMedoidsAlgorithm::default())]
-    pub algorithm: KMedoidsAlgorithm,
-    /// GCUK population.
-    #[arg(long, default_value_t = defaults().population)]
-    pub population: usize,
-    /// GCUK generations.
-    #[arg(long, default_value_t = defaults().generations)]
-    pub generations: usize,
-    /// Empirical: a material enters the basis when it contributes to more than this many fits.
-    #[arg(long, default_value_t = defaults().more_than)]
-    pub more_than: usize,
+    // Optional flags, so that the request can refuse one its method does not use; the
+    // help shows the request's defaults.
+    #[arg(long, help = super::with_default("kmedoids, gcuk: runs per k (k-medoids) or GCUK runs, seeds seed, seed + 1, ... (at least 1)", defaults().runs()))]
+    pub runs: Option<usize>,
+    #[arg(long, help = super::with_default("kmedoids: local search, fasterpam (Schubert & Rousseeuw 2021) or pam (BUILD-free PAM SWAP, best improvement)", defaults().algorithm()))]
+    pub algorithm: Option<KMedoidsAlgorithm>,
+    #[arg(long, help = super::with_default("gcuk: population", defaults().population()))]
+    pub population: Option<usize>,
+    #[arg(long, help = super::with_default("gcuk: generations", defaults().generations()))]
+    pub generations: Option<usize>,
+    #[arg(long, help = super::with_default("empirical: a material enters the basis when it contributes to more than this many fits", defaults().more_than()))]
+    pub more_than: Option<usize>,
     /// Output JSON.
     #[arg(long)]
     pub json: PathBuf,
@@ -130,7 +125,7 @@ impl SelectArgs {
         r.grid = self.grid.grid();
         r.seed = g.seed;
         r.distances = self.distances.clone();
-        r.objective = self.objective.weight();
+        r.objective = self.objective.setting();
         r
     }
 }

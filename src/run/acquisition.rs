@@ -1,8 +1,7 @@
 //! `cv --acquisition`: acquisition cross-validation (SPEC 10).
 
-use super::{check_restarts, Grid};
+use super::{check_restarts, Grid, ObjectiveSetting};
 use crate::acquire::{acquisition_cv_with_progress, AcqCv, AcqCvParams, Criterion};
-use crate::backend::weighted::TargetWeight;
 use crate::backend::Backend;
 use crate::backend::Progress;
 use crate::collection::Collection;
@@ -27,12 +26,15 @@ pub struct AcquisitionRequest {
     pub noises: Vec<f64>,
     /// `--folds`.
     pub folds: usize,
-    /// `--candidates-per-step` (0: all).
-    pub candidates_per_step: usize,
-    /// `--shortlist`: exact fits per step of the error plans (0: every examined one).
-    pub shortlist: usize,
-    /// `--restarts`: seeded greedy paths of the error plans, 1 to 64.
-    pub restarts: usize,
+    /// `--candidates-per-step`: of the error, condition and nielsen plans (0: all;
+    /// default: [`AcqCvParams::default`]'s).
+    pub candidates_per_step: Option<usize>,
+    /// `--shortlist`: exact fits per step of the error plans (0: every examined one;
+    /// default: [`AcqCvParams::default`]'s).
+    pub shortlist: Option<usize>,
+    /// `--restarts`: seeded greedy paths of the error plans, 1 to 64 (default:
+    /// [`AcqCvParams::default`]'s).
+    pub restarts: Option<usize>,
     /// `--render-size`.
     pub render_size: u32,
     /// `--mask`, `--weighting`, `--stride`.
@@ -40,8 +42,8 @@ pub struct AcquisitionRequest {
     /// `--seed`.
     pub seed: u64,
     /// `--objective` and `--eps` (SPEC 11): the fold bases' shared weights, the plans'
-    /// row weights and every fit's weights.
-    pub objective: TargetWeight,
+    /// row weights and every fit's weights, as given.
+    pub objective: ObjectiveSetting,
     /// Appearance metrics of every reconstruction (`--no-appearance` turns them off).
     pub appearance: bool,
     /// The ridge of the fits from samples (`--no-ridge` turns it off).
@@ -58,13 +60,13 @@ impl Default for AcquisitionRequest {
             ns: d.ns,
             noises: d.noises,
             folds: d.folds,
-            candidates_per_step: d.candidates_per_step,
-            shortlist: d.shortlist,
-            restarts: d.restarts,
+            candidates_per_step: None,
+            shortlist: None,
+            restarts: None,
             render_size: d.render_size,
             grid: Grid::default(),
             seed: d.seed,
-            objective: super::DEFAULT_OBJECTIVE,
+            objective: ObjectiveSetting::default(),
             appearance: d.appearance,
             ridge: d.ridge,
         }
@@ -72,9 +74,10 @@ impl Default for AcquisitionRequest {
 }
 
 impl AcquisitionRequest {
-    /// The library's parameters.
-    fn params(&self) -> AcqCvParams {
-        AcqCvParams {
+    /// The library's parameters, the defaults applied.
+    fn params(&self) -> Result<AcqCvParams> {
+        let d = AcqCvParams::default();
+        Ok(AcqCvParams {
             methods: self.methods.clone(),
             k: self.k,
             plans: self.plans.clone(),
@@ -82,21 +85,23 @@ impl AcquisitionRequest {
             noises: self.noises.clone(),
             folds: self.folds,
             seed: self.seed,
-            candidates_per_step: self.candidates_per_step,
-            shortlist: self.shortlist,
-            restarts: self.restarts,
+            candidates_per_step: self.candidates_per_step.unwrap_or(d.candidates_per_step),
+            shortlist: self.shortlist.unwrap_or(d.shortlist),
+            restarts: self.restarts.unwrap_or(d.restarts),
             render_size: self.render_size,
             objective: ObjectiveParams::default()
                 .mask(self.grid.mask)
                 .weighting(self.grid.weighting)
                 .stride(self.grid.stride)
-                .objective(self.objective),
+                .objective(self.objective.weight()?),
             appearance: self.appearance,
             ridge: self.ridge,
-        }
+        })
     }
 
-    /// The rules of the settings that need no collection (1 to 64 restarts; no plan,
+    /// The rules of the settings that need no collection (the objective's,
+    /// [`ObjectiveSetting::weight`]; no plan setting that no plan of `--plans` uses; 1 to
+    /// 64 restarts; no plan,
     /// sample count or noise level listed twice, as `--methods` refuses a method listed
     /// twice: each would give a duplicate row); the others (folds, k, plans, n, noise) are
     /// checked by [`Self::run`] before any work.
@@ -104,7 +109,14 @@ impl AcquisitionRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        check_restarts(self.restarts)?;
+        self.objective.weight()?;
+        let given = [
+            self.candidates_per_step.is_some(),
+            self.shortlist.is_some(),
+            self.restarts.is_some(),
+        ];
+        super::plan::criterion_settings("--plans", &self.plans, given)?;
+        check_restarts(self.restarts.unwrap_or(AcqCvParams::default().restarts))?;
         let plans: Vec<&str> = self.plans.iter().map(|c| c.as_str()).collect();
         once("--plans", "plan", &plans, |c| format!("`{c}`"))?;
         once("-n", "sample count", &self.ns, |n| n.to_string())?;
@@ -176,7 +188,7 @@ impl AcquisitionRequest {
         Ok(acquisition_cv_with_progress(
             backend,
             coll,
-            &self.params(),
+            &self.params()?,
             progress,
         )?)
     }

@@ -1,6 +1,6 @@
 //! `cv`: cross-validated comparison of basis-selection methods (SPEC 8).
 
-use super::Grid;
+use super::{refuse, Grid, ObjectiveSetting};
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::distance::Metric;
@@ -19,23 +19,24 @@ pub struct CvRequest {
     pub ks: Vec<usize>,
     /// `--folds`.
     pub folds: usize,
-    /// `--metric`: distance of the clustering methods.
-    pub metric: Metric,
+    /// `--metric`: distance of the clustering methods (default: [`CvParams::default`]'s).
+    pub metric: Option<Metric>,
     /// `--mask`, `--weighting`, `--stride`.
     pub grid: Grid,
-    /// `--runs`: k-medoids restarts and GCUK runs per fold.
-    pub runs: usize,
-    /// `--ga-population`.
-    pub ga_population: usize,
-    /// `--ga-generations`.
-    pub ga_generations: usize,
+    /// `--runs`: k-medoids restarts and GCUK runs per fold (default:
+    /// [`CvParams::default`]'s).
+    pub runs: Option<usize>,
+    /// `--ga-population` (default: [`GaParams::default`]'s).
+    pub ga_population: Option<usize>,
+    /// `--ga-generations` (default: [`GaParams::default`]'s).
+    pub ga_generations: Option<usize>,
     /// `--render-size`: pixels of the renders of the image errors.
     pub render_size: u32,
     /// `--seed`.
     pub seed: u64,
     /// `--objective` and `--eps` (SPEC 11): the selection's shared weights and the
-    /// held-out fits' per-target weights.
-    pub objective: crate::backend::weighted::TargetWeight,
+    /// held-out fits' per-target weights, as given.
+    pub objective: ObjectiveSetting,
     /// The appearance metrics of the held-out fits (`--no-appearance` turns them off).
     pub appearance: bool,
 }
@@ -43,28 +44,29 @@ pub struct CvRequest {
 impl Default for CvRequest {
     fn default() -> Self {
         let d = CvParams::default();
-        let g = GaParams::default();
         Self {
             methods: d.methods,
             ks: d.ks,
             folds: d.folds,
-            metric: d.metric,
+            metric: None,
             grid: Grid::default(),
-            runs: d.runs,
-            ga_population: g.population,
-            ga_generations: g.generations,
+            runs: None,
+            ga_population: None,
+            ga_generations: None,
             render_size: d.render_size,
             seed: d.seed,
-            objective: super::DEFAULT_OBJECTIVE,
+            objective: ObjectiveSetting::default(),
             appearance: d.appearance,
         }
     }
 }
 
 impl CvRequest {
-    /// The library's parameters.
-    fn params(&self) -> CvParams {
-        CvParams {
+    /// The library's parameters, the defaults applied.
+    fn params(&self) -> Result<CvParams> {
+        let d = CvParams::default();
+        let g = GaParams::default();
+        Ok(CvParams {
             methods: self.methods.clone(),
             ks: self.ks.clone(),
             folds: self.folds,
@@ -73,25 +75,67 @@ impl CvRequest {
                 .mask(self.grid.mask)
                 .weighting(self.grid.weighting)
                 .stride(self.grid.stride)
-                .objective(self.objective),
-            metric: self.metric,
-            runs: self.runs,
+                .objective(self.objective.weight()?),
+            metric: self.metric.unwrap_or(d.metric),
+            runs: self.runs.unwrap_or(d.runs),
             ga: GaParams::default()
-                .population(self.ga_population)
-                .generations(self.ga_generations)
+                .population(self.ga_population.unwrap_or(g.population))
+                .generations(self.ga_generations.unwrap_or(g.generations))
                 .seed(self.seed),
             render_size: self.render_size,
             appearance: self.appearance,
-        }
+        })
     }
 
-    /// The settings against a collection of `n` materials (methods, folds, sizes, runs,
-    /// GA, grid and render settings: [`CvParams::check`]).
+    /// Every setting that only some methods use: whether it was given, its flag and the
+    /// methods that use it.
+    fn method_settings(&self) -> [(bool, &'static str, &'static [CvMethod]); 4] {
+        const CLUSTERING: &[CvMethod] = &[CvMethod::Kmedoids, CvMethod::Gcuk];
+        [
+            (self.runs.is_some(), "--runs", CLUSTERING),
+            (self.metric.is_some(), "--metric", CLUSTERING),
+            (
+                self.ga_population.is_some(),
+                "--ga-population",
+                &[CvMethod::Ga],
+            ),
+            (
+                self.ga_generations.is_some(),
+                "--ga-generations",
+                &[CvMethod::Ga],
+            ),
+        ]
+    }
+
+    /// The rules of the settings that need no collection: a setting that none of
+    /// `--methods` uses, and the objective's ([`ObjectiveSetting::weight`]).
     ///
     /// # Errors
-    /// [`crate::Error::Selection`] naming the setting.
-    pub fn check(&self, n: usize) -> Result<()> {
-        self.params().check(n)?;
+    /// [`crate::error::RequestError`] naming the setting.
+    pub fn check(&self) -> Result<()> {
+        for (given, flag, users) in self.method_settings() {
+            if given && !self.methods.iter().any(|m| users.contains(m)) {
+                let users: Vec<&str> = users.iter().map(|m| m.name()).collect();
+                let methods: Vec<&str> = self.methods.iter().map(|m| m.name()).collect();
+                refuse!(
+                    "{flag} applies to {}, not to --methods {}",
+                    super::list(&users),
+                    methods.join(",")
+                );
+            }
+        }
+        self.objective.weight()?;
+        Ok(())
+    }
+
+    /// [`Self::check`], then the settings against a collection of `n` materials
+    /// (methods, folds, sizes, runs, GA, grid and render settings: [`CvParams::check`]).
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError`] or [`crate::Error::Selection`] naming the setting.
+    pub fn check_count(&self, n: usize) -> Result<()> {
+        self.check()?;
+        self.params()?.check(n)?;
         Ok(())
     }
 
@@ -106,7 +150,8 @@ impl CvRequest {
         coll: &Collection,
         progress: Progress<'_>,
     ) -> Result<CvResult> {
-        let valid = self.params().check(coll.len())?;
+        self.check()?;
+        let valid = self.params()?.check(coll.len())?;
         Ok(cross_validate(backend, coll, &valid, progress)?)
     }
 }

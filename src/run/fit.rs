@@ -1,8 +1,7 @@
 //! `fit`: materials of the collection as non-negative combinations of a basis.
 
-use super::{all_others, indices_of, refuse, Grid};
+use super::{all_others, indices_of, refuse, Grid, ObjectiveSetting};
 use crate::acquire::SampleFit;
-use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::eval::appearance::Appearance;
@@ -38,8 +37,8 @@ pub struct FitRequest {
     pub solver: Solver,
     /// `--gram`.
     pub gram: GramMode,
-    /// `--objective` and `--eps` (SPEC 11).
-    pub objective: TargetWeight,
+    /// `--objective` and `--eps` (SPEC 11), as given.
+    pub objective: ObjectiveSetting,
     /// The appearance metrics of every fit (SPEC 11: log-RMSE, and image error, CIEDE2000
     /// and FLIP under four lights); `--no-appearance` turns them off.
     pub appearance: bool,
@@ -73,21 +72,34 @@ impl FitRequest {
             grid: Grid::default(),
             solver: d.solver,
             gram: d.gram,
-            objective: super::DEFAULT_OBJECTIVE,
+            objective: ObjectiveSetting::default(),
             appearance: true,
         }
     }
 
-    /// The library's parameters.
-    pub fn params(&self) -> FitParams {
-        FitParams {
+    /// The rules of the settings that need no collection (the objective's:
+    /// [`ObjectiveSetting::weight`]).
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError`] naming the setting.
+    pub fn check(&self) -> Result<()> {
+        self.objective.weight()?;
+        Ok(())
+    }
+
+    /// The library's parameters, the defaults applied.
+    ///
+    /// # Errors
+    /// As [`Self::check`].
+    pub fn params(&self) -> Result<FitParams> {
+        Ok(FitParams {
             mask: self.grid.mask,
             weighting: self.grid.weighting,
             stride: self.grid.stride,
             solver: self.solver,
             gram: self.gram,
-            objective: self.objective,
-        }
+            objective: self.objective.weight()?,
+        })
     }
 
     /// The basis and target indices in `coll`: targets each once, never empty.
@@ -129,9 +141,8 @@ impl FitRequest {
         coll: &Collection,
         progress: Progress<'_>,
     ) -> Result<FitOutput> {
+        let p = self.params()?;
         let (basis, targets) = self.indices(coll)?;
-        let p = self.params();
-        p.objective.check()?;
         let fits = fit(backend, coll, &basis, &targets, &p, progress)?;
         let warnings = fit_warnings(coll, &basis, &targets, &fits, p.objective);
         let appearance = if self.appearance {
@@ -175,8 +186,8 @@ pub struct FitSamplesRequest {
     /// `--seed`: of the directions suggested when the samples do not determine the fit.
     pub seed: u64,
     /// `--objective` and `--eps` (SPEC 11: each sample weighted by the objective's weight
-    /// at its measured value).
-    pub objective: TargetWeight,
+    /// at its measured value), as given.
+    pub objective: ObjectiveSetting,
 }
 
 /// What `fit --samples` computes.
@@ -216,7 +227,7 @@ impl FitSamplesRequest {
             solver: d.solver,
             gram: d.gram,
             seed: 1,
-            objective: super::DEFAULT_OBJECTIVE,
+            objective: ObjectiveSetting::default(),
         }
     }
 
@@ -228,16 +239,27 @@ impl FitSamplesRequest {
             .unwrap_or_else(|| "samples".into())
     }
 
+    /// The rules of the settings that need no collection (the objective's:
+    /// [`ObjectiveSetting::weight`]).
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError`] naming the setting.
+    pub fn check(&self) -> Result<()> {
+        self.objective.weight()?;
+        Ok(())
+    }
+
     /// Reads the samples and fits them by the basis of `coll`.
     ///
     /// # Errors
-    /// An unknown material, an unreadable or invalid samples file, a failed fit.
+    /// As [`Self::check`], then an unknown material, an unreadable or invalid samples
+    /// file, a failed fit.
     pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
         use crate::acquire::{self as afit, read_samples};
-        self.objective.check()?;
+        let objective = self.objective.weight()?;
         let basis = indices_of(coll, &self.basis)?;
         let samples = read_samples(&self.samples)?;
-        let sf = afit::fit_samples(coll, &basis, &samples, self.objective)?;
+        let sf = afit::fit_samples(coll, &basis, &samples, objective)?;
         let d = &sf.determination;
         // As many directions as the warning says more samples would help: the missing
         // samples, else the missing rank, else "a few" (3).
@@ -270,7 +292,7 @@ impl FitSamplesRequest {
             stride: self.grid.stride,
             solver: self.solver,
             gram: self.gram,
-            objective: self.objective,
+            objective,
         };
         let target = sf.target_fit(&name);
         let mut file = FitFile::new(coll, &basis, std::slice::from_ref(&target), &p);

@@ -45,19 +45,82 @@ pub use plan::PlanRequest;
 pub use reproduce::{ReproduceRequest, Reproduction};
 pub use select::{SelectMethod, SelectRequest};
 
-use crate::backend::weighted::TargetWeight;
+use crate::backend::weighted::{ObjectiveKind, TargetWeight};
 use crate::collection::Collection;
 use crate::merl::{Mask, Weighting};
 
-/// The fit objective of `fit`, `select` and `cv` when none is given (SPEC 11): `relative`
-/// with `eps` 0.01, the objective with the lowest mean held-out FLIP over the four lights
-/// on merl100 (5 folds, greedy k = 12; README "Appearance" gives the measurement).
-/// `reproduce` keeps `l2` where it reproduces the paper. Fits from samples (`fit
+/// The fit objective of `fit`, `select`, `plan` and `cv` when none is given (SPEC 11):
+/// the library's one default (`relative`, `eps` 0.01), the same for the core's parameter
+/// types. `reproduce` keeps `l2` where it reproduces the paper. Fits from samples (`fit
 /// --samples`, `cv --acquisition`) weigh each sample by the objective at its measured
 /// value, plans (`plan`) by the objective's shared weights (SPEC 11).
-pub const DEFAULT_OBJECTIVE: TargetWeight = TargetWeight::Relative {
-    eps: TargetWeight::DEFAULT_EPS,
-};
+pub use crate::fit::DEFAULT_OBJECTIVE;
+
+/// `--objective` and `--eps` as a door gave them (`None`: not given), the one home of
+/// the fit objective's default and rules for `fit`, `select`, `plan`, `cv` and
+/// `cv --acquisition`: [`ObjectiveSetting::weight`] applies [`DEFAULT_OBJECTIVE`] and
+/// refuses an `eps` that is not a positive number or that the objective does not use.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ObjectiveSetting {
+    /// `--objective` (default: `relative`, [`DEFAULT_OBJECTIVE`]).
+    pub objective: Option<ObjectiveKind>,
+    /// `--eps`: the offset of `relative` only (default [`TargetWeight::DEFAULT_EPS`]).
+    pub eps: Option<f64>,
+}
+
+impl ObjectiveSetting {
+    /// The flags given (`--objective`, `--eps`), in that order.
+    pub fn given(&self) -> impl Iterator<Item = &'static str> {
+        [
+            (self.objective.is_some(), "--objective"),
+            (self.eps.is_some(), "--eps"),
+        ]
+        .into_iter()
+        .filter_map(|(given, flag)| given.then_some(flag))
+    }
+
+    /// The objective with the defaults applied, every rule made.
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError`]: `--eps` with an objective other than `relative`,
+    /// or an `eps` that is not a positive number ([`check_eps`]).
+    pub fn weight(&self) -> crate::Result<TargetWeight> {
+        let kind = self.objective.unwrap_or(DEFAULT_OBJECTIVE.kind());
+        match (kind, self.eps) {
+            (ObjectiveKind::Relative, eps) => {
+                let eps = eps.or(DEFAULT_OBJECTIVE.eps()).unwrap_or(TargetWeight::DEFAULT_EPS);
+                Ok(TargetWeight::Relative { eps: check_eps(eps)? })
+            }
+            (k, Some(eps)) => refuse!(
+                "--eps {eps} applies to --objective relative, not to --objective {}: only the relative objective has an offset; leave --eps out",
+                k.name()
+            ),
+            (k, None) => Ok(k.weight(TargetWeight::DEFAULT_EPS)),
+        }
+    }
+}
+
+impl From<TargetWeight> for ObjectiveSetting {
+    /// The objective given explicitly (with its `eps` when `relative`).
+    fn from(w: TargetWeight) -> Self {
+        Self {
+            objective: Some(w.kind()),
+            eps: w.eps(),
+        }
+    }
+}
+
+/// The rule of `--eps` (SPEC 11), made by [`TargetWeight::check`]: a finite positive
+/// number. Returns `eps`.
+///
+/// # Errors
+/// [`crate::error::RequestError`] naming `--eps`.
+pub fn check_eps(eps: f64) -> crate::Result<f64> {
+    match (TargetWeight::Relative { eps }).check() {
+        Ok(_) => Ok(eps),
+        Err(e) => refuse!("--eps {eps}: {e}"),
+    }
+}
 
 /// Which grid cells a command reduces over and how they are weighted: the
 /// `--mask`, `--weighting` and `--stride` of `distance`, `select`, `fit` and `cv`.
@@ -113,6 +176,14 @@ fn optional_indices(
 /// `fit --all-others` and `plan`).
 pub fn all_others(coll: &Collection, basis: &[usize]) -> Vec<usize> {
     (0..coll.len()).filter(|i| !basis.contains(i)).collect()
+}
+
+/// `a`, `a and b`, `a, b and c`: the names a refusal lists.
+fn list(names: &[&str]) -> String {
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        _ => names.join(""),
+    }
 }
 
 /// Restarts of an `error` plan: 1 to 64 (`plan --restarts`, `cv --acquisition --restarts`).

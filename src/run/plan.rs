@@ -1,9 +1,8 @@
 //! `plan`: where to measure a new material (SPEC 10).
 
-use super::{all_others, check_restarts, indices_of, refuse};
+use super::{all_others, check_restarts, indices_of, refuse, ObjectiveSetting};
 use crate::acquire::{cell_candidates, plan_with_progress, Candidate};
 use crate::acquire::{read_candidates, Criterion, Plan, PlanParams};
-use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::FitParams;
@@ -26,17 +25,20 @@ pub struct PlanRequest {
     pub n: usize,
     /// `--criterion`: error, condition or random (`nielsen` is refused: see [`Self::check`]).
     pub criterion: Criterion,
-    /// `--candidates-per-step` (0: all).
-    pub candidates_per_step: usize,
-    /// `--shortlist`: error, screened candidates fitted exactly per step (0: all examined).
-    pub shortlist: usize,
-    /// `--restarts`: error, seeded greedy paths, 1 to 64.
-    pub restarts: usize,
+    /// `--candidates-per-step`: error and condition (0: all; default:
+    /// [`PlanParams::default`]'s).
+    pub candidates_per_step: Option<usize>,
+    /// `--shortlist`: error, screened candidates fitted exactly per step (0: all examined;
+    /// default: [`PlanParams::default`]'s).
+    pub shortlist: Option<usize>,
+    /// `--restarts`: error, seeded greedy paths, 1 to 64 (default:
+    /// [`PlanParams::default`]'s).
+    pub restarts: Option<usize>,
     /// `--seed`.
     pub seed: u64,
     /// `--objective` and `--eps` (SPEC 11): the weights of the plan's rows and of its
-    /// training fits.
-    pub objective: TargetWeight,
+    /// training fits, as given.
+    pub objective: ObjectiveSetting,
 }
 
 impl PlanRequest {
@@ -58,16 +60,33 @@ impl PlanRequest {
             candidates: None,
             n: d.n,
             criterion: d.criterion,
-            candidates_per_step: d.candidates_per_step,
-            shortlist: d.shortlist,
-            restarts: d.restarts,
+            candidates_per_step: None,
+            shortlist: None,
+            restarts: None,
             seed: d.seed,
-            objective: super::DEFAULT_OBJECTIVE,
+            objective: ObjectiveSetting::default(),
         }
     }
 
-    /// The rules of the settings: a criterion whose plan `fit --samples` can use, 1 to 64
-    /// restarts.
+    /// `--candidates-per-step` with its default.
+    pub fn candidates_per_step(&self) -> usize {
+        self.candidates_per_step
+            .unwrap_or(PlanParams::default().candidates_per_step)
+    }
+
+    /// `--shortlist` with its default.
+    pub fn shortlist(&self) -> usize {
+        self.shortlist.unwrap_or(PlanParams::default().shortlist)
+    }
+
+    /// `--restarts` with its default.
+    pub fn restarts(&self) -> usize {
+        self.restarts.unwrap_or(PlanParams::default().restarts)
+    }
+
+    /// The rules of the settings: a criterion whose plan `fit --samples` can use, no
+    /// setting the criterion does not use ([`criterion_settings`]), 1 to 64 restarts, the
+    /// objective's ([`ObjectiveSetting::weight`]).
     ///
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
@@ -75,23 +94,31 @@ impl PlanRequest {
         if self.criterion == Criterion::Nielsen {
             refuse!("--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random, and `cv --acquisition --plans nielsen` compares the baseline");
         }
-        check_restarts(self.restarts)
+        let given = [
+            self.candidates_per_step.is_some(),
+            self.shortlist.is_some(),
+            self.restarts.is_some(),
+        ];
+        criterion_settings("--criterion", &[self.criterion], given)?;
+        check_restarts(self.restarts())?;
+        self.objective.weight()?;
+        Ok(())
     }
 
     /// The library's parameters of the plan.
-    fn params(&self) -> PlanParams {
-        PlanParams {
+    fn params(&self) -> Result<PlanParams> {
+        Ok(PlanParams {
             n: self.n,
             criterion: self.criterion,
-            candidates_per_step: self.candidates_per_step,
-            shortlist: self.shortlist,
+            candidates_per_step: self.candidates_per_step(),
+            shortlist: self.shortlist(),
             seed: self.seed,
             fit: FitParams {
-                objective: self.objective,
+                objective: self.objective.weight()?,
                 ..FitParams::default()
             },
-            restarts: self.restarts,
-        }
+            restarts: self.restarts(),
+        })
     }
 
     /// Plans the samples on `coll` (the Gram quantities on `backend`) and returns the plan
@@ -117,13 +144,12 @@ impl PlanRequest {
         progress: Progress<'_>,
     ) -> Result<Plan> {
         self.check()?;
-        self.objective.check()?;
         let basis = indices_of(coll, &self.basis)?;
         let targets = match &self.targets {
             Some(t) => indices_of(coll, t)?,
             None => all_others(coll, &basis),
         };
-        let p = self.params();
+        let p = self.params()?;
         let cands: Vec<Candidate> = match &self.candidates {
             Some(path) => read_candidates(path)?
                 .into_iter()
@@ -138,4 +164,32 @@ impl PlanRequest {
             backend, coll, &basis, &targets, &cands, &p, progress,
         )?)
     }
+}
+
+/// Refuses a plan setting that none of `criteria` (given by `by`: `--criterion` or
+/// `--plans`) uses: `given` says whether
+/// `--candidates-per-step`, `--shortlist` and `--restarts` were given (the one table of
+/// which criterion uses which, for `plan` and `cv --acquisition`).
+///
+/// # Errors
+/// [`crate::error::RequestError`] naming the setting and the criteria that use it.
+pub(super) fn criterion_settings(by: &str, criteria: &[Criterion], given: [bool; 3]) -> Result<()> {
+    use Criterion::{Condition, Error, Nielsen};
+    let table: [(&str, &[Criterion]); 3] = [
+        ("--candidates-per-step", &[Error, Condition, Nielsen]),
+        ("--shortlist", &[Error]),
+        ("--restarts", &[Error]),
+    ];
+    for ((flag, users), given) in table.into_iter().zip(given) {
+        if given && !criteria.iter().any(|c| users.contains(c)) {
+            let users: Vec<&str> = users.iter().map(|c| c.as_str()).collect();
+            let got: Vec<&str> = criteria.iter().map(|c| c.as_str()).collect();
+            refuse!(
+                "{flag} applies to {} plans, not to {by} {}",
+                super::list(&users),
+                got.join(",")
+            );
+        }
+    }
+    Ok(())
 }

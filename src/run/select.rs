@@ -1,7 +1,7 @@
 //! `select`: a basis by the paper's Algorithm 1, by clustering a distance matrix (computed
 //! or saved), or by fitting error (SPEC 8).
 
-use super::{optional_indices, refuse, Grid};
+use super::{optional_indices, refuse, Grid, ObjectiveSetting};
 use crate::backend::{Backend, Progress};
 use crate::cluster::{ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsParams};
 use crate::collection::Collection;
@@ -106,16 +106,17 @@ pub struct SelectRequest {
     /// `--k-max`: largest k of the k-medoids range (default 12) or GCUK's k_max (default 20).
     pub k_max: Option<usize>,
     /// `--runs`: runs per k (k-medoids) or GCUK runs, seeds `seed`, `seed + 1`, ...
-    pub runs: usize,
-    /// `--algorithm`: the k-medoids local search.
-    pub algorithm: KMedoidsAlgorithm,
-    /// `--population`: GCUK population.
-    pub population: usize,
-    /// `--generations`: GCUK generations.
-    pub generations: usize,
+    /// (default: [`ExperimentParams::default`]'s).
+    pub runs: Option<usize>,
+    /// `--algorithm`: the k-medoids local search (default: [`KMedoidsAlgorithm::default`]).
+    pub algorithm: Option<KMedoidsAlgorithm>,
+    /// `--population`: GCUK population (default: [`GcukParams::default`]'s).
+    pub population: Option<usize>,
+    /// `--generations`: GCUK generations (default: [`GcukParams::default`]'s).
+    pub generations: Option<usize>,
     /// `--more-than`: empirical, a material enters the basis when it contributes to more
-    /// than this many fits.
-    pub more_than: usize,
+    /// than this many fits (default: [`EmpiricalParams::default`]'s).
+    pub more_than: Option<usize>,
     /// `--candidates`: greedy, swap, ga: materials that may enter the basis (`None`: all).
     pub candidates: Option<Vec<String>>,
     /// `--targets`: greedy, swap, ga: materials the basis must represent (`None`: all).
@@ -131,8 +132,8 @@ pub struct SelectRequest {
     /// `--ga-mutation`: per-gene mutation probability (default 1/k).
     pub ga_mutation: Option<f64>,
     /// `--metric`: distance of the clustering methods (with a CSV `distances`: the label
-    /// of the matrix's metric).
-    pub metric: Metric,
+    /// of the matrix's metric; default brdf-it).
+    pub metric: Option<Metric>,
     /// `--mask`, `--weighting`, `--stride`.
     pub grid: Grid,
     /// `--seed`.
@@ -142,26 +143,27 @@ pub struct SelectRequest {
     pub distances: Option<PathBuf>,
     /// `--objective` and `--eps` (SPEC 11): greedy, swap and ga score bases, and
     /// `empirical` makes its leave-one-out fits, under the objective's shared weights
-    /// (`l2`: the paper's fits). The clustering methods work on distances: the objective
-    /// does not change them.
-    pub objective: crate::backend::weighted::TargetWeight,
+    /// (`l2`: the paper's fits). The clustering methods work on distances: they refuse
+    /// an objective.
+    pub objective: ObjectiveSetting,
 }
 
 impl SelectRequest {
-    /// The defaults with `method`.
+    /// The default of `--metric`.
+    pub const METRIC: Metric = Metric::BrdfIt;
+
+    /// The defaults with `method`: every setting not given.
     pub fn new(method: SelectMethod) -> Self {
-        let e = ExperimentParams::default();
-        let g = GcukParams::default();
         Self {
             method,
             k: None,
             k_min: None,
             k_max: None,
-            runs: e.runs,
-            algorithm: KMedoidsAlgorithm::default(),
-            population: g.population,
-            generations: g.generations,
-            more_than: EmpiricalParams::default().more_than,
+            runs: None,
+            algorithm: None,
+            population: None,
+            generations: None,
+            more_than: None,
             candidates: None,
             targets: None,
             init: None,
@@ -169,33 +171,72 @@ impl SelectRequest {
             ga_generations: None,
             ga_crossover: None,
             ga_mutation: None,
-            metric: Metric::BrdfIt,
+            metric: None,
             grid: Grid::default(),
             seed: 1,
             distances: None,
-            objective: super::DEFAULT_OBJECTIVE,
+            objective: ObjectiveSetting::default(),
         }
     }
 
-    /// The error-driven settings given, in flag order.
-    fn error_settings(&self) -> impl Iterator<Item = &'static str> + '_ {
-        [
-            (self.candidates.is_some(), "--candidates"),
-            (self.targets.is_some(), "--targets"),
-            (self.init.is_some(), "--init"),
-        ]
-        .into_iter()
-        .chain(self.ga_settings())
-        .filter(|(given, _)| *given)
-        .map(|(_, flag)| flag)
+    /// `--runs` with its default.
+    pub fn runs(&self) -> usize {
+        self.runs.unwrap_or(ExperimentParams::default().runs)
     }
 
-    fn ga_settings(&self) -> [(bool, &'static str); 4] {
+    /// `--algorithm` with its default.
+    pub fn algorithm(&self) -> KMedoidsAlgorithm {
+        self.algorithm.unwrap_or_default()
+    }
+
+    /// `--population` with its default.
+    pub fn population(&self) -> usize {
+        self.population.unwrap_or(GcukParams::default().population)
+    }
+
+    /// `--generations` with its default.
+    pub fn generations(&self) -> usize {
+        self.generations
+            .unwrap_or(GcukParams::default().generations)
+    }
+
+    /// `--more-than` with its default.
+    pub fn more_than(&self) -> usize {
+        self.more_than
+            .unwrap_or(EmpiricalParams::default().more_than)
+    }
+
+    /// `--metric` with its default.
+    pub fn metric(&self) -> Metric {
+        self.metric.unwrap_or(Self::METRIC)
+    }
+
+    /// Every setting that only some methods use: whether it was given, its flag and the
+    /// methods that use it (the one table of [`Self::check`]'s "applies to" rule).
+    fn method_settings(&self) -> [(bool, &'static str, &'static [SelectMethod]); 17] {
+        use SelectMethod::{Empirical, Ga, Gcuk, Greedy, Kmedoids, Swap};
+        const CLUSTERING: &[SelectMethod] = &[Kmedoids, Gcuk];
+        const ERROR: &[SelectMethod] = &[Greedy, Swap, Ga];
+        const FITTING: &[SelectMethod] = &[Empirical, Greedy, Swap, Ga];
+        let o = &self.objective;
         [
-            (self.ga_population.is_some(), "--ga-population"),
-            (self.ga_generations.is_some(), "--ga-generations"),
-            (self.ga_crossover.is_some(), "--ga-crossover"),
-            (self.ga_mutation.is_some(), "--ga-mutation"),
+            (self.k_min.is_some(), "--k-min", CLUSTERING),
+            (self.k_max.is_some(), "--k-max", CLUSTERING),
+            (self.runs.is_some(), "--runs", CLUSTERING),
+            (self.algorithm.is_some(), "--algorithm", &[Kmedoids]),
+            (self.population.is_some(), "--population", &[Gcuk]),
+            (self.generations.is_some(), "--generations", &[Gcuk]),
+            (self.more_than.is_some(), "--more-than", &[Empirical]),
+            (self.metric.is_some(), "--metric", CLUSTERING),
+            (o.objective.is_some(), "--objective", FITTING),
+            (o.eps.is_some(), "--eps", FITTING),
+            (self.candidates.is_some(), "--candidates", ERROR),
+            (self.targets.is_some(), "--targets", ERROR),
+            (self.init.is_some(), "--init", &[Swap, Ga]),
+            (self.ga_population.is_some(), "--ga-population", &[Ga]),
+            (self.ga_generations.is_some(), "--ga-generations", &[Ga]),
+            (self.ga_crossover.is_some(), "--ga-crossover", &[Ga]),
+            (self.ga_mutation.is_some(), "--ga-mutation", &[Ga]),
         ]
     }
 
@@ -216,12 +257,13 @@ impl SelectRequest {
         if self.k.is_some() && range {
             refuse!("give either -k or --k-min/--k-max, not both");
         }
-        if !m.clustering() && range {
-            refuse!("--k-min and --k-max apply to kmedoids and gcuk, not to --method {m}");
-        }
-        if !m.error_driven() {
-            if let Some(flag) = self.error_settings().next() {
-                refuse!("{flag} applies to greedy, swap and ga, not to --method {m}");
+        for (given, flag, methods) in self.method_settings() {
+            if given && !methods.contains(&m) {
+                let names: Vec<&str> = methods.iter().map(|m| m.as_str()).collect();
+                refuse!(
+                    "{flag} applies to {}, not to --method {m}",
+                    super::list(&names)
+                );
             }
         }
         if let Some(path) = &self.distances {
@@ -235,7 +277,7 @@ impl SelectRequest {
             let g = &self.grid;
             let d = Grid::default();
             for (given, flag) in [
-                (npy && self.metric != Metric::BrdfIt, "--metric"),
+                (npy && self.metric.is_some(), "--metric"),
                 (g.stride != d.stride, "--stride"),
                 (g.mask != d.mask, "--mask"),
                 (g.weighting != d.weighting, "--weighting"),
@@ -245,19 +287,12 @@ impl SelectRequest {
                 }
             }
         }
-        if m.error_driven() {
-            if self.k.is_none() {
-                refuse!("give the basis size with -k K (greedy, swap and ga choose exactly k materials)");
-            }
-            if m != SelectMethod::Ga {
-                if let Some((_, flag)) = self.ga_settings().into_iter().find(|(given, _)| *given) {
-                    refuse!("{flag} applies to --method ga, not to {m}");
-                }
-            }
-            if m == SelectMethod::Greedy && self.init.is_some() {
-                refuse!("--init applies to swap and ga, not to greedy");
-            }
+        if m.error_driven() && self.k.is_none() {
+            refuse!(
+                "give the basis size with -k K (greedy, swap and ga choose exactly k materials)"
+            );
         }
+        self.objective.weight()?;
         Ok(())
     }
 
@@ -275,7 +310,7 @@ impl SelectRequest {
 
     /// The k values of a k-medoids selection, checked.
     fn kmedoids_ks(&self) -> std::result::Result<Vec<usize>, ClusterError> {
-        if self.runs == 0 {
+        if self.runs() == 0 {
             return Err(ClusterError::ZeroRuns);
         }
         let d = ExperimentParams::default();
@@ -290,21 +325,21 @@ impl SelectRequest {
             }
         };
         for &k in &ks {
-            KMedoidsParams::new(k).algorithm(self.algorithm).check()?;
+            KMedoidsParams::new(k).algorithm(self.algorithm()).check()?;
         }
         Ok(ks)
     }
 
     /// The GCUK parameters, checked.
     fn gcuk_params(&self) -> std::result::Result<GcukParams, ClusterError> {
-        if self.runs == 0 {
+        if self.runs() == 0 {
             return Err(ClusterError::ZeroRuns);
         }
         let d = GcukParams::default();
         let p = GcukParams::default()
             .k_range(self.k_min.unwrap_or(d.k_min), self.k_max.unwrap_or(d.k_max))
-            .population(self.population)
-            .generations(self.generations);
+            .population(self.population())
+            .generations(self.generations());
         p.check()?;
         Ok(p)
     }
@@ -368,10 +403,31 @@ impl SelectRequest {
     /// returns what `select --json` writes ([`SelectOutput::to_json`]). `progress(done,
     /// total)` is called from the working threads, per stage.
     ///
+    /// The output records what chose the basis: the grid, and the fit objective of the
+    /// methods that fit ([`SelectOutput::record`]).
+    ///
     /// # Errors
     /// [`RequestError`] and the parameters' errors before any work (k out of range, an
     /// unknown material, ...), then the stages' errors.
     pub fn run(
+        &self,
+        backend: &dyn Backend,
+        coll: &Collection,
+        progress: Progress<'_>,
+    ) -> Result<SelectOutput> {
+        let mut out = self.run_unrecorded(backend, coll, progress)?;
+        let objective = if self.method.clustering() {
+            None
+        } else {
+            Some(self.objective.weight()?)
+        };
+        let g = &self.grid;
+        out.record(objective, g.mask, g.weighting, g.stride);
+        Ok(out)
+    }
+
+    /// [`Self::run`] without the record of its settings.
+    fn run_unrecorded(
         &self,
         backend: &dyn Backend,
         coll: &Collection,
@@ -391,26 +447,26 @@ impl SelectRequest {
                     mask: g.mask,
                     weighting: g.weighting,
                     stride: g.stride,
-                    objective: self.objective,
+                    objective: self.objective.weight()?,
                     ..Default::default()
                 },
-                more_than: self.more_than,
+                more_than: self.more_than(),
             };
             let e = crate::select::empirical(backend, coll, &p, progress)?;
             return Ok(SelectOutput::Empirical(EmpiricalOutput::new(
                 &e,
-                self.more_than,
+                self.more_than(),
                 fingerprint,
             )?));
         }
         let dp = DistanceParams::default()
-            .metric(self.metric)
+            .metric(self.metric())
             .mask(g.mask)
             .weighting(g.weighting)
             .stride(g.stride)
             .check(coll)?;
         let d = distance_matrix(backend, coll, &dp, progress)?;
-        self.cluster(&d, &self.metric.to_string(), fingerprint, progress)
+        self.cluster(&d, &self.metric().to_string(), fingerprint, progress)
     }
 
     /// Clusters the saved matrix `distances` (kmedoids or gcuk; no collection, no
@@ -434,7 +490,7 @@ impl SelectRequest {
                 s.settings.metric.to_string(),
                 Some(s.collection_fingerprint.clone()),
             ),
-            None => (self.metric.to_string(), None),
+            None => (self.metric().to_string(), None),
         };
         // A mapped matrix file rewritten or truncated while it is clustered (crate::io::mmap)
         // is refused after the work, whatever the work made of the changed values (an
@@ -449,7 +505,12 @@ impl SelectRequest {
             }
             .into());
         }
-        out.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+        let mut out = out.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+        if let Some(s) = &saved.sidecar {
+            let g = &s.settings;
+            out.record(None, g.mask, g.weighting, g.stride);
+        }
+        Ok(out)
     }
 
     /// k-medoids or GCUK runs on `d`.
@@ -462,11 +523,12 @@ impl SelectRequest {
     ) -> Result<SelectOutput> {
         let (runs, algorithm) = if self.method == SelectMethod::Kmedoids {
             let ks = self.kmedoids_ks()?;
-            let runs = kmedoids_runs(d, &ks, self.runs, self.seed, self.algorithm, progress)?;
-            (runs, Some(self.algorithm.to_string()))
+            let a = self.algorithm();
+            let runs = kmedoids_runs(d, &ks, self.runs(), self.seed, a, progress)?;
+            (runs, Some(a.to_string()))
         } else {
             let p = self.gcuk_params()?.check()?;
-            (gcuk_runs(d, &p, self.runs, self.seed, progress)?, None)
+            (gcuk_runs(d, &p, self.runs(), self.seed, progress)?, None)
         };
         let named = named_runs(d, &runs)?;
         Ok(SelectOutput::Clustering(ClusteringOutput::new(
@@ -500,7 +562,7 @@ impl SelectRequest {
             .mask(g.mask)
             .weighting(g.weighting)
             .stride(g.stride)
-            .objective(self.objective)
+            .objective(self.objective.weight()?)
             .check()?;
         let obj = Objective::new(backend, coll, &op, progress)?;
         let selection = match self.method {
@@ -511,6 +573,11 @@ impl SelectRequest {
         Ok(SelectOutput::ErrorDriven(ErrorDrivenOutput {
             selection,
             collection_fingerprint: fingerprint,
+            fit_objective: None,
+            eps: None,
+            mask: None,
+            weighting: None,
+            stride: None,
         }))
     }
 }

@@ -22,6 +22,7 @@ pub mod evaluation;
 pub mod report;
 pub mod statistics;
 
+use crate::backend::weighted::TargetWeight;
 use crate::backend::Backend;
 use crate::cluster::{ClusterError, GcukParams};
 use crate::collection::Collection;
@@ -456,8 +457,10 @@ pub fn run(
     lap(Stage::Distances, &mut timings);
 
     // 2. Empirical selection.
+    // The paper's fits: l2 (SPEC 5), not the library's default objective.
     let fit_params = FitParams {
         stride: p.stride,
+        objective: TargetWeight::L2,
         ..Default::default()
     };
     let ep = EmpiricalParams {
@@ -518,7 +521,10 @@ pub fn run(
     };
     let need_objective = p.error_driven || p.cv_folds > 0;
     let objective = if need_objective {
-        let op = ObjectiveParams::default().stride(p.stride).check()?;
+        let op = ObjectiveParams::default()
+            .stride(p.stride)
+            .objective(TargetWeight::L2)
+            .check()?;
         match &shared {
             // The objective's cells are the fits' (`op.fit_params()` is `fit_params`).
             Some(g) => Some(Objective::from_grams(coll.names(), g.grams.clone())?),
@@ -547,7 +553,11 @@ pub fn run(
                 .folds(p.cv_folds)
                 .seed(p.seed)
                 .runs(p.cv_runs)
-                .objective(ObjectiveParams::default().stride(p.stride))
+                .objective(
+                    ObjectiveParams::default()
+                        .stride(p.stride)
+                        .objective(TargetWeight::L2),
+                )
                 // reproduce keeps the paper's l2 and its timing: no appearance renders here.
                 .appearance(false)
                 .check(coll.len())?;

@@ -140,7 +140,11 @@ mod tests {
         }
         let coll = crate::collection::parse_csv(csv.as_bytes(), std::path::Path::new("<test>"))
             .expect("collection");
-        let p = ObjectiveParams::default().stride(3).check().expect("p");
+        let p = ObjectiveParams::default()
+            .stride(3)
+            .objective(crate::backend::weighted::TargetWeight::L2)
+            .check()
+            .expect("p");
         let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
         for k in [6, 15] {
             let sp = SearchParams::new(k).check(obj.names()).expect("sp");

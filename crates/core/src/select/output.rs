@@ -7,7 +7,9 @@ use super::empirical::Empirical;
 use super::runs::{best_run, ClusteringRun};
 use super::search::Selection;
 use super::SelectionError;
+use crate::backend::weighted::TargetWeight;
 use crate::cluster::ClusterError;
+use crate::merl::{Mask, Weighting};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -25,6 +27,23 @@ pub struct EmpiricalOutput {
     pub basis: Vec<String>,
     /// Fingerprint of the collection.
     pub collection_fingerprint: Option<String>,
+    /// The fit objective of the fits that chose the basis (`l2`, `relative`, `log`;
+    /// recorded by `select`, absent in older files and in `reproduce`'s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_objective: Option<String>,
+    /// `eps` of the `relative` fit objective.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eps: Option<f64>,
+    /// Grid cells of the fits (`evaluation`, `valid`; recorded by `select`, absent in
+    /// older files and in `reproduce`'s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<String>,
+    /// Cell weights of the fits (`uniform`, `solid-angle`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weighting: Option<String>,
+    /// Every `stride`-th cell on each grid axis of the fits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stride: Option<usize>,
 }
 
 impl EmpiricalOutput {
@@ -54,6 +73,11 @@ impl EmpiricalOutput {
             contributors: e.contributors.clone(),
             basis: e.basis.clone(),
             collection_fingerprint: fingerprint,
+            fit_objective: None,
+            eps: None,
+            mask: None,
+            weighting: None,
+            stride: None,
         }
     }
 }
@@ -75,6 +99,16 @@ pub struct ClusteringOutput {
     pub best: ClusteringRun,
     /// Fingerprint of the collection (`null` for a CSV matrix).
     pub collection_fingerprint: Option<String>,
+    /// Grid cells of the distances (`evaluation`, `valid`; recorded by `select`, absent in
+    /// older files and for a CSV matrix).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<String>,
+    /// Cell weights of the distances (`uniform`, `solid-angle`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weighting: Option<String>,
+    /// Every `stride`-th cell on each grid axis of the distances.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stride: Option<usize>,
 }
 
 impl ClusteringOutput {
@@ -106,6 +140,9 @@ impl ClusteringOutput {
             runs,
             best,
             collection_fingerprint: fingerprint,
+            mask: None,
+            weighting: None,
+            stride: None,
         })
     }
 }
@@ -118,6 +155,23 @@ pub struct ErrorDrivenOutput {
     pub selection: Selection,
     /// Fingerprint of the collection.
     pub collection_fingerprint: Option<String>,
+    /// The fit objective of the fits that chose the basis (`l2`, `relative`, `log`;
+    /// recorded by `select`, absent in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_objective: Option<String>,
+    /// `eps` of the `relative` fit objective.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eps: Option<f64>,
+    /// Grid cells of the fits (`evaluation`, `valid`; recorded by `select`, absent in
+    /// older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<String>,
+    /// Cell weights of the fits (`uniform`, `solid-angle`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weighting: Option<String>,
+    /// Every `stride`-th cell on each grid axis of the fits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stride: Option<usize>,
 }
 
 /// The `select` JSON, any method.
@@ -178,6 +232,38 @@ impl SelectOutput {
         let mut s = serde_json::to_string_pretty(self).unwrap_or_default();
         s.push('\n');
         s
+    }
+
+    /// Records what chose the basis (issue 47): the grid of the fits or distances, and
+    /// the fit objective of the methods that fit (empirical, greedy, swap, ga; `None` for
+    /// the clustering methods, which work on distances).
+    pub fn record(
+        &mut self,
+        objective: Option<TargetWeight>,
+        mask: Mask,
+        weighting: Weighting,
+        stride: usize,
+    ) {
+        let grid = (
+            Some(mask.to_string()),
+            Some(weighting.to_string()),
+            Some(stride),
+        );
+        let fit = (
+            objective.map(|w| w.kind().name().to_string()),
+            objective.and_then(TargetWeight::eps),
+        );
+        match self {
+            SelectOutput::Empirical(e) => {
+                (e.mask, e.weighting, e.stride) = grid;
+                (e.fit_objective, e.eps) = fit;
+            }
+            SelectOutput::ErrorDriven(s) => {
+                (s.mask, s.weighting, s.stride) = grid;
+                (s.fit_objective, s.eps) = fit;
+            }
+            SelectOutput::Clustering(c) => (c.mask, c.weighting, c.stride) = grid,
+        }
     }
 
     /// The chosen basis, by name (clustering: the best run's medoids).

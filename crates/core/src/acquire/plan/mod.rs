@@ -476,6 +476,7 @@ mod tests {
         let be = CpuBackend::new();
         let fit = FitParams {
             stride: 4,
+            objective: crate::backend::weighted::TargetWeight::L2,
             ..FitParams::default()
         };
         let (basis, targets) = ([0, 1, 2], [3, 4, 5, 6, 7, 8]);
@@ -564,6 +565,7 @@ mod tests {
         let coll = Collection::embedded_default();
         let fit = FitParams {
             stride: 4,
+            objective: crate::backend::weighted::TargetWeight::L2,
             ..FitParams::default()
         };
         let (basis, targets) = ([0, 1, 2, 3], [4, 5, 6, 7, 8, 9, 10]);

@@ -47,9 +47,10 @@ pub struct ObjectiveParams {
     pub stride: usize,
     /// Gram mode (default auto).
     pub gram: GramMode,
-    /// The fit objective (SPEC 11; default `l2`, SPEC 8's). Under `relative` or `log` the
-    /// Gram matrices carry SPEC 11's shared weights per channel (`shared_weights`) and
-    /// the reported fits (cross-validation's held-out fits) use the per-target weights.
+    /// The fit objective (SPEC 11; default [`crate::fit::DEFAULT_OBJECTIVE`], `relative`;
+    /// `l2` is SPEC 8's). Under `relative` or `log` the Gram matrices carry SPEC 11's
+    /// shared weights per channel (`shared_weights`) and the reported fits
+    /// (cross-validation's held-out fits) use the per-target weights.
     pub objective: TargetWeight,
 }
 
@@ -60,7 +61,7 @@ impl Default for ObjectiveParams {
             weighting: Weighting::Uniform,
             stride: 1,
             gram: GramMode::Auto,
-            objective: TargetWeight::L2,
+            objective: crate::fit::DEFAULT_OBJECTIVE,
         }
     }
 }

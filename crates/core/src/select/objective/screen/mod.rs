@@ -505,7 +505,11 @@ mod tests {
     #[test]
     fn the_bounds_never_exceed_the_exact_scores() {
         let coll = Collection::embedded_default();
-        let p = ObjectiveParams::default().stride(2).check().expect("p");
+        let p = ObjectiveParams::default()
+            .stride(2)
+            .objective(crate::backend::weighted::TargetWeight::L2)
+            .check()
+            .expect("p");
         let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
         let all: Vec<usize> = (0..coll.len()).collect();
         let mut screened = 0;
@@ -524,7 +528,11 @@ mod tests {
     /// The objective of a 300-material synthetic collection (stride 4) and its materials.
     fn synthetic_300() -> (Objective, Vec<usize>) {
         let coll = crate::collection::synthetic(300, 2016);
-        let p = ObjectiveParams::default().stride(4).check().expect("p");
+        let p = ObjectiveParams::default()
+            .stride(4)
+            .objective(crate::backend::weighted::TargetWeight::L2)
+            .check()
+            .expect("p");
         let obj = Objective::new(&CpuBackend::new(), &coll, &p, &|_, _| {}).expect("obj");
         (obj, (0..coll.len()).collect())
     }

@@ -1,0 +1,580 @@
+//! No setting ignored in silence (issue 47): every flag of `select`, `plan`, `cv` and
+//! `cv --acquisition` that only some methods (criteria, objectives) use is walked against
+//! every method (criterion, objective). The request's `check` refuses a setting given to
+//! a method that does not use it, naming the flag, and passes one that the method uses.
+//! `--eps` is checked once, by the requests' `check`, before any collection or device.
+//! The walks drive the library's requests; the binary is run only for `--help` (so that
+//! a new flag cannot miss the walk) and for the refusals made before the request exists.
+
+use crate::common::bin_cpu;
+use brdf_basis::backend::weighted::ObjectiveKind;
+use brdf_basis::cluster::KMedoidsAlgorithm;
+use brdf_basis::distance::Metric;
+use brdf_basis::run::{
+    AcquisitionRequest, CvRequest, FitRequest, FitSamplesRequest, ObjectiveSetting, PlanRequest,
+    SelectMethod, SelectRequest,
+};
+use brdf_basis::select::cv::CvMethod;
+use brdf_basis::Criterion;
+use std::collections::BTreeSet;
+
+/// A setting of `select`: its flag, how it is given, the methods that use it.
+type SelectSetting = (
+    &'static str,
+    fn(&mut SelectRequest),
+    &'static [SelectMethod],
+);
+
+/// One material, as a list setting.
+fn gold() -> Option<Vec<String>> {
+    Some(vec!["polished-gold".to_string()])
+}
+
+fn select_settings() -> [SelectSetting; 17] {
+    use SelectMethod::{Empirical, Ga, Gcuk, Greedy, Kmedoids, Swap};
+    const FITTING: &[SelectMethod] = &[Empirical, Greedy, Swap, Ga];
+    const ERROR: &[SelectMethod] = &[Greedy, Swap, Ga];
+    const CLUSTERING: &[SelectMethod] = &[Kmedoids, Gcuk];
+    [
+        ("--k-min", |r| r.k_min = Some(2), CLUSTERING),
+        ("--k-max", |r| r.k_max = Some(4), CLUSTERING),
+        ("--runs", |r| r.runs = Some(2), CLUSTERING),
+        (
+            "--algorithm",
+            |r| r.algorithm = Some(KMedoidsAlgorithm::Pam),
+            &[Kmedoids],
+        ),
+        ("--population", |r| r.population = Some(10), &[Gcuk]),
+        ("--generations", |r| r.generations = Some(10), &[Gcuk]),
+        ("--more-than", |r| r.more_than = Some(2), &[Empirical]),
+        (
+            "--metric",
+            |r| r.metric = Some(Metric::Euclidean),
+            CLUSTERING,
+        ),
+        (
+            "--objective",
+            |r| r.objective.objective = Some(ObjectiveKind::Log),
+            FITTING,
+        ),
+        ("--eps", |r| r.objective.eps = Some(0.02), FITTING),
+        ("--candidates", |r| r.candidates = gold(), ERROR),
+        ("--targets", |r| r.targets = gold(), ERROR),
+        ("--init", |r| r.init = gold(), &[Swap, Ga]),
+        ("--ga-population", |r| r.ga_population = Some(8), &[Ga]),
+        ("--ga-generations", |r| r.ga_generations = Some(8), &[Ga]),
+        ("--ga-crossover", |r| r.ga_crossover = Some(0.5), &[Ga]),
+        ("--ga-mutation", |r| r.ga_mutation = Some(0.1), &[Ga]),
+    ]
+}
+
+/// The long flags of `brdf-basis <command> --help`.
+fn help_flags(command: &[&str]) -> BTreeSet<String> {
+    let o = bin_cpu()
+        .args(command)
+        .arg("--help")
+        .output()
+        .expect("help");
+    assert!(o.status.success());
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .filter_map(|l| {
+            let l = l.trim_start();
+            let l = l.strip_prefix("-k, ").unwrap_or(l);
+            let l = l.strip_prefix("-n, ").unwrap_or(l);
+            let flag = l.split([' ', ',']).next().unwrap_or("");
+            // A help text's line may start with a flag's name too (`--acquisition: ...`).
+            let name = flag.starts_with("--")
+                && flag.chars().all(|c| c.is_ascii_alphanumeric() || c == '-');
+            name.then(|| flag.to_string())
+        })
+        .collect()
+}
+
+/// The flags of a command that apply whatever the method: not walked.
+const EVERY_METHOD: &[&str] = &[
+    "--backend",
+    "--seed",
+    "--quiet",
+    "--help",
+    "--json",
+    "--mask",
+    "--weighting",
+    "--stride",
+    "--method",
+    "--distances",
+];
+
+/// Every flag of `select --help` is walked (or applies to every method).
+#[test]
+fn every_select_flag_is_walked() {
+    let walked: BTreeSet<String> = select_settings()
+        .iter()
+        .map(|s| s.0.to_string())
+        .chain(EVERY_METHOD.iter().map(|s| s.to_string()))
+        .collect();
+    let help = help_flags(&["select"]);
+    let missing: Vec<_> = help.difference(&walked).collect();
+    assert!(missing.is_empty(), "select flags not walked: {missing:?}");
+}
+
+/// `select`: each method-specific setting against each method.
+#[test]
+fn select_refuses_every_setting_its_method_does_not_use() {
+    for (flag, give, users) in select_settings() {
+        for m in SelectMethod::ALL {
+            let mut r = SelectRequest::new(m);
+            let ranged = matches!(flag, "--k-min" | "--k-max");
+            if !ranged && !matches!(m, SelectMethod::Gcuk | SelectMethod::Empirical) {
+                r.k = Some(3);
+            }
+            give(&mut r);
+            let got = r.check();
+            if users.contains(&m) {
+                assert!(got.is_ok(), "{flag} with --method {m}: {:?}", got.err());
+            } else {
+                let e = got
+                    .expect_err(&format!("{flag} with --method {m} passed"))
+                    .to_string();
+                assert!(
+                    e.starts_with(&format!("{flag} applies to "))
+                        && e.ends_with(&format!("not to --method {m}")),
+                    "{flag} with --method {m}: {e}"
+                );
+            }
+        }
+    }
+}
+
+/// `cv`: each method-specific setting against each method alone, and with a method
+/// that uses it beside one that does not.
+#[test]
+fn cv_refuses_every_setting_no_listed_method_uses() {
+    type Give = fn(&mut CvRequest);
+    let settings: [(&str, Give, &[CvMethod]); 4] = [
+        (
+            "--runs",
+            |r| r.runs = Some(2),
+            &[CvMethod::Kmedoids, CvMethod::Gcuk],
+        ),
+        (
+            "--metric",
+            |r| r.metric = Some(Metric::Euclidean),
+            &[CvMethod::Kmedoids, CvMethod::Gcuk],
+        ),
+        (
+            "--ga-population",
+            |r| r.ga_population = Some(8),
+            &[CvMethod::Ga],
+        ),
+        (
+            "--ga-generations",
+            |r| r.ga_generations = Some(8),
+            &[CvMethod::Ga],
+        ),
+    ];
+    for (flag, give, users) in settings {
+        for m in CvMethod::ALL {
+            let mut r = CvRequest::default();
+            r.methods = vec![m];
+            give(&mut r);
+            let got = r.check();
+            if users.contains(&m) {
+                assert!(got.is_ok(), "{flag} with --methods {m}: {:?}", got.err());
+            } else {
+                let e = got
+                    .expect_err(&format!("{flag} with --methods {m} passed"))
+                    .to_string();
+                assert_eq!(
+                    e,
+                    format!(
+                        "{flag} applies to {}, not to --methods {m}",
+                        if users.len() == 2 {
+                            "kmedoids and gcuk"
+                        } else {
+                            "ga"
+                        }
+                    )
+                );
+            }
+            let mut r = CvRequest::default();
+            r.methods = vec![CvMethod::Random, users[0]];
+            give(&mut r);
+            assert!(
+                r.check().is_ok(),
+                "{flag} with --methods random,{}",
+                users[0]
+            );
+        }
+    }
+    // Every flag of `cv --help` is walked, applies to every method, or is one of
+    // `--acquisition`'s (walked below).
+    let walked = [
+        "--runs",
+        "--metric",
+        "--ga-population",
+        "--ga-generations",
+        "--objective",
+        "--eps",
+        "--methods",
+        "--folds",
+        "--render-size",
+        "--no-appearance",
+        "--markdown",
+        "--acquisition",
+        "--plans",
+        "--noise",
+        "--no-ridge",
+        "--figure",
+        "--candidates-per-step",
+        "--shortlist",
+        "--restarts",
+    ];
+    let known: BTreeSet<String> = walked
+        .iter()
+        .chain(EVERY_METHOD)
+        .map(|s| s.to_string())
+        .collect();
+    let missing: Vec<_> = help_flags(&["cv"]).difference(&known).cloned().collect();
+    assert!(missing.is_empty(), "cv flags not walked: {missing:?}");
+}
+
+/// A plan setting: flag, how it is given to `plan` and to `cv --acquisition`, the
+/// criteria that use it.
+type PlanSetting = (
+    &'static str,
+    fn(&mut PlanRequest),
+    fn(&mut AcquisitionRequest),
+    &'static [Criterion],
+);
+
+/// `plan` and `cv --acquisition`: `--candidates-per-step`, `--shortlist` and
+/// `--restarts` against each criterion.
+#[test]
+fn plans_refuse_every_setting_their_criterion_does_not_use() {
+    use Criterion::{Condition, Error, Nielsen, Random};
+    let settings: [PlanSetting; 3] = [
+        (
+            "--candidates-per-step",
+            |r| r.candidates_per_step = Some(50),
+            |r| r.candidates_per_step = Some(50),
+            &[Error, Condition, Nielsen],
+        ),
+        (
+            "--shortlist",
+            |r| r.shortlist = Some(4),
+            |r| r.shortlist = Some(4),
+            &[Error],
+        ),
+        (
+            "--restarts",
+            |r| r.restarts = Some(2),
+            |r| r.restarts = Some(2),
+            &[Error],
+        ),
+    ];
+    for (flag, plan, acq, users) in settings {
+        for c in [Error, Condition, Random, Nielsen] {
+            let mut a = AcquisitionRequest::default();
+            a.plans = vec![c];
+            acq(&mut a);
+            let got = a.check();
+            if users.contains(&c) {
+                assert!(got.is_ok(), "{flag} with --plans {c:?}: {:?}", got.err());
+            } else {
+                let e = got.expect_err(flag).to_string();
+                assert!(
+                    e.starts_with(&format!("{flag} applies to "))
+                        && e.ends_with(&format!("plans, not to --plans {}", c.as_str())),
+                    "{e}"
+                );
+            }
+            if c == Nielsen {
+                continue; // `plan` refuses the criterion itself.
+            }
+            let mut p = PlanRequest::new(vec!["polished-gold".into()]);
+            p.criterion = c;
+            plan(&mut p);
+            let got = p.check();
+            if users.contains(&c) {
+                assert!(
+                    got.is_ok(),
+                    "{flag} with --criterion {c:?}: {:?}",
+                    got.err()
+                );
+            } else {
+                let e = got.expect_err(flag).to_string();
+                assert!(
+                    e.ends_with(&format!("plans, not to --criterion {}", c.as_str())),
+                    "{e}"
+                );
+            }
+        }
+    }
+}
+
+/// `check` of each request that takes `--objective` and `--eps`.
+/// A request's `check` given an objective: its refusal, or an empty string.
+type ObjectiveCheck = Box<dyn Fn(ObjectiveSetting) -> String>;
+
+fn objective_checks() -> Vec<(&'static str, ObjectiveCheck)> {
+    let show = |r: brdf_basis::Result<()>| r.err().map(|e| e.to_string()).unwrap_or_default();
+    vec![
+        (
+            "fit",
+            Box::new(move |o| {
+                let mut r = FitRequest::new(vec!["polished-gold".into()]);
+                r.objective = o;
+                show(r.check())
+            }),
+        ),
+        (
+            "fit --samples",
+            Box::new(move |o| {
+                let mut r = FitSamplesRequest::new(vec!["polished-gold".into()], "s.csv".into());
+                r.objective = o;
+                show(r.check())
+            }),
+        ),
+        (
+            "select --method greedy",
+            Box::new(move |o| {
+                let mut r = SelectRequest::new(SelectMethod::Greedy);
+                r.k = Some(3);
+                r.objective = o;
+                show(r.check())
+            }),
+        ),
+        (
+            "plan",
+            Box::new(move |o| {
+                let mut r = PlanRequest::new(vec!["polished-gold".into()]);
+                r.objective = o;
+                show(r.check())
+            }),
+        ),
+        (
+            "cv",
+            Box::new(move |o| {
+                let mut r = CvRequest::default();
+                r.objective = o;
+                show(r.check())
+            }),
+        ),
+        (
+            "cv --acquisition",
+            Box::new(move |o| {
+                let mut r = AcquisitionRequest::default();
+                r.objective = o;
+                show(r.check())
+            }),
+        ),
+    ]
+}
+
+/// `--eps` applies to `--objective relative` (given or the default) only, and must be a
+/// positive number: every request's `check` says so, naming `--eps`.
+#[test]
+fn eps_is_checked_once_by_every_request() {
+    for (command, check) in objective_checks() {
+        for kind in [
+            None,
+            Some(ObjectiveKind::Relative),
+            Some(ObjectiveKind::L2),
+            Some(ObjectiveKind::Log),
+        ] {
+            let relative = matches!(kind, None | Some(ObjectiveKind::Relative));
+            for eps in [None, Some(0.02)] {
+                let e = check(ObjectiveSetting {
+                    objective: kind,
+                    eps,
+                });
+                if relative || eps.is_none() {
+                    assert_eq!(e, "", "{command} {kind:?} {eps:?}");
+                } else {
+                    let name = kind.map(|k| k.name()).unwrap_or_default();
+                    assert_eq!(
+                        e,
+                        format!("--eps 0.02 applies to --objective relative, not to --objective {name}: only the relative objective has an offset; leave --eps out"),
+                        "{command}"
+                    );
+                }
+            }
+            if !relative {
+                continue;
+            }
+            for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let e = check(ObjectiveSetting {
+                    objective: kind,
+                    eps: Some(bad),
+                });
+                assert_eq!(
+                    e,
+                    format!("--eps {bad}: the relative objective's eps must be a positive number, not {bad}"),
+                    "{command}"
+                );
+            }
+        }
+    }
+}
+
+/// The message the binary printed after `error: ` (it must fail).
+fn cli_error(args: &[&str]) -> String {
+    let o = bin_cpu().args(args).output().expect("run brdf-basis");
+    assert!(!o.status.success(), "{args:?} succeeded");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    err.lines()
+        .find_map(|l| l.strip_prefix("error: "))
+        .unwrap_or_else(|| panic!("{args:?}: no `error: ` line in {err}"))
+        .to_string()
+}
+
+/// A bad `--eps` is refused before the collection is read (here: a file that does not
+/// exist) and before any output is planned; the cases of the issue are refused by the
+/// binary in the request's words.
+#[test]
+fn the_binary_refuses_before_any_work() {
+    let d = tempfile::tempdir().expect("tmp");
+    let json = d.path().join("out.json");
+    let json = json.to_str().expect("utf-8");
+    let csv = d.path().join("p.csv");
+    let csv = csv.to_str().expect("utf-8");
+    let missing = "no-such-collection.csv";
+    for args in [
+        vec!["fit", missing, "--basis", "polished-gold", "--all-others"],
+        vec![
+            "fit",
+            missing,
+            "--basis",
+            "polished-gold",
+            "--samples",
+            "s.csv",
+        ],
+        vec!["select", missing, "--method", "greedy", "-k", "3"],
+        vec!["cv", missing],
+        vec!["cv", missing, "--acquisition"],
+    ] {
+        let mut args = args.clone();
+        args.extend(["--eps=0", "--json", json]);
+        let e = cli_error(&args);
+        assert_eq!(
+            e, "--eps 0: the relative objective's eps must be a positive number, not 0",
+            "{args:?}"
+        );
+    }
+    let e = cli_error(&[
+        "plan",
+        missing,
+        "--basis",
+        "polished-gold",
+        "--eps=-1",
+        "--out",
+        csv,
+    ]);
+    assert!(e.starts_with("--eps -1: "), "{e}");
+    for (args, want) in [
+        (
+            &["select", "--method", "kmedoids", "-k", "3", "--objective", "log"][..],
+            "--objective applies to empirical, greedy, swap and ga, not to --method kmedoids",
+        ),
+        (
+            &["select", "--method", "gcuk", "--eps", "0.5"],
+            "--eps applies to empirical, greedy, swap and ga, not to --method gcuk",
+        ),
+        (
+            &["select", "--method", "greedy", "-k", "3", "--runs", "50"],
+            "--runs applies to kmedoids and gcuk, not to --method greedy",
+        ),
+        (
+            &["select", "--method", "greedy", "--algorithm", "pam", "-k", "3"],
+            "--algorithm applies to kmedoids, not to --method greedy",
+        ),
+        (
+            &["fit", "--basis", "polished-gold", "--all-others", "--objective", "l2", "--eps", "5"],
+            "--eps 5 applies to --objective relative, not to --objective l2: only the relative objective has an offset; leave --eps out",
+        ),
+        (
+            &["cv", "--methods", "greedy,swap", "--runs", "30"],
+            "--runs applies to kmedoids and gcuk, not to --methods greedy,swap",
+        ),
+        (
+            &["plan", "--basis", "polished-gold", "--criterion", "random", "--shortlist", "3"],
+            "--shortlist applies to error plans, not to --criterion random",
+        ),
+    ] {
+        let mut args = args.to_vec();
+        args.extend(["--json", json]);
+        if args[0] == "plan" {
+            args.extend(["--out", csv]);
+        }
+        assert_eq!(cli_error(&args), want, "{args:?}");
+    }
+    // `cv --acquisition` has no request field for the selection methods' settings: the
+    // command line refuses them.
+    for flag in ["--runs", "--metric", "--ga-population", "--ga-generations"] {
+        let value = if flag == "--metric" {
+            "euclidean"
+        } else {
+            "30"
+        };
+        let e = cli_error(&["cv", "--acquisition", flag, value, "--json", json]);
+        assert!(
+            e.starts_with(&format!("{flag} applies only without --acquisition")),
+            "{e}"
+        );
+    }
+    let e = cli_error(&["cv", "--acquisition", "-k", "3,5", "--json", json]);
+    assert!(
+        e.starts_with("-k 3,5: cv --acquisition takes one basis size"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_dir(d.path()).expect("dir").count(), 0);
+}
+
+/// `select`'s JSON records what chose the basis (issue 47): the fit objective and its eps
+/// (methods that fit), and the grid (every method); the keys it had keep their values.
+#[test]
+fn select_json_records_what_chose_the_basis() {
+    use brdf_basis::select::SelectOutput;
+    let coll = brdf_basis::Collection::embedded_default();
+    let cpu = brdf_basis::CpuBackend::new();
+    let mut r = SelectRequest::new(SelectMethod::Greedy);
+    r.k = Some(2);
+    r.grid.stride = 8;
+    r.objective.eps = Some(0.02);
+    let out = r.run(&cpu, &coll, &|_, _| {}).expect("greedy");
+    let v: serde_json::Value = serde_json::from_str(&out.to_json()).expect("json");
+    assert_eq!(v["fit_objective"], "relative");
+    assert_eq!(v["eps"], 0.02);
+    assert_eq!(
+        v["objective"], "mean-relative-residual",
+        "the score's name, as before"
+    );
+    assert_eq!(
+        (&v["mask"], &v["weighting"], &v["stride"]),
+        (&"evaluation".into(), &"uniform".into(), &8.into())
+    );
+    assert_eq!(SelectOutput::from_json(&out.to_json()), Ok(out));
+    // l2 has no eps; k-medoids has no fit objective, only the grid of its distances.
+    r.objective = ObjectiveSetting {
+        objective: Some(ObjectiveKind::L2),
+        eps: None,
+    };
+    let v: serde_json::Value =
+        serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("l2").to_json()).expect("json");
+    assert_eq!(v["fit_objective"], "l2");
+    assert!(v.get("eps").is_none(), "{v}");
+    let mut r = SelectRequest::new(SelectMethod::Kmedoids);
+    r.k = Some(2);
+    r.runs = Some(1);
+    r.grid.stride = 8;
+    let v: serde_json::Value =
+        serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("kmedoids").to_json())
+            .expect("json");
+    assert!(
+        v.get("fit_objective").is_none() && v.get("eps").is_none(),
+        "{v}"
+    );
+    assert_eq!(v["stride"], 8);
+    assert_eq!(v["metric"], "brdf-it");
+}
