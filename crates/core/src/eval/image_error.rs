@@ -62,6 +62,11 @@ impl DisplayParams {
     /// Maps a linear value to `[0, 1]`: `clamp((v * 2^E)^(1/g), 0, 1)`. Negative and NaN
     /// values map to 0.
     pub fn map(&self, v: f64) -> f64 {
+        if v == 0.0 && self.gamma > 0.0 {
+            // The background and black channels, without the power: the same bits
+            // (`max(0 x 2^E, 0)^(1 / g) = +0` for any E and any g > 0).
+            return 0.0;
+        }
         let s = (v * self.exposure.exp2()).max(0.0); // max(NaN, 0) = 0
         s.powf(1.0 / self.gamma).min(1.0)
     }
