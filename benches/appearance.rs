@@ -99,4 +99,40 @@ fn main() {
         1e3 * ours_prepared,
         nvidia / ours_prepared
     );
+
+    // A batch of pairs on the GPU back-end (when an adapter opens), per pair against
+    // nv-flip's per-image time above; the first call compiles the pipelines (not timed).
+    match brdf_basis::backend::gpu::GpuBackend::new() {
+        Ok(gpu) => {
+            use brdf_basis::backend::Backend;
+            let batch: usize = std::env::var("BENCH_FLIP_BATCH")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(64);
+            let pairs: Vec<(&[u8], &[u8])> = (0..batch).map(|_| (&rb[..], &tb[..])).collect();
+            let maps = gpu
+                .flip_maps(&kernels, &pairs[..1], w, h)
+                .expect("gpu flip");
+            let cpu_map = FlipReference::new(kernels.clone(), &rb, w, h, &all)
+                .expect("flip")
+                .map(&tb, &all)
+                .expect("flip");
+            let diff = maps[0]
+                .iter()
+                .zip(&cpu_map)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0f32, f32::max);
+            let gpu_batch = per_call(3, || {
+                gpu.flip_maps(&kernels, &pairs, w, h).expect("gpu flip")
+            });
+            println!(
+                "FLIP on {} (batch of {batch} pairs): {:.3} ms per pair ({:.2}x nv-flip's {:.2} ms); largest pixel difference from the CPU twin {diff:.1e}",
+                gpu.name(),
+                1e3 * gpu_batch / batch as f64,
+                nvidia * batch as f64 / gpu_batch,
+                1e3 * nvidia
+            );
+        }
+        Err(e) => println!("FLIP on the GPU: skipped (no adapter: {e})"),
+    }
 }

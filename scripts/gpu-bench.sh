@@ -4,7 +4,7 @@
 #
 #   scripts/gpu-bench.sh                 # builds the bench executables (not timed), runs them
 #   scripts/gpu-bench.sh --bin-dir DIR   # runs prebuilt, stripped executables from DIR:
-#                                        # distance tabulate fit nbrdf weighted brdf-basis
+#                                        # distance tabulate fit nbrdf weighted appearance brdf-basis
 #
 # What it prints:
 # * BRDF_it (`distance` bench): N = 100, 240, 1,000 on both back-ends (and whether the
@@ -16,6 +16,8 @@
 # * fit: Gram passes and batched PGD, 100,000 x 10;
 # * weighted fits: 10,000 NBRDF targets x 3 channels by a 12-material basis, per-target
 #   weights (`weighted` bench; the CPU back-end on 300 targets);
+# * FLIP: ours on one CPU thread and a batch of 64 pairs on the GPU against NVIDIA's C++
+#   reference per 256 x 256 image (`appearance` bench);
 # * `reproduce merl100 --no-acquisition` and `select --method greedy -k 12` end to end;
 # * the PyTorch peer (../shared/bench/torch_peer.py) when python3 has torch and a GPU.
 # Each part runs under a time limit, so that the whole stays within 5 minutes after the
@@ -29,9 +31,9 @@ if [ "${1:-}" = "--bin-dir" ]; then
     bin="$2"
 else
     cargo build --release --quiet
-    cargo bench --no-run --bench distance --bench tabulate --bench fit --bench nbrdf --bench weighted >/dev/null 2>&1
+    cargo bench --no-run --bench distance --bench tabulate --bench fit --bench nbrdf --bench weighted --bench appearance >/dev/null 2>&1
     bin="$(mktemp -d)"
-    for b in distance tabulate fit nbrdf weighted; do
+    for b in distance tabulate fit nbrdf weighted appearance; do
         cp "$(ls -t target/release/deps/$b-* | grep -v '\.d$' | head -1)" "$bin/$b"
     done
     cp target/release/brdf-basis "$bin/"
@@ -57,6 +59,7 @@ part 60 env BRDF_BASIS_GPU_TRACE=1 "$bin/tabulate"
 part 90 env BRDF_BASIS_PYTHON=/bin/false "$bin/nbrdf"
 part 60 "$bin/fit"
 part 90 env BENCH_T=10000 BENCH_T_CPU=300 "$bin/weighted"
+part 60 "$bin/appearance"
 if [ -d "$shared/data/real/nbrdf/merl100" ]; then
     out="$(mktemp -d)"
     for be in gpu cpu; do
