@@ -220,7 +220,111 @@ const REFERENCE_CHUNK: usize = 1 << 14;
 /// The f64 reference of every target's system (the CPU twin of the GPU kernel): rows
 /// tabulated by `backend` (f32), `W_t(s) = w_s phi(y)` and every product and sum in f64,
 /// cells in order, targets in parallel.
+///
+/// Blocked for speed without moving a bit: per chunk of cells the basis rows are turned
+/// once into cell-major f64 rows (the Lambertian column first), and [`LANES`] targets
+/// advance together, one per vector lane, each lane doing its own target's products and
+/// sums in the order of [`reference_scalar`] (which the unit tests hold it to, bit for
+/// bit).
 pub fn reference<B: Backend + ?Sized>(
+    backend: &B,
+    basis: &[Lobe],
+    targets: &[Lobe],
+    cells: &CellSet,
+    weight: TargetWeight,
+    progress: super::Progress<'_>,
+) -> Result<WeightedSystems, BackendError> {
+    use rayon::prelude::*;
+    let weight = weight.check()?;
+    let m = basis.len() + 1;
+    let stride = WeightedSystems::stride_for(m);
+    let mut values = vec![0f64; targets.len() * stride];
+    let lambert = std::f32::consts::FRAC_1_PI as f64;
+    let mut done = 0usize;
+    for (cc, cw) in cells
+        .cells
+        .chunks(REFERENCE_CHUNK)
+        .zip(cells.weights.chunks(REFERENCE_CHUNK))
+    {
+        let n = cc.len();
+        let b = backend.tabulate(basis, cc)?;
+        let y = backend.tabulate(targets, cc)?;
+        let cos_i: Vec<f64> = cc.iter().map(|&c| cos_theta_i(c as usize)).collect();
+        // Cell-major f64 rows of the columns: f[c * m + j].
+        let mut f = vec![0f64; n * m];
+        for (c, row) in f.chunks_exact_mut(m).enumerate() {
+            row[0] = lambert;
+            for (j, fj) in row.iter_mut().enumerate().skip(1) {
+                *fj = b[(j - 1) * n + c] as f64;
+            }
+        }
+        values
+            .par_chunks_mut(stride * LANES)
+            .zip(y.par_chunks(n.max(1) * LANES))
+            .for_each(|(v, yt)| {
+                let lanes = v.len() / stride;
+                let mut acc = vec![[0f64; LANES]; stride];
+                for (q, a) in acc.iter_mut().enumerate() {
+                    for (l, x) in a.iter_mut().enumerate().take(lanes) {
+                        *x = v[l * stride + q];
+                    }
+                }
+                for c in 0..n {
+                    let yc: [f64; LANES] =
+                        std::array::from_fn(|l| if l < lanes { yt[l * n + c] as f64 } else { 0.0 });
+                    let w: [f64; LANES] =
+                        std::array::from_fn(|l| cw[c] * weight.phi(yc[l], cos_i[c]));
+                    let fc = &f[c * m..(c + 1) * m];
+                    accumulate(&mut acc, fc, &w, &yc);
+                }
+                for (q, a) in acc.iter().enumerate() {
+                    for (l, x) in a.iter().enumerate().take(lanes) {
+                        v[l * stride + q] = *x;
+                    }
+                }
+            });
+        done += n;
+        progress(done as u64, cells.cells.len() as u64);
+    }
+    Ok(WeightedSystems { columns: m, values })
+}
+
+/// Targets advanced together by [`reference`], one per f64 lane.
+const LANES: usize = 4;
+
+/// One cell's terms added to [`LANES`] targets' sums: `acc[q][l] += (w_l f_i) f_j` over the
+/// upper triangle, then `(w_l f_i) y_l` and `(w_l y_l) y_l`, as [`reference_scalar`] adds
+/// them (a multiply, then an add: no fused multiply-add, so every lane has its bits).
+#[inline(always)]
+fn accumulate(acc: &mut [[f64; LANES]], f: &[f64], w: &[f64; LANES], y: &[f64; LANES]) {
+    let m = f.len();
+    let mut q = 0;
+    for i in 0..m {
+        let wf: [f64; LANES] = std::array::from_fn(|l| w[l] * f[i]);
+        for &fj in &f[i..] {
+            let a = &mut acc[q];
+            for l in 0..LANES {
+                a[l] += wf[l] * fj;
+            }
+            q += 1;
+        }
+    }
+    for (i, &fi) in f.iter().enumerate() {
+        let a = &mut acc[q + i];
+        for l in 0..LANES {
+            a[l] += w[l] * fi * y[l];
+        }
+    }
+    let a = &mut acc[q + m];
+    for l in 0..LANES {
+        a[l] += w[l] * y[l] * y[l];
+    }
+}
+
+/// [`reference`] one target and cell at a time, as first written: the oracle the blocked
+/// version is held to, bit for bit.
+#[cfg(test)]
+pub(crate) fn reference_scalar<B: Backend + ?Sized>(
     backend: &B,
     basis: &[Lobe],
     targets: &[Lobe],
@@ -274,4 +378,40 @@ pub fn reference<B: Backend + ?Sized>(
         progress(done as u64, cells.cells.len() as u64);
     }
     Ok(WeightedSystems { columns: m, values })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::cpu::CpuBackend;
+    use crate::collection::Collection;
+    use crate::fit::channel_lobe;
+    use crate::merl::{Mask, Weighting};
+
+    /// The blocked reference gives the scalar one's systems to the bit, for every
+    /// objective, a target count that is not a multiple of the lanes, and more cells than
+    /// one chunk.
+    #[test]
+    fn blocked_reference_is_the_scalar_reference_to_the_bit() {
+        let coll = Collection::embedded_default();
+        let lobes: Vec<Lobe> = coll
+            .materials()
+            .iter()
+            .map(|m| channel_lobe(&m.data, 1))
+            .collect();
+        let (basis, targets) = (&lobes[..5], &lobes[5..12]);
+        let cpu = CpuBackend::new();
+        let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 2);
+        assert!(cells.cells.len() > REFERENCE_CHUNK);
+        for weight in [
+            TargetWeight::L2,
+            TargetWeight::Relative { eps: 0.01 },
+            TargetWeight::Log,
+        ] {
+            let fast = reference(&cpu, basis, targets, &cells, weight, &|_, _| {}).unwrap();
+            let slow = reference_scalar(&cpu, basis, targets, &cells, weight, &|_, _| {}).unwrap();
+            assert_eq!(fast, slow, "{weight:?}");
+            assert_eq!(fast.len(), targets.len());
+        }
+    }
 }
