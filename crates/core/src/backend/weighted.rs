@@ -222,10 +222,10 @@ const REFERENCE_CHUNK: usize = 1 << 14;
 /// cells in order, targets in parallel.
 ///
 /// Blocked for speed without moving a bit: per chunk of cells the basis rows are turned
-/// once into cell-major f64 rows (the Lambertian column first), and [`LANES`] targets
+/// once into cell-major f64 rows (the Lambertian column first), and `LANES` (four) targets
 /// advance together, one per vector lane, each lane doing its own target's products and
-/// sums in the order of [`reference_scalar`] (which the unit tests hold it to, bit for
-/// bit).
+/// sums in the order of the scalar loop it replaced (`reference_scalar`, kept in the unit
+/// tests, which hold it to that loop bit for bit).
 pub fn reference<B: Backend + ?Sized>(
     backend: &B,
     basis: &[Lobe],
@@ -293,7 +293,7 @@ pub fn reference<B: Backend + ?Sized>(
 const LANES: usize = 4;
 
 /// One cell's terms added to [`LANES`] targets' sums: `acc[q][l] += (w_l f_i) f_j` over the
-/// upper triangle, then `(w_l f_i) y_l` and `(w_l y_l) y_l`, as [`reference_scalar`] adds
+/// upper triangle, then `(w_l f_i) y_l` and `(w_l y_l) y_l`, as the scalar loop adds
 /// them (a multiply, then an add: no fused multiply-add, so every lane has its bits).
 #[inline(always)]
 fn accumulate(acc: &mut [[f64; LANES]], f: &[f64], w: &[f64; LANES], y: &[f64; LANES]) {
@@ -384,8 +384,7 @@ pub(crate) fn reference_scalar<B: Backend + ?Sized>(
 mod tests {
     use super::*;
     use crate::backend::cpu::CpuBackend;
-    use crate::collection::Collection;
-    use crate::fit::channel_lobe;
+    use crate::brdf::LobeParams;
     use crate::merl::{Mask, Weighting};
 
     /// The blocked reference gives the scalar one's systems to the bit, for every
@@ -393,11 +392,16 @@ mod tests {
     /// one chunk.
     #[test]
     fn blocked_reference_is_the_scalar_reference_to_the_bit() {
-        let coll = Collection::embedded_default();
-        let lobes: Vec<Lobe> = coll
-            .materials()
-            .iter()
-            .map(|m| channel_lobe(&m.data, 1))
+        // Ashikhmin-Shirley lobes from dull to sharp, with and without a diffuse term.
+        let lobes: Vec<Lobe> = (0..12)
+            .map(|i| {
+                Lobe::Analytic(LobeParams {
+                    kd: 0.05 * (i % 3) as f32,
+                    ks: 0.1 + 0.07 * i as f32,
+                    f0: 0.04 + 0.03 * (i % 4) as f32,
+                    n: 2.0 * 1.9f32.powi(i),
+                })
+            })
             .collect();
         let (basis, targets) = (&lobes[..5], &lobes[5..12]);
         let cpu = CpuBackend::new();
