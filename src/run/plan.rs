@@ -85,7 +85,7 @@ impl PlanRequest {
     }
 
     /// The rules of the settings: a criterion whose plan `fit --samples` can use, no
-    /// setting the criterion does not use ([`criterion_settings`]), 1 to 64 restarts, the
+    /// setting the criterion does not use (`criterion_settings`), 1 to 64 restarts, the
     /// objective's ([`ObjectiveSetting::weight`]).
     ///
     /// # Errors
