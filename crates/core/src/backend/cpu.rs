@@ -38,13 +38,12 @@
 //! lobes agree between the back-ends to that accuracy (measured and analytic rows still
 //! bit for bit).
 
-use super::blocks::{add_block, PairOp, BLOCK};
+use super::blocks::{PairOp, BLOCK};
 use super::{Backend, Lobe, LobeParams, Progress};
 use crate::brdf::Nbrdf;
 use crate::error::BackendError;
 use crate::merl::{unflat, N_TD, N_TH};
 use crate::merl::{CellSet, GridTables};
-use crate::separable::SeparableLobe;
 use rayon::prelude::*;
 
 /// Lanes of the canonical summation order (module docs).
@@ -229,11 +228,11 @@ impl CpuBackend {
         {
             let [r, g, b] = &mut out;
             let mut rows = [
-                (Some(0), &mut r[..]),
-                (Some(1), &mut g[..]),
-                (Some(2), &mut b[..]),
+                (Some(0), None, &mut r[..]),
+                (Some(1), None, &mut g[..]),
+                (Some(2), None, &mut b[..]),
             ];
-            neural_rows(net, cells, None, &mut rows);
+            neural_rows(net, cells, &mut rows);
         }
         out.map(|v| v.into_iter().map(f64::from).collect())
     }
@@ -263,25 +262,20 @@ impl CpuBackend {
                 }
             }
             Lobe::Neural { net, channel } => {
-                let mut rows = [(*channel, &mut out[..cells.len()])];
-                neural_rows(net, cells, scale, &mut rows);
+                let mut rows = [(*channel, scale, &mut out[..cells.len()])];
+                neural_rows(net, cells, &mut rows);
             }
         }
     }
 }
 
-/// The rows of one network's lobes at `cells`: each `(channel, row)` gets the channel
-/// (`None`: the f64 mean of R, G, B) times `scale[c]`, rounded once to f32. The network
-/// runs once per [`NEURAL_RUN`] cells for all of them.
-fn neural_rows(
-    net: &Nbrdf,
-    cells: &[u32],
-    scale: Option<&[f64]>,
-    rows: &mut [(Option<usize>, &mut [f32])],
-) {
+/// The rows of one network's lobes at `cells`: each `(channel, scale, row)` gets the
+/// channel (`None`: the f64 mean of R, G, B) times `scale[c]` (if given), rounded once to
+/// f32. The network runs once per [`NEURAL_RUN`] cells for all of them.
+fn neural_rows(net: &Nbrdf, cells: &[u32], rows: &mut [NeuralRow<'_, '_>]) {
     // The three channels unscaled (a tabulation): straight into the rows (the same
     // values: an f32 times 1 in f64 rounds back to itself).
-    if let (None, [(Some(0), r), (Some(1), g), (Some(2), b)]) = (scale, &mut *rows) {
+    if let [(Some(0), None, r), (Some(1), None, g), (Some(2), None, b)] = &mut *rows {
         net.eval_cells(cells, true, [&mut r[..], &mut g[..], &mut b[..]]);
         return;
     }
@@ -294,7 +288,7 @@ fn neural_rows(
         let len = cc.len();
         net.eval_cells(cc, true, [&mut r[..len], &mut g[..len], &mut b[..len]]);
         let ch: [&[f32]; 3] = [&r[..len], &g[..len], &b[..len]];
-        for (channel, row) in rows.iter_mut() {
+        for (channel, scale, row) in rows.iter_mut() {
             let row = &mut row[start..start + len];
             match *channel {
                 Some(c) => {
@@ -312,6 +306,9 @@ fn neural_rows(
         }
     }
 }
+
+/// A row of [`neural_rows`]: the channel (`None`: the mean), the row scale, the row.
+type NeuralRow<'s, 'r> = (Option<usize>, Option<&'s [f64]>, &'r mut [f32]);
 
 /// The values of recent neural lobes on recent cell sets, for [`CpuBackend::values_f64`]:
 /// the cell-by-cell error passes (fits' errors, cross-validation's held-out MAE) ask for
@@ -393,11 +390,20 @@ pub fn fill_rows(
     cells: &[u32],
     scale: Option<&[f64]>,
 ) -> Result<(), BackendError> {
+    fill_rows_each(rows.into_iter().map(|(l, r)| (l, scale, r)).collect(), cells)
+}
+
+/// [`fill_rows`] with a scale per row (`None`: 1): the rows of one network share one
+/// evaluation whatever their scales.
+fn fill_rows_each(
+    rows: Vec<(&Lobe, Option<&[f64]>, &mut [f32])>,
+    cells: &[u32],
+) -> Result<(), BackendError> {
     let tables = &GridTables::new();
-    type NetRows<'a, 'b> = (&'a Nbrdf, Vec<(Option<usize>, &'b mut [f32])>);
+    type NetRows<'a, 's, 'b> = (&'a Nbrdf, Vec<NeuralRow<'s, 'b>>);
     let mut nets: Vec<NetRows> = Vec::new();
-    let mut tables_rows: Vec<(&Lobe, &mut [f32])> = Vec::new();
-    for (lobe, row) in rows {
+    let mut tables_rows: Vec<(&Lobe, Option<&[f64]>, &mut [f32])> = Vec::new();
+    for (lobe, scale, row) in rows {
         if row.len() != cells.len() {
             return Err(BackendError::Invalid(format!(
                 "fill_rows: a row of {} values for {} cells",
@@ -411,25 +417,25 @@ pub fn fill_rows(
                     "fill_rows: analytic lobes are tabulated from their parameters".into(),
                 ))
             }
-            Lobe::Measured { .. } => tables_rows.push((lobe, row)),
+            Lobe::Measured { .. } => tables_rows.push((lobe, scale, row)),
             Lobe::Neural { net, channel } => {
                 match nets
                     .iter_mut()
                     .find(|(n, _)| std::ptr::eq(*n, net.as_ref()))
                 {
-                    Some((_, v)) => v.push((*channel, row)),
-                    None => nets.push((net.as_ref(), vec![(*channel, row)])),
+                    Some((_, v)) => v.push((*channel, scale, row)),
+                    None => nets.push((net.as_ref(), vec![(*channel, scale, row)])),
                 }
             }
         }
     }
-    tables_rows.into_par_iter().for_each(|(lobe, row)| {
+    tables_rows.into_par_iter().for_each(|(lobe, scale, row)| {
         for (c, (&cell, o)) in cells.iter().zip(row.iter_mut()).enumerate() {
             *o = (scale.map_or(1.0, |s| s[c]) * lobe.eval_f64(tables, cell as usize)) as f32;
         }
     });
     nets.into_par_iter()
-        .for_each(|(net, mut rows)| neural_rows(net, cells, scale, &mut rows));
+        .for_each(|(net, mut rows)| neural_rows(net, cells, &mut rows));
     Ok(())
 }
 
@@ -687,77 +693,26 @@ impl Backend for CpuBackend {
         op: PairOp,
         progress: Progress<'_>,
     ) -> Result<Vec<f64>, BackendError> {
-        let n = lobes.len();
-        let n_pad = n.div_ceil(BLOCK) * BLOCK;
-        let mut out = vec![0f64; n * n];
-        let mut sums = vec![[[0f64; BLOCK]; BLOCK]; blocks.len()];
-        let mut buf = vec![0f32; n_pad * CHUNK_CELLS];
-        // Analytic lobes in separable form (alpha + G(c) beta[i][j]), rounded once to f32
-        // as the GPU kernel reads them: a value is then two products and a sum per cell.
-        let seps: Vec<Option<(f32, Vec<f32>)>> = self.install(|| {
-            lobes
-                .par_iter()
-                .map(|l| match l {
-                    Lobe::Analytic(p) => {
-                        let sp = SeparableLobe::new(&self.tables, p);
-                        Some((sp.alpha as f32, sp.beta.iter().map(|&b| b as f32).collect()))
-                    }
-                    Lobe::Measured { .. } | Lobe::Neural { .. } => None,
-                })
-                .collect()
-        });
-        let total = cells.len() as u64;
-        let mut done = 0u64;
-        for (cc, cw) in cells
-            .cells
-            .chunks(CHUNK_CELLS)
-            .zip(cells.weights.chunks(CHUNK_CELLS))
-        {
-            let len = cc.len();
-            let scale: Vec<f64> = cw.iter().map(|&w| op.row_scale(w)).collect();
-            // Per cell, as the GPU's cell texel: (i * 90 + j, G(c) x row scale, row scale),
-            // f64 rounded once to f32.
-            let factors: Vec<(usize, f32, f32)> = cc
-                .iter()
-                .zip(&scale)
-                .map(|(&c, &s)| {
-                    let (e, g) = self.tables.cell_factor(c as usize);
-                    (e, (g * s) as f32, s as f32)
-                })
-                .collect();
-            self.install(|| -> Result<(), BackendError> {
-                let mut other: Vec<(&Lobe, &mut [f32])> = Vec::new();
-                let mut analytic = Vec::new();
-                for (row, (lobe, sep)) in
-                    buf[..n * len].chunks_mut(len).zip(lobes.iter().zip(&seps))
-                {
-                    match sep {
-                        Some(sep) => analytic.push((sep, row)),
-                        None => other.push((lobe, row)),
-                    }
-                }
-                analytic
-                    .into_par_iter()
-                    .for_each(|((alpha, beta), row)| fill_analytic(beta, *alpha, &factors, row));
-                fill_rows(other, cc, Some(&scale))?;
-                buf[n * len..n_pad * len].fill(0.0);
-                let rows: Vec<&[f32]> = buf[..n_pad * len].chunks(len).collect();
-                sums.par_iter_mut()
-                    .zip(blocks.par_iter())
-                    .for_each(|(acc, &[bi, bj])| {
-                        let a = std::array::from_fn(|r| rows[bi as usize * BLOCK + r]);
-                        let b = std::array::from_fn(|q| rows[bj as usize * BLOCK + q]);
-                        block_reduce_same_len(op, a, b, acc);
-                    });
-                Ok(())
-            })?;
-            done += len as u64;
-            progress(done, total);
-        }
-        for (acc, &b) in sums.iter().zip(blocks) {
-            add_block(&mut out, n, b, |r, q| acc[r][q]);
-        }
-        Ok(out)
+        let groups = vec![0; lobes.len()];
+        let pass = pairs::Pass {
+            lobes,
+            group: &groups,
+            weights: &[&cells.weights],
+            cells: &cells.cells,
+            blocks,
+            op,
+        };
+        pairs::reduce(self, &pass, progress)
+    }
+
+    fn grams_per_channel(
+        &self,
+        lobes: [Vec<Lobe>; 3],
+        cells: [&CellSet; 3],
+        basis: usize,
+        progress: Progress<'_>,
+    ) -> Result<[Vec<f64>; 3], BackendError> {
+        pairs::grams_per_channel(self, lobes, cells, basis, progress)
     }
 }
 
@@ -797,5 +752,6 @@ fn is_avx2() -> bool {
     }
 }
 
+mod pairs;
 #[cfg(test)]
 mod tests;

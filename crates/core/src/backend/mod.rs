@@ -130,6 +130,24 @@ pub trait Backend: Send + Sync {
         )
     }
 
+    /// [`Backend::gram`] of three channels' lobes (the same count each), each over its own
+    /// weights of the same cells (SPEC 11's shared weights differ per channel). By default
+    /// a pass per channel; the CPU back-end makes them in one pass (a network then runs once
+    /// per cell for its three channels), the same bits.
+    fn grams_per_channel(
+        &self,
+        lobes: [Vec<Lobe>; 3],
+        cells: [&CellSet; 3],
+        basis: usize,
+        progress: Progress<'_>,
+    ) -> Result<[Vec<f64>; 3], BackendError> {
+        let mut out: [Vec<f64>; 3] = Default::default();
+        for ((o, l), c) in out.iter_mut().zip(&lobes).zip(cells) {
+            *o = self.gram(l, c, basis, progress)?;
+        }
+        Ok(out)
+    }
+
     /// Every target's weighted normal equations (SPEC 11) for a fit by `basis` plus the
     /// Lambertian column, over `cells`, under `weight` ([`weighted`]). By default the f64
     /// reference ([`weighted::reference`]); the GPU back-end runs its kernel. `progress`

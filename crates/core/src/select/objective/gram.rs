@@ -29,8 +29,16 @@ const LEN: usize = 2 * N_TH;
 /// The Gram matrices of an all-analytic collection in closed form (module docs): per
 /// channel `(N + 1)^2`, column 0 the Lambertian `1/pi`, column `j + 1` material `j`.
 pub(crate) fn analytic_grams(coll: &Collection, cells: &CellSet) -> [Vec<f64>; 3] {
+    analytic_grams_weighted(coll, [cells, cells, cells])
+}
+
+/// [`analytic_grams`] with each channel's own weights over the fit cells (`cells[c]`, the
+/// same cells: SPEC 11's shared weights of `relative` and `log`, which differ per
+/// channel). One specular kernel when the three cell sets are one (`l2`), else one per
+/// channel; each is a `Z W^T` product, so a weighted objective costs what `l2` does and
+/// no grid pass over the materials.
+pub(crate) fn analytic_grams_weighted(coll: &Collection, cells: [&CellSet; 3]) -> [Vec<f64>; 3] {
     let t = GridTables::new();
-    let mom = CellMoments::new(&t, cells);
     let n = coll.len();
     let m = n + 1;
     let mats: Vec<_> = coll
@@ -38,6 +46,68 @@ pub(crate) fn analytic_grams(coll: &Collection, cells: &CellSet) -> [Vec<f64>; 3
         .iter()
         .map(|mat| *mat.analytic().expect("all analytic"))
         .collect();
+    let chan = |c: usize, total: f64, c1: &[f64]| Channel {
+        total,
+        alpha: std::iter::once(std::f64::consts::FRAC_1_PI)
+            .chain(
+                mats.iter()
+                    .map(|a| a.d[c] as f32 as f64 * std::f64::consts::FRAC_1_PI),
+            )
+            .collect(),
+        ks: std::iter::once(0.0)
+            .chain(mats.iter().map(|a| a.s[c] as f32 as f64))
+            .collect(),
+        c1: std::iter::once(0.0).chain(c1.iter().copied()).collect(),
+    };
+    // `u` (the specular kernel, row and column 0 zero) becomes channel `c`'s matrix in place.
+    let finish = |ch: Channel, mut u: Vec<f64>| {
+        u.par_chunks_mut(m).enumerate().for_each(|(i, row)| {
+            for (j, o) in row.iter_mut().enumerate() {
+                *o = ch.entry(i, j, *o);
+            }
+        });
+        u
+    };
+    let same = std::ptr::eq(cells[0], cells[1]) && std::ptr::eq(cells[0], cells[2]);
+    if !same {
+        return std::array::from_fn(|c| {
+            let mom = CellMoments::new(&t, cells[c]);
+            let (u, c1) = specular_kernel(&t, &mats, &mom);
+            finish(chan(c, mom.total, &c1), u)
+        });
+    }
+    let mom = CellMoments::new(&t, cells[0]);
+    let (g0, c1) = specular_kernel(&t, &mats, &mom);
+    // Channel 0's matrix holds U until the other two channels are built from it; then it
+    // becomes channel 0 in place (three (N + 1)^2 matrices at most).
+    let from_u = |c: usize, u: &[f64]| {
+        let ch = chan(c, mom.total, &c1);
+        let mut g = vec![0.0; m * m];
+        g.par_chunks_mut(m)
+            .zip(u.par_chunks(m))
+            .enumerate()
+            .for_each(|(i, (row, urow))| {
+                for (j, (o, &uij)) in row.iter_mut().zip(urow).enumerate() {
+                    *o = ch.entry(i, j, uij);
+                }
+            });
+        g
+    };
+    let g1 = from_u(1, &g0);
+    let g2 = from_u(2, &g0);
+    let g0 = finish(chan(0, mom.total, &c1), g0);
+    [g0, g1, g2]
+}
+
+/// The channel-independent specular kernel `U` of the materials under the moments `mom`
+/// (`(N + 1)^2`, row and column 0 zero, symmetric) and `<beta_unit, M_1>` per material.
+fn specular_kernel(
+    t: &GridTables,
+    mats: &[crate::brdf::AshikhminShirley],
+    mom: &CellMoments,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = mats.len();
+    let m = n + 1;
     // Per-i reductions of the moment tables over j.
     let (mut a2, mut b2, mut c2) = ([0.0; N_TH], [0.0; N_TH], [0.0; N_TH]);
     let (mut a1, mut b1) = ([0.0; N_TH], [0.0; N_TH]);
@@ -76,48 +146,12 @@ pub(crate) fn analytic_grams(coll: &Collection, cells: &CellSet) -> [Vec<f64>; 3
             }
             *c1r = s1;
         });
-    // Channel 0's matrix holds U (row and column 0 zero) until the other two channels are
-    // built from it; then it becomes channel 0 in place (three (N + 1)^2 matrices at most).
-    let mut g0 = vec![0.0; m * m];
-    cross_upper(&z, &w, n, &mut g0[m..], m);
+    let mut u = vec![0.0; m * m];
+    cross_upper(&z, &w, n, &mut u[m..], m);
     drop(z);
     drop(w);
-    mirror_upper(&mut g0, m);
-    let chan = |c: usize| Channel {
-        total: mom.total,
-        alpha: std::iter::once(std::f64::consts::FRAC_1_PI)
-            .chain(
-                mats.iter()
-                    .map(|a| a.d[c] as f32 as f64 * std::f64::consts::FRAC_1_PI),
-            )
-            .collect(),
-        ks: std::iter::once(0.0)
-            .chain(mats.iter().map(|a| a.s[c] as f32 as f64))
-            .collect(),
-        c1: std::iter::once(0.0).chain(c1.iter().copied()).collect(),
-    };
-    let from_u = |c: usize, u: &[f64]| {
-        let ch = chan(c);
-        let mut g = vec![0.0; m * m];
-        g.par_chunks_mut(m)
-            .zip(u.par_chunks(m))
-            .enumerate()
-            .for_each(|(i, (row, urow))| {
-                for (j, (o, &uij)) in row.iter_mut().zip(urow).enumerate() {
-                    *o = ch.entry(i, j, uij);
-                }
-            });
-        g
-    };
-    let g1 = from_u(1, &g0);
-    let g2 = from_u(2, &g0);
-    let ch = chan(0);
-    g0.par_chunks_mut(m).enumerate().for_each(|(i, row)| {
-        for (j, o) in row.iter_mut().enumerate() {
-            *o = ch.entry(i, j, *o);
-        }
-    });
-    [g0, g1, g2]
+    mirror_upper(&mut u, m);
+    (u, c1)
 }
 
 /// One channel's terms of the Gram entries (index 0 the Lambertian column).
@@ -276,6 +310,42 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn per_channel_weights_give_each_channel_its_own_closed_form() {
+        // Three different weightings of the same cells (as SPEC 11's shared weights are):
+        // each channel's matrix equals the per-pair definition under its own weights.
+        let coll = Collection::embedded_default();
+        let p = crate::fit::FitParams {
+            stride: 3,
+            ..crate::fit::FitParams::default()
+        };
+        let all: Vec<usize> = (0..coll.len()).collect();
+        let cells = crate::fit::fit_cells(&coll, &all, &p).expect("cells");
+        let per: [CellSet; 3] = std::array::from_fn(|c| {
+            let mut w = cells.clone();
+            for (s, x) in w.weights.iter_mut().enumerate() {
+                *x *= 1.0 + ((s * (c + 3)) % 11) as f64 / (c + 1) as f64;
+            }
+            w
+        });
+        let fast = analytic_grams_weighted(&coll, [&per[0], &per[1], &per[2]]);
+        let m = coll.len() + 1;
+        for (c, g) in fast.iter().enumerate() {
+            let want = per_pair(&coll, &per[c], c);
+            for i in 0..m {
+                for j in 0..m {
+                    let scale = (want[i * m + i] * want[j * m + j]).sqrt();
+                    let d = (g[i * m + j] - want[i * m + j]).abs() / scale;
+                    assert!(d <= 1e-12, "channel {c} ({i}, {j}): {d:e} relative");
+                }
+            }
+        }
+        // One cell set for all three: the shared-kernel path, the same numbers.
+        let one = analytic_grams_weighted(&coll, [&per[1], &per[1], &per[1]]);
+        let apart = analytic_grams_weighted(&coll, [&per[1], &per[1].clone(), &per[1].clone()]);
+        assert_eq!(one, apart);
     }
 
     #[test]

@@ -19,6 +19,7 @@
 
 use crate::backend::weighted::TargetWeight;
 use crate::backend::{Backend, Progress};
+use crate::backend::Lobe;
 use crate::collection::Collection;
 use crate::fit::{fit_cells, CollectionGrams, FitParams, GramMode};
 use crate::merl::CellSet;
@@ -31,7 +32,7 @@ use super::SelectionError;
 
 mod gram;
 mod screen;
-use gram::analytic_grams;
+use gram::{analytic_grams, analytic_grams_weighted};
 pub use screen::*;
 
 /// Parameters of the objective: the fit cells and how the Gram matrices are computed.
@@ -131,13 +132,14 @@ impl ValidObjectiveParams {
 }
 
 /// Bytes of tabulated values [`shared_weights`] holds at once.
-const SHARED_WEIGHT_BLOCK_BYTES: usize = 256 << 20;
+const SHARED_WEIGHT_BLOCK_BYTES: usize = 32 << 20;
 
 /// SPEC 11's shared weights of an objective over `cells`, one cell set per channel:
 /// `W_c(s) = w_s phi(m_c(s), s)` with `m_c(s)` the median over the collection's materials
 /// of `f_c(s)` (the mean of the two middle values for an even count), normalised to sum 1
-/// (the scale of the weights changes no fit and no relative residual). The materials are
-/// tabulated by `backend` (f32) block by block of cells.
+/// (the scale of the weights changes no fit and no relative residual). The materials'
+/// three channels are tabulated by `backend` (f32) together, block by block of cells (a
+/// network runs once per cell for its three channels).
 pub(crate) fn shared_weights(
     backend: &dyn Backend,
     coll: &Collection,
@@ -145,34 +147,47 @@ pub(crate) fn shared_weights(
     weight: TargetWeight,
     progress: Progress<'_>,
 ) -> Result<[CellSet; 3], SelectionError> {
-    let lobes = crate::fit::collection_lobes(coll);
-    let total = 3 * cells.cells.len() as u64;
+    let mats: Vec<Lobe> = crate::fit::collection_lobes(coll)
+        .into_iter()
+        .flat_map(|l| l.into_iter().skip(1))
+        .collect();
+    let total = cells.cells.len() as u64;
     let n = coll.len();
-    let block = (SHARED_WEIGHT_BLOCK_BYTES / (4 * n.max(1))).clamp(256, 1 << 16);
+    let block = (SHARED_WEIGHT_BLOCK_BYTES / (12 * n.max(1))).clamp(256, 1 << 16);
     let mut out: [CellSet; 3] = std::array::from_fn(|_| cells.clone());
-    for (c, o) in out.iter_mut().enumerate() {
-        let mats = &lobes[c][1..];
-        let mut at = 0;
-        for cc in cells.cells.chunks(block) {
-            let v = backend
-                .tabulate(mats, cc)
-                .map_err(crate::fit::FitError::from)?;
-            let len = cc.len();
-            let w: Vec<f64> = (0..len)
-                .into_par_iter()
-                .map(|i| {
-                    let mut col: Vec<f32> = (0..n).map(|m| v[m * len + i]).collect();
-                    let med = median_f32(&mut col);
-                    let cos_i = crate::backend::weighted::cos_theta_i(cc[i] as usize);
-                    weight.phi(med, cos_i)
-                })
-                .collect();
-            for (ow, wv) in o.weights[at..at + len].iter_mut().zip(w) {
-                *ow *= wv;
-            }
-            at += len;
-            progress((c * cells.cells.len() + at) as u64, total);
+    let mut at = 0;
+    for cc in cells.cells.chunks(block) {
+        let v = backend
+            .tabulate(&mats, cc)
+            .map_err(crate::fit::FitError::from)?;
+        let len = cc.len();
+        for (c, o) in out.iter_mut().enumerate() {
+            let v = &v[c * n * len..(c + 1) * n * len];
+            // Tiles of cells, each turned cell-major once (the materials' rows read in
+            // runs, not one strided value per material and cell), then a median per cell.
+            const TILE: usize = 64;
+            o.weights[at..at + len]
+                .par_chunks_mut(TILE)
+                .enumerate()
+                .for_each(|(t, ow)| {
+                    let (i0, k) = (t * TILE, ow.len());
+                    let mut col = vec![0f32; k * n];
+                    for m in 0..n {
+                        for (r, &x) in v[m * len + i0..m * len + i0 + k].iter().enumerate() {
+                            col[r * n + m] = x;
+                        }
+                    }
+                    for (r, o) in ow.iter_mut().enumerate() {
+                        let med = median_f32(&mut col[r * n..(r + 1) * n]);
+                        let cos_i = crate::backend::weighted::cos_theta_i(cc[i0 + r] as usize);
+                        *o *= weight.phi(med, cos_i);
+                    }
+                });
         }
+        at += len;
+        progress(at as u64, total);
+    }
+    for (c, o) in out.iter_mut().enumerate() {
         let total: f64 = o.weights.iter().sum();
         if !(total.is_finite() && total > 0.0) {
             return Err(SelectionError::InvalidParam {
@@ -188,7 +203,9 @@ pub(crate) fn shared_weights(
 
 /// The Gram matrices of `coll` under SPEC 11's shared weights of `weight` over `cells`
 /// ([`shared_weights`]): per channel `(N + 1)^2`, column 0 the Lambertian `1/pi`, column
-/// `j + 1` material `j`, one back-end pass per channel with that channel's weights.
+/// `j + 1` material `j`. An all-analytic collection's come in closed form with each
+/// channel's weights (`analytic_grams_weighted`: no grid pass, as under `l2`); otherwise
+/// from the back-end, each channel under its weights ([`Backend::grams_per_channel`]).
 pub(crate) fn shared_weight_grams(
     backend: &dyn Backend,
     coll: &Collection,
@@ -197,14 +214,17 @@ pub(crate) fn shared_weight_grams(
     progress: Progress<'_>,
 ) -> Result<[Vec<f64>; 3], SelectionError> {
     let weighted = shared_weights(backend, coll, cells, weight, progress)?;
-    let lobes = crate::fit::collection_lobes(coll);
-    let mut out: [Vec<f64>; 3] = Default::default();
-    for ((o, l), cw) in out.iter_mut().zip(lobes).zip(&weighted) {
-        *o = backend
-            .gram(&l, cw, coll.len() + 1, progress)
-            .map_err(crate::fit::FitError::from)?;
+    if coll.all_analytic() {
+        return Ok(analytic_grams_weighted(
+            coll,
+            [&weighted[0], &weighted[1], &weighted[2]],
+        ));
     }
-    Ok(out)
+    let lobes = crate::fit::collection_lobes(coll);
+    let [w0, w1, w2] = &weighted;
+    Ok(backend
+        .grams_per_channel(lobes, [w0, w1, w2], coll.len() + 1, progress)
+        .map_err(crate::fit::FitError::from)?)
 }
 
 /// The median of `v` (NaN-free, non-empty: the mean of the two middle values for an even
