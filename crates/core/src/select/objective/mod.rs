@@ -145,6 +145,7 @@ pub(crate) fn shared_weights(
     weight: TargetWeight,
     progress: Progress<'_>,
 ) -> Result<[CellSet; 3], SelectionError> {
+    let weight = weight.check().map_err(crate::fit::FitError::from)?;
     let lobes = crate::fit::collection_lobes(coll);
     let total = 3 * cells.cells.len() as u64;
     let n = coll.len();
@@ -175,11 +176,18 @@ pub(crate) fn shared_weights(
         }
         let total: f64 = o.weights.iter().sum();
         if !(total.is_finite() && total > 0.0) {
-            return Err(SelectionError::InvalidParam {
-                name: "--objective",
-                value: format!("{} (channel {c})", weight.kind().name()),
-                expected: "shared weights with a positive finite sum over the fit cells",
-            });
+            let what = match weight.eps() {
+                Some(eps) => {
+                    format!("the relative objective's weights 1/(f + eps)^2 at eps {eps:e}")
+                }
+                None => format!("the {} objective's weights", weight.kind().name()),
+            };
+            return Err(crate::fit::FitError::Weights {
+                material: "the collection's median".into(),
+                channel: c,
+                detail: format!("{what} sum to {total:e} over the fit cells: they must sum to a positive finite number (a larger or smaller eps moves them back into range)"),
+            }
+            .into());
         }
         o.weights.iter_mut().for_each(|w| *w /= total);
     }
