@@ -415,6 +415,43 @@ mod tests {
     use crate::brdf::LobeParams;
     use crate::merl::{Mask, Weighting};
 
+    /// Audit 3, D1: eps is checked against its range where the weight is built; inside it
+    /// the weights of every reflectance from 0 to 1e100 are normal f64 numbers.
+    #[test]
+    fn eps_is_refused_outside_its_range_and_weights_stay_normal_inside() {
+        for bad in [
+            0.0,
+            -1.0,
+            f64::NAN,
+            f64::INFINITY,
+            1.4e154,
+            1e101,
+            9.9e-101,
+            1e-300,
+        ] {
+            let e = TargetWeight::relative(bad)
+                .expect_err("refused")
+                .to_string();
+            assert!(e.contains("eps must"), "{bad}: {e}");
+        }
+        for eps in [
+            TargetWeight::MIN_EPS,
+            1e-40,
+            0.01,
+            1e30,
+            TargetWeight::MAX_EPS,
+        ] {
+            let w = TargetWeight::relative(eps).expect("valid");
+            for y in [0.0, 1e-20, 1.0, 1e30, 3.4e38, 1e100] {
+                let phi = w.phi(y, 0.5);
+                assert!(
+                    phi.is_normal() && (1e-201..=1.001e200).contains(&phi),
+                    "eps {eps}, f {y}: {phi:e}"
+                );
+            }
+        }
+    }
+
     /// The blocked reference gives the scalar one's systems to the bit, for every
     /// objective, a target count that is not a multiple of the lanes, and more cells than
     /// one chunk.

@@ -627,3 +627,24 @@ pub(crate) fn combination_values(
     }
     out
 }
+
+#[cfg(test)]
+mod weighted_system_tests {
+    use super::*;
+
+    /// Audit 3, D1: a weighted system whose weights vanish is refused (its objective
+    /// residual of 0 read as perfect), and one that overflowed names eps.
+    #[test]
+    fn vanishing_or_overflowing_weights_are_refused_naming_eps() {
+        let w = TargetWeight::Relative { eps: 1e-90 };
+        let e = check_weighted_system(&[0.0; 4], &[0.0; 2], 0.0, w).expect_err("vanish");
+        assert!(e.contains("vanish") && e.contains("eps 1e-90"), "{e}");
+        let e = check_weighted_system(&[f64::INFINITY, 0.0, 0.0, 1.0], &[0.0; 2], 1.0, w)
+            .expect_err("overflow");
+        assert!(
+            e.contains("overflow f64") && e.contains("give a larger eps"),
+            "{e}"
+        );
+        assert!(check_weighted_system(&[1.0, 0.0, 0.0, 1.0], &[0.5; 2], 1.0, w).is_ok());
+    }
+}
