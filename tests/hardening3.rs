@@ -300,7 +300,7 @@ fn refusals_count_in_words_that_agree() {
             "-k",
             "1",
             "--folds",
-            "3",
+            "2",
             "--no-appearance",
             "--json",
             "x.json",
