@@ -25,6 +25,7 @@ mod flip_peer;
 mod gpu_kernels;
 mod grid;
 mod hardening;
+mod hardening3;
 mod hygiene;
 mod inputs;
 mod integrity;

@@ -77,7 +77,7 @@ pub(crate) fn select_json<'py>(
     stride: usize,
     seed: u64,
     objective: Option<&str>,
-    eps: Option<f64>,
+    eps: Option<Bound<'py, PyAny>>,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -114,8 +114,19 @@ pub(crate) fn select_json<'py>(
 /// defaults and makes the rules (`run::ObjectiveSetting`).
 pub(crate) fn objective_of(
     objective: Option<&str>,
-    eps: Option<f64>,
+    eps: Option<Bound<'_, PyAny>>,
 ) -> PyResult<bb::run::ObjectiveSetting> {
+    // A bool is an int to Python and a float to `extract`: `eps=True` ran with eps 1.
+    let eps = match eps {
+        None => None,
+        Some(e) if e.is_instance_of::<pyo3::types::PyBool>() => {
+            return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                "eps: expected a number, got {}",
+                e.repr()?
+            )))
+        }
+        Some(e) => Some(e.extract::<f64>()?),
+    };
     Ok(bb::run::ObjectiveSetting {
         objective: objective
             .map(|o| o.parse::<bb::backend::weighted::ObjectiveKind>())
@@ -162,7 +173,7 @@ pub(crate) fn fit_json<'py>(
     solver: &str,
     gram: &str,
     objective: Option<&str>,
-    eps: Option<f64>,
+    eps: Option<Bound<'py, PyAny>>,
     appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
@@ -203,7 +214,7 @@ pub(crate) fn plan_json<'py>(
     seed: u64,
     restarts: Option<usize>,
     objective: Option<&str>,
-    eps: Option<f64>,
+    eps: Option<Bound<'py, PyAny>>,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -242,7 +253,7 @@ pub(crate) fn fit_samples<'py>(
     rgb: Vec<[f64; 3]>,
     sigma: Option<Vec<[f64; 3]>>,
     objective: Option<&str>,
-    eps: Option<f64>,
+    eps: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, [f64; 3], f64, f64, usize, f64)> {
     let coll = coll_of(collection);
     let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
@@ -283,7 +294,7 @@ pub(crate) fn cross_validate_json<'py>(
     render_size: Option<u32>,
     seed: u64,
     objective: Option<&str>,
-    eps: Option<f64>,
+    eps: Option<Bound<'py, PyAny>>,
     appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,
@@ -333,7 +344,7 @@ pub(crate) fn acquisition_cv_json<'py>(
     stride: usize,
     seed: u64,
     objective: Option<&str>,
-    eps: Option<f64>,
+    eps: Option<Bound<'py, PyAny>>,
     appearance: bool,
     backend: &str,
     progress: Option<Bound<'py, PyAny>>,

@@ -85,7 +85,8 @@ pub(crate) struct ObjectiveArgs {
     #[arg(long, value_enum)]
     pub objective: Option<brdf_basis::backend::weighted::ObjectiveKind>,
     // eps of `--objective relative` (> 0).
-    #[arg(long, help = with_default("eps of --objective relative, in MERL reflectance units (> 0)", brdf_basis::backend::weighted::TargetWeight::DEFAULT_EPS))]
+    // A negative value is read as a value (and refused by the request), not as a flag.
+    #[arg(long, allow_negative_numbers = true, help = with_default("eps of --objective relative, in MERL reflectance units (1e-100 to 1e100)", brdf_basis::backend::weighted::TargetWeight::DEFAULT_EPS))]
     pub eps: Option<f64>,
 }
 

@@ -2,6 +2,7 @@
 
 use super::{all_others, indices_of, refuse, Grid, ObjectiveSetting};
 use crate::acquire::SampleFit;
+use crate::backend::weighted::ObjectiveKind;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::eval::appearance::Appearance;
@@ -83,7 +84,24 @@ impl FitRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        self.objective.weight()?;
+        let w = self.objective.weight()?;
+        let d = FitParams::default();
+        let given: Vec<String> = [
+            (self.solver != d.solver, "--solver pgd".to_string()),
+            (self.gram != d.gram, "--gram grid".to_string()),
+        ]
+        .into_iter()
+        .filter_map(|(g, f)| g.then_some(f))
+        .collect();
+        if w.kind() != ObjectiveKind::L2 && !given.is_empty() {
+            refuse!(
+                "{} {} not apply to --objective {}: a weighted objective solves each target's own system exactly (Lawson-Hanson), with no shared Gram matrix and no projected gradient; --solver and --gram concern --objective l2 only: leave {} out, or give --objective l2",
+                given.join(" and "),
+                if given.len() == 1 { "does" } else { "do" },
+                w.kind().name(),
+                if given.len() == 1 { "it" } else { "them" },
+            );
+        }
         Ok(())
     }
 

@@ -149,6 +149,7 @@ impl PlanRequest {
             Some(t) => indices_of(coll, t)?,
             None => all_others(coll, &basis),
         };
+        refuse_basis_twins(coll, &basis, &targets)?;
         let p = self.params()?;
         let cands: Vec<Candidate> = match &self.candidates {
             Some(path) => read_candidates(path)?
@@ -164,6 +165,33 @@ impl PlanRequest {
             backend, coll, &basis, &targets, &cands, &p, progress,
         )?)
     }
+}
+
+/// Refuses a target whose values are a basis material's (the same analytic parameters or
+/// the same measured table under another name): the basis fits it exactly from any
+/// sample, so its score is 0 after the first and a plan would choose samples on a zero
+/// objective (audit 3, T7).
+fn refuse_basis_twins(coll: &Collection, basis: &[usize], targets: &[usize]) -> Result<()> {
+    use crate::collection::MaterialData as D;
+    let m = coll.materials();
+    let same = |a: &D, b: &D| match (a, b) {
+        (D::Analytic(x), D::Analytic(y)) => format!("{x:?}") == format!("{y:?}"),
+        (D::Measured(x), D::Measured(y)) => x.rgb == y.rgb,
+        _ => false,
+    };
+    for &t in targets {
+        if let Some(&b) = basis
+            .iter()
+            .find(|&&b| b != t && same(&m[t].data, &m[b].data))
+        {
+            refuse!(
+                "target `{}` has the same values as basis material `{}`: the basis fits it exactly from any sample, so a plan would choose samples on a zero score; leave it out of --targets (or give another basis)",
+                crate::error::short_name(&m[t].name),
+                crate::error::short_name(&m[b].name)
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Refuses a plan setting that none of `criteria` (given by `by`: `--criterion` or

@@ -12,7 +12,7 @@ use super::neural::{lobe_rows, NeuralCells, NeuralKernel, NeuralTarget};
 use super::pairwise::DeviceSums;
 use super::tabulate::{PackTarget, TabulateKernel};
 use super::{dispatch, GpuContext, PipelineCache, TEX_W};
-use brdf_basis_core::backend::weighted::{cos_theta_i, TargetWeight, WeightedSystems};
+use brdf_basis_core::backend::weighted::{cos_theta_i, reference, TargetWeight, WeightedSystems};
 use brdf_basis_core::backend::{Lobe, Progress};
 use brdf_basis_core::brdf::LobeParams;
 use brdf_basis_core::error::GpuError;
@@ -49,12 +49,30 @@ pub struct WeightedParams {
     pub lambert: f32,
 }
 
+/// Values the kernel adds after each target's system: the count of cells whose weight
+/// left f32's range (0, subnormal or infinite where the f64 reference forms a positive
+/// normal weight, e.g. a value above about 1e18 under `relative`, or an eps outside f32's
+/// range). The host hands such targets, and those whose sums overflowed f32, to the f64
+/// reference: the GPU then gives the CPU back-end's systems bit for bit (or the same
+/// refusal), not a system that silently lost cells.
+pub const FLAG: usize = 1;
+
+/// The factor (a power of two, exact) by which the kernel scales each term `W y^2` of
+/// `yy` under `relative` and `log`, where each term is at most the cell weight times 1
+/// and a value far below `eps` (1e-20 under eps 0.01) would otherwise underflow f32; the
+/// host divides it out in f64.
+pub const YY_SCALE: f64 = 18446744073709551616.0; // 2^64
+
 /// The kernel for `k` basis lobes: the template with `K` and `STRIDE` defined and its
-/// `//@` lines expanded (one f32 accumulator per value of the system).
+/// `//@` lines expanded (one f32 accumulator per value of the system, and the count of
+/// [`FLAG`]).
 pub fn kernel_source(k: usize) -> String {
     let m = k + 1;
     let stride = WeightedSystems::stride_for(m);
-    let mut out = format!("const K: u32 = {k}u;\nconst STRIDE: u32 = {stride}u;\n");
+    let mut out = format!(
+        "const K: u32 = {k}u;\nconst STRIDE: u32 = {}u;\n",
+        stride + FLAG
+    );
     let upper = || (0..m).flat_map(move |i| (i..m).map(move |j| (i, j)));
     for line in SOURCE.lines() {
         let indent = &line[..line.len() - line.trim_start().len()];
@@ -79,7 +97,7 @@ pub fn kernel_source(k: usize) -> String {
                     }
                     emit(format!("r_{i} = r_{i} + wf{i} * y;"));
                 }
-                emit("yy = yy + wgt * y * y;".into());
+                emit("yy = yy + (wgt * y) * (y * yscale);".into());
             }
             "//@STORE" => {
                 let mut q = 0;
@@ -91,6 +109,7 @@ pub fn kernel_source(k: usize) -> String {
                     emit(format!("partial[o + {}u] = r_{i};", q + i));
                 }
                 emit(format!("partial[o + {}u] = yy;", q + m));
+                emit(format!("partial[o + {}u] = lost;", q + m + 1));
             }
             _ => {
                 out.push_str(line);
@@ -99,6 +118,32 @@ pub fn kernel_source(k: usize) -> String {
         }
     }
     out
+}
+
+/// `systems` with the targets `redo` (whose weights or sums left f32's range, [`FLAG`])
+/// replaced by the f64 reference's ([`brdf_basis_core::backend::weighted::reference`] on
+/// the CPU back-end): their systems are then the CPU back-end's, bit for bit.
+fn f64_reference(
+    mut systems: WeightedSystems,
+    basis: &[Lobe],
+    targets: &[Lobe],
+    cells: &CellSet,
+    weight: TargetWeight,
+    redo: &[usize],
+) -> Result<WeightedSystems, GpuError> {
+    if redo.is_empty() {
+        return Ok(systems);
+    }
+    let cpu = brdf_basis_core::backend::cpu::CpuBackend::new();
+    let lobes: Vec<Lobe> = redo.iter().map(|&t| targets[t].clone()).collect();
+    let exact = reference(&cpu, basis, &lobes, cells, weight, &|_, _| {})
+        .map_err(|e| GpuError::Limits(e.to_string()))?;
+    let stride = systems.stride();
+    for (q, &t) in redo.iter().enumerate() {
+        systems.values[t * stride..(t + 1) * stride]
+            .copy_from_slice(&exact.values[q * stride..(q + 1) * stride]);
+    }
+    Ok(systems)
 }
 
 /// Where each row sits in the packed texture: analytic rows first, then measured, then
@@ -187,11 +232,14 @@ impl WeightedKernel {
     ) -> Result<WeightedSystems, GpuError> {
         let (k, t_count) = (basis.len(), targets.len());
         let m = k + 1;
-        let stride = WeightedSystems::stride_for(m);
-        let mut values = vec![0f64; t_count * stride];
+        let system = WeightedSystems::stride_for(m);
         if t_count == 0 || cells.is_empty() {
+            let values = vec![0f64; t_count * system];
             return Ok(WeightedSystems { columns: m, values });
         }
+        // The kernel's values per target: the system and the flag.
+        let stride = system + FLAG;
+        let mut values = vec![0f64; t_count * stride];
         let pipeline = self.pipelines.get(k, || {
             ctx.pipeline(&format!("weighted (K = {k})"), &kernel_source(k))
         })?;
@@ -334,7 +382,27 @@ impl WeightedKernel {
         if let Some(d) = &sums {
             values = d.read(ctx, ctx.encoder())?;
         }
-        Ok(WeightedSystems { columns: m, values })
+        let yscale = match weight {
+            TargetWeight::L2 => 1.0,
+            TargetWeight::Relative { .. } | TargetWeight::Log => YY_SCALE,
+        };
+        let systems = WeightedSystems {
+            columns: m,
+            values: values
+                .chunks(stride)
+                .flat_map(|v| {
+                    let (sys, yy) = v[..system].split_at(system - 1);
+                    sys.iter().copied().chain([yy[0] / yscale])
+                })
+                .collect(),
+        };
+        let out_of_f32: Vec<usize> = values
+            .chunks(stride)
+            .enumerate()
+            .filter(|(_, v)| v[system] != 0.0 || v[..system].iter().any(|x| !x.is_finite()))
+            .map(|(t, _)| t)
+            .collect();
+        f64_reference(systems, basis, targets, cells, weight, &out_of_f32)
     }
 
     /// Packs the measured rows of a chunk (host tabulation, four rows to a texel) into

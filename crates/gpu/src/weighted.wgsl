@@ -1,7 +1,8 @@
 // Per-target weighted normal equations (SPEC 11; brdf_basis_core::backend::weighted): for target t
 // and the m = K + 1 columns (the Lambertian 1 / pi, then K basis lobes), the sums over a
 // run of cells of W f_i f_j (i <= j), W f_i y and W y^2, with W = w_s phi(y) the
-// objective's weight at the target's value y. The host unrolls the template for K
+// objective's weight at the target's value y; the last value of each system (STRIDE counts
+// it) is the count of cells whose weight left f32's range. The host unrolls the template for K
 // (weighted.rs, `kernel_source`): it prepends `const K` and `const STRIDE`
 // and expands the lines that start with a marker.
 //
@@ -65,10 +66,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     //@DECLARE
     let start = run * p.run_len;
     let end = min(start + p.run_len, p.n_cells);
+    var lost: f32 = 0.0;
+    // 2^64 under relative and log (weighted.rs, `YY_SCALE`), 1 under l2.
+    let yscale = select(1.0, 18446744073709551616.0, p.weight != 0u);
     for (var c = start; c < end; c = c + 1u) {
         let y = fetch(yrow, c);
         let cw = cellw[c];
         let wgt = cw.x * phi(y, cw.y);
+        // f32's range: a weight the f64 reference forms as a positive normal number (every
+        // relative one, a log one where cos theta_i > 0) that is here 0, subnormal or
+        // infinite, or too small for its Lambertian term W / pi^2 to stay normal, marks
+        // the target for the host's f64 reference (weighted.rs, `FLAG`).
+        if (cw.x > 0.0 && (p.weight == 1u || (p.weight == 2u && cw.y > 0.0))
+            && !(wgt * p.lambert * p.lambert >= 1.1754944e-38 && wgt <= 3.4028235e38)) {
+            lost = lost + 1.0;
+        }
         let f0 = p.lambert;
         //@FETCH
         //@ACCUMULATE

@@ -322,6 +322,7 @@ pub(crate) fn fit_design(
     samples: &[Sample],
     objective: TargetWeight,
 ) -> Result<SampleFit, AcquireError> {
+    let objective = objective.check().map_err(crate::fit::FitError::from)?;
     let m = d.m;
     let n = samples.len();
     let mut out = SampleFit {
@@ -345,6 +346,7 @@ pub(crate) fn fit_design(
             .zip(&w)
             .map(|(s, &wv)| wv * objective.phi(s.rgb[c], s.wi[2]))
             .collect();
+        vanishing_weights(&ow, objective, c)?;
         let sol = solve_rows(m, &d.rows[c], &y, &ow)?;
         let (mut r2, mut ab, mut wsum) = (0.0, 0.0, 0.0);
         for (((row, &yv), &wv), &owv) in d.rows[c].chunks_exact(m).zip(&y).zip(&w).zip(&ow) {
@@ -368,6 +370,25 @@ pub(crate) fn fit_design(
     out.relative_residual = if energy > 0.0 { sq / energy } else { 0.0 };
     out.objective_residual = if oenergy > 0.0 { osq / oenergy } else { 0.0 };
     Ok(out)
+}
+
+/// Refuses sample weights (sigma weights times the objective's, channel `c`) that are 0 or
+/// not normal on every sample: the fit would fit nothing, and its objective residual of 0
+/// would read as perfect.
+fn vanishing_weights(ow: &[f64], objective: TargetWeight, c: usize) -> Result<(), AcquireError> {
+    if ow.iter().any(|w| w.is_normal()) {
+        return Ok(());
+    }
+    let what = match objective.eps() {
+        Some(eps) => format!("the relative objective's weights 1/(f + eps)^2 at eps {eps:e}"),
+        None => format!("the {} objective's weights", objective.kind().name()),
+    };
+    Err(crate::fit::FitError::Weights {
+        material: "the samples".into(),
+        channel: c,
+        detail: format!("{what} vanish on every sample: it would fit nothing, and an objective residual of 0 would read as a perfect fit"),
+    }
+    .into())
 }
 
 /// Warnings of a fit whose samples cannot determine it: fewer samples than columns, a

@@ -131,12 +131,40 @@ impl TargetWeight {
         }
     }
 
-    /// Checks `eps` (finite, positive).
+    /// The smallest `eps` of `relative` ([`Self::check`]): the weight `1 / eps^2` of a zero
+    /// reflectance stays at most 1e200.
+    pub const MIN_EPS: f64 = 1e-100;
+    /// The largest `eps` of `relative` ([`Self::check`]): the weight `1 / (f + eps)^2` of
+    /// the largest reflectance a fit carries (1e100, the samples files' bound; tabulated
+    /// rows are f32, below 3.5e38) stays at least 2.5e-201.
+    pub const MAX_EPS: f64 = 1e100;
+
+    /// `relative` with `eps`, checked ([`Self::check`]).
+    pub fn relative(eps: f64) -> Result<Self, BackendError> {
+        TargetWeight::Relative { eps }.check()
+    }
+
+    /// Checks `eps`: a number from [`Self::MIN_EPS`] to [`Self::MAX_EPS`]. In that range
+    /// the weights `1 / (f + eps)^2` of every reflectance `f` from 0 to 1e100 lie between
+    /// 2.5e-201 and 1e200, so that neither they nor their products with cell weights and
+    /// values underflow to 0 or overflow in f64 where they are formed (the GPU kernel forms
+    /// them in f32 and hands the targets whose weights leave f32's range to the f64
+    /// reference). Beyond it an `eps` can make every weight 0 (a fit of nothing, all black,
+    /// whose objective residual of 0 would read as perfect) or infinite.
     pub fn check(self) -> Result<Self, BackendError> {
         match self {
             TargetWeight::Relative { eps } if !(eps.is_finite() && eps > 0.0) => {
                 Err(BackendError::Invalid(format!(
                     "the relative objective's eps must be a positive number, not {eps}"
+                )))
+            }
+            TargetWeight::Relative { eps } if !(Self::MIN_EPS..=Self::MAX_EPS).contains(&eps) => {
+                Err(BackendError::Invalid(format!(
+                    "the relative objective's eps must lie between 1e-100 and 1e100, not {eps:e}: beyond that range its weights 1/(f + eps)^2 {} in f64 (inside it they stay between 1e-201 and 1e200 for every reflectance from 0 to 1e100)",
+                    match eps < Self::MIN_EPS {
+                        true => "overflow where f is small",
+                        false => "underflow to 0, which would fit nothing and read as a perfect fit",
+                    }
                 )))
             }
             w => Ok(w),
@@ -386,6 +414,43 @@ mod tests {
     use crate::backend::cpu::CpuBackend;
     use crate::brdf::LobeParams;
     use crate::merl::{Mask, Weighting};
+
+    /// Audit 3, D1: eps is checked against its range where the weight is built; inside it
+    /// the weights of every reflectance from 0 to 1e100 are normal f64 numbers.
+    #[test]
+    fn eps_is_refused_outside_its_range_and_weights_stay_normal_inside() {
+        for bad in [
+            0.0,
+            -1.0,
+            f64::NAN,
+            f64::INFINITY,
+            1.4e154,
+            1e101,
+            9.9e-101,
+            1e-300,
+        ] {
+            let e = TargetWeight::relative(bad)
+                .expect_err("refused")
+                .to_string();
+            assert!(e.contains("eps must"), "{bad}: {e}");
+        }
+        for eps in [
+            TargetWeight::MIN_EPS,
+            1e-40,
+            0.01,
+            1e30,
+            TargetWeight::MAX_EPS,
+        ] {
+            let w = TargetWeight::relative(eps).expect("valid");
+            for y in [0.0, 1e-20, 1.0, 1e30, 3.4e38, 1e100] {
+                let phi = w.phi(y, 0.5);
+                assert!(
+                    phi.is_normal() && (1e-201..=1.001e200).contains(&phi),
+                    "eps {eps}, f {y}: {phi:e}"
+                );
+            }
+        }
+    }
 
     /// The blocked reference gives the scalar one's systems to the bit, for every
     /// objective, a target count that is not a multiple of the lanes, and more cells than

@@ -322,6 +322,7 @@ impl ValidGcukParams {
         keep_best(&pop, &mut best, p.tolerance);
         let mut history = vec![best.db];
         for _ in 0..p.generations {
+            d.intact().map_err(ClusterError::SourceChanged)?;
             let selected: Vec<Individual> = (0..p.population)
                 .map(|_| pop[roulette(&mut rng, &pop)].clone())
                 .collect();

@@ -250,6 +250,7 @@ impl ValidKMedoidsParams {
         check_distances(d)?;
         let mut best: Option<KMedoids> = None;
         for run in 0..p.restarts {
+            d.intact().map_err(ClusterError::SourceChanged)?;
             let seed = p.seed.wrapping_add(run as u64);
             let medoids = if run == 0 && p.init == KMedoidsInit::Build {
                 build(d, p.k)
@@ -257,7 +258,7 @@ impl ValidKMedoidsParams {
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 rand::seq::index::sample(&mut rng, n, p.k).into_vec()
             };
-            let r = self.search(d, medoids, seed);
+            let r = self.search(d, medoids, seed)?;
             if best
                 .as_ref()
                 .is_none_or(|b| super::clearly_lower(r.loss, b.loss, p.tolerance))
@@ -295,11 +296,17 @@ impl ValidKMedoidsParams {
             }
         }
         check_distances(d)?;
-        Ok(self.search(d, initial.to_vec(), self.0.seed))
+        self.search(d, initial.to_vec(), self.0.seed)
     }
 
-    /// The local search from `medoids` (run seed `seed`) and the result.
-    fn search<D: Distances + ?Sized>(&self, d: &D, mut medoids: Vec<usize>, seed: u64) -> KMedoids {
+    /// The local search from `medoids` (run seed `seed`) and the result; stops when the
+    /// values are no longer intact ([`Distances::intact`]).
+    fn search<D: Distances + ?Sized>(
+        &self,
+        d: &D,
+        mut medoids: Vec<usize>,
+        seed: u64,
+    ) -> Result<KMedoids, ClusterError> {
         let p = &self.0;
         let iterations = match p.algorithm {
             KMedoidsAlgorithm::FasterPam => {
@@ -307,18 +314,19 @@ impl ValidKMedoidsParams {
                 faster_pam(d, &mut medoids, &order, p.max_iter, p.tolerance)
             }
             KMedoidsAlgorithm::Pam => swap(d, &mut medoids, p.max_iter, p.tolerance),
-        };
+        }
+        .map_err(ClusterError::SourceChanged)?;
         medoids.sort_unstable();
         let labels = assign_unchecked(d, &medoids);
         let loss = loss_unchecked(d, &medoids, &labels);
         let db_index = db_unchecked(d, &medoids, &labels);
-        KMedoids {
+        Ok(KMedoids {
             medoids,
             labels,
             loss,
             iterations,
             db_index,
-        }
+        })
     }
 }
 
@@ -422,14 +430,15 @@ impl Nearest {
 }
 
 /// FasterPAM, visiting the candidates in `order` (a permutation of `0..n`) in every
-/// pass; returns the number of swaps made.
+/// pass; returns the number of swaps made. Asks [`Distances::intact`] after each swap
+/// and every [`INTACT_EVERY`] distances read, and stops with its reason.
 fn faster_pam<D: Distances + ?Sized>(
     d: &D,
     medoids: &mut [usize],
     order: &[usize],
     max_passes: usize,
     tolerance: f64,
-) -> usize {
+) -> Result<usize, String> {
     let n = d.len();
     let k = medoids.len();
     let mut is_medoid = vec![false; n];
@@ -439,6 +448,7 @@ fn faster_pam<D: Distances + ?Sized>(
     let mut removal = nb.removal_loss(k);
     let mut change = vec![0.0; k];
     let (mut swaps, mut last_swap) = (0, None);
+    let mut read = 0usize;
     'passes: for _ in 0..max_passes {
         let before = swaps;
         for &j in order {
@@ -448,6 +458,11 @@ fn faster_pam<D: Distances + ?Sized>(
             }
             if is_medoid[j] {
                 continue;
+            }
+            read += n;
+            if read >= INTACT_EVERY {
+                read = 0;
+                d.intact()?;
             }
             // change[i]: loss change of swapping medoid i with j, less `gain` (shared).
             change.copy_from_slice(&removal);
@@ -478,22 +493,28 @@ fn faster_pam<D: Distances + ?Sized>(
                 removal = nb.removal_loss(k);
                 swaps += 1;
                 last_swap = Some(j);
+                d.intact()?;
             }
         }
         if swaps == before {
             break;
         }
     }
-    swaps
+    Ok(swaps)
 }
 
-/// PAM's SWAP with best improvement; returns the number of swaps made.
+/// Distances read between two cheap checks that the values are intact (about a
+/// millisecond of work; a check is one `fstat`).
+const INTACT_EVERY: usize = 1 << 18;
+
+/// PAM's SWAP with best improvement; returns the number of swaps made. Asks
+/// [`Distances::intact`] for every candidate medoid slot and after each swap.
 fn swap<D: Distances + ?Sized>(
     d: &D,
     medoids: &mut [usize],
     max_iter: usize,
     tolerance: f64,
-) -> usize {
+) -> Result<usize, String> {
     let n = d.len();
     let k = medoids.len();
     let mut loss = loss_unchecked(d, medoids, &assign_unchecked(d, medoids));
@@ -505,6 +526,7 @@ fn swap<D: Distances + ?Sized>(
         let margin = tolerance * loss;
         let mut best: Option<(f64, usize, usize)> = None;
         for i in 0..k {
+            d.intact()?;
             for h in (0..n).filter(|&h| !is_medoid[h]) {
                 let delta: f64 = (0..n)
                     .map(|x| {
@@ -531,8 +553,9 @@ fn swap<D: Distances + ?Sized>(
         }
         loss = new_loss;
         iterations += 1;
+        d.intact()?;
     }
-    iterations
+    Ok(iterations)
 }
 
 #[cfg(test)]

@@ -45,6 +45,10 @@ pub use validity::*;
 #[non_exhaustive]
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ClusterError {
+    /// The distance values changed while they were clustered (a memory-mapped matrix file
+    /// truncated or written, [`crate::distance::Distances::intact`]).
+    #[error("the distances changed while they were read: {0}")]
+    SourceChanged(String),
     /// The number of clusters `k` must satisfy `2 <= k <= n` (the Davies-Bouldin index
     /// needs two clusters, and every cluster needs a distinct medoid).
     #[error("number of clusters k = {k} is out of range: need 2 <= k <= n = {n}")]

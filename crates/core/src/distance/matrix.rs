@@ -14,6 +14,13 @@ pub trait Distances {
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
+    /// Whether the values can still be trusted, checked cheaply (no re-read): values read
+    /// in place from a memory-mapped file that was truncated or written since it was
+    /// checked are not ([`crate::io::mmap`]). Clustering asks between runs and every few
+    /// swaps and candidates, and stops with the reason. Always `Ok` by default.
+    fn intact(&self) -> Result<(), String> {
+        Ok(())
+    }
 }
 
 /// Values that live outside the matrix, in an owner it shares (a memory-mapped file,
@@ -32,6 +39,11 @@ pub(crate) unsafe trait SharedValues: Send + Sync + std::fmt::Debug {
     /// file: not written or truncated since, [`crate::io::mmap`]); the error says what
     /// changed.
     fn unchanged(&self) -> Result<(), String> {
+        Ok(())
+    }
+
+    /// [`Self::unchanged`] without reading the values again (size, times, truncation).
+    fn unchanged_quick(&self) -> Result<(), String> {
         Ok(())
     }
 }
@@ -324,5 +336,11 @@ impl Distances for DistanceMatrix {
     #[inline]
     fn dist(&self, i: usize, j: usize) -> f64 {
         self.as_full()[i * self.names.len() + j]
+    }
+    fn intact(&self) -> Result<(), String> {
+        match &self.data {
+            Values::Owned(_) => Ok(()),
+            Values::Shared { _owner, .. } => _owner.unchanged_quick(),
+        }
     }
 }

@@ -53,7 +53,7 @@ pub enum FitError {
     #[error("material `{}` appears twice in the basis", crate::error::short_name(.0))]
     DuplicateBasis(String),
     /// A Gram quantity is not finite (non-finite data).
-    #[error("non-finite Gram entry for `{}` (channel {channel}): the data holds NaN or infinite values", crate::error::short_name(.material))]
+    #[error("the Gram sums of `{}` (channel {channel}) overflow: its reflectances are too large for them (NaN and infinite values are refused on loading, so a value above about 1e18, squared, left the back-end's f32 range); measured reflectances are far below it: check the material's file and its units", crate::error::short_name(.material))]
     NonFinite {
         /// Material.
         material: String,
@@ -78,6 +78,18 @@ pub enum FitError {
     /// Solver failure.
     #[error(transparent)]
     Nnls(#[from] NnlsError),
+    /// A target's weighted system (SPEC 11) cannot be formed: its weights overflow with
+    /// the values, or vanish on every fit cell (a fit of nothing whose objective residual
+    /// of 0 would read as perfect).
+    #[error("the weighted fit of `{}` (channel {channel}): {detail}", crate::error::short_name(.material))]
+    Weights {
+        /// Material fitted (the target).
+        material: String,
+        /// Colour channel (0 = R).
+        channel: usize,
+        /// What went wrong, naming the objective and its eps.
+        detail: String,
+    },
     /// The fit of one material failed (non-finite data, or no convergence).
     #[error("the NNLS fit of `{}` (channel {channel}) failed: {reason}", crate::error::short_name(.material))]
     Solve {
@@ -438,12 +450,11 @@ pub(crate) fn weighted_channel(
         .map(|(t, &ti)| {
             let g = sys.gram(t);
             let (h, yy) = (sys.rhs(t), sys.yy(t));
-            if !yy.is_finite() || h.iter().chain(&g).any(|v| !v.is_finite()) {
-                return Err(FitError::NonFinite {
-                    material: coll.materials()[ti].name.clone(),
-                    channel: c,
-                });
-            }
+            check_weighted_system(&g, h, yy, weight).map_err(|detail| FitError::Weights {
+                material: coll.materials()[ti].name.clone(),
+                channel: c,
+                detail,
+            })?;
             let problem = crate::nnls::GramProblem::new(m, &g, h, yy)?;
             let solution = lawson_hanson::solve(&problem, &lh)?;
             let objective = problem.objective(&solution.x)?.max(0.0);
@@ -454,6 +465,44 @@ pub(crate) fn weighted_channel(
             })
         })
         .collect()
+}
+
+/// Refuses a target's weighted system (SPEC 11) that cannot mean what it says: a sum that
+/// overflowed (values times weights beyond f64: `eps` too small for the data), or weights
+/// that vanish on every cell (`G[0][0] = sum_s W / pi^2` is not a positive normal number:
+/// the fit would fit nothing and its objective residual of 0 would read as perfect).
+/// Returns the reason, naming the objective and its eps.
+pub(crate) fn check_weighted_system(
+    g: &[f64],
+    h: &[f64],
+    yy: f64,
+    weight: TargetWeight,
+) -> Result<(), String> {
+    let objective = match weight {
+        TargetWeight::Relative { eps } => {
+            format!("the relative objective's weights 1/(f + eps)^2 at eps {eps:e}")
+        }
+        w => format!("the {} objective's weights", w.kind().name()),
+    };
+    if !yy.is_finite() || h.iter().chain(g).any(|v| !v.is_finite()) {
+        let hint = match weight {
+            TargetWeight::Relative { eps } => format!(
+                " (up to 1/eps^2 = {:e} where the reflectance is 0): give a larger eps",
+                1.0 / (eps * eps)
+            ),
+            _ => String::new(),
+        };
+        return Err(format!(
+            "{objective}, times its values and the basis values, overflow f64{hint}"
+        ));
+    }
+    let g00 = g.first().copied().unwrap_or(0.0);
+    if !(g00.is_normal() && g00 > 0.0) {
+        return Err(format!(
+            "{objective} vanish on every fit cell (their sum is {g00:e}): it would fit nothing, and an objective residual of 0 would read as a perfect fit"
+        ));
+    }
+    Ok(())
 }
 
 /// Grid errors of one channel's fit of one target.
@@ -577,4 +626,25 @@ pub(crate) fn combination_values(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod weighted_system_tests {
+    use super::*;
+
+    /// Audit 3, D1: a weighted system whose weights vanish is refused (its objective
+    /// residual of 0 read as perfect), and one that overflowed names eps.
+    #[test]
+    fn vanishing_or_overflowing_weights_are_refused_naming_eps() {
+        let w = TargetWeight::Relative { eps: 1e-90 };
+        let e = check_weighted_system(&[0.0; 4], &[0.0; 2], 0.0, w).expect_err("vanish");
+        assert!(e.contains("vanish") && e.contains("eps 1e-90"), "{e}");
+        let e = check_weighted_system(&[f64::INFINITY, 0.0, 0.0, 1.0], &[0.0; 2], 1.0, w)
+            .expect_err("overflow");
+        assert!(
+            e.contains("overflow f64") && e.contains("give a larger eps"),
+            "{e}"
+        );
+        assert!(check_weighted_system(&[1.0, 0.0, 0.0, 1.0], &[0.5; 2], 1.0, w).is_ok());
+    }
 }

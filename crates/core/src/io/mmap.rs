@@ -350,6 +350,10 @@ unsafe impl SharedValues for MappedF64 {
     fn unchanged(&self) -> Result<(), String> {
         MappedF64::unchanged(self)
     }
+
+    fn unchanged_quick(&self) -> Result<(), String> {
+        MappedF64::unchanged_quick(self)
+    }
 }
 
 /// The `SIGBUS` guard of live mappings (module documentation): a table of mapped ranges

@@ -115,7 +115,7 @@ pub enum SelectionError {
     DuplicateMethod(String),
     /// No target is left outside the basis, so `S` (a mean over them) is undefined.
     #[error(
-        "a basis of {} can hold all {} and leave none to score: give fewer basis materials (-k) than targets, or a target that is not a candidate", crate::error::plural(*.basis, "material", "materials"), crate::error::plural(*.targets, "target", "targets")
+        "a basis of {} can hold {} and leave none to score: give fewer basis materials (-k) than targets, or a target that is not a candidate", crate::error::plural(*.basis, "material", "materials"), if *.targets == 1 { "the only target".to_string() } else { format!("all {} targets", .targets) }
     )]
     NoTargetLeft {
         /// Basis size.
@@ -163,7 +163,7 @@ pub enum SelectionError {
         found: usize,
     },
     /// A Gram entry is not finite.
-    #[error("non-finite Gram entry for `{}` (channel {channel}): the data holds NaN or infinite values", crate::error::short_name(.material))]
+    #[error("the Gram sums of `{}` (channel {channel}) overflow: its reflectances are too large for them (NaN and infinite values are refused on loading, so a value above about 1e18, squared, left the back-end's f32 range); measured reflectances are far below it: check the material's file and its units", crate::error::short_name(.material))]
     NonFinite {
         /// Material.
         material: String,

@@ -271,3 +271,72 @@ fn rejects_non_finite_distance() {
         ClusterError::NonFiniteDistance { i: 0, j: 2, .. }
     ));
 }
+
+/// Distances whose values stop being intact after `after` checks (a mapped matrix file
+/// truncated under the clustering, audit 3 M2).
+struct Failing {
+    inner: Matrix,
+    after: usize,
+    asked: std::sync::atomic::AtomicUsize,
+}
+
+impl Distances for Failing {
+    fn len(&self) -> usize {
+        self.inner.len()
+    }
+    fn dist(&self, i: usize, j: usize) -> f64 {
+        self.inner.dist(i, j)
+    }
+    fn intact(&self) -> Result<(), String> {
+        match self
+            .asked
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+            < self.after
+        {
+            true => Ok(()),
+            false => Err("truncated".into()),
+        }
+    }
+}
+
+/// Audit 3, M2: the search asks whether the values are intact between runs and during a
+/// run, and stops with the reason as soon as they are not (before: only at the end).
+#[test]
+fn a_search_stops_when_the_values_stop_being_intact() {
+    for algorithm in [KMedoidsAlgorithm::FasterPam, KMedoidsAlgorithm::Pam] {
+        for after in [0, 1, 3] {
+            let d = Failing {
+                inner: random_points(300, 5),
+                after,
+                asked: Default::default(),
+            };
+            let e = KMedoidsParams::new(6)
+                .algorithm(algorithm)
+                .restarts(1000)
+                .fit(&d)
+                .expect_err("stops");
+            assert!(
+                matches!(e, ClusterError::SourceChanged(ref m) if m == "truncated"),
+                "{e}"
+            );
+            // Far fewer checks than 1,000 runs would make.
+            assert!(d.asked.load(std::sync::atomic::Ordering::Relaxed) == after + 1);
+        }
+        let ok = Failing {
+            inner: random_points(60, 5),
+            after: usize::MAX,
+            asked: Default::default(),
+        };
+        let a = KMedoidsParams::new(4)
+            .algorithm(algorithm)
+            .restarts(3)
+            .fit(&ok)
+            .expect("intact");
+        let b = KMedoidsParams::new(4)
+            .algorithm(algorithm)
+            .restarts(3)
+            .fit(&ok.inner)
+            .expect("plain");
+        assert_eq!(a, b);
+    }
+}

@@ -197,7 +197,11 @@ impl CvParams {
         if self.folds < 2 || self.folds > n {
             return bad(
                 "--folds",
-                format!("{} (collection of {n})", self.folds),
+                format!(
+                    "{} (a collection of {})",
+                    self.folds,
+                    crate::error::plural(n, "material", "materials")
+                ),
                 "between 2 and the number of materials",
             );
         }
@@ -214,7 +218,10 @@ impl CvParams {
             if k < kmin || k > train {
                 return bad(
                     "-k",
-                    format!("{k} (smallest training fold: {train} materials)"),
+                    format!(
+                        "{k} (smallest training fold: {})",
+                        crate::error::plural(train, "material", "materials")
+                    ),
                     "at least 1 (2 with kmedoids or gcuk) and at most the smallest training fold",
                 );
             }
@@ -223,7 +230,10 @@ impl CvParams {
             if k == train && self.methods.iter().any(|m| m.error_driven()) {
                 return bad(
                     "-k",
-                    format!("{k} (smallest training fold: {train} materials)"),
+                    format!(
+                        "{k} (smallest training fold: {})",
+                        crate::error::plural(train, "material", "materials")
+                    ),
                     "below the smallest training fold with greedy, swap or ga (a basis of every training material leaves no target to score)",
                 );
             }

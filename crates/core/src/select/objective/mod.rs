@@ -147,6 +147,7 @@ pub(crate) fn shared_weights(
     weight: TargetWeight,
     progress: Progress<'_>,
 ) -> Result<[CellSet; 3], SelectionError> {
+    let weight = weight.check().map_err(crate::fit::FitError::from)?;
     let mats: Vec<Lobe> = crate::fit::collection_lobes(coll)
         .into_iter()
         .flat_map(|l| l.into_iter().skip(1))
@@ -190,11 +191,18 @@ pub(crate) fn shared_weights(
     for (c, o) in out.iter_mut().enumerate() {
         let total: f64 = o.weights.iter().sum();
         if !(total.is_finite() && total > 0.0) {
-            return Err(SelectionError::InvalidParam {
-                name: "--objective",
-                value: format!("{} (channel {c})", weight.kind().name()),
-                expected: "shared weights with a positive finite sum over the fit cells",
-            });
+            let what = match weight.eps() {
+                Some(eps) => {
+                    format!("the relative objective's weights 1/(f + eps)^2 at eps {eps:e}")
+                }
+                None => format!("the {} objective's weights", weight.kind().name()),
+            };
+            return Err(crate::fit::FitError::Weights {
+                material: "the collection's median".into(),
+                channel: c,
+                detail: format!("{what} sum to {total:e} over the fit cells: they must sum to a positive finite number (a larger or smaller eps moves them back into range)"),
+            }
+            .into());
         }
         o.weights.iter_mut().for_each(|w| *w /= total);
     }
