@@ -3,7 +3,7 @@
 //! `cv --acquisition` under an objective with the appearance metrics of every
 //! reconstruction, the `nielsen` baseline's included.
 
-use crate::objectives::brute_force_nnls;
+use crate::common::brute_force_nnls;
 use brdf_basis::acquire::cell_candidates;
 use brdf_basis::acquire::{
     acquisition_cv, fit_samples, material_at, plan, AcqCvParams, Criterion, PlanParams, Sample,
