@@ -16,11 +16,11 @@
 //! ([`crate::distance::distance_matrix`], [`crate::select::greedy`], [`crate::fit::fit`],
 //! ...) take a progress callback `(done, total)` for hosts that want one.
 //!
-//! * Acquisition (SPEC 10): [`plan_samples`] (where to measure), [`fit_from_arrays`] (a
+//! * Acquisition (SPEC 10): [`crate::plan_samples`] (where to measure), [`fit_from_arrays`] (a
 //!   material from samples given as arrays) and [`acquisition_cv`].
 
 pub use crate::acquire::{
-    acquisition_cv, plan as plan_samples, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion,
+    acquisition_cv, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion,
     Plan, PlanParams, Sample, SampleFit,
 };
 pub use crate::backend::cpu::CpuBackend;

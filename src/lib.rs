@@ -73,3 +73,22 @@ pub use brdf_basis_core::{
 pub mod backend;
 pub mod experiment;
 pub mod run;
+
+/// Plans where to measure a new material (SPEC 10): [`crate::acquire::plan`] on the basis
+/// columns `basis`, scored on `targets`, over `cands`, after the rule of
+/// [`crate::run::PlanRequest::check`] on the criterion: `nielsen` (the peer baseline,
+/// which reconstructs without a basis) is refused, as `brdf-basis plan` refuses it.
+///
+/// # Errors
+/// [`Error::Request`] for `Criterion::Nielsen`; then the plan's own errors.
+pub fn plan_samples(
+    backend: &dyn backend::Backend,
+    coll: &collection::Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cands: &[acquire::Candidate],
+    p: &acquire::PlanParams,
+) -> Result<acquire::Plan> {
+    run::check_criterion(p.criterion)?;
+    Ok(crate::acquire::plan(backend, coll, basis, targets, cands, p)?)
+}
