@@ -4,8 +4,8 @@
 //! * Collections: [`Collection::load`] (a CSV of analytic materials, a `.binary`, or a
 //!   directory of them), [`Collection::embedded_default`].
 //! * Back-ends: [`gpu_backend`] wraps the host's own wgpu device and queue (use
-//!   [`crate::wgpu`], the version this crate is built against), [`CpuBackend`], or
-//!   [`open_backend`] by [`BackendChoice`].
+//!   [`crate::wgpu`], the version this crate is built against; feature `gpu`, on by
+//!   default), [`CpuBackend`], or [`open_backend`] by [`BackendChoice`].
 //! * Stages: [`distances`], [`KMedoidsParams::fit`], [`objective`] with
 //!   [`select_greedy`], [`select_swap`], [`select_ga`], [`empirical`], [`fit()`] and
 //!   [`cross_validate`].
@@ -16,16 +16,15 @@
 //! ([`crate::distance::distance_matrix`], [`crate::select::greedy`], [`crate::fit::fit`],
 //! ...) take a progress callback `(done, total)` for hosts that want one.
 //!
-//! * Acquisition (SPEC 10): [`plan_samples`] (where to measure), [`fit_from_arrays`] (a
+//! * Acquisition (SPEC 10): [`crate::plan_samples`] (where to measure), [`fit_from_arrays`] (a
 //!   material from samples given as arrays) and [`acquisition_cv`].
 
-use std::sync::Arc;
-
 pub use crate::acquire::{
-    acquisition_cv, plan as plan_samples, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion,
+    acquisition_cv, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion,
     Plan, PlanParams, Sample, SampleFit,
 };
 pub use crate::backend::cpu::CpuBackend;
+#[cfg(feature = "gpu")]
 pub use crate::backend::gpu::GpuBackend;
 pub use crate::backend::{open as open_backend, Backend, BackendChoice};
 pub use crate::cluster::{
@@ -102,14 +101,6 @@ pub enum Error {
     /// A tabulated material that is not finite ([`tabulate`]).
     #[error(transparent)]
     NotFinite(Box<NotFiniteError>),
-    /// The experiment's report tree (feature `plot`).
-    #[cfg(feature = "plot")]
-    #[error(transparent)]
-    Layout(#[from] crate::experiment::layout::LayoutError),
-    /// A figure (feature `plot`).
-    #[cfg(feature = "plot")]
-    #[error(transparent)]
-    Plot(#[from] crate::plot::PlotError),
 }
 
 /// `Result` with the crate's [`Error`].
@@ -121,11 +112,13 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 ///
 /// # Errors
 /// [`Error::Gpu`] when a kernel does not compile or validate on the device.
+#[cfg(feature = "gpu")]
 pub fn gpu_backend(
     device: wgpu::Device,
     queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
 ) -> Result<GpuBackend> {
+    use std::sync::Arc;
     let ctx = crate::backend::gpu::GpuContext::from_device(Arc::new(device), Arc::new(queue), info);
     Ok(GpuBackend::with_context(ctx)?)
 }

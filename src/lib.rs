@@ -48,9 +48,10 @@
 //! # }
 //! ```
 //!
-//! The command line (feature `cli`, on by default) and the figures (feature `plot`, which
-//! `cli` turns on) are optional: `default-features = false` leaves out clap, indicatif,
-//! ctrlc, anyhow and plotters.
+//! The GPU back-end (feature `gpu`, on by default: the crate `brdf-basis-gpu`, wgpu) is
+//! optional: `default-features = false` leaves it out, and `--backend gpu` is then
+//! refused. The command line and its figures are the crate `brdf-basis-cli`
+//! (crates/cli), which a program that embeds the library does not build.
 #![warn(missing_docs)]
 // Errors carry the file, line, column and material they name; they are cold paths, so
 // their size is not worth boxing.
@@ -59,8 +60,10 @@
 mod api;
 pub use api::*;
 /// The executor the examples block on wgpu's futures with.
+#[cfg(feature = "gpu")]
 pub use pollster;
 /// The wgpu this crate is built against (hand [`gpu_backend`] a device from it).
+#[cfg(feature = "gpu")]
 pub use wgpu;
 
 pub use brdf_basis_core::{
@@ -69,6 +72,23 @@ pub use brdf_basis_core::{
 };
 pub mod backend;
 pub mod experiment;
-#[cfg(feature = "plot")]
-pub mod plot;
 pub mod run;
+
+/// Plans where to measure a new material (SPEC 10): [`crate::acquire::plan`] on the basis
+/// columns `basis`, scored on `targets`, over `cands`, after the rule of
+/// [`crate::run::PlanRequest::check`] on the criterion: `nielsen` (the peer baseline,
+/// which reconstructs without a basis) is refused, as `brdf-basis plan` refuses it.
+///
+/// # Errors
+/// [`Error::Request`] for `Criterion::Nielsen`; then the plan's own errors.
+pub fn plan_samples(
+    backend: &dyn backend::Backend,
+    coll: &collection::Collection,
+    basis: &[usize],
+    targets: &[usize],
+    cands: &[acquire::Candidate],
+    p: &acquire::PlanParams,
+) -> Result<acquire::Plan> {
+    run::check_criterion(p.criterion)?;
+    Ok(crate::acquire::plan(backend, coll, basis, targets, cands, p)?)
+}

@@ -3,7 +3,7 @@
 //! `cv --acquisition` under an objective with the appearance metrics of every
 //! reconstruction, the `nielsen` baseline's included.
 
-use crate::objectives::brute_force_nnls;
+use crate::common::brute_force_nnls;
 use brdf_basis::acquire::cell_candidates;
 use brdf_basis::acquire::{
     acquisition_cv, fit_samples, material_at, plan, AcqCvParams, Criterion, PlanParams, Sample,
@@ -229,4 +229,28 @@ fn acquisition_cv_under_an_objective_scores_appearance_beside_the_baseline() {
             && md.contains("| greedy | nielsen | 6 | 0 |"),
         "{md}"
     );
+}
+
+/// The facade's `plan_samples` refuses the `nielsen` criterion, as `brdf-basis plan` and
+/// `PlanRequest::check` do, with the same refusal (the core's `plan` plans it for
+/// `cv --acquisition`'s baseline).
+#[test]
+fn plan_samples_refuses_nielsen_as_the_plan_request_does() {
+    let coll = Collection::embedded_default();
+    let p = PlanParams {
+        criterion: Criterion::Nielsen,
+        ..PlanParams::default()
+    };
+    let cands = [brdf_basis::Candidate {
+        wi: [0.0, 0.0, 1.0],
+        wo: [0.0, 0.0, 1.0],
+        cell: None,
+    }];
+    let e = brdf_basis::plan_samples(&CpuBackend::new(), &coll, &[0, 1], &[2, 3], &cands, &p)
+        .expect_err("nielsen planned");
+    assert!(matches!(e, brdf_basis::Error::Request(_)), "{e:?}");
+    let mut r = brdf_basis::run::PlanRequest::new(vec![coll.materials()[0].name.clone()]);
+    r.criterion = Criterion::Nielsen;
+    let want = r.check().expect_err("nielsen accepted").to_string();
+    assert_eq!(e.to_string(), want);
 }

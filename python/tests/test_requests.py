@@ -1,6 +1,6 @@
 """One door per command (issue 34): the rules of a command are made by its request in the
 library (``brdf_basis::run``), so Python refuses what the command line refuses, with the
-same message (``tests/requests.rs`` checks the command line against the library)."""
+same message (``crates/cli/tests/requests.rs`` checks the command line against the library)."""
 
 import os
 import subprocess

@@ -4,8 +4,12 @@
 //! `--backend auto|cpu|gpu`).
 
 pub use brdf_basis_core::backend::*;
-/// The GPU back-end (the crate `brdf-basis-gpu`): wgpu context, one module per kernel.
+/// The GPU back-end (the crate `brdf-basis-gpu`): wgpu context, one module per kernel
+/// (feature `gpu`, on by default).
+#[cfg(feature = "gpu")]
 pub use brdf_basis_gpu as gpu;
 
 mod open;
-pub use open::{open, AutoBackend, BackendChoice, AUTO_ROUTES};
+#[cfg(feature = "gpu")]
+pub use open::AutoBackend;
+pub use open::{open, BackendChoice, AUTO_ROUTES};

@@ -3,9 +3,15 @@
 //! software ones included) or `cpu`.
 
 use crate::backend::cpu::CpuBackend;
+#[cfg(feature = "gpu")]
 use crate::backend::gpu::{GpuBackend, GpuContext};
-use crate::backend::{Backend, Lobe, PairOp, Progress};
-use crate::error::{BackendError, GpuError};
+use crate::backend::Backend;
+#[cfg(feature = "gpu")]
+use crate::backend::{Lobe, PairOp, Progress};
+#[cfg(feature = "gpu")]
+use crate::error::BackendError;
+use crate::error::GpuError;
+#[cfg(feature = "gpu")]
 use crate::merl::CellSet;
 
 /// Which back-end [`AutoBackend`] runs each operation on, and the measurement behind it
@@ -43,12 +49,14 @@ pub const AUTO_ROUTES: [(&str, &str, &str); 5] = [
 /// lobes, weighted systems and batched NNLS on the GPU; neural lobes and tabulation into host memory on the
 /// CPU ([`AUTO_ROUTES`]). Results follow the
 /// determinism contract either way (docs/determinism.md).
+#[cfg(feature = "gpu")]
 #[derive(Debug)]
 pub struct AutoBackend {
     gpu: GpuBackend,
     cpu: CpuBackend,
 }
 
+#[cfg(feature = "gpu")]
 impl AutoBackend {
     /// Both back-ends, the GPU one on `ctx`.
     pub fn with_context(ctx: GpuContext) -> Result<Self, GpuError> {
@@ -64,6 +72,7 @@ impl AutoBackend {
     }
 }
 
+#[cfg(feature = "gpu")]
 impl Backend for AutoBackend {
     fn name(&self) -> String {
         format!(
@@ -113,17 +122,17 @@ impl Backend for AutoBackend {
 }
 
 /// Which back-end to run on (spellings `auto`, `gpu`, `cpu`: [`BackendChoice::as_str`],
-/// which [`Display`](std::fmt::Display) writes; the command line parses them by the
-/// `clap::ValueEnum` derive of the `cli` feature, whose names a unit test checks).
+/// which [`Display`](std::fmt::Display) writes; the command line's names are the same,
+/// which a unit test of `brdf-basis-cli` checks).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BackendChoice {
     /// On a hardware GPU, each operation on the back-end measured faster for it
     /// (`brdf-basis info` prints which); else the CPU back-end (faster than a software
     /// rasteriser: ~18 G abs-diffs/s on 2 cores against ~4 for lavapipe).
     #[default]
     Auto,
-    /// The GPU back-end on the best adapter, software ones (lavapipe) included.
+    /// The GPU back-end on the best adapter, software ones (lavapipe) included (refused
+    /// when the library is built without its `gpu` feature).
     Gpu,
     /// The multi-threaded CPU back-end.
     Cpu,
@@ -150,24 +159,18 @@ impl std::fmt::Display for BackendChoice {
 pub fn open(choice: BackendChoice) -> Result<Box<dyn Backend>, GpuError> {
     match choice {
         BackendChoice::Cpu => Ok(Box::new(CpuBackend::new())),
+        #[cfg(feature = "gpu")]
         BackendChoice::Gpu => Ok(Box::new(GpuBackend::new()?)),
+        #[cfg(feature = "gpu")]
         BackendChoice::Auto => match GpuContext::new() {
             Ok(ctx) if !ctx.is_software() => Ok(Box::new(AutoBackend::with_context(ctx)?)),
             _ => Ok(Box::new(CpuBackend::new())),
         },
-    }
-}
-
-#[cfg(all(test, feature = "cli"))]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn choices_print_as_their_flag_values() {
-        use clap::ValueEnum;
-        for c in BackendChoice::value_variants() {
-            let name = c.to_possible_value().expect("named").get_name().to_string();
-            assert_eq!(c.to_string(), name);
-        }
+        #[cfg(not(feature = "gpu"))]
+        BackendChoice::Gpu => Err(GpuError::Device(
+            "this build has no GPU back-end (brdf-basis without its `gpu` feature)".into(),
+        )),
+        #[cfg(not(feature = "gpu"))]
+        BackendChoice::Auto => Ok(Box::new(CpuBackend::new())),
     }
 }

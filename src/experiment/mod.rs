@@ -1,8 +1,5 @@
 //! `reproduce` as a library: everything of [`brdf_basis_core::experiment`] (the stages,
-//! their typed results, the report's Markdown) and, with the `plot` feature, the output
-//! directory's [`layout`], which draws the heatmaps' colour bars with plotters.
+//! their typed results, the report's Markdown). The output directory's layout and the
+//! figures are the command line's (`brdf-basis-cli`).
 
 pub use brdf_basis_core::experiment::*;
-
-#[cfg(feature = "plot")]
-pub mod layout;

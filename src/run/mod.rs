@@ -41,6 +41,7 @@ pub use acquisition::AcquisitionRequest;
 pub use cv::CvRequest;
 pub use distance::{DistanceOutput, DistanceRequest};
 pub use fit::{FitOutput, FitRequest, FitSamplesOutput, FitSamplesRequest, FitTargets};
+pub(crate) use plan::check_criterion;
 pub use plan::PlanRequest;
 pub use reproduce::{ReproduceRequest, Reproduction};
 pub use select::{SelectMethod, SelectRequest};

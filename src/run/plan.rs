@@ -41,6 +41,15 @@ pub struct PlanRequest {
     pub objective: ObjectiveSetting,
 }
 
+/// A criterion whose plan `fit --samples` can use: not `nielsen` (the rule of
+/// [`PlanRequest::check`] and of [`crate::plan_samples`]).
+pub(crate) fn check_criterion(criterion: Criterion) -> Result<()> {
+    if criterion == Criterion::Nielsen {
+        refuse!("--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random, and `cv --acquisition --plans nielsen` compares the baseline");
+    }
+    Ok(())
+}
+
 impl PlanRequest {
     /// The files this request reads besides the collection, with what they are called in
     /// messages: the output layer refuses any output that names one of them.
@@ -91,9 +100,7 @@ impl PlanRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        if self.criterion == Criterion::Nielsen {
-            refuse!("--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random, and `cv --acquisition --plans nielsen` compares the baseline");
-        }
+        check_criterion(self.criterion)?;
         let given = [
             self.candidates_per_step.is_some(),
             self.shortlist.is_some(),

@@ -20,7 +20,6 @@ use std::path::{Path, PathBuf};
 
 /// A selection method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SelectMethod {
     /// The paper's Algorithm 1 (leave-one-out contributions).
     Empirical,

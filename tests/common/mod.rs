@@ -1,4 +1,5 @@
-//! Shared test helpers.
+//! Shared test helpers: the library's tests (tests/main.rs) and the command line's
+//! (crates/cli/tests, which add the binary's helpers) both use this file.
 
 use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::gpu::GpuBackend;
@@ -10,14 +11,20 @@ use brdf_basis::fit::channel_lobe;
 use brdf_basis::merl::MerlTable;
 use brdf_basis::merl::{cell_info, N_CELLS};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::OnceLock;
+
+/// The repository's root (the directory of the workspace's `Cargo.lock`), from the
+/// package under test, the root package or crates/cli.
+pub(crate) fn repo() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .find(|d| d.join("Cargo.lock").is_file())
+        .expect("the workspace root above CARGO_MANIFEST_DIR")
+}
 
 /// `../shared/data/<name>` beside the repository.
 fn shared(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name)
+    repo().join("../shared/data").join(name)
 }
 
 /// Writes `line` to the process's standard error directly, past the test harness's
@@ -54,25 +61,6 @@ pub(crate) fn shared_or_skip(name: &str, test: &str) -> Option<PathBuf> {
 pub(crate) fn ngan_or_skip(test: &str) -> Option<Collection> {
     let p = shared_or_skip("ngan2005_ashikhmin_shirley.csv", test)?;
     Some(Collection::load(&p).expect("../shared/data/ngan2005_ashikhmin_shirley.csv"))
-}
-
-/// The `brdf-basis` binary built for these tests, as a command.
-pub(crate) fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_brdf-basis"))
-}
-
-/// [`bin`] with `--quiet`.
-pub(crate) fn bin_quiet() -> Command {
-    let mut c = bin();
-    c.arg("--quiet");
-    c
-}
-
-/// [`bin`] with `--quiet --backend cpu`.
-pub(crate) fn bin_cpu() -> Command {
-    let mut c = bin();
-    c.args(["--quiet", "--backend", "cpu"]);
-    c
 }
 
 /// Writes `bytes` to `dir/name` and returns the path.
@@ -152,50 +140,6 @@ pub(crate) fn rng(seed: u64) -> rand_chacha::ChaCha8Rng {
 /// A temporary directory.
 pub(crate) fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().expect("temp dir")
-}
-
-/// Runs `cmd` (stdin closed, stdout and stderr captured while it runs, so a chatty child
-/// never blocks on a full pipe) and returns its output, or `None` after killing it when
-/// it runs longer than `limit`.
-pub(crate) fn output_within(
-    cmd: &mut Command,
-    limit: std::time::Duration,
-) -> Option<std::process::Output> {
-    use std::io::Read;
-    use std::process::Stdio;
-    let mut child = cmd
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    let drain = |mut r: Box<dyn Read + Send>| {
-        std::thread::spawn(move || {
-            let mut v = Vec::new();
-            let _ = r.read_to_end(&mut v);
-            v
-        })
-    };
-    let out = drain(Box::new(child.stdout.take().expect("stdout")));
-    let err = drain(Box::new(child.stderr.take().expect("stderr")));
-    let start = std::time::Instant::now();
-    let status = loop {
-        if let Some(st) = child.try_wait().expect("wait") {
-            break Some(st);
-        }
-        if start.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    };
-    let (stdout, stderr) = (out.join().expect("stdout"), err.join().expect("stderr"));
-    status.map(|status| std::process::Output {
-        status,
-        stdout,
-        stderr,
-    })
 }
 
 /// A little-endian float32 C-order `.npy` file (format 1.0 or 2.0): its shape and values
@@ -309,4 +253,64 @@ impl Spec9 {
             self.bad
         )
     }
+}
+
+/// The exact optimum of `min sum_s W_s (sum_j x_j a_j(s) - b_s)^2, x >= 0` by enumerating
+/// every set of free columns (m <= 5): the unconstrained least squares on the set (normal
+/// equations in f64, Gaussian elimination with partial pivoting), kept when feasible. An
+/// active-set method's optimum is one of these; the smallest objective wins.
+pub(crate) fn brute_force_nnls(cols: &[Vec<f64>], b: &[f64], w: &[f64]) -> f64 {
+    let m = cols.len();
+    let obj = |x: &[f64]| -> f64 {
+        (0..b.len())
+            .map(|s| {
+                let r: f64 = (0..m).map(|j| x[j] * cols[j][s]).sum::<f64>() - b[s];
+                w[s] * r * r
+            })
+            .sum()
+    };
+    let mut best = obj(&vec![0.0; m]);
+    for set in 1u32..(1 << m) {
+        let free: Vec<usize> = (0..m).filter(|j| set & (1 << j) != 0).collect();
+        let p = free.len();
+        let mut a = vec![vec![0.0; p + 1]; p];
+        for (r, &i) in free.iter().enumerate() {
+            for (c, &j) in free.iter().enumerate() {
+                a[r][c] = (0..b.len()).map(|s| w[s] * cols[i][s] * cols[j][s]).sum();
+            }
+            a[r][p] = (0..b.len()).map(|s| w[s] * cols[i][s] * b[s]).sum();
+        }
+        // Gaussian elimination.
+        let mut ok = true;
+        for k in 0..p {
+            let piv = (k..p)
+                .max_by(|&x, &y| a[x][k].abs().total_cmp(&a[y][k].abs()))
+                .unwrap();
+            a.swap(k, piv);
+            if a[k][k].abs() < 1e-300 {
+                ok = false;
+                break;
+            }
+            let pivot = a[k].clone();
+            for (r, row) in a.iter_mut().enumerate() {
+                if r != k {
+                    let f = row[k] / pivot[k];
+                    for (v, pv) in row[k..].iter_mut().zip(&pivot[k..]) {
+                        *v -= f * pv;
+                    }
+                }
+            }
+        }
+        if !ok {
+            continue;
+        }
+        let mut x = vec![0.0; m];
+        for (r, &i) in free.iter().enumerate() {
+            x[i] = a[r][p] / a[r][r];
+        }
+        if x.iter().all(|&v| v >= 0.0) {
+            best = best.min(obj(&x));
+        }
+    }
+    best
 }

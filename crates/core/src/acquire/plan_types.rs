@@ -9,7 +9,6 @@ use crate::fit::FitParams;
 
 /// A planning criterion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Criterion {
     /// Greedy on the mean training score.

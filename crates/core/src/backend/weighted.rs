@@ -38,7 +38,6 @@ pub enum TargetWeight {
 /// The objectives by name (SPEC 11), as the command line and Python give them; `eps` is
 /// given apart ([`ObjectiveKind::weight`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ObjectiveKind {
     /// L2 on raw reflectance (SPEC 5, the paper's).

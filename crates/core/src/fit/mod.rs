@@ -104,7 +104,6 @@ pub enum FitError {
 
 /// Which NNLS solver.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Solver {
     /// Exact active-set Lawson-Hanson (f64).
@@ -116,7 +115,6 @@ pub enum Solver {
 
 /// How Gram matrices and grid errors are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum GramMode {
     /// The separable closed form (module `separable`) when every lobe is analytic, else

@@ -250,12 +250,10 @@ pub fn cell_info(idx: usize) -> CellInfo {
 
 /// Which cells a computation runs over. Spellings (`evaluation`, `valid`) come from one
 /// table, [`Mask::as_str`], used by [`FromStr`] and [`Display`](std::fmt::Display) alike
-/// (and by the command line's `clap::ValueEnum` derive with the `cli` feature, whose
-/// kebab-case names are the same; a unit test checks it).
+/// (the command line's names are the same; a unit test of `brdf-basis-cli` checks it).
 ///
 /// [`FromStr`]: std::str::FromStr
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Mask {
     /// Valid cells with theta_i, theta_o <= 80 deg and 2 theta_d >= 3 deg (paper VI-E).
@@ -266,7 +264,6 @@ pub enum Mask {
 
 /// How cells are weighted (`uniform`, `solid-angle`; spellings as for [`Mask`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Weighting {
     /// Every cell of the mask weighs 1 (the paper's Eq. 5).
@@ -563,22 +560,6 @@ mod spelling_tests {
         );
         let e = "solid_angle".parse::<Weighting>().unwrap_err().to_string();
         assert!(e.contains("uniform, solid-angle"), "{e}");
-    }
-
-    /// The command line's spellings (the `clap::ValueEnum` derive) are the library's.
-    #[cfg(feature = "clap")]
-    #[test]
-    fn clap_spellings_are_the_library_ones() {
-        use clap::ValueEnum;
-        for m in Mask::value_variants() {
-            assert_eq!(m.to_possible_value().unwrap().get_name(), m.as_str());
-            assert_eq!(Mask::from_str(m.as_str(), false).unwrap(), *m);
-        }
-        for w in Weighting::value_variants() {
-            assert_eq!(w.to_possible_value().unwrap().get_name(), w.as_str());
-        }
-        assert_eq!(Mask::value_variants().len(), Mask::ALL.len());
-        assert_eq!(Weighting::value_variants().len(), Weighting::ALL.len());
     }
 }
 

@@ -45,7 +45,7 @@ pub(super) const EXPM1_REL: f64 = 4.76837158203125e-7;
 /// and would send tens of percent of the cells to f64. Checked rather than assumed: on
 /// one block in 13 of the 100 MERL networks, where the f32 error exceeds 5% of the
 /// tolerance it is at most 0.75 of `E_c (1 + f)`, so a kept value is expected within
-/// 0.4 of the tolerance. Over every cell of the 100 networks (`tests/nbrdf.rs`) the
+/// 0.4 of the tolerance. Over every cell of the 100 networks (`crates/cli/tests/nbrdf.rs`) the
 /// tabulated values are within 1.4e-4 relative and 2.2e-7 absolute of the f64 network;
 /// 0.074% of the cells fall in a block window and 0.016% are recomputed
 /// ([`recheck_cell`]).
