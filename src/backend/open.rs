@@ -112,6 +112,31 @@ impl Backend for AutoBackend {
             .weighted_systems(basis, targets, cells, weight, progress)
     }
 
+    fn weighted_systems_per_channel(
+        &self,
+        basis: [&[Lobe]; 3],
+        targets: [&[Lobe]; 3],
+        cells: &CellSet,
+        weight: crate::backend::weighted::TargetWeight,
+        progress: Progress<'_>,
+    ) -> Result<[crate::backend::weighted::WeightedSystems; 3], BackendError> {
+        self.gpu
+            .weighted_systems_per_channel(basis, targets, cells, weight, progress)
+    }
+
+    fn grams_per_channel(
+        &self,
+        lobes: [Vec<Lobe>; 3],
+        cells: [&CellSet; 3],
+        basis: usize,
+        progress: Progress<'_>,
+    ) -> Result<[Vec<f64>; 3], BackendError> {
+        match lobes.iter().flatten().any(|l| matches!(l, Lobe::Neural { .. })) {
+            true => self.cpu.grams_per_channel(lobes, cells, basis, progress),
+            false => self.gpu.grams_per_channel(lobes, cells, basis, progress),
+        }
+    }
+
     fn nnls_pgd(
         &self,
         batch: &crate::nnls::GramBatch<'_>,

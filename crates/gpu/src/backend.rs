@@ -176,6 +176,19 @@ impl Backend for GpuBackend {
             .run(&self.ctx, lobes, cells, blocks, op, &plan, progress)?)
     }
 
+    fn weighted_systems_per_channel(
+        &self,
+        basis: [&[Lobe]; 3],
+        targets: [&[Lobe]; 3],
+        cells: &CellSet,
+        weight: brdf_basis_core::backend::weighted::TargetWeight,
+        progress: Progress<'_>,
+    ) -> Result<[brdf_basis_core::backend::weighted::WeightedSystems; 3], BackendError> {
+        let [a, b, c] =
+            [0, 1, 2].map(|c| self.weighted_systems(basis[c], targets[c], cells, weight, progress));
+        Ok([a?, b?, c?])
+    }
+
     fn weighted_systems(
         &self,
         basis: &[Lobe],

@@ -163,6 +163,23 @@ pub trait Backend: Send + Sync {
         weighted::reference(self, basis, targets, cells, weight, progress)
     }
 
+    /// [`Backend::weighted_systems`] of three channels (`basis[c]`, `targets[c]`, the same
+    /// counts each) over the same cells. By default the f64 reference in one pass
+    /// ([`weighted::reference_per_channel`]: a network runs once per cell for its three
+    /// channels; the same bits as [`weighted::reference`] per channel); a back-end that
+    /// overrides [`Backend::weighted_systems`] overrides this too (the GPU back-end: its
+    /// kernel per channel).
+    fn weighted_systems_per_channel(
+        &self,
+        basis: [&[Lobe]; 3],
+        targets: [&[Lobe]; 3],
+        cells: &CellSet,
+        weight: weighted::TargetWeight,
+        progress: Progress<'_>,
+    ) -> Result<[weighted::WeightedSystems; 3], BackendError> {
+        weighted::reference_per_channel(self, basis, targets, cells, weight, progress)
+    }
+
     /// The LDR FLIP error map ([`crate::eval::flip`]) of every pair `(reference, test)` of
     /// 8-bit sRGB images (interleaved RGB, `width x height`, row-major) with the filters
     /// of `kernels`, every pixel scored. By default the CPU implementation, pairs in

@@ -246,13 +246,8 @@ const REFERENCE_CHUNK: usize = 1 << 14;
 
 /// The f64 reference of every target's system (the CPU twin of the GPU kernel): rows
 /// tabulated by `backend` (f32), `W_t(s) = w_s phi(y)` and every product and sum in f64,
-/// cells in order, targets in parallel.
-///
-/// Blocked for speed without moving a bit: per chunk of cells the basis rows are turned
-/// once into cell-major f64 rows (the Lambertian column first), and `LANES` (four) targets
-/// advance together, one per vector lane, each lane doing its own target's products and
-/// sums in the order of the scalar loop it replaced (`reference_scalar`, kept in the unit
-/// tests, which hold it to that loop bit for bit).
+/// cells in order, targets in parallel (blocked, four targets per vector lane, the same
+/// bits as the scalar loop it replaced: the unit tests hold it to that loop).
 pub fn reference<B: Backend + ?Sized>(
     backend: &B,
     basis: &[Lobe],
@@ -261,12 +256,48 @@ pub fn reference<B: Backend + ?Sized>(
     weight: TargetWeight,
     progress: super::Progress<'_>,
 ) -> Result<WeightedSystems, BackendError> {
-    use rayon::prelude::*;
     let weight = weight.check()?;
     let m = basis.len() + 1;
-    let stride = WeightedSystems::stride_for(m);
-    let mut values = vec![0f64; targets.len() * stride];
-    let lambert = std::f32::consts::FRAC_1_PI as f64;
+    let mut values = vec![0f64; targets.len() * WeightedSystems::stride_for(m)];
+    let mut done = 0usize;
+    for (cc, cw) in cells
+        .cells
+        .chunks(REFERENCE_CHUNK)
+        .zip(cells.weights.chunks(REFERENCE_CHUNK))
+    {
+        let b = backend.tabulate(basis, cc)?;
+        let y = backend.tabulate(targets, cc)?;
+        accumulate_chunk(&mut values, m, &b, &y, cc, cw, weight);
+        done += cc.len();
+        progress(done as u64, cells.cells.len() as u64);
+    }
+    Ok(WeightedSystems { columns: m, values })
+}
+
+/// [`reference`] of three channels (`basis[c]`, `targets[c]`, the same counts each) in one
+/// pass over `cells`: per chunk the three channels' lobes are tabulated by one call each
+/// for the basis and the targets (a network then runs once per cell for its three
+/// channels), then each channel is accumulated as [`reference`] does it: the same bits.
+pub fn reference_per_channel<B: Backend + ?Sized>(
+    backend: &B,
+    basis: [&[Lobe]; 3],
+    targets: [&[Lobe]; 3],
+    cells: &CellSet,
+    weight: TargetWeight,
+    progress: super::Progress<'_>,
+) -> Result<[WeightedSystems; 3], BackendError> {
+    let weight = weight.check()?;
+    let (k, t) = (basis[0].len(), targets[0].len());
+    if basis.iter().any(|b| b.len() != k) || targets.iter().any(|y| y.len() != t) {
+        return Err(BackendError::Invalid(
+            "weighted systems per channel: the channels have different lobe counts".into(),
+        ));
+    }
+    let m = k + 1;
+    let all_basis: Vec<Lobe> = basis.iter().flat_map(|b| b.iter().cloned()).collect();
+    let all_targets: Vec<Lobe> = targets.iter().flat_map(|y| y.iter().cloned()).collect();
+    let mut values: [Vec<f64>; 3] =
+        std::array::from_fn(|_| vec![0f64; t * WeightedSystems::stride_for(m)]);
     let mut done = 0usize;
     for (cc, cw) in cells
         .cells
@@ -274,46 +305,73 @@ pub fn reference<B: Backend + ?Sized>(
         .zip(cells.weights.chunks(REFERENCE_CHUNK))
     {
         let n = cc.len();
-        let b = backend.tabulate(basis, cc)?;
-        let y = backend.tabulate(targets, cc)?;
-        let cos_i: Vec<f64> = cc.iter().map(|&c| cos_theta_i(c as usize)).collect();
-        // Cell-major f64 rows of the columns: f[c * m + j].
-        let mut f = vec![0f64; n * m];
-        for (c, row) in f.chunks_exact_mut(m).enumerate() {
-            row[0] = lambert;
-            for (j, fj) in row.iter_mut().enumerate().skip(1) {
-                *fj = b[(j - 1) * n + c] as f64;
-            }
+        let b = backend.tabulate(&all_basis, cc)?;
+        let y = backend.tabulate(&all_targets, cc)?;
+        for (c, v) in values.iter_mut().enumerate() {
+            let bc = &b[c * k * n..(c + 1) * k * n];
+            let yc = &y[c * t * n..(c + 1) * t * n];
+            accumulate_chunk(v, m, bc, yc, cc, cw, weight);
         }
-        values
-            .par_chunks_mut(stride * LANES)
-            .zip(y.par_chunks(n.max(1) * LANES))
-            .for_each(|(v, yt)| {
-                let lanes = v.len() / stride;
-                let mut acc = vec![[0f64; LANES]; stride];
-                for (q, a) in acc.iter_mut().enumerate() {
-                    for (l, x) in a.iter_mut().enumerate().take(lanes) {
-                        *x = v[l * stride + q];
-                    }
-                }
-                for c in 0..n {
-                    let yc: [f64; LANES] =
-                        std::array::from_fn(|l| if l < lanes { yt[l * n + c] as f64 } else { 0.0 });
-                    let w: [f64; LANES] =
-                        std::array::from_fn(|l| cw[c] * weight.phi(yc[l], cos_i[c]));
-                    let fc = &f[c * m..(c + 1) * m];
-                    accumulate(&mut acc, fc, &w, &yc);
-                }
-                for (q, a) in acc.iter().enumerate() {
-                    for (l, x) in a.iter().enumerate().take(lanes) {
-                        v[l * stride + q] = *x;
-                    }
-                }
-            });
         done += n;
         progress(done as u64, cells.cells.len() as u64);
     }
-    Ok(WeightedSystems { columns: m, values })
+    Ok(values.map(|values| WeightedSystems { columns: m, values }))
+}
+
+/// One chunk of cells `cc` (weights `cw`) added to every target's sums `values`: `b` the
+/// basis rows and `y` the target rows at the chunk's cells (lobe-major, f32).
+///
+/// Blocked for speed without moving a bit: the basis rows are turned once into cell-major
+/// f64 rows (the Lambertian column first), and `LANES` (four) targets advance together,
+/// one per vector lane, each lane doing its own target's products and sums in the order
+/// of the scalar loop it replaced (`reference_scalar`, kept in the unit tests, which hold
+/// it to that loop bit for bit).
+fn accumulate_chunk(
+    values: &mut [f64],
+    m: usize,
+    b: &[f32],
+    y: &[f32],
+    cc: &[u32],
+    cw: &[f64],
+    weight: TargetWeight,
+) {
+    use rayon::prelude::*;
+    let n = cc.len();
+    let stride = WeightedSystems::stride_for(m);
+    let lambert = std::f32::consts::FRAC_1_PI as f64;
+    let cos_i: Vec<f64> = cc.iter().map(|&c| cos_theta_i(c as usize)).collect();
+    // Cell-major f64 rows of the columns: f[c * m + j].
+    let mut f = vec![0f64; n * m];
+    for (c, row) in f.chunks_exact_mut(m).enumerate() {
+        row[0] = lambert;
+        for (j, fj) in row.iter_mut().enumerate().skip(1) {
+            *fj = b[(j - 1) * n + c] as f64;
+        }
+    }
+    values
+        .par_chunks_mut(stride * LANES)
+        .zip(y.par_chunks(n.max(1) * LANES))
+        .for_each(|(v, yt)| {
+            let lanes = v.len() / stride;
+            let mut acc = vec![[0f64; LANES]; stride];
+            for (q, a) in acc.iter_mut().enumerate() {
+                for (l, x) in a.iter_mut().enumerate().take(lanes) {
+                    *x = v[l * stride + q];
+                }
+            }
+            for c in 0..n {
+                let yc: [f64; LANES] =
+                    std::array::from_fn(|l| if l < lanes { yt[l * n + c] as f64 } else { 0.0 });
+                let w: [f64; LANES] = std::array::from_fn(|l| cw[c] * weight.phi(yc[l], cos_i[c]));
+                let fc = &f[c * m..(c + 1) * m];
+                accumulate(&mut acc, fc, &w, &yc);
+            }
+            for (q, a) in acc.iter().enumerate() {
+                for (l, x) in a.iter().enumerate().take(lanes) {
+                    v[l * stride + q] = *x;
+                }
+            }
+        });
 }
 
 /// Targets advanced together by [`reference`], one per f64 lane.
@@ -480,6 +538,67 @@ mod tests {
             let slow = reference_scalar(&cpu, basis, targets, &cells, weight, &|_, _| {}).unwrap();
             assert_eq!(fast, slow, "{weight:?}");
             assert_eq!(fast.len(), targets.len());
+        }
+    }
+
+    /// The weighted systems of three channels in one pass are each channel's reference,
+    /// bit for bit, with networks among the lobes (their three channels from one run).
+    #[test]
+    fn one_pass_per_channel_is_each_channels_reference_to_the_bit() {
+        use crate::brdf::{Nbrdf, NBRDF_WEIGHTS};
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let nets: Vec<std::sync::Arc<Nbrdf>> = (0..4)
+            .map(|_| {
+                let w = (0..NBRDF_WEIGHTS)
+                    .map(|_| {
+                        s = s
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1.2
+                    })
+                    .collect();
+                std::sync::Arc::new(Nbrdf::from_weights(w).expect("finite"))
+            })
+            .collect();
+        let lobes = |c: usize| -> Vec<Lobe> {
+            let mut v: Vec<Lobe> = nets
+                .iter()
+                .map(|n| Lobe::Neural {
+                    net: n.clone(),
+                    channel: Some(c),
+                })
+                .collect();
+            v.push(Lobe::Analytic(LobeParams {
+                kd: 0.1 * (c + 1) as f32,
+                ks: 0.3,
+                f0: 0.05,
+                n: 60.0,
+            }));
+            v
+        };
+        let all: [Vec<Lobe>; 3] = std::array::from_fn(lobes);
+        let (b, t): (Vec<_>, Vec<_>) = all.iter().map(|l| l.split_at(2)).unzip();
+        let cpu = CpuBackend::new();
+        let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 3);
+        assert!(cells.cells.len() > REFERENCE_CHUNK);
+        for weight in [
+            TargetWeight::L2,
+            TargetWeight::Relative { eps: 0.01 },
+            TargetWeight::Log,
+        ] {
+            let three = reference_per_channel(
+                &cpu,
+                [b[0], b[1], b[2]],
+                [t[0], t[1], t[2]],
+                &cells,
+                weight,
+                &|_, _| {},
+            )
+            .unwrap();
+            for c in 0..3 {
+                let own = reference(&cpu, b[c], t[c], &cells, weight, &|_, _| {}).unwrap();
+                assert_eq!(three[c], own, "{weight:?}, channel {c}");
+            }
         }
     }
 }

@@ -8,7 +8,7 @@
 //! are computed on the grid in f64.
 
 use crate::backend::cpu::CpuBackend;
-use crate::backend::weighted::TargetWeight;
+use crate::backend::weighted::{TargetWeight, WeightedSystems};
 use crate::backend::{Backend, Lobe, Progress};
 use crate::brdf::LobeParams;
 use crate::collection::{Collection, MaterialData};
@@ -344,9 +344,16 @@ pub fn fit(
         .then(|| CellMoments::new(&GridTables::new(), &cells));
     let mut target_norms = vec![0.0; targets.len()];
     let mut target_l1 = vec![0.0; targets.len()];
-    for c in 0..3 {
-        let sols = if weighted {
-            let ws = weighted_channel(backend, coll, basis, targets, &cells, c, weight, progress)?;
+    // Under a weighted objective the three channels' systems come from one back-end call
+    // (a network runs once per cell for its three channels).
+    let mut systems = if weighted {
+        weighted_systems(backend, coll, basis, targets, &cells, weight, progress)?.map(Some)
+    } else {
+        [None, None, None]
+    };
+    for (c, system) in systems.iter_mut().enumerate() {
+        let sols = if let Some(sys) = system.take() {
+            let ws = weighted_channel(coll, basis.len(), targets, &sys, c, weight)?;
             for (o, s) in objective_sums.iter_mut().zip(&ws) {
                 o[0] += s.objective;
                 o[1] += s.yy;
@@ -422,25 +429,46 @@ pub(crate) struct WeightedFit {
     pub(crate) yy: f64,
 }
 
-/// Every target's fit of channel `c` under the per-target weights `weight` (SPEC 11): the
-/// back-end's weighted systems ([`Backend::weighted_systems`]: one pass for every target),
-/// then an exact Lawson-Hanson solve per target.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn weighted_channel(
+/// The weighted systems (SPEC 11) of every target by `basis` plus the Lambertian column,
+/// per channel, from the back-end ([`Backend::weighted_systems_per_channel`]: one pass for
+/// every target and channel).
+fn weighted_systems(
     backend: &dyn Backend,
     coll: &Collection,
     basis: &[usize],
     targets: &[usize],
     cells: &CellSet,
-    c: usize,
     weight: TargetWeight,
     progress: Progress<'_>,
+) -> Result<[WeightedSystems; 3], FitError> {
+    let lobes = |ids: &[usize], c: usize| -> Vec<Lobe> {
+        ids.iter()
+            .map(|&i| channel_lobe(&coll.materials()[i].data, c))
+            .collect()
+    };
+    let b: [Vec<Lobe>; 3] = std::array::from_fn(|c| lobes(basis, c));
+    let t: [Vec<Lobe>; 3] = std::array::from_fn(|c| lobes(targets, c));
+    Ok(backend.weighted_systems_per_channel(
+        [&b[0], &b[1], &b[2]],
+        [&t[0], &t[1], &t[2]],
+        cells,
+        weight,
+        progress,
+    )?)
+}
+
+/// Every target's fit of channel `c` under the per-target weights `weight` (SPEC 11) from
+/// its weighted system `sys` (basis of `k` materials): an exact Lawson-Hanson solve per
+/// target.
+pub(crate) fn weighted_channel(
+    coll: &Collection,
+    k: usize,
+    targets: &[usize],
+    sys: &WeightedSystems,
+    c: usize,
+    weight: TargetWeight,
 ) -> Result<Vec<WeightedFit>, FitError> {
-    let lobe = |i: usize| channel_lobe(&coll.materials()[i].data, c);
-    let basis_lobes: Vec<Lobe> = basis.iter().map(|&i| lobe(i)).collect();
-    let target_lobes: Vec<Lobe> = targets.iter().map(|&i| lobe(i)).collect();
-    let sys = backend.weighted_systems(&basis_lobes, &target_lobes, cells, weight, progress)?;
-    let m = basis.len() + 1;
+    let m = k + 1;
     let lh = lawson_hanson::LhParams::default();
     targets
         .par_iter()

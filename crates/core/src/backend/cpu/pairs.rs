@@ -204,3 +204,71 @@ pub(super) fn grams_per_channel(
         g
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::{Nbrdf, NBRDF_WEIGHTS};
+    use crate::merl::{Mask, Weighting};
+    use std::sync::Arc;
+
+    /// A network with seeded pseudo-random weights.
+    fn net(seed: u64) -> Arc<Nbrdf> {
+        let mut s = seed.wrapping_mul(6364136223846793005) | 1;
+        let w = (0..NBRDF_WEIGHTS)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1.2
+            })
+            .collect();
+        Arc::new(Nbrdf::from_weights(w).expect("finite"))
+    }
+
+    /// Channel `c`'s lobes: three networks and two analytic lobes.
+    fn lobes(nets: &[Arc<Nbrdf>], c: usize) -> Vec<Lobe> {
+        let mut v: Vec<Lobe> = nets
+            .iter()
+            .map(|n| Lobe::Neural {
+                net: n.clone(),
+                channel: Some(c),
+            })
+            .collect();
+        for i in 0..2 {
+            v.push(Lobe::Analytic(LobeParams {
+                kd: 0.1 * (c + 1) as f32,
+                ks: 0.2 + 0.1 * i as f32,
+                f0: 0.05,
+                n: 40.0 * (i + 1) as f32,
+            }));
+        }
+        v
+    }
+
+    /// One pass for three channels with their own weights gives each channel's Gram of a
+    /// pass of its own, bit for bit.
+    #[test]
+    fn one_pass_per_channel_is_a_pass_per_channel_to_the_bit() {
+        let cpu = CpuBackend::new();
+        let nets: Vec<_> = (0..3).map(net).collect();
+        let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 3);
+        assert!(cells.len() > CHUNK_CELLS, "more than one chunk");
+        let per: [CellSet; 3] = std::array::from_fn(|c| {
+            let mut w = cells.clone();
+            for (s, x) in w.weights.iter_mut().enumerate() {
+                *x *= 1.0 + ((s * (c + 2)) % 7) as f64;
+            }
+            w
+        });
+        let all: [Vec<Lobe>; 3] = std::array::from_fn(|c| lobes(&nets, c));
+        let n = all[0].len();
+        let one = cpu
+            .grams_per_channel(all.clone(), [&per[0], &per[1], &per[2]], n, &|_, _| {})
+            .unwrap();
+        for c in 0..3 {
+            let own = cpu.gram(&all[c], &per[c], n, &|_, _| {}).unwrap();
+            assert_eq!(one[c], own, "channel {c}");
+        }
+    }
+}
