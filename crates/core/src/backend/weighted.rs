@@ -274,10 +274,10 @@ pub fn reference<B: Backend + ?Sized>(
     Ok(WeightedSystems { columns: m, values })
 }
 
-/// [`reference`] of three channels (`basis[c]`, `targets[c]`, the same counts each) in one
+/// [`reference()`] of three channels (`basis[c]`, `targets[c]`, the same counts each) in one
 /// pass over `cells`: per chunk the three channels' lobes are tabulated by one call each
 /// for the basis and the targets (a network then runs once per cell for its three
-/// channels), then each channel is accumulated as [`reference`] does it: the same bits.
+/// channels), then each channel is accumulated as [`reference()`] does it: the same bits.
 pub fn reference_per_channel<B: Backend + ?Sized>(
     backend: &B,
     basis: [&[Lobe]; 3],
