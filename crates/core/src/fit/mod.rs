@@ -53,7 +53,7 @@ pub enum FitError {
     #[error("material `{}` appears twice in the basis", crate::error::short_name(.0))]
     DuplicateBasis(String),
     /// A Gram quantity is not finite (non-finite data).
-    #[error("the Gram sums of `{}` (channel {channel}) overflow: its reflectances are too large for them (NaN and infinite values are refused on loading, so a value above about 1e18, squared, left the back-end's f32 range); measured reflectances are far below it: check the material's file and its units", crate::error::short_name(.material))]
+    #[error("the Gram sums of `{}` (channel {channel}) are not finite: its data holds a non-finite value, or reflectances too large for the sums (a value above about 1e18, squared, leaves the back-end's f32 range; the loaders refuse NaN and infinite values, and measured reflectances are far below 1e18): check the material's data and its units", crate::error::short_name(.material))]
     NonFinite {
         /// Material.
         material: String,
