@@ -208,15 +208,26 @@ impl Nbrdf {
     /// The network's raw RGB output `exp(z) - 1` (not clamped) in f64 from the f32
     /// weights: the reference of every evaluation.
     pub fn eval_raw_f64(&self, theta_h: f64, theta_d: f64, phi_d: f64) -> [f64; 3] {
-        let w = |k: usize| self.w[k] as f64;
-        let x = [
+        self.eval_inputs_f64(&Self::inputs_f64(theta_h, theta_d, phi_d))
+    }
+
+    /// The network's six inputs at half/difference angles, in f64 (the first step of
+    /// [`Self::eval_raw_f64`]; they depend on the angles only, so that many networks at
+    /// the same angles share them).
+    pub fn inputs_f64(theta_h: f64, theta_d: f64, phi_d: f64) -> [f64; 6] {
+        [
             theta_h.sin(),
             0.0,
             theta_h.cos(),
             theta_d.sin() * phi_d.cos(),
             theta_d.sin() * phi_d.sin(),
             theta_d.cos(),
-        ];
+        ]
+    }
+
+    /// [`Self::eval_raw_f64`] from the inputs ([`Self::inputs_f64`]).
+    pub fn eval_inputs_f64(&self, x: &[f64; 6]) -> [f64; 3] {
+        let w = |k: usize| self.w[k] as f64;
         let mut a1 = [0f64; HIDDEN];
         for (j, a) in a1.iter_mut().enumerate() {
             let z: f64 = w(B1 + j) + (0..6).map(|i| x[i] * w(FC1 + i * HIDDEN + j)).sum::<f64>();
@@ -234,6 +245,24 @@ impl Nbrdf {
             let z: f64 = w(B3 + c) + (0..HIDDEN).map(|i| a2[i] * w(FC3 + i * 3 + c)).sum::<f64>();
             z.exp_m1()
         })
+    }
+
+    /// [`Self::eval_inputs_f64`] clamped at 0 ([`Self::eval_f64`]) at every input of `xs`,
+    /// into `out`: the same bits, four inputs at a time (one per f64 vector lane, each
+    /// lane doing its input's products and sums in the scalar order: no fusing), AVX2 where
+    /// the processor has it.
+    pub fn eval_inputs_f64_batch(&self, xs: &[[f64; 6]], out: &mut [[f64; 3]]) {
+        assert_eq!(xs.len(), out.len(), "eval_inputs_f64_batch: one output per input");
+        let w: Vec<f64> = self.w.iter().map(|&v| v as f64).collect();
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2 (checked).
+                unsafe { eval_f64_lanes_avx2(&w, xs, out) };
+                return;
+            }
+        }
+        eval_f64_lanes(&w, xs, out);
     }
 
     /// RGB reflectance at half/difference angles (SPEC 9), f64 reference, clamped at 0.
@@ -528,6 +557,69 @@ fn avx512_available() -> bool {
     #[cfg(not(target_arch = "x86_64"))]
     {
         false
+    }
+}
+
+/// Inputs per lane group of [`Nbrdf::eval_inputs_f64_batch`].
+const F64_LANES: usize = 4;
+
+/// [`Nbrdf::eval_inputs_f64_batch`]'s loop, compiled for AVX2.
+///
+/// # Safety
+/// The processor has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn eval_f64_lanes_avx2(w: &[f64], xs: &[[f64; 6]], out: &mut [[f64; 3]]) {
+    eval_f64_lanes(w, xs, out)
+}
+
+/// [`Nbrdf::eval_inputs_f64_batch`]'s loop: `w` the weights in f64; per group of
+/// [`F64_LANES`] inputs, each lane's sums in [`Nbrdf::eval_inputs_f64`]'s order (a sum
+/// from `-0.0`, as `Iterator::sum` of f64 starts, then the bias plus the sum).
+#[inline(always)]
+fn eval_f64_lanes(w: &[f64], xs: &[[f64; 6]], out: &mut [[f64; 3]]) {
+    const L: usize = F64_LANES;
+    for (xg, og) in xs.chunks(L).zip(out.chunks_mut(L)) {
+        let n = xg.len();
+        let x: [[f64; L]; 6] = std::array::from_fn(|i| std::array::from_fn(|l| xg[l.min(n - 1)][i]));
+        let mut a1 = [[0f64; L]; HIDDEN];
+        for (j, a) in a1.iter_mut().enumerate() {
+            let mut s = [-0.0f64; L];
+            for (i, xi) in x.iter().enumerate() {
+                let wv = w[FC1 + i * HIDDEN + j];
+                for l in 0..L {
+                    s[l] += xi[l] * wv;
+                }
+            }
+            for l in 0..L {
+                a[l] = (w[B1 + j] + s[l]).max(0.0);
+            }
+        }
+        let mut a2 = [[0f64; L]; HIDDEN];
+        for (j, a) in a2.iter_mut().enumerate() {
+            let mut s = [-0.0f64; L];
+            for (i, ai) in a1.iter().enumerate() {
+                let wv = w[FC2 + i * HIDDEN + j];
+                for l in 0..L {
+                    s[l] += ai[l] * wv;
+                }
+            }
+            for l in 0..L {
+                a[l] = (w[B2 + j] + s[l]).max(0.0);
+            }
+        }
+        for c in 0..3 {
+            let mut s = [-0.0f64; L];
+            for (i, ai) in a2.iter().enumerate() {
+                let wv = w[FC3 + i * 3 + c];
+                for l in 0..L {
+                    s[l] += ai[l] * wv;
+                }
+            }
+            for (l, o) in og.iter_mut().enumerate() {
+                o[c] = (w[B3 + c] + s[l]).exp_m1().max(0.0);
+            }
+        }
     }
 }
 

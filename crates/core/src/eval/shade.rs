@@ -131,9 +131,38 @@ impl PixelBrdfs {
             .par_iter()
             .map(|&(wi, wo)| lookup(wi, wo) as u32)
             .collect();
-        let columns = brdfs
+        // A network's column from the inputs of every pair, computed once for all
+        // networks, four pairs per vector (`eval_dirs`'s values, to the bit: every pair
+        // here is above both horizons).
+        let inputs: Vec<[f64; 6]> = if coll
+            .materials()
             .iter()
-            .map(|f| unique.par_iter().map(|&(wi, wo)| f(wi, wo)).collect())
+            .any(|m| matches!(m.data, MaterialData::Neural(_)))
+        {
+            unique
+                .par_iter()
+                .map(|&(wi, wo)| {
+                    let (th, td, pd) = crate::merl::half_diff(wi, wo);
+                    crate::brdf::Nbrdf::inputs_f64(th, td, pd)
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let columns = coll
+            .materials()
+            .iter()
+            .zip(&brdfs)
+            .map(|(m, f)| match &m.data {
+                MaterialData::Neural(n) => {
+                    let mut col = vec![[0f64; 3]; unique.len()];
+                    col.par_chunks_mut(1024)
+                        .zip(inputs.par_chunks(1024))
+                        .for_each(|(o, x)| n.eval_inputs_f64_batch(x, o));
+                    col
+                }
+                _ => unique.par_iter().map(|&(wi, wo)| f(wi, wo)).collect(),
+            })
             .collect();
         let lit = crate::eval::render::lit_pixels(rp)?
             .into_iter()

@@ -349,3 +349,41 @@ fn directions_and_angles_agree_and_below_the_horizon_is_zero() {
         }
     }
 }
+
+/// The four-lane f64 evaluation gives `eval_f64`'s values to the bit (AVX2 and the
+/// portable loop), on inputs from real angles, inputs that drive units to exactly 0, and a
+/// count that is not a multiple of the lanes.
+#[test]
+fn f64_lanes_are_the_scalar_f64_network_to_the_bit() {
+    let mut xs: Vec<[f64; 6]> = (0..4001u32)
+        .map(|k| {
+            let (th, td, pd) = crate::merl::cell_angles((k as usize * 367) % N_CELLS);
+            Nbrdf::inputs_f64(th, td, pd)
+        })
+        .collect();
+    xs.push([0.0; 6]);
+    xs.push([-0.0, 0.0, -0.0, 0.0, -0.0, 0.0]);
+    xs.push([-50.0, 0.0, -50.0, -50.0, -50.0, -50.0]);
+    for seed in 0..5 {
+        let n = net(seed);
+        let want: Vec<[f64; 3]> = xs
+            .iter()
+            .map(|x| n.eval_inputs_f64(x).map(|v| v.max(0.0)))
+            .collect();
+        let mut got = vec![[0f64; 3]; xs.len()];
+        n.eval_inputs_f64_batch(&xs, &mut got);
+        let w: Vec<f64> = n.weights().iter().map(|&v| v as f64).collect();
+        let mut portable = vec![[0f64; 3]; xs.len()];
+        eval_f64_lanes(&w, &xs, &mut portable);
+        for (k, ((g, p), want)) in got.iter().zip(&portable).zip(&want).enumerate() {
+            let bits = |v: &[f64; 3]| v.map(f64::to_bits);
+            assert_eq!(bits(g), bits(want), "seed {seed}, input {k}");
+            assert_eq!(bits(p), bits(want), "seed {seed}, input {k}");
+        }
+        let (th, td, pd) = crate::merl::cell_angles(12345);
+        assert_eq!(
+            n.eval_f64(th, td, pd),
+            n.eval_inputs_f64(&Nbrdf::inputs_f64(th, td, pd)).map(|v| v.max(0.0))
+        );
+    }
+}
