@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis fit --basis gloss-white-enamel,gloss-black-enamel,polished-brass --targets gloss-red-enamel,polished-gold,polished-copper --json fits.json --export fitted/\n  brdf-basis fit ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json"
+    after_help = "Examples:\n  brdf-basis fit --basis gloss-white-enamel,gloss-black-enamel,polished-brass --targets gloss-red-enamel,polished-gold,polished-copper --json fits.json --export fitted/\n  brdf-basis fit ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json ngan-fits.json"
 )]
 pub(crate) struct FitArgs {
     /// Collection(s) (none: embedded default).

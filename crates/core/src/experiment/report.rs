@@ -379,11 +379,15 @@ fn against_nielsen(cv: &crate::acquire::AcqCv) -> Vec<String> {
         if let (Some(a), Some(b)) = (&o.appearance, &t.appearance) {
             cmp.extend([
                 (
-                    "image error (45, 45)",
+                    "image error (45, 45; 256 px)",
                     a.image_error_paper_light,
                     b.image_error_paper_light,
                 ),
-                ("image error (4 lights)", a.image_error, b.image_error),
+                (
+                    "image error (4 lights; 256 px)",
+                    a.image_error,
+                    b.image_error,
+                ),
                 ("CIEDE2000", a.ciede2000, b.ciede2000),
                 ("FLIP (4 lights)", a.flip, b.flip),
             ]);
