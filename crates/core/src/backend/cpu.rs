@@ -307,6 +307,9 @@ fn neural_rows(net: &Nbrdf, cells: &[u32], rows: &mut [NeuralRow<'_, '_>]) {
     }
 }
 
+/// A row of [`fill_rows_each`]: the lobe, the row scale, the row.
+type ScaledRow<'l, 's, 'r> = (&'l Lobe, Option<&'s [f64]>, &'r mut [f32]);
+
 /// A row of [`neural_rows`]: the channel (`None`: the mean), the row scale, the row.
 type NeuralRow<'s, 'r> = (Option<usize>, Option<&'s [f64]>, &'r mut [f32]);
 
@@ -396,13 +399,13 @@ pub fn fill_rows(
 /// [`fill_rows`] with a scale per row (`None`: 1): the rows of one network share one
 /// evaluation whatever their scales.
 fn fill_rows_each(
-    rows: Vec<(&Lobe, Option<&[f64]>, &mut [f32])>,
+    rows: Vec<ScaledRow<'_, '_, '_>>,
     cells: &[u32],
 ) -> Result<(), BackendError> {
     let tables = &GridTables::new();
     type NetRows<'a, 's, 'b> = (&'a Nbrdf, Vec<NeuralRow<'s, 'b>>);
     let mut nets: Vec<NetRows> = Vec::new();
-    let mut tables_rows: Vec<(&Lobe, Option<&[f64]>, &mut [f32])> = Vec::new();
+    let mut tables_rows: Vec<ScaledRow> = Vec::new();
     for (lobe, scale, row) in rows {
         if row.len() != cells.len() {
             return Err(BackendError::Invalid(format!(
