@@ -620,3 +620,39 @@ fn the_two_image_errors_of_cv_name_their_render_sizes() {
     }
     assert!(!md.contains("| mean image error |"), "{md}");
 }
+
+/// U6: `fit --samples` with half its samples zero (under `relative`: objective residual
+/// about 0.99) gave no warning where the dense fit warns above 0.5; and `--no-appearance`
+/// was accepted silently there while `--solver` and `--stride` are refused.
+#[test]
+fn fit_from_samples_warns_as_the_dense_fit_and_refuses_no_appearance() {
+    let dir = tmp();
+    let d = dir.path();
+    write(
+        d,
+        "half.csv",
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n\
+         10,0,12,180,0.1,0.12,0.15\n20,0,25,180,0,0,0\n30,0,35,90,0.1,0.12,0.15\n\
+         40,0,45,180,0,0,0\n50,0,30,0,0.1,0.12,0.15\n60,0,10,180,0,0,0\n",
+    );
+    let args = [
+        "fit",
+        "--basis",
+        "sandblasted-aluminium,machined-iron,white-nylon-66",
+        "--samples",
+        "half.csv",
+        "--json",
+        "f.json",
+    ];
+    let o = run_in(d, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("warning: the fit of `half` explains little of its samples under the `relative` objective"),
+        "{e}"
+    );
+    let mut with = args.to_vec();
+    with.push("--no-appearance");
+    let o = run_in(d, &with);
+    refused(&o, &["--no-appearance does not apply with --samples"], &[]);
+}

@@ -309,13 +309,15 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         ),
         ("--solver", req.solver != d.solver),
         ("--gram", req.gram != d.gram),
+        // Audit 3, U6: accepted silently before; the fit from samples scores no render.
+        ("--no-appearance", a.no_appearance),
     ]
     .into_iter()
     .filter_map(|(flag, given)| given.then_some(flag))
     .collect();
     if !ignored.is_empty() {
         anyhow::bail!(
-            "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS); leave {} out",
+            "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS, no appearance metrics); leave {} out",
             ignored.join(", "),
             if ignored.len() == 1 { "does" } else { "do" },
             if ignored.len() == 1 { "it" } else { "them" },
