@@ -656,3 +656,68 @@ fn fit_from_samples_warns_as_the_dense_fit_and_refuses_no_appearance() {
     let o = run_in(d, &with);
     refused(&o, &["--no-appearance does not apply with --samples"], &[]);
 }
+
+/// U7: `render --fit` accepted a hand-edited fit JSON with `"objective": "bogus"`,
+/// `"eps": -1` or negative coefficients (`[-5, -5, -5]` rendered black, exit 0); each is
+/// now refused, naming the file and the field.
+#[test]
+fn render_refuses_a_fit_file_with_values_fit_never_writes() {
+    let dir = tmp();
+    let d = dir.path();
+    let o = run_in(
+        d,
+        &[
+            "fit",
+            "--basis",
+            BASIS,
+            "--targets",
+            "polished-gold",
+            "--stride",
+            "4",
+            "--no-appearance",
+            "--json",
+            "f.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let good: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("f.json")).unwrap()).unwrap();
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(Edit, &[&str]); 5] = [
+        (
+            |v| v["objective"] = "bogus".into(),
+            &["field `objective` is `bogus`"],
+        ),
+        (|v| v["eps"] = (-1.0).into(), &["field `eps` is -1"]),
+        (|v| v["eps"] = 0.0.into(), &["field `eps` is 0"]),
+        (
+            |v| v["targets"][0]["coefficients"]["polished-brass"] = serde_json::json!([-5, -5, -5]),
+            &["field `coefficients` of `polished-brass` holds -5"],
+        ),
+        (
+            |v| v["targets"][0]["lambertian"] = serde_json::json!([0, -0.5, 0]),
+            &["field `lambertian` holds -0.5"],
+        ),
+    ];
+    for (edit, needles) in cases {
+        let mut v = good.clone();
+        edit(&mut v);
+        write(d, "bad.json", serde_json::to_string(&v).unwrap());
+        let o = run_in(
+            d,
+            &[
+                "render",
+                "--material",
+                "polished-gold",
+                "--fit",
+                "bad.json",
+                "--out",
+                "r.exr",
+            ],
+        );
+        let mut all = vec!["bad.json"];
+        all.extend_from_slice(needles);
+        refused(&o, &all, &[]);
+        assert!(!d.join("r.exr").exists());
+    }
+}
