@@ -721,3 +721,51 @@ fn render_refuses_a_fit_file_with_values_fit_never_writes() {
         assert!(!d.join("r.exr").exists());
     }
 }
+
+/// U9: with `--no-appearance --no-acquisition` the report did not say the two sections
+/// were left out, and an empty empirical basis read "Materials contributing to more than
+/// 5 fits: 0 ()".
+#[test]
+fn the_reproduce_report_names_left_out_sections_and_an_empty_basis_in_words() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "six.csv", SIX);
+    let o = run_in(
+        d,
+        &[
+            "reproduce",
+            "six.csv",
+            "--runs",
+            "2",
+            "--stride",
+            "6",
+            "--render-size",
+            "16",
+            "--k-min",
+            "2",
+            "--k-max",
+            "2",
+            "--gcuk-k-max",
+            "3",
+            "--cv-folds",
+            "2",
+            "--no-appearance",
+            "--no-acquisition",
+            "--out",
+            "out",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = std::fs::read_to_string(d.join("out/report.md")).unwrap();
+    assert!(
+        report.contains(
+            "Left out as asked: the Acquisition (SPEC 10, `--no-acquisition`) and the Appearance (SPEC 11, `--no-appearance`) sections."
+        ),
+        "{report}"
+    );
+    assert!(
+        report.contains("Materials contributing to more than 5 fits: none.")
+            && !report.contains("0 ()"),
+        "{report}"
+    );
+}

@@ -141,7 +141,7 @@ fn empirical(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         .unwrap_or(0);
     let zero = emp.counts.iter().filter(|&&c| c == 0).count();
     let _ = writeln!(s, "## Empirical selection (Algorithm 1)\n");
-    let _ = writeln!(s, "Most materials used by one leave-one-out fit: {max}. Materials contributing to no fit: {zero}. Materials contributing to more than {} fits: {} ({}).", e.settings.more_than, emp.basis.len(), emp.basis.join(", "));
+    let _ = writeln!(s, "Most materials used by one leave-one-out fit: {max}. Materials contributing to no fit: {zero}. Materials contributing to more than {} fits: {}.", e.settings.more_than, if emp.basis.is_empty() { "none".to_string() } else { format!("{} ({})", emp.basis.len(), emp.basis.join(", ")) });
     ctx.figure(
         s,
         "fig2-contributions",
