@@ -163,15 +163,30 @@ pub(crate) fn image_error(
 }
 
 /// CIEDE2000 colour difference of two CIELAB colours (SPEC 11; `k_L = k_C = k_H = 1`).
+/// A NaN or infinite component is refused (audit 3, U8: it returned NaN).
 #[pyfunction]
-pub(crate) fn ciede2000(lab1: [f64; 3], lab2: [f64; 3]) -> f64 {
-    bb::eval::color::ciede2000(lab1, lab2)
+pub(crate) fn ciede2000(lab1: [f64; 3], lab2: [f64; 3]) -> PyResult<f64> {
+    for (name, lab) in [("lab1", lab1), ("lab2", lab2)] {
+        if lab.iter().any(|v| !v.is_finite()) {
+            return Err(value_err(format!(
+                "{name}: a CIELAB colour is finite, got {lab:?}"
+            )));
+        }
+    }
+    Ok(bb::eval::color::ciede2000(lab1, lab2))
 }
 
-/// CIELAB (D65) of an sRGB-encoded colour in [0, 1]^3 (SPEC 11's conversion).
+/// CIELAB (D65) of an sRGB-encoded colour in [0, 1]^3 (SPEC 11's conversion). A
+/// component outside [0, 1] (or NaN) is refused (audit 3, U8: it was clamped silently;
+/// the image metrics clamp after the display mapping, where the clamp is SPEC 7's).
 #[pyfunction]
-pub(crate) fn srgb_to_lab(rgb: [f64; 3]) -> [f64; 3] {
-    bb::eval::color::srgb_to_lab(rgb)
+pub(crate) fn srgb_to_lab(rgb: [f64; 3]) -> PyResult<[f64; 3]> {
+    if rgb.iter().any(|v| !(0.0..=1.0).contains(v)) {
+        return Err(value_err(format!(
+            "rgb: an sRGB-encoded colour lies in [0, 1]^3, got {rgb:?}; clamp it first if that is meant"
+        )));
+    }
+    Ok(bb::eval::color::srgb_to_lab(rgb))
 }
 
 /// The image metrics of SPEC 11 between two sphere renders `reference` and `test`
@@ -185,6 +200,16 @@ pub(crate) fn image_metrics(
     test: PyReadonlyArrayDyn<'_, f32>,
 ) -> PyResult<std::collections::BTreeMap<&'static str, f64>> {
     let (a, b) = (image_of(&reference, "reference")?, image_of(&test, "test")?);
+    // Audit 3, U8: a sphere render is square (its mask and FLIP's pixels per degree
+    // assume it); a 32 x 64 image was scored.
+    for (name, im) in [("reference", &a), ("test", &b)] {
+        if im.width != im.height {
+            return Err(value_err(format!(
+                "{name}: a sphere render is square (size, size, 3), got {} x {}",
+                im.height, im.width
+            )));
+        }
+    }
     let s = bb::eval::appearance::light_scores(&a, &b, (f64::NAN, f64::NAN)).map_err(lib_err)?;
     Ok([
         ("image_error", s.image_error),

@@ -101,7 +101,7 @@ impl AcquisitionRequest {
 
     /// The rules of the settings that need no collection (the objective's,
     /// [`ObjectiveSetting::weight`]; no plan setting that no plan of `--plans` uses; 1 to
-    /// 64 restarts; no plan,
+    /// 64 restarts; noise levels from 0 to 1000; no plan,
     /// sample count or noise level listed twice, as `--methods` refuses a method listed
     /// twice: each would give a duplicate row); the others (folds, k, plans, n, noise) are
     /// checked by [`Self::run`] before any work.
@@ -121,6 +121,14 @@ impl AcquisitionRequest {
         once("--plans", "plan", &plans, |c| format!("`{c}`"))?;
         once("-n", "sample count", &self.ns, |n| n.to_string())?;
         once("--noise", "noise level", &self.noises, |x| x.to_string())?;
+        // Audit 3, T3: a noise level of 1e300 overflowed the fits' sums ("bb: non-finite
+        // entry inf"); refused here, before any work, with the range.
+        if let Some(s) = self.noises.iter().find(|s| !(0.0..=MAX_NOISE).contains(*s)) {
+            super::refuse!(
+                "--noise: noise level {s} is outside 0 to {MAX_NOISE} (relative noise levels: \
+                 0.02 is 2 % of the value)"
+            );
+        }
         // Audit 2, U3: in the flags' words, not "plans / methods / n = 3 / 1 / [0]".
         if self.plans.is_empty() {
             super::refuse!("--plans: give at least one plan (error, condition, random, nielsen)");
@@ -145,6 +153,10 @@ impl AcquisitionRequest {
         Ok(())
     }
 }
+
+/// The largest relative noise level `--noise` takes: the measured values `f (1 + noise z)`
+/// and their squared sums stay finite for any finite material value a fit can take.
+const MAX_NOISE: f64 = 1e3;
 
 /// Refuses a value of `flag`'s list that appears twice (`show`: the value in words).
 fn once<T: PartialEq>(

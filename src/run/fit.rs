@@ -6,7 +6,7 @@ use crate::backend::weighted::ObjectiveKind;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::eval::appearance::Appearance;
-use crate::fit::diagnostics::fit_warnings;
+use crate::fit::diagnostics::{fit_warnings, WARN_RELATIVE_RESIDUAL};
 use crate::fit::file::FitFile;
 use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit};
 use crate::Result;
@@ -313,6 +313,23 @@ impl FitSamplesRequest {
             objective,
         };
         let target = sf.target_fit(&name);
+        // Audit 3, U6: the dense fit's rule (relative residual above 0.5, under the
+        // objective's weights when it is not `l2`), on the samples.
+        let (rho, under) = if objective == crate::backend::weighted::TargetWeight::L2 {
+            (target.relative_residual, String::new())
+        } else {
+            (
+                target.objective_residual,
+                format!(" under the `{}` objective", objective.kind().name()),
+            )
+        };
+        if rho > WARN_RELATIVE_RESIDUAL {
+            warnings.push(format!(
+                "the fit of `{name}` explains little of its samples{under} (relative residual {}{}; 0 is a perfect fit, 1 explains nothing): this basis cannot represent it",
+                crate::stats::num(rho),
+                if under.is_empty() { "" } else { " under its weights" },
+            ));
+        }
         let mut file = FitFile::new(coll, &basis, std::slice::from_ref(&target), &p);
         file.samples = Some(samples.len());
         file.fitted_from = Some(self.samples.display().to_string());

@@ -221,6 +221,7 @@ fn acquisition(
             results: vec![],
             collection_fingerprint: coll.fingerprint(),
             showcase: None,
+            render_size: None,
         },
         settings: String::new(),
         skipped: Some(why),

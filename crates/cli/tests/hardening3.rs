@@ -428,3 +428,344 @@ fn a_matrix_truncated_under_kmedoids_stops_the_run() {
     assert!(e.contains("d.npy: changed while it was read"), "{e}");
     assert!(!d.join("m.json").exists());
 }
+
+/// U2: an interrupt of `reproduce` into a new `--out` said "the outputs not yet in place
+/// were removed (those already in place stay)" although nothing was in place: a matrix
+/// saved (and committed) inside the staging tree counted as an output in place. Now only
+/// a commit outside every staging directory does, and the message says nothing is left.
+/// `remove_pending` ends every later write of its process: the check runs in a child
+/// process (this test binary, running this test alone).
+#[test]
+fn an_interrupt_before_any_output_is_in_place_says_nothing_is_left() {
+    use brdf_basis::atomic::{remove_pending, OutputPlan, OutputSet};
+    const CHILD: &str = "BRDF_BASIS_TEST_H3_U2_CHILD";
+    if std::env::var_os(CHILD).is_none() {
+        let o = std::process::Command::new(std::env::current_exe().unwrap())
+            .args([
+                "--exact",
+                "hardening3::an_interrupt_before_any_output_is_in_place_says_nothing_is_left",
+                "--test-threads",
+                "1",
+            ])
+            .env(CHILD, "1")
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success() && out.contains("1 passed"), "{out}");
+        return;
+    }
+    let dir = tmp();
+    let out = dir.path().join("out");
+    let mut plan = OutputPlan::new(&[]);
+    plan.tree(&out, "--out", false, |_| false).unwrap();
+    let mut set = plan.into_set().unwrap();
+    let root = set.tree_root(&out).unwrap();
+    // What `reproduce` does inside its tree: a file saved by its own set, committed.
+    let inner = root.join("distances.json");
+    let mut s = OutputSet::new();
+    s.stage(&inner, |w| w.write_all(b"{}")).unwrap();
+    s.commit().unwrap();
+    let c = remove_pending();
+    assert!(!c.in_place, "{c:?}");
+    assert!(c.removed > 0, "{c:?}");
+    assert!(
+        c.message().contains("nothing of this run is left")
+            && !c.message().contains("those already in place stay"),
+        "{}",
+        c.message()
+    );
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// The example lines of `brdf-basis CMD --help` (the indented lines after "Example:" or
+/// "Examples:").
+fn help_examples(cmd: &str) -> Vec<String> {
+    let o = bin().args([cmd, "--help"]).output().expect("help");
+    assert!(o.status.success(), "{cmd} --help: {}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    let mut lines = text.lines().skip_while(|l| !l.starts_with("Example"));
+    lines.next();
+    lines
+        .take_while(|l| l.starts_with("  "))
+        .map(|l| l.trim().to_string())
+        .collect()
+}
+
+/// U3: every help example pastes into bash (`info merl100/   (a directory …)` and
+/// `render … --heatmap err.png  (fits.json from …)` gave "syntax error near unexpected
+/// token `('"), and, run in help order, `fit --help`'s second example no longer overwrites
+/// the `fits.json` that `render --help`'s example reads (of another collection).
+#[test]
+fn help_examples_paste_into_bash_and_do_not_overwrite_each_other() {
+    let commands = [
+        "info",
+        "fit",
+        "render",
+        "select",
+        "cv",
+        "plan",
+        "distance",
+        "merge",
+        "plot",
+        "tabulate",
+        "reproduce",
+    ];
+    let mut writers: Vec<(String, String)> = Vec::new(); // (file, example)
+    for cmd in commands {
+        let examples = help_examples(cmd);
+        assert!(!examples.is_empty(), "{cmd} --help has no example");
+        for ex in &examples {
+            let o = std::process::Command::new("bash")
+                .args(["-n", "-c", ex])
+                .output()
+                .expect("bash");
+            assert!(o.status.success(), "`{ex}` is not bash: {}", stderr(&o));
+            let words: Vec<&str> = ex.split('#').next().unwrap().split_whitespace().collect();
+            for w in words.windows(2) {
+                if w[0] == "--json" {
+                    if let Some((_, first)) = writers.iter().find(|(f, _)| f == w[1]) {
+                        panic!("`{ex}` overwrites {} of `{first}`", w[1]);
+                    }
+                    writers.push((w[1].to_string(), ex.clone()));
+                }
+            }
+        }
+    }
+}
+
+/// Six analytic materials (the columns of `three.csv` above).
+const SIX: &str = "material,d_r,d_g,d_b,s_r,s_g,s_b,F0,n\n\
+    a,0.1,0.08,0.05,0.6,0.5,0.3,0.9,120\n\
+    b,0.5,0.05,0.05,0.04,0.04,0.04,0.04,60\n\
+    c,0.02,0.05,0.3,0.1,0.1,0.1,0.05,20\n\
+    d,0.3,0.3,0.3,0.2,0.2,0.2,0.1,300\n\
+    e,0.05,0.2,0.1,0.8,0.7,0.6,0.95,40\n\
+    f,0.4,0.2,0.02,0.3,0.2,0.1,0.5,10\n";
+
+/// T3 (the rest): `cv --acquisition --noise 1e300` said "error: bb: non-finite entry inf
+/// at (row 0, col 0)" after the work; now the level is refused before any, naming
+/// `--noise` and its range (also a NaN-free negative one and inf).
+#[test]
+fn a_noise_level_outside_its_range_is_refused_naming_the_flag() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "six.csv", SIX);
+    for noise in ["1e300", "1001", "inf", "-0.5"] {
+        let o = run_in(
+            d,
+            &[
+                "cv",
+                "six.csv",
+                "--acquisition",
+                "--methods",
+                "random",
+                "-k",
+                "2",
+                "--folds",
+                "2",
+                "-n",
+                "2",
+                "--plans",
+                "random",
+                "--stride",
+                "4",
+                "--no-appearance",
+                "--json",
+                "a.json",
+                &format!("--noise={noise}"),
+            ],
+        );
+        refused(&o, &["--noise", "outside 0 to 1000"], &["bb", "non-finite"]);
+        assert!(!d.join("a.json").exists());
+    }
+}
+
+/// U5: `cv` printed the mean image error of the `--render-size` renders (64 px) and, as
+/// "image error (45, 45)", that of the appearance table's 256 px renders: two numbers of
+/// one name. Both headers now name their render size (the numbers are unchanged).
+#[test]
+fn the_two_image_errors_of_cv_name_their_render_sizes() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "six.csv", SIX);
+    let o = run_in(
+        d,
+        &[
+            "cv",
+            "six.csv",
+            "--methods",
+            "random",
+            "-k",
+            "2",
+            "--folds",
+            "2",
+            "--stride",
+            "4",
+            "--render-size",
+            "16",
+            "--json",
+            "c.json",
+            "--markdown",
+            "c.md",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(d.join("c.md")).unwrap();
+    for h in [
+        "| mean image error (16 px) | median image error (16 px) |",
+        "| image error (45, 45; 256 px) | image error (4 lights; 256 px) |",
+    ] {
+        assert!(md.contains(h), "`{h}` not in:\n{md}");
+    }
+    assert!(!md.contains("| mean image error |"), "{md}");
+}
+
+/// U6: `fit --samples` with half its samples zero (under `relative`: objective residual
+/// about 0.99) gave no warning where the dense fit warns above 0.5; and `--no-appearance`
+/// was accepted silently there while `--solver` and `--stride` are refused.
+#[test]
+fn fit_from_samples_warns_as_the_dense_fit_and_refuses_no_appearance() {
+    let dir = tmp();
+    let d = dir.path();
+    write(
+        d,
+        "half.csv",
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n\
+         10,0,12,180,0.1,0.12,0.15\n20,0,25,180,0,0,0\n30,0,35,90,0.1,0.12,0.15\n\
+         40,0,45,180,0,0,0\n50,0,30,0,0.1,0.12,0.15\n60,0,10,180,0,0,0\n",
+    );
+    let args = [
+        "fit",
+        "--basis",
+        "sandblasted-aluminium,machined-iron,white-nylon-66",
+        "--samples",
+        "half.csv",
+        "--json",
+        "f.json",
+    ];
+    let o = run_in(d, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("warning: the fit of `half` explains little of its samples under the `relative` objective"),
+        "{e}"
+    );
+    let mut with = args.to_vec();
+    with.push("--no-appearance");
+    let o = run_in(d, &with);
+    refused(&o, &["--no-appearance does not apply with --samples"], &[]);
+}
+
+/// U7: `render --fit` accepted a hand-edited fit JSON with `"objective": "bogus"`,
+/// `"eps": -1` or negative coefficients (`[-5, -5, -5]` rendered black, exit 0); each is
+/// now refused, naming the file and the field.
+#[test]
+fn render_refuses_a_fit_file_with_values_fit_never_writes() {
+    let dir = tmp();
+    let d = dir.path();
+    let o = run_in(
+        d,
+        &[
+            "fit",
+            "--basis",
+            BASIS,
+            "--targets",
+            "polished-gold",
+            "--stride",
+            "4",
+            "--no-appearance",
+            "--json",
+            "f.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let good: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("f.json")).unwrap()).unwrap();
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(Edit, &[&str]); 5] = [
+        (
+            |v| v["objective"] = "bogus".into(),
+            &["field `objective` is `bogus`"],
+        ),
+        (|v| v["eps"] = (-1.0).into(), &["field `eps` is -1"]),
+        (|v| v["eps"] = 0.0.into(), &["field `eps` is 0"]),
+        (
+            |v| v["targets"][0]["coefficients"]["polished-brass"] = serde_json::json!([-5, -5, -5]),
+            &["field `coefficients` of `polished-brass` holds -5"],
+        ),
+        (
+            |v| v["targets"][0]["lambertian"] = serde_json::json!([0, -0.5, 0]),
+            &["field `lambertian` holds -0.5"],
+        ),
+    ];
+    for (edit, needles) in cases {
+        let mut v = good.clone();
+        edit(&mut v);
+        write(d, "bad.json", serde_json::to_string(&v).unwrap());
+        let o = run_in(
+            d,
+            &[
+                "render",
+                "--material",
+                "polished-gold",
+                "--fit",
+                "bad.json",
+                "--out",
+                "r.exr",
+            ],
+        );
+        let mut all = vec!["bad.json"];
+        all.extend_from_slice(needles);
+        refused(&o, &all, &[]);
+        assert!(!d.join("r.exr").exists());
+    }
+}
+
+/// U9: with `--no-appearance --no-acquisition` the report did not say the two sections
+/// were left out, and an empty empirical basis read "Materials contributing to more than
+/// 5 fits: 0 ()".
+#[test]
+fn the_reproduce_report_names_left_out_sections_and_an_empty_basis_in_words() {
+    let dir = tmp();
+    let d = dir.path();
+    write(d, "six.csv", SIX);
+    let o = run_in(
+        d,
+        &[
+            "reproduce",
+            "six.csv",
+            "--runs",
+            "2",
+            "--stride",
+            "6",
+            "--render-size",
+            "16",
+            "--k-min",
+            "2",
+            "--k-max",
+            "2",
+            "--gcuk-k-max",
+            "3",
+            "--cv-folds",
+            "2",
+            "--no-appearance",
+            "--no-acquisition",
+            "--out",
+            "out",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = std::fs::read_to_string(d.join("out/report.md")).unwrap();
+    assert!(
+        report.contains(
+            "Left out as asked: the Acquisition (SPEC 10, `--no-acquisition`) and the Appearance (SPEC 11, `--no-appearance`) sections."
+        ),
+        "{report}"
+    );
+    assert!(
+        report.contains("Materials contributing to more than 5 fits: none.")
+            && !report.contains("0 ()"),
+        "{report}"
+    );
+}

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 /// Arguments of `fit`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis fit --basis gloss-white-enamel,gloss-black-enamel,polished-brass --targets gloss-red-enamel,polished-gold,polished-copper --json fits.json --export fitted/\n  brdf-basis fit ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json fits.json"
+    after_help = "Examples:\n  brdf-basis fit --basis gloss-white-enamel,gloss-black-enamel,polished-brass --targets gloss-red-enamel,polished-gold,polished-copper --json fits.json --export fitted/\n  brdf-basis fit ngan2005_ashikhmin_shirley.csv --basis blue-acrylic,acrylic-yellow,alumina-oxide,cherry-235,steel --all-others --json ngan-fits.json"
 )]
 pub(crate) struct FitArgs {
     /// Collection(s) (none: embedded default).
@@ -309,13 +309,15 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
         ),
         ("--solver", req.solver != d.solver),
         ("--gram", req.gram != d.gram),
+        // Audit 3, U6: accepted silently before; the fit from samples scores no render.
+        ("--no-appearance", a.no_appearance),
     ]
     .into_iter()
     .filter_map(|(flag, given)| given.then_some(flag))
     .collect();
     if !ignored.is_empty() {
         anyhow::bail!(
-            "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS); leave {} out",
+            "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS, no appearance metrics); leave {} out",
             ignored.join(", "),
             if ignored.len() == 1 { "does" } else { "do" },
             if ignored.len() == 1 { "it" } else { "them" },

@@ -10,7 +10,7 @@ use brdf_basis::error::plural;
 /// Arguments of `info`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu\n  brdf-basis info paper_white_rgb.bsdf merl/\n  brdf-basis info merl100/   (a directory of neural BRDF sets)"
+    after_help = "Example:\n  brdf-basis info\n  brdf-basis info --backend cpu\n  brdf-basis info paper_white_rgb.bsdf merl/\n  brdf-basis info merl100/   # a directory of neural BRDF sets"
 )]
 pub(crate) struct InfoArgs {
     /// Collection(s) to describe (kinds and counts of materials); none: only the back-end.

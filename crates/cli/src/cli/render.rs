@@ -13,7 +13,7 @@ use std::path::PathBuf;
 /// Arguments of `render`.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  brdf-basis render --material polished-gold --out gold.exr --png gold.png\n  brdf-basis render --material polished-gold --fit fits.json --out fit.exr --png fit.png --heatmap err.png  (fits.json from `brdf-basis fit`)"
+    after_help = "Examples:\n  brdf-basis render --material polished-gold --out gold.exr --png gold.png\n  brdf-basis render --material polished-gold --fit fits.json --out fit.exr --png fit.png --heatmap err.png  # fits.json from `brdf-basis fit`"
 )]
 pub(crate) struct RenderArgs {
     /// Collection(s) (none: embedded default).

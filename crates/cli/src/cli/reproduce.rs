@@ -164,6 +164,31 @@ fn run_into(
     )?;
     let mut written = layout::write_files(&e, root, scale)?;
     let mut ctx = ReportContext::default();
+    // Audit 3, U9: a section left out by a flag is named, not silently missing.
+    let left_out: Vec<&str> = [
+        (
+            r.acquisition.is_none(),
+            "Acquisition (SPEC 10, `--no-acquisition`)",
+        ),
+        (
+            r.appearance.is_none(),
+            "Appearance (SPEC 11, `--no-appearance`)",
+        ),
+    ]
+    .into_iter()
+    .filter_map(|(out, what)| out.then_some(what))
+    .collect();
+    if !left_out.is_empty() {
+        ctx.notes.push(format!(
+            "Left out as asked: the {} {}.",
+            left_out.join(" and the "),
+            if left_out.len() == 1 {
+                "section"
+            } else {
+                "sections"
+            }
+        ));
+    }
     if let Some(a) = r.acquisition {
         ctx.timings.push(StageTiming {
             stage: "acquisition".into(),

@@ -114,7 +114,8 @@ static IN_PLACE: AtomicBool = AtomicBool::new(false);
 pub struct Cleanup {
     /// Temporary files, staging directories and created directories removed.
     pub removed: usize,
-    /// Whether any output of this process was already in place (committed or written).
+    /// Whether any output of this process was already in place (committed or written
+    /// outside a staging directory).
     pub in_place: bool,
 }
 
@@ -122,7 +123,7 @@ impl Cleanup {
     /// The sentence a signal handler prints: what was removed and what stays.
     pub fn message(&self) -> &'static str {
         match (self.removed > 0, self.in_place) {
-            (true, false) => "interrupted; the outputs not yet in place were removed",
+            (true, false) => "interrupted; the outputs not yet in place were removed and none was in place: nothing of this run is left",
             (true, true) => "interrupted; the outputs not yet in place were removed (those already in place stay)",
             (false, true) => "interrupted after the outputs were in place; nothing was removed",
             (false, false) => "interrupted before any output was written",
@@ -132,6 +133,13 @@ impl Cleanup {
 
 fn mark_in_place() {
     IN_PLACE.store(true, Ordering::SeqCst);
+}
+
+/// Whether `path` lies inside a staging directory not yet put in place (removed with it).
+fn in_pending_scratch(path: &Path) -> bool {
+    lock(&PENDING)
+        .iter()
+        .any(|p| matches!(p, Pending::Scratch(s) if path.starts_with(s)))
 }
 
 /// Whether [`remove_pending`] has run (a signal arrived): the process is about to exit,
@@ -275,6 +283,9 @@ where
         })
     });
     unregister(&entry);
+    if r.is_ok() && !in_pending_scratch(path) {
+        mark_in_place();
+    }
     r
 }
 

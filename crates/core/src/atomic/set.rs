@@ -150,6 +150,20 @@ impl OutputSet {
                 return Err(e);
             }
         }
+        // Audit 3, U2: a set committed inside another set's staging directory (a matrix
+        // saved into `reproduce`'s tree) puts nothing where the user sees it.
+        let visible = self
+            .staged
+            .iter()
+            .map(|(_, t)| t)
+            .chain(self.trees.iter().map(|(t, _, _)| t))
+            .chain(self.plan.iter().flat_map(|p| {
+                p.planned
+                    .iter()
+                    .filter(|p| p.kind == Kind::Remove)
+                    .map(|p| &p.path)
+            }))
+            .any(|t| !in_pending_scratch(t));
         let mut moves: Vec<(PathBuf, PathBuf)> = Vec::new(); // (from, to) done
         let result = self.commit_moves(&mut moves);
         if result.is_err() {
@@ -165,7 +179,9 @@ impl OutputSet {
         for d in std::mem::take(&mut self.created) {
             unregister(&Pending::Created(d));
         }
-        mark_in_place();
+        if visible {
+            mark_in_place();
+        }
         Ok(())
     }
 

@@ -141,7 +141,7 @@ fn empirical(e: &Experiment, ctx: &ReportContext, s: &mut String) {
         .unwrap_or(0);
     let zero = emp.counts.iter().filter(|&&c| c == 0).count();
     let _ = writeln!(s, "## Empirical selection (Algorithm 1)\n");
-    let _ = writeln!(s, "Most materials used by one leave-one-out fit: {max}. Materials contributing to no fit: {zero}. Materials contributing to more than {} fits: {} ({}).", e.settings.more_than, emp.basis.len(), emp.basis.join(", "));
+    let _ = writeln!(s, "Most materials used by one leave-one-out fit: {max}. Materials contributing to no fit: {zero}. Materials contributing to more than {} fits: {}.", e.settings.more_than, if emp.basis.is_empty() { "none".to_string() } else { format!("{} ({})", emp.basis.len(), emp.basis.join(", ")) });
     ctx.figure(
         s,
         "fig2-contributions",
@@ -379,11 +379,15 @@ fn against_nielsen(cv: &crate::acquire::AcqCv) -> Vec<String> {
         if let (Some(a), Some(b)) = (&o.appearance, &t.appearance) {
             cmp.extend([
                 (
-                    "image error (45, 45)",
+                    "image error (45, 45; 256 px)",
                     a.image_error_paper_light,
                     b.image_error_paper_light,
                 ),
-                ("image error (4 lights)", a.image_error, b.image_error),
+                (
+                    "image error (4 lights; 256 px)",
+                    a.image_error,
+                    b.image_error,
+                ),
                 ("CIEDE2000", a.ciede2000, b.ciede2000),
                 ("FLIP (4 lights)", a.flip, b.flip),
             ]);

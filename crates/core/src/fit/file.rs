@@ -242,10 +242,54 @@ impl FitFile {
                     message: other.to_string(),
                 },
             })?;
-        serde_json::from_slice(&text).map_err(|e| FitFileError::Parse {
+        let file: Self = serde_json::from_slice(&text).map_err(|e| FitFileError::Parse {
             path: path.to_path_buf(),
             message: e.to_string(),
-        })
+        })?;
+        file.check_values().map_err(|message| FitFileError::Parse {
+            path: path.to_path_buf(),
+            message,
+        })?;
+        Ok(file)
+    }
+
+    /// What `fit` never writes (audit 3, U7: a hand-edited file rendered as if fitted):
+    /// an unknown `objective`, an `eps` that is not a positive finite number, a negative or
+    /// non-finite coefficient. The message names the field (and the target).
+    fn check_values(&self) -> Result<(), String> {
+        use crate::backend::weighted::ObjectiveKind;
+        if let Some(o) = &self.objective {
+            if o.parse::<ObjectiveKind>().is_err() {
+                let names: Vec<&str> = ObjectiveKind::ALL.iter().map(|k| k.name()).collect();
+                return Err(format!(
+                    "field `objective` is `{o}`, not one of {}",
+                    names.join(", ")
+                ));
+            }
+        }
+        if let Some(e) = self.eps {
+            if !(e.is_finite() && e > 0.0) {
+                return Err(format!("field `eps` is {e}, not a positive finite number"));
+            }
+        }
+        for t in &self.targets {
+            // `None`: the Lambertian term (a basis material may be named `lambertian`).
+            let named = std::iter::once((None, &t.lambertian))
+                .chain(t.coefficients.iter().map(|(b, c)| (Some(b.as_str()), c)));
+            for (basis, c) in named {
+                if let Some(v) = c.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+                    let field = match basis {
+                        None => "`lambertian`".to_string(),
+                        Some(b) => format!("`coefficients` of `{b}`"),
+                    };
+                    return Err(format!(
+                        "target `{}`: field {field} holds {v}; a fit's coefficients are finite and non-negative",
+                        t.material
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Refuses the file unless it was fitted on `coll` (same fingerprint and size);
@@ -344,5 +388,59 @@ impl FitFile {
                 basis,
             })?;
         Ok((t, cols))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file(lambertian: [f64; 3], named_lambertian: [f64; 3]) -> FitFile {
+        let target = FitTarget {
+            material: "t".into(),
+            lambertian,
+            coefficients: [("lambertian".to_string(), named_lambertian)].into(),
+            mae: 0.0,
+            residual: [0.0; 3],
+            kkt: None,
+            iterations: None,
+            objective_residual: None,
+            appearance: None,
+        };
+        FitFile {
+            collection_fingerprint: None,
+            collection_size: None,
+            basis: vec!["lambertian".into()],
+            weighting: "uniform".into(),
+            mask: "evaluation".into(),
+            targets: vec![target],
+            samples: None,
+            fitted_from: None,
+            objective: Some("relative".into()),
+            eps: Some(0.01),
+        }
+    }
+
+    /// Audit 3, U7: a basis material named `lambertian` is named as a basis material,
+    /// not as the Lambertian term, when its coefficient is refused.
+    #[test]
+    fn a_refused_coefficient_names_its_field_even_for_a_basis_named_lambertian() {
+        assert_eq!(file([0.1; 3], [0.2; 3]).check_values(), Ok(()));
+        let e = file([0.1; 3], [0.2, -1.0, 0.2]).check_values().unwrap_err();
+        assert!(
+            e.contains("field `coefficients` of `lambertian` holds -1"),
+            "{e}"
+        );
+        let e = file([0.1, f64::INFINITY, 0.1], [0.2; 3])
+            .check_values()
+            .unwrap_err();
+        assert!(
+            e.contains("target `t`: field `lambertian` holds inf"),
+            "{e}"
+        );
+        let mut f = file([0.1; 3], [0.2; 3]);
+        f.eps = Some(f64::NAN);
+        let e = f.check_values().unwrap_err();
+        assert!(e.contains("field `eps` is NaN"), "{e}");
     }
 }

@@ -99,11 +99,13 @@ impl<'a> Shared<'a> {
                 expected: "sample counts of at least 1".into(),
             });
         }
-        if let Some(s) = p.noises.iter().find(|s| !s.is_finite() || **s < 0.0) {
+        // Audit 3, T3: a level of 1e300 overflowed the fits' sums; the facade's check says
+        // the same range in the flag's words.
+        if let Some(s) = p.noises.iter().find(|s| !(0.0..=1e3).contains(*s)) {
             return Err(AcquireError::InvalidParam {
                 name: "noise",
                 value: s.to_string(),
-                expected: "finite relative noise levels >= 0".into(),
+                expected: "relative noise levels from 0 to 1000".into(),
             });
         }
         let vp = CvParams {

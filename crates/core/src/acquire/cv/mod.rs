@@ -215,6 +215,11 @@ pub struct AcqCv {
     /// Renders of one held-out material (not written to the JSON).
     #[serde(skip)]
     pub showcase: Option<AcqShowcase>,
+    /// The size of the renders of `mean_image_error` (pixels), for the Markdown's headers
+    /// (audit 3, U5: the appearance table's image error is at 256 px); not in the JSON,
+    /// whose fields stay as they were (`None` when read back).
+    #[serde(skip)]
+    pub render_size: Option<u32>,
 }
 
 /// Renders of one showcase held-out material: the material, the dense fit of its fold's
@@ -375,6 +380,7 @@ pub fn acquisition_cv_with_progress(
     tick.step();
     Ok(AcqCv {
         showcase,
+        render_size: Some(p.render_size),
         folds: s
             .folds
             .iter()
@@ -474,8 +480,10 @@ impl AcqCv {
     /// median over the held-out materials), and per method the dense fit's row.
     pub fn markdown(&self) -> String {
         use crate::stats::num;
-        let mut s = String::from(
-            "| method | plan | n | noise | mean rho | median rho | dense rho | ratio | mean MAE | median MAE | mean image error | median image error |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        let mut s = format!(
+            "| method | plan | n | noise | mean rho | median rho | dense rho | ratio | mean MAE | median MAE | {} | {} |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+            crate::select::cv::report::image_error_header("mean", self.render_size),
+            crate::select::cv::report::image_error_header("median", self.render_size)
         );
         let mut methods: Vec<&str> = Vec::new();
         for r in &self.results {
@@ -536,7 +544,7 @@ impl AcqCv {
             return None;
         }
         let mut s = format!(
-            "Appearance (objective `{}`; SPEC 11: renders 256 px, four lights):\n\n| method | plan | n | noise | log-RMSE | image error (45, 45) | image error (4 lights) | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median FLIP |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+            "Appearance (objective `{}`; SPEC 11: renders 256 px, four lights):\n\n| method | plan | n | noise | log-RMSE | image error (45, 45; 256 px) | image error (4 lights; 256 px) | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median FLIP |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
             self.objective
         );
         let row = |s: &mut String,

@@ -157,6 +157,11 @@ pub struct CvResult {
     pub eps: Option<f64>,
     /// [`Collection::fingerprint`] of the collection cross-validated.
     pub collection_fingerprint: String,
+    /// The size of the renders of `mean_image_error` (pixels), for the Markdown's headers
+    /// (audit 3, U5: the appearance table's image error is at 256 px); not in the JSON,
+    /// whose fields stay as they were (`None` when read back).
+    #[serde(skip)]
+    pub render_size: Option<u32>,
 }
 
 /// Runs the cross-validation: builds the objective and (for clustering methods) the
@@ -253,6 +258,7 @@ pub(crate) fn cross_validate_on(
         objective: p.objective.objective.kind().name().into(),
         eps: p.objective.objective.eps(),
         collection_fingerprint: coll.fingerprint(),
+        render_size: Some(p.render_size),
     })
 }
 

@@ -4,6 +4,16 @@ use super::CvResult;
 use crate::stats::{num, p_value};
 use std::fmt::Write as _;
 
+/// The header of a column of image errors at `render_size` px (`what`: "mean" or
+/// "median"), which names the size where it is known: beside the appearance tables' image
+/// errors at 256 px, the two must not read as one (audit 3, U5).
+pub(crate) fn image_error_header(what: &str, render_size: Option<u32>) -> String {
+    match render_size {
+        Some(n) => format!("{what} image error ({n} px)"),
+        None => format!("{what} image error"),
+    }
+}
+
 impl CvResult {
     /// The summary as Markdown: per method and k, mean and median held-out rho, MAE and
     /// image error; then the paired Wilcoxon tests.
@@ -51,7 +61,7 @@ impl CvResult {
             return None;
         }
         let mut s = String::from(
-            "| method | k | log-RMSE | image error (45, 45) | image error (4 lights) | median | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median |\n|---|---|---|---|---|---|---|---|---|---|\n",
+            "| method | k | log-RMSE | image error (45, 45; 256 px) | image error (4 lights; 256 px) | median | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median |\n|---|---|---|---|---|---|---|---|---|---|\n",
         );
         for r in &self.results {
             let Some(a) = &r.appearance else { continue };
@@ -75,8 +85,10 @@ impl CvResult {
 
     /// Only the method x k table of [`CvResult::markdown`].
     pub fn table_markdown(&self) -> String {
-        let mut s = String::from(
-            "| method | k | mean rho | median rho | mean MAE | median MAE | mean image error | median image error |\n|---|---|---|---|---|---|---|---|\n",
+        let mut s = format!(
+            "| method | k | mean rho | median rho | mean MAE | median MAE | {} | {} |\n|---|---|---|---|---|---|---|---|\n",
+            image_error_header("mean", self.render_size),
+            image_error_header("median", self.render_size)
         );
         for r in &self.results {
             let _ = writeln!(
