@@ -372,7 +372,11 @@ fn empirical_under_l2_keeps_the_paper_basis_of_before() {
 
 /// `cv`'s empirical counts (the objective's cosine Gram matrices, `Objective::contributors`)
 /// and `select`'s (the leave-one-out solver on the raw Gram matrices) see the same fits
-/// under `relative`: every target's contributors agree on the default collection.
+/// under `relative`: on the default collection, for every target, each side's contributors
+/// alone fit the target as well as all the others do (the same optimum, to 1e-9 of `rho`),
+/// and most targets' contributors agree exactly. Where the problem is degenerate (polished
+/// metals under the relative weights are nearly collinear) two exact solvers may stop on
+/// different supports of the same optimum: that is the tolerance, not a different problem.
 #[test]
 fn select_and_cv_fit_the_same_leave_one_out_problems_under_relative() {
     let coll = Collection::embedded_default();
@@ -386,15 +390,32 @@ fn select_and_cv_fit_the_same_leave_one_out_problems_under_relative() {
         .unwrap();
     let obj = Objective::new(&cpu, &coll, &op, &|_, _| {}).unwrap();
     let names = coll.names();
+    let index = |name: &String| names.iter().position(|n| n == name).unwrap();
+    let mut same = 0;
     for t in 0..coll.len() {
         let others: Vec<usize> = (0..coll.len()).filter(|&j| j != t).collect();
         let used = obj.contributors(&others, t).unwrap();
-        let from_cv: Vec<String> = others
+        let from_cv: Vec<usize> = others
             .iter()
             .zip(used)
             .filter(|(_, u)| *u)
-            .map(|(&j, _)| names[j].clone())
+            .map(|(&j, _)| j)
             .collect();
-        assert_eq!(e.contributors[&names[t]], from_cv, "{}", names[t]);
+        let from_select: Vec<usize> = e.contributors[&names[t]].iter().map(index).collect();
+        same += usize::from(from_cv == from_select);
+        let best = obj.rho(&others, t).unwrap();
+        for (side, support) in [("cv", &from_cv), ("select", &from_select)] {
+            let rho = obj.rho(support, t).unwrap();
+            assert!(
+                rho - best <= 1e-9,
+                "{}: {side}'s contributors fit it to rho {rho:e}, all the others to {best:e}",
+                names[t]
+            );
+        }
     }
+    assert!(
+        same * 10 >= coll.len() * 9,
+        "only {same} of {} targets have the same contributors",
+        coll.len()
+    );
 }
