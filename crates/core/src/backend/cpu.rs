@@ -390,19 +390,22 @@ pub fn fill_rows(
     cells: &[u32],
     scale: Option<&[f64]>,
 ) -> Result<(), BackendError> {
-    fill_rows_each(rows.into_iter().map(|(l, r)| (l, scale, r)).collect(), cells)
+    fill_rows_each(
+        rows.into_iter().map(|(l, r)| (l, scale, r)).collect(),
+        cells,
+    )
 }
+
+/// A row of [`fill_rows_each`]: the lobe, the row scale (`None`: 1), the row.
+type ScaledRow<'l, 's, 'r> = (&'l Lobe, Option<&'s [f64]>, &'r mut [f32]);
 
 /// [`fill_rows`] with a scale per row (`None`: 1): the rows of one network share one
 /// evaluation whatever their scales.
-fn fill_rows_each(
-    rows: Vec<(&Lobe, Option<&[f64]>, &mut [f32])>,
-    cells: &[u32],
-) -> Result<(), BackendError> {
+fn fill_rows_each(rows: Vec<ScaledRow>, cells: &[u32]) -> Result<(), BackendError> {
     let tables = &GridTables::new();
     type NetRows<'a, 's, 'b> = (&'a Nbrdf, Vec<NeuralRow<'s, 'b>>);
     let mut nets: Vec<NetRows> = Vec::new();
-    let mut tables_rows: Vec<(&Lobe, Option<&[f64]>, &mut [f32])> = Vec::new();
+    let mut tables_rows: Vec<ScaledRow> = Vec::new();
     for (lobe, scale, row) in rows {
         if row.len() != cells.len() {
             return Err(BackendError::Invalid(format!(
