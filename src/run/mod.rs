@@ -40,7 +40,7 @@ mod select;
 pub use acquisition::AcquisitionRequest;
 pub use cv::CvRequest;
 pub use distance::{DistanceOutput, DistanceRequest};
-pub use fit::{FitOutput, FitRequest, FitSamplesOutput, FitSamplesRequest, FitTargets};
+pub use fit::{FitOutput, FitRequest, FitSamplesOutput, FitSamplesRequest, FitTargets, Samples};
 pub(crate) use plan::check_criterion;
 pub use plan::PlanRequest;
 pub use reproduce::{ReproduceRequest, Reproduction};

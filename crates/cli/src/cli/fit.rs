@@ -297,30 +297,7 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let req = a.samples_request(g)?;
     req.check()?;
-    // The fit from samples solves over the samples alone: flags of the grid fit would
-    // be ignored (and recorded in the JSON as if they had applied).
-    let (grid, d) = (&req.grid, FitParams::default());
-    let ignored: Vec<&str> = [
-        ("--stride", grid.stride != 1),
-        ("--mask", grid.mask != brdf_basis::merl::Mask::Evaluation),
-        (
-            "--weighting",
-            grid.weighting != brdf_basis::merl::Weighting::Uniform,
-        ),
-        ("--solver", req.solver != d.solver),
-        ("--gram", req.gram != d.gram),
-    ]
-    .into_iter()
-    .filter_map(|(flag, given)| given.then_some(flag))
-    .collect();
-    if !ignored.is_empty() {
-        anyhow::bail!(
-            "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS); leave {} out",
-            ignored.join(", "),
-            if ignored.len() == 1 { "does" } else { "do" },
-            if ignored.len() == 1 { "it" } else { "them" },
-        );
-    }
+    // The grid fit's flags (--stride, --mask, ...) are refused by the request's check.
     let mut out_plan = OutputPlan::new(&a.collection);
     for (path, noun) in req.input_files() {
         out_plan.input_named(&path, noun);
