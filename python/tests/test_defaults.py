@@ -107,3 +107,20 @@ def test_fit_samples_refuses_as_the_cli_refuses(cli_error, tmp_path):  # noqa: F
     with pytest.raises(ValueError) as e:
         bb.fit_samples(bb.Collection.default(), BASIS, angles, rgb, objective="l2", eps=0.5)
     assert str(e.value) == msg
+
+
+@pytest.mark.parametrize("stride", [0, 91])
+def test_every_command_refuses_a_bad_stride_in_one_wording(stride):
+    # The rule is the library's Grid::check, in the command line's words, before any work.
+    c = bb.Collection.default()
+    calls = {
+        "distance_matrix": lambda: bb.distance_matrix(c, stride=stride, backend="cpu"),
+        "select": lambda: bb.select(c, "greedy", k=2, stride=stride, backend="cpu"),
+        "fit": lambda: bb.fit(c, BASIS, ["polished-copper"], stride=stride, backend="cpu"),
+        "cross_validate": lambda: bb.cross_validate(c, stride=stride, backend="cpu"),
+        "acquisition_cv": lambda: bb.acquisition_cv(c, stride=stride, backend="cpu"),
+    }
+    for name, call in calls.items():
+        with pytest.raises(ValueError) as e:
+            call()
+        assert str(e.value) == f"--stride {stride}: expected a whole number from 1 (the full grid) to 90", name

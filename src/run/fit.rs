@@ -84,6 +84,7 @@ impl FitRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
+        self.grid.check()?;
         let w = self.objective.weight()?;
         let d = FitParams::default();
         let given: Vec<String> = [
