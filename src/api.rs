@@ -20,8 +20,8 @@
 //!   material from samples given as arrays) and [`acquisition_cv`].
 
 pub use crate::acquire::{
-    acquisition_cv, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion,
-    Plan, PlanParams, Sample, SampleFit,
+    acquisition_cv, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion, Plan, PlanParams,
+    Sample, SampleFit,
 };
 pub use crate::backend::cpu::CpuBackend;
 #[cfg(feature = "gpu")]
@@ -399,34 +399,7 @@ pub fn fit_from_arrays(
         .iter()
         .map(|n| coll.index_of(n))
         .collect::<std::result::Result<_, _>>()?;
-    if angles.len() != rgb.len() || sigma.is_some_and(|s| s.len() != rgb.len()) {
-        return Err(crate::acquire::AcquireError::InvalidParam {
-            name: "sample arrays",
-            value: format!("{} angles, {} values", angles.len(), rgb.len()),
-            expected: "one row of angles, values (and sigmas) per sample".into(),
-        }
-        .into());
-    }
-    let samples: Vec<Sample> = angles
-        .iter()
-        .zip(rgb)
-        .enumerate()
-        .map(|(i, (a, v))| {
-            crate::acquire::sample_from_degrees(
-                std::path::Path::new("<arrays>"),
-                i + 1,
-                *a,
-                *v,
-                sigma.map(|s| s[i]),
-                ["theta_i", "phi_i", "theta_o", "phi_o"],
-            )
-        })
-        .collect::<std::result::Result<_, _>>()?;
-    crate::acquire::check_sigma_range(
-        std::path::Path::new("<arrays>"),
-        &samples,
-        ["sigma_r", "sigma_g", "sigma_b"],
-    )?;
+    let samples = crate::acquire::samples_from_arrays(angles, rgb, sigma)?;
     Ok(crate::acquire::fit_samples(coll, &b, &samples, objective)?)
 }
 

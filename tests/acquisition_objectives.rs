@@ -254,3 +254,48 @@ fn plan_samples_refuses_nielsen_as_the_plan_request_does() {
     let want = r.check().expect_err("nielsen accepted").to_string();
     assert_eq!(e.to_string(), want);
 }
+
+/// `fit --samples` has one door (issue 47): samples given as arrays (Python's
+/// `fit_samples`) go through the same request as a samples file, with the same fit and
+/// the same refusal of the grid fit's settings.
+#[test]
+fn fit_samples_from_arrays_is_the_request_of_a_samples_file() {
+    use brdf_basis::run::{FitSamplesRequest, Samples};
+    let coll = Collection::embedded_default();
+    let basis = vec!["polished-gold".to_string(), "matte-white-paint".to_string()];
+    let angles = vec![
+        [10.0, 0.0, 20.0, 180.0],
+        [30.0, 0.0, 40.0, 90.0],
+        [50.0, 0.0, 10.0, 0.0],
+    ];
+    let rgb = vec![[0.2, 0.3, 0.4], [0.1, 0.2, 0.25], [0.15, 0.1, 0.3]];
+    let dir = std::env::temp_dir().join(format!("bb-arrays-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("s.csv");
+    let mut text = String::from("theta_i,phi_i,theta_o,phi_o,r,g,b\n");
+    for (a, y) in angles.iter().zip(&rgb) {
+        let row: Vec<String> = a.iter().chain(y).map(|v| format!("{v:?}")).collect();
+        text += &(row.join(",") + "\n");
+    }
+    std::fs::write(&csv, text).unwrap();
+    let from_file = FitSamplesRequest::new(basis.clone(), csv)
+        .run(&coll)
+        .unwrap();
+    let samples = Samples::Arrays {
+        angles,
+        rgb,
+        sigma: None,
+    };
+    let mut req = FitSamplesRequest::of(basis, samples);
+    let from_arrays = req.run(&coll).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(from_arrays.fit.coefficients, from_file.fit.coefficients);
+    assert_eq!(from_arrays.warnings, from_file.warnings);
+    assert!(req.input_files().is_empty());
+    req.grid.stride = 4;
+    let e = req.check().unwrap_err().to_string();
+    assert!(
+        e.starts_with("--stride does not apply with --samples"),
+        "{e}"
+    );
+}

@@ -125,3 +125,52 @@ fn factored_tables_equal_the_model_from_directions() {
         );
     }
 }
+
+/// The stride rule has one home (issue 47): every request with a grid refuses a stride
+/// outside 1..=90 in its `check`, before any work, in the command line's words and
+/// naming `--stride` (a door without the command line's parser, Python or the library,
+/// got three different refusals, or none above 90).
+#[test]
+fn every_request_with_a_grid_refuses_a_bad_stride_in_one_wording() {
+    use brdf_basis::run::{
+        AcquisitionRequest, CvRequest, DistanceRequest, FitRequest, Grid, SelectMethod,
+        SelectRequest, STRIDE_RULE,
+    };
+    for stride in [0, 91] {
+        let grid = Grid {
+            stride,
+            ..Grid::default()
+        };
+        let want = format!("--stride {stride}: {STRIDE_RULE}");
+        let mut distance = DistanceRequest::default();
+        distance.grid = grid;
+        let mut select = SelectRequest::new(SelectMethod::Greedy);
+        select.k = Some(2);
+        select.grid = grid;
+        let mut fit = FitRequest::new(vec!["polished-gold".into()]);
+        fit.grid = grid;
+        let mut cv = CvRequest::default();
+        cv.grid = grid;
+        let mut acquisition = AcquisitionRequest::default();
+        acquisition.grid = grid;
+        let checks = [
+            ("distance", distance.check()),
+            ("select", select.check()),
+            ("fit", fit.check()),
+            ("cv", cv.check()),
+            ("cv --acquisition", acquisition.check()),
+        ];
+        for (command, r) in checks {
+            let e = r.expect_err(command).to_string();
+            assert_eq!(e, want, "{command}");
+        }
+        assert!(grid.check().is_err());
+    }
+    for stride in [1, 8, 90] {
+        let grid = Grid {
+            stride,
+            ..Grid::default()
+        };
+        assert!(grid.check().is_ok(), "{stride}");
+    }
+}

@@ -72,6 +72,7 @@ __all__ = [
     "WilcoxonResult",
     "backend_name",
     "cross_validate",
+    "defaults",
     "distance_matrix",
     "fit",
     "friedman",
@@ -418,7 +419,9 @@ class SampleFit:
     """A material fitted from samples: ``coefficients`` (1 + k, 3) (Lambertian first),
     residual per channel, MAE and relative residual on the samples, and the rank and
     condition number of the sampled design (a rank below its columns or a large condition
-    means the samples do not determine the fit)."""
+    means the samples do not determine the fit), and the warnings ``brdf-basis fit
+    --samples`` prints (samples too few or a design ill-conditioned, with where to
+    measure next)."""
 
     coefficients: _np.ndarray
     residual: tuple
@@ -426,17 +429,20 @@ class SampleFit:
     relative_residual: float
     rank: int
     condition: float
+    warnings: tuple = ()
 
 
 def fit_samples(
-    collection: Collection, basis: Sequence[str], angles, rgb, sigma=None, *, objective=None, eps=None
+    collection: Collection, basis: Sequence[str], angles, rgb, sigma=None, *, objective=None, eps=None, seed=None
 ) -> SampleFit:
     """Fits a new material from its samples (SPEC 10): ``angles`` (n, 4) in degrees
     ``theta_i, phi_i, theta_o, phi_o``, ``rgb`` (n, 3) reflectance in MERL units,
     optional ``sigma`` (n, 3) standard deviations. Non-negative per channel, with the
     Lambertian term, as ``brdf-basis fit --samples``. ``objective`` (``"l2"``,
     ``"relative"`` with ``eps``, ``"log"``; ``None``: the default, relative) weights each
-    sample by the objective's weight at its measured value (SPEC 11).
+    sample by the objective's weight at its measured value (SPEC 11). ``seed``: of the
+    directions the warnings suggest. The library's ``run::FitSamplesRequest`` makes the
+    rules, with the command line's messages.
 
     >>> c = Collection.default(); b = ["polished-gold", "matte-white-paint"]
     >>> f = Brdf.material(c, "matte-white-paint")
@@ -449,10 +455,24 @@ def fit_samples(
     a = _rows(angles, 4, "angles", "theta_i, phi_i, theta_o, phi_o")
     y = _rows(rgb, 3, "rgb", "r, g, b")
     s = None if sigma is None else [tuple(r) for r in _rows(sigma, 3, "sigma", "sigma_r, sigma_g, sigma_b")]
-    coef, res, mae, rel, rank, cond = _native.fit_samples(
-        collection, _names(basis, "basis"), [tuple(r) for r in a], [tuple(r) for r in y], s, objective, eps
+    coef, res, mae, rel, rank, cond, warn = _native.fit_samples(
+        collection, _names(basis, "basis"), [tuple(r) for r in a], [tuple(r) for r in y], s, objective, eps, seed
     )
-    return SampleFit(_np.asarray(coef), tuple(res), mae, rel, rank, cond)
+    return SampleFit(_np.asarray(coef), tuple(res), mae, rel, rank, cond, tuple(warn))
+
+
+def defaults() -> dict:
+    """The settings each command function takes when a keyword argument is left out
+    (``None``), by function name (``distance_matrix``, ``select``, ``fit``, ``plan``,
+    ``fit_samples``, ``cross_validate``, ``acquisition_cv``): read from the library's
+    requests, the one home of the defaults (the command line's ``--help`` shows the same).
+    Settings whose default depends on others (a method's ``k``, ``runs``, ...) are left
+    to the request.
+
+    >>> defaults()["fit"]["objective"]
+    'relative'
+    """
+    return _json.loads(_native.defaults_json())
 
 
 def _rows(x, cols: int, what: str, columns: str) -> _np.ndarray:

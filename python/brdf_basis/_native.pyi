@@ -43,7 +43,7 @@ class Collection:
         """Index of ``name`` (``ValueError`` with close names when unknown)."""
     def analytic(self, name: str) -> Optional[dict]:
         """``{"d": [r, g, b], "s": [r, g, b], "F0": f, "n": n}``, or ``None`` if measured."""
-    def tabulate(self, name: str, *, backend: _Backend = "auto", progress: _Progress = None) -> npt.NDArray[np.float32]:
+    def tabulate(self, name: str, *, backend: Optional[_Backend] = None, progress: _Progress = None) -> npt.NDArray[np.float32]:
         """The material on the full MERL grid: (3, 90, 90, 180) float32 indexed
         ``[channel, theta_h, theta_d, phi_d]``, invalid cells -1 (``brdf-basis
         tabulate``'s table)."""
@@ -74,11 +74,11 @@ def mask(name: str = "evaluation") -> npt.NDArray[np.bool_]:
 def distance_matrix(
     collection: Collection,
     *,
-    metric: str = "brdf-it",
-    mask: str = "evaluation",
-    weighting: str = "uniform",
-    stride: int = 1,
-    backend: _Backend = "auto",
+    metric: Optional[str] = None,
+    mask: Optional[str] = None,
+    weighting: Optional[str] = None,
+    stride: Optional[int] = None,
+    backend: Optional[_Backend] = None,
     progress: _Progress = None,
 ) -> npt.NDArray[np.float64]:
     """The (N, N) distance matrix, the values ``brdf-basis distance`` writes to its .npy.
@@ -99,7 +99,12 @@ def fit_samples(
     angles: list[Tuple[float, float, float, float]],
     rgb: list[Tuple[float, float, float]],
     sigma: Optional[list[Tuple[float, float, float]]] = None,
-) -> Tuple[npt.NDArray[np.float64], Tuple[float, float, float], float, float, int, float]: ...
+    objective: Optional[str] = None,
+    eps: Optional[float] = None,
+    seed: Optional[int] = None,
+) -> Tuple[npt.NDArray[np.float64], Tuple[float, float, float], float, float, int, float, list[str]]: ...
+def defaults_json() -> str:
+    """The defaults of every command's keyword arguments (``brdf_basis.defaults()``)."""
 def nnls(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """``argmin |A x - b|`` subject to ``x >= 0`` (Lawson-Hanson).
 
@@ -120,4 +125,4 @@ def ciede2000(lab1: Sequence[float], lab2: Sequence[float]) -> float: ...
 def srgb_to_lab(rgb: Sequence[float]) -> list[float]: ...
 def image_error(a: npt.NDArray[np.float32], b: npt.NDArray[np.float32], *, exposure: float = 0.0, gamma: float = 2.2) -> float:
     """Normalised image error of SPEC 7 between two sphere renders."""
-def backend_name(backend: _Backend = "auto") -> str: ...
+def backend_name(backend: Optional[_Backend] = None) -> str: ...

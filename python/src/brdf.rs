@@ -222,7 +222,7 @@ pub(crate) fn image_metrics(
 
 /// The name of the back-end `backend` opens (`cpu (2 threads, avx2)`, `gpu: ...`).
 #[pyfunction]
-#[pyo3(signature = (backend = "auto"))]
-pub(crate) fn backend_name(backend: &str) -> PyResult<String> {
+#[pyo3(signature = (backend = None))]
+pub(crate) fn backend_name(backend: Option<&str>) -> PyResult<String> {
     Ok(open_backend(backend)?.name())
 }

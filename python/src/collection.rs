@@ -94,12 +94,12 @@ impl Collection {
 
     /// The material on the full MERL grid, shape (3, 90, 90, 180), float32, invalid
     /// cells -1 (what `brdf-basis tabulate` writes).
-    #[pyo3(signature = (name, *, backend = "auto", progress = None))]
+    #[pyo3(signature = (name, *, backend = None, progress = None))]
     fn tabulate<'py>(
         &self,
         py: Python<'py>,
         name: &str,
-        backend: &str,
+        backend: Option<&str>,
         progress: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let backend = open_backend(backend)?;

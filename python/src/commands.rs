@@ -9,21 +9,21 @@ use crate::*;
 /// The distance matrix (N, N), float64, as `brdf-basis distance` writes it (the library's
 /// `run::DistanceRequest`).
 #[pyfunction]
-#[pyo3(signature = (collection, *, metric = "brdf-it", mask = "evaluation", weighting = "uniform", stride = 1, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, metric = None, mask = None, weighting = None, stride = None, backend = None, progress = None))]
 pub(crate) fn distance_matrix<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
-    metric: &str,
-    mask: &str,
-    weighting: &str,
-    stride: usize,
-    backend: &str,
+    metric: Option<&str>,
+    mask: Option<&str>,
+    weighting: Option<&str>,
+    stride: Option<usize>,
+    backend: Option<&str>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let coll = coll_of(collection);
     let mut req = bb::run::DistanceRequest::default();
-    req.metric = parse(metric)?;
-    req.grid = grid(mask, weighting, stride)?;
+    set(&mut req.metric, metric.map(parse).transpose()?);
+    req.grid = grid(req.grid, mask, weighting, stride)?;
     let valid = req.params(&coll).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let d = run_long(py, progress, "distances", |pr| {
@@ -38,20 +38,32 @@ pub(crate) fn distance_matrix<'py>(
         .into_any())
 }
 
-/// The grid settings of a request (`mask`, `weighting`, `stride`).
-pub(crate) fn grid(mask: &str, weighting: &str, stride: usize) -> PyResult<bb::run::Grid> {
-    Ok(bb::run::Grid {
-        mask: parse(mask)?,
-        weighting: parse(weighting)?,
-        stride,
-    })
+/// The grid settings of a request (`mask`, `weighting`, `stride`): those given replace
+/// the request's defaults `g`.
+pub(crate) fn grid(
+    mut g: bb::run::Grid,
+    mask: Option<&str>,
+    weighting: Option<&str>,
+    stride: Option<usize>,
+) -> PyResult<bb::run::Grid> {
+    set(&mut g.mask, mask.map(parse).transpose()?);
+    set(&mut g.weighting, weighting.map(parse).transpose()?);
+    set(&mut g.stride, stride);
+    Ok(g)
+}
+
+/// A setting given (`Some`) replaces the request's default; `None` keeps it.
+pub(crate) fn set<T>(field: &mut T, given: Option<T>) {
+    if let Some(v) = given {
+        *field = v;
+    }
 }
 
 /// A basis selection as `brdf-basis select`: returns the `--json` text. The keyword
 /// arguments are the fields of the library's `run::SelectRequest`, which makes every
 /// rule (one wording for the command line, Python and the library).
 #[pyfunction]
-#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = None, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, method, *, k = None, k_min = None, k_max = None, runs = None, algorithm = None, population = None, generations = None, more_than = None, candidates = None, targets = None, init = None, ga_population = None, ga_generations = None, ga_crossover = None, ga_mutation = None, metric = None, mask = None, weighting = None, stride = None, seed = None, objective = None, eps = None, backend = None, progress = None))]
 pub(crate) fn select_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -72,13 +84,13 @@ pub(crate) fn select_json<'py>(
     ga_crossover: Option<f64>,
     ga_mutation: Option<f64>,
     metric: Option<&str>,
-    mask: &str,
-    weighting: &str,
-    stride: usize,
-    seed: u64,
+    mask: Option<&str>,
+    weighting: Option<&str>,
+    stride: Option<usize>,
+    seed: Option<u64>,
     objective: Option<&str>,
     eps: Option<Bound<'py, PyAny>>,
-    backend: &str,
+    backend: Option<&str>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
@@ -99,8 +111,8 @@ pub(crate) fn select_json<'py>(
     req.ga_crossover = ga_crossover;
     req.ga_mutation = ga_mutation;
     req.metric = metric.map(parse).transpose()?;
-    req.grid = grid(mask, weighting, stride)?;
-    req.seed = seed;
+    req.grid = grid(req.grid, mask, weighting, stride)?;
+    set(&mut req.seed, seed);
     req.objective = objective_of(objective, eps)?;
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
@@ -161,21 +173,21 @@ pub(crate) fn gram_mode(s: &str) -> PyResult<bb::GramMode> {
 /// Fits `targets` (default: every material outside the basis) by `basis`: returns the
 /// JSON `brdf-basis fit --json` writes (the library's `run::FitRequest`).
 #[pyfunction]
-#[pyo3(signature = (collection, basis, targets = None, *, mask = "evaluation", weighting = "uniform", stride = 1, solver = "exact", gram = "auto", objective = None, eps = None, appearance = true, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, basis, targets = None, *, mask = None, weighting = None, stride = None, solver = None, gram = None, objective = None, eps = None, appearance = None, backend = None, progress = None))]
 pub(crate) fn fit_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
     basis: Vec<String>,
     targets: Option<Vec<String>>,
-    mask: &str,
-    weighting: &str,
-    stride: usize,
-    solver: &str,
-    gram: &str,
+    mask: Option<&str>,
+    weighting: Option<&str>,
+    stride: Option<usize>,
+    solver: Option<&str>,
+    gram: Option<&str>,
     objective: Option<&str>,
     eps: Option<Bound<'py, PyAny>>,
-    appearance: bool,
-    backend: &str,
+    appearance: Option<bool>,
+    backend: Option<&str>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
@@ -184,11 +196,11 @@ pub(crate) fn fit_json<'py>(
         Some(t) => bb::run::FitTargets::Named(t),
         None => bb::run::FitTargets::AllOthers,
     };
-    req.grid = grid(mask, weighting, stride)?;
-    req.solver = self::solver(solver)?;
-    req.gram = gram_mode(gram)?;
+    req.grid = grid(req.grid, mask, weighting, stride)?;
+    set(&mut req.solver, solver.map(self::solver).transpose()?);
+    set(&mut req.gram, gram.map(gram_mode).transpose()?);
     req.objective = objective_of(objective, eps)?;
-    req.appearance = appearance;
+    set(&mut req.appearance, appearance);
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
     let fitted = run_long(py, progress, "fit", |pr| {
@@ -201,7 +213,7 @@ pub(crate) fn fit_json<'py>(
 /// Plans where to measure a new material (SPEC 10), as `brdf-basis plan --json` on the
 /// evaluation-mask cell centres (the library's `run::PlanRequest`): returns the JSON text.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = 1, restarts = None, objective = None, eps = None, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, basis, n, *, criterion = None, targets = None, candidates_per_step = None, shortlist = None, seed = None, restarts = None, objective = None, eps = None, backend = None, progress = None))]
 pub(crate) fn plan_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -211,11 +223,11 @@ pub(crate) fn plan_json<'py>(
     targets: Option<Vec<String>>,
     candidates_per_step: Option<usize>,
     shortlist: Option<usize>,
-    seed: u64,
+    seed: Option<u64>,
     restarts: Option<usize>,
     objective: Option<&str>,
     eps: Option<Bound<'py, PyAny>>,
-    backend: &str,
+    backend: Option<&str>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
@@ -229,7 +241,7 @@ pub(crate) fn plan_json<'py>(
     req.candidates_per_step = candidates_per_step;
     req.shortlist = shortlist;
     req.restarts = restarts;
-    req.seed = seed;
+    set(&mut req.seed, seed);
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
     let plan = run_long(py, progress, "plan", |pr| {
@@ -239,11 +251,13 @@ pub(crate) fn plan_json<'py>(
     Ok(text + "\n")
 }
 
-/// Fits a new material from samples (SPEC 10): `angles` (n, 4) in degrees
-/// `theta_i, phi_i, theta_o, phi_o`, `rgb` (n, 3), optional `sigma` (n, 3). Returns
-/// `(coefficients (1 + k, 3), residual (3), mae, relative_residual, rank, condition)`.
+/// Fits a new material from samples (SPEC 10) as `brdf-basis fit --samples` (the
+/// library's `run::FitSamplesRequest`, its rules and warnings): `angles` (n, 4) in
+/// degrees `theta_i, phi_i, theta_o, phi_o`, `rgb` (n, 3), optional `sigma` (n, 3).
+/// Returns `(coefficients (1 + k, 3), residual (3), mae, relative_residual, rank,
+/// condition, warnings)`.
 #[pyfunction]
-#[pyo3(signature = (collection, basis, angles, rgb, sigma = None, objective = None, eps = None))]
+#[pyo3(signature = (collection, basis, angles, rgb, sigma = None, objective = None, eps = None, seed = None))]
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub(crate) fn fit_samples<'py>(
     py: Python<'py>,
@@ -254,12 +268,24 @@ pub(crate) fn fit_samples<'py>(
     sigma: Option<Vec<[f64; 3]>>,
     objective: Option<&str>,
     eps: Option<Bound<'py, PyAny>>,
-) -> PyResult<(Bound<'py, PyAny>, [f64; 3], f64, f64, usize, f64)> {
+    seed: Option<u64>,
+) -> PyResult<(
+    Bound<'py, PyAny>,
+    [f64; 3],
+    f64,
+    f64,
+    usize,
+    f64,
+    Vec<String>,
+)> {
     let coll = coll_of(collection);
-    let names: Vec<&str> = basis.iter().map(|b| b.trim()).collect();
-    let w = objective_of(objective, eps)?.weight().map_err(py_err)?;
-    let f =
-        bb::fit_from_arrays(&coll, &names, &angles, &rgb, sigma.as_deref(), w).map_err(lib_err)?;
+    let samples = bb::run::Samples::Arrays { angles, rgb, sigma };
+    let mut req = bb::run::FitSamplesRequest::of(basis, samples);
+    req.objective = objective_of(objective, eps)?;
+    set(&mut req.seed, seed);
+    req.check().map_err(py_err)?;
+    let out = req.run(&coll).map_err(py_err)?;
+    let f = &out.fit;
     let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
     let coefficients = numpy::PyArray1::from_vec(py, flat)
         .reshape([f.coefficients.len(), 3])?
@@ -271,13 +297,14 @@ pub(crate) fn fit_samples<'py>(
         f.relative_residual,
         f.determination.rank,
         f.determination.condition,
+        out.warnings,
     ))
 }
 
 /// K-fold cross-validation as `brdf-basis cv` (the library's `run::CvRequest`): returns
 /// the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = "evaluation", weighting = "uniform", stride = 1, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = 1, objective = None, eps = None, appearance = true, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, ks = None, folds = None, metric = None, mask = None, weighting = None, stride = None, runs = None, ga_population = None, ga_generations = None, render_size = None, seed = None, objective = None, eps = None, appearance = None, backend = None, progress = None))]
 pub(crate) fn cross_validate_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -285,18 +312,18 @@ pub(crate) fn cross_validate_json<'py>(
     ks: Option<Vec<usize>>,
     folds: Option<usize>,
     metric: Option<&str>,
-    mask: &str,
-    weighting: &str,
-    stride: usize,
+    mask: Option<&str>,
+    weighting: Option<&str>,
+    stride: Option<usize>,
     runs: Option<usize>,
     ga_population: Option<usize>,
     ga_generations: Option<usize>,
     render_size: Option<u32>,
-    seed: u64,
+    seed: Option<u64>,
     objective: Option<&str>,
     eps: Option<Bound<'py, PyAny>>,
-    appearance: bool,
-    backend: &str,
+    appearance: Option<bool>,
+    backend: Option<&str>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
@@ -305,14 +332,14 @@ pub(crate) fn cross_validate_json<'py>(
     req.ks = ks.unwrap_or(req.ks);
     req.folds = folds.unwrap_or(req.folds);
     req.metric = metric.map(parse).transpose()?;
-    req.grid = grid(mask, weighting, stride)?;
+    req.grid = grid(req.grid, mask, weighting, stride)?;
     req.runs = runs;
     req.ga_population = ga_population;
     req.ga_generations = ga_generations;
     req.render_size = render_size.unwrap_or(req.render_size);
-    req.seed = seed;
+    set(&mut req.seed, seed);
     req.objective = objective_of(objective, eps)?;
-    req.appearance = appearance;
+    set(&mut req.appearance, appearance);
     req.check_count(coll.len()).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv", |pr| {
@@ -325,7 +352,7 @@ pub(crate) fn cross_validate_json<'py>(
 /// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition` (the library's
 /// `run::AcquisitionRequest`): returns the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = "evaluation", weighting = "uniform", stride = 1, seed = 1, objective = None, eps = None, appearance = true, backend = "auto", progress = None))]
+#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = None, weighting = None, stride = None, seed = None, objective = None, eps = None, appearance = None, backend = None, progress = None))]
 pub(crate) fn acquisition_cv_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -339,20 +366,20 @@ pub(crate) fn acquisition_cv_json<'py>(
     shortlist: Option<usize>,
     restarts: Option<usize>,
     render_size: Option<u32>,
-    mask: &str,
-    weighting: &str,
-    stride: usize,
-    seed: u64,
+    mask: Option<&str>,
+    weighting: Option<&str>,
+    stride: Option<usize>,
+    seed: Option<u64>,
     objective: Option<&str>,
     eps: Option<Bound<'py, PyAny>>,
-    appearance: bool,
-    backend: &str,
+    appearance: Option<bool>,
+    backend: Option<&str>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
     let coll = coll_of(collection);
     let mut req = bb::run::AcquisitionRequest::default();
     req.objective = objective_of(objective, eps)?;
-    req.appearance = appearance;
+    set(&mut req.appearance, appearance);
     req.methods = parse_list(methods, &req.methods)?;
     req.k = k.unwrap_or(req.k);
     req.plans = parse_list(plans, &req.plans)?;
@@ -363,8 +390,8 @@ pub(crate) fn acquisition_cv_json<'py>(
     req.shortlist = shortlist;
     req.restarts = restarts;
     req.render_size = render_size.unwrap_or(req.render_size);
-    req.grid = grid(mask, weighting, stride)?;
-    req.seed = seed;
+    req.grid = grid(req.grid, mask, weighting, stride)?;
+    set(&mut req.seed, seed);
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv --acquisition", |pr| {

@@ -83,7 +83,10 @@ where
     }
 }
 
-pub(crate) fn backend_choice(s: &str) -> PyResult<bb::BackendChoice> {
+pub(crate) fn backend_choice(s: Option<&str>) -> PyResult<bb::BackendChoice> {
+    let Some(s) = s else {
+        return Ok(bb::BackendChoice::default());
+    };
     [
         bb::BackendChoice::Auto,
         bb::BackendChoice::Cpu,
@@ -94,8 +97,9 @@ pub(crate) fn backend_choice(s: &str) -> PyResult<bb::BackendChoice> {
     .ok_or_else(|| value_err(format!("invalid backend `{s}` (expected auto, cpu, gpu)")))
 }
 
-/// The back-end of `s`, opened once per process (opening probes the Vulkan adapters).
-pub(crate) fn open_backend(s: &str) -> PyResult<Arc<dyn bb::Backend>> {
+/// The back-end of `s` (`None`: the library's default), opened once per process (opening
+/// probes the Vulkan adapters).
+pub(crate) fn open_backend(s: Option<&str>) -> PyResult<Arc<dyn bb::Backend>> {
     static OPEN: std::sync::Mutex<Vec<(&'static str, Arc<dyn bb::Backend>)>> =
         std::sync::Mutex::new(Vec::new());
     let choice = backend_choice(s)?;
@@ -112,12 +116,14 @@ mod arrays;
 mod brdf;
 mod collection;
 mod commands;
+mod defaults;
 mod long;
 
 use arrays::*;
 use brdf::*;
 use collection::*;
 use commands::*;
+use defaults::*;
 use long::*;
 
 #[pymodule]
@@ -144,5 +150,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ciede2000, m)?)?;
     m.add_function(wrap_pyfunction!(srgb_to_lab, m)?)?;
     m.add_function(wrap_pyfunction!(backend_name, m)?)?;
+    m.add_function(wrap_pyfunction!(defaults_json, m)?)?;
     Ok(())
 }

@@ -109,6 +109,7 @@ impl AcquisitionRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
+        self.grid.check()?;
         self.objective.weight()?;
         let given = [
             self.candidates_per_step.is_some(),

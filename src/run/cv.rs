@@ -113,6 +113,7 @@ impl CvRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
+        self.grid.check()?;
         for (given, flag, users) in self.method_settings() {
             if given && !self.methods.iter().any(|m| users.contains(m)) {
                 let users: Vec<&str> = users.iter().map(|m| m.name()).collect();

@@ -56,6 +56,7 @@ impl DistanceRequest {
     /// [`crate::error::DistanceError`] or [`crate::error::RequestError`] naming the
     /// setting.
     pub fn check(&self) -> Result<()> {
+        self.grid.check()?;
         check_band_rows(self.band_rows)?;
         if let Some((i, n)) = self.tile {
             if i == 0 || i > n {

@@ -84,6 +84,7 @@ impl FitRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
+        self.grid.check()?;
         let w = self.objective.weight()?;
         let d = FitParams::default();
         let given: Vec<String> = [
@@ -192,20 +193,39 @@ impl FitRequest {
 pub struct FitSamplesRequest {
     /// `--basis` (no default).
     pub basis: Vec<String>,
-    /// `--samples`: a samples CSV or an ASTM E1392 `.astm` file; the target is named after
-    /// its stem.
-    pub samples: PathBuf,
-    /// `--mask`, `--weighting`, `--stride` (recorded in the JSON).
+    /// `--samples`: a samples file, or the arrays of Python's `fit_samples`.
+    pub samples: Samples,
+    /// `--mask`, `--weighting`, `--stride`: do not apply (the defaults only, recorded in
+    /// the JSON; [`Self::check`] refuses others).
     pub grid: Grid,
-    /// `--solver` (recorded in the JSON).
+    /// `--solver`: does not apply (the default only, recorded in the JSON).
     pub solver: Solver,
-    /// `--gram` (recorded in the JSON).
+    /// `--gram`: does not apply (the default only, recorded in the JSON).
     pub gram: GramMode,
     /// `--seed`: of the directions suggested when the samples do not determine the fit.
     pub seed: u64,
     /// `--objective` and `--eps` (SPEC 11: each sample weighted by the objective's weight
     /// at its measured value), as given.
     pub objective: ObjectiveSetting,
+}
+
+/// The samples of [`FitSamplesRequest`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum Samples {
+    /// A samples CSV or an ASTM E1392 `.astm` file; the target is named after its stem.
+    File(PathBuf),
+    /// Per sample the angles `[theta_i, phi_i, theta_o, phi_o]` in degrees, the RGB
+    /// reflectance and optional per-channel standard deviations (Python's `fit_samples`),
+    /// validated as a samples file's rows (row `i` is reported as line `i + 1` of
+    /// `<arrays>`); the target is named `samples`.
+    Arrays {
+        /// The angles of each sample, in degrees.
+        angles: Vec<[f64; 4]>,
+        /// The RGB reflectance of each sample.
+        rgb: Vec<[f64; 3]>,
+        /// The standard deviations of each sample's channels.
+        sigma: Option<Vec<[f64; 3]>>,
+    },
 }
 
 /// What `fit --samples` computes.
@@ -232,11 +252,19 @@ impl FitSamplesRequest {
     /// The files this request reads besides the collection, with what they are called in
     /// messages: the output layer refuses any output that names one of them.
     pub fn input_files(&self) -> Vec<(PathBuf, &'static str)> {
-        vec![(self.samples.clone(), "samples file")]
+        match &self.samples {
+            Samples::File(path) => vec![(path.clone(), "samples file")],
+            Samples::Arrays { .. } => Vec::new(),
+        }
     }
 
     /// The defaults with `basis` and the samples file.
     pub fn new(basis: Vec<String>, samples: PathBuf) -> Self {
+        Self::of(basis, Samples::File(samples))
+    }
+
+    /// The defaults with `basis` and `samples`.
+    pub fn of(basis: Vec<String>, samples: Samples) -> Self {
         let d = FitParams::default();
         Self {
             basis,
@@ -249,21 +277,44 @@ impl FitSamplesRequest {
         }
     }
 
-    /// The target's name: the samples file's stem (`samples` when it has none).
+    /// The target's name: the samples file's stem (`samples` when it has none, and for
+    /// arrays).
     pub fn target_name(&self) -> String {
-        self.samples
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "samples".into())
+        match &self.samples {
+            Samples::File(path) => path.file_stem().map(|s| s.to_string_lossy().into_owned()),
+            Samples::Arrays { .. } => None,
+        }
+        .unwrap_or_else(|| "samples".into())
     }
 
-    /// The rules of the settings that need no collection (the objective's:
-    /// [`ObjectiveSetting::weight`]).
+    /// The rules of the settings that need no collection: the objective's
+    /// ([`ObjectiveSetting::weight`]), then the grid fit's settings, which do not apply to
+    /// a fit from samples (given, they would be ignored and recorded in the JSON as if
+    /// they had applied).
     ///
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
         self.objective.weight()?;
+        let (grid, g, d) = (&self.grid, Grid::default(), FitParams::default());
+        let ignored: Vec<&str> = [
+            ("--stride", grid.stride != g.stride),
+            ("--mask", grid.mask != g.mask),
+            ("--weighting", grid.weighting != g.weighting),
+            ("--solver", self.solver != d.solver),
+            ("--gram", self.gram != d.gram),
+        ]
+        .into_iter()
+        .filter_map(|(flag, given)| given.then_some(flag))
+        .collect();
+        if !ignored.is_empty() {
+            refuse!(
+                "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS); leave {} out",
+                ignored.join(", "),
+                if ignored.len() == 1 { "does" } else { "do" },
+                if ignored.len() == 1 { "it" } else { "them" },
+            );
+        }
         Ok(())
     }
 
@@ -274,9 +325,15 @@ impl FitSamplesRequest {
     /// file, a failed fit.
     pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
         use crate::acquire::{self as afit, read_samples};
+        self.check()?;
         let objective = self.objective.weight()?;
         let basis = indices_of(coll, &self.basis)?;
-        let samples = read_samples(&self.samples)?;
+        let samples = match &self.samples {
+            Samples::File(path) => read_samples(path)?,
+            Samples::Arrays { angles, rgb, sigma } => {
+                crate::acquire::samples_from_arrays(angles, rgb, sigma.as_deref())?
+            }
+        };
         let sf = afit::fit_samples(coll, &basis, &samples, objective)?;
         let d = &sf.determination;
         // As many directions as the warning says more samples would help: the missing
@@ -295,12 +352,21 @@ impl FitSamplesRequest {
         };
         let mut warnings = afit::determination_warnings(d, afit::WARN_CONDITION, &hint);
         let name = self.target_name();
-        if let Some(b) = coll.materials().iter().position(|m| m.name == name) {
+        let samples_file = match &self.samples {
+            Samples::File(path) => Some(path),
+            Samples::Arrays { .. } => None,
+        };
+        if let Some((b, path)) = coll
+            .materials()
+            .iter()
+            .position(|m| m.name == name)
+            .zip(samples_file)
+        {
             // Kept a warning (docs/hardening.md, T7): fitting a measured sample of a
             // material the collection holds is a legitimate check of the basis.
             warnings.push(format!(
                 "the fitted material is named `{name}` after the samples file {}, as is {} material of the collection: the fit is of the samples, not of the collection's `{name}` (`render --fit` and `plot --fit` refuse a fit from samples); rename the samples file to tell them apart",
-                self.samples.display(),
+                path.display(),
                 if basis.contains(&b) { "a basis" } else { "a" },
             ));
         }
@@ -332,7 +398,10 @@ impl FitSamplesRequest {
         }
         let mut file = FitFile::new(coll, &basis, std::slice::from_ref(&target), &p);
         file.samples = Some(samples.len());
-        file.fitted_from = Some(self.samples.display().to_string());
+        file.fitted_from = Some(match &self.samples {
+            Samples::File(path) => path.display().to_string(),
+            Samples::Arrays { .. } => "<arrays>".to_string(),
+        });
         Ok(FitSamplesOutput {
             basis,
             name,

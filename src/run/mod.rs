@@ -40,7 +40,7 @@ mod select;
 pub use acquisition::AcquisitionRequest;
 pub use cv::CvRequest;
 pub use distance::{DistanceOutput, DistanceRequest};
-pub use fit::{FitOutput, FitRequest, FitSamplesOutput, FitSamplesRequest, FitTargets};
+pub use fit::{FitOutput, FitRequest, FitSamplesOutput, FitSamplesRequest, FitTargets, Samples};
 pub(crate) use plan::check_criterion;
 pub use plan::PlanRequest;
 pub use reproduce::{ReproduceRequest, Reproduction};
@@ -152,6 +152,26 @@ macro_rules! refuse {
     };
 }
 pub(crate) use refuse;
+
+/// The rule of `--stride`, its one wording (the command line's parser and
+/// [`Grid::check`]).
+pub const STRIDE_RULE: &str = "expected a whole number from 1 (the full grid) to 90";
+
+impl Grid {
+    /// The grid's rule, its one home: a stride from 1 (the full grid) to 90 (the mask and
+    /// the weighting are valid by their type). Every request with a grid checks it in its
+    /// `check`, so that a door without the command line's parser (Python, the library)
+    /// gets the same refusal before any work.
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError`] naming `--stride`.
+    pub fn check(&self) -> crate::Result<()> {
+        if !(1..=90).contains(&self.stride) {
+            refuse!("--stride {}: {STRIDE_RULE}", self.stride);
+        }
+        Ok(())
+    }
+}
 
 /// Collection indices of `names` (surrounding spaces ignored), in order.
 ///

@@ -245,6 +245,7 @@ impl SelectRequest {
     /// # Errors
     /// [`RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
+        self.grid.check()?;
         let m = self.method;
         let range = self.k_min.is_some() || self.k_max.is_some();
         if self.k.is_some() && m == SelectMethod::Gcuk {

@@ -297,30 +297,12 @@ fn read_export_index(path: &Path) -> Option<Vec<String>> {
 fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let req = a.samples_request(g)?;
     req.check()?;
-    // The fit from samples solves over the samples alone: flags of the grid fit would
-    // be ignored (and recorded in the JSON as if they had applied).
-    let (grid, d) = (&req.grid, FitParams::default());
-    let ignored: Vec<&str> = [
-        ("--stride", grid.stride != 1),
-        ("--mask", grid.mask != brdf_basis::merl::Mask::Evaluation),
-        (
-            "--weighting",
-            grid.weighting != brdf_basis::merl::Weighting::Uniform,
-        ),
-        ("--solver", req.solver != d.solver),
-        ("--gram", req.gram != d.gram),
-        // Audit 3, U6: accepted silently before; the fit from samples scores no render.
-        ("--no-appearance", a.no_appearance),
-    ]
-    .into_iter()
-    .filter_map(|(flag, given)| given.then_some(flag))
-    .collect();
-    if !ignored.is_empty() {
+    // The grid fit's flags (--stride, --mask, ...) are refused by the request's check;
+    // --no-appearance is the command line's own (audit 3, U6: accepted silently before;
+    // the fit from samples scores no render).
+    if a.no_appearance {
         anyhow::bail!(
-            "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS, no appearance metrics); leave {} out",
-            ignored.join(", "),
-            if ignored.len() == 1 { "does" } else { "do" },
-            if ignored.len() == 1 { "it" } else { "them" },
+            "--no-appearance does not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS, no appearance metrics); leave it out"
         );
     }
     let mut out_plan = OutputPlan::new(&a.collection);

@@ -108,11 +108,15 @@ fn with_default(text: &str, value: impl std::fmt::Display) -> String {
 
 /// `--stride`: 1 (the full grid) to 90 (one cell per axis).
 fn parse_stride(s: &str) -> Result<usize, String> {
+    // The rule and its wording are the library's (`Grid::check`), checked here too so
+    // that clap names the flag and its value.
+    let grid = |stride| brdf_basis::run::Grid {
+        stride,
+        ..Default::default()
+    };
     match s.parse::<usize>() {
-        Ok(v) if (1..=90).contains(&v) => Ok(v),
-        _ => Err(format!(
-            "expected a whole number from 1 (the full grid) to 90, got `{s}`"
-        )),
+        Ok(v) if grid(v).check().is_ok() => Ok(v),
+        _ => Err(format!("{}, got `{s}`", brdf_basis::run::STRIDE_RULE)),
     }
 }
 

@@ -80,7 +80,7 @@ pub(crate) fn sigma_floor(samples: &[Sample]) -> f64 {
 /// Samples from angles in degrees and values, validated like a file (`line` names the row
 /// in errors; `what` the source).
 #[allow(clippy::too_many_arguments)]
-pub fn sample_from_degrees(
+pub(crate) fn sample_from_degrees(
     what: &Path,
     line: usize,
     angles: [f64; 4],
@@ -162,7 +162,7 @@ fn directions_from_degrees(
 /// Refuses standard deviations more than [`MAX_SIGMA_RATIO`] apart in `samples` read from
 /// `what`, naming the line and column of the largest (`columns`: the sigma columns, per
 /// channel, as the source names them).
-pub fn check_sigma_range(
+pub(crate) fn check_sigma_range(
     what: &Path,
     samples: &[Sample],
     columns: [&str; 3],
@@ -234,6 +234,39 @@ enum Purpose {
 /// At least one sample is required, and sigmas at most [`MAX_SIGMA_RATIO`] apart.
 pub fn read_samples(path: &Path) -> Result<Vec<Sample>, AcquireError> {
     read(path, Purpose::Samples)
+}
+
+/// Samples given as arrays (Python's `fit_samples`): per sample the angles
+/// `[theta_i, phi_i, theta_o, phi_o]` in degrees, the RGB values and optional per-channel
+/// standard deviations, validated as a samples file's rows (row `i` is reported as line
+/// `i + 1` of `<arrays>`, sigmas at most [`MAX_SIGMA_RATIO`] apart).
+///
+/// # Errors
+/// [`AcquireError`]: arrays of different lengths, an invalid row.
+pub fn samples_from_arrays(
+    angles: &[[f64; 4]],
+    rgb: &[[f64; 3]],
+    sigma: Option<&[[f64; 3]]>,
+) -> Result<Vec<Sample>, AcquireError> {
+    let what = Path::new("<arrays>");
+    if angles.len() != rgb.len() || sigma.is_some_and(|s| s.len() != rgb.len()) {
+        return Err(AcquireError::InvalidParam {
+            name: "sample arrays",
+            value: format!("{} angles, {} values", angles.len(), rgb.len()),
+            expected: "one row of angles, values (and sigmas) per sample".into(),
+        });
+    }
+    let samples: Vec<Sample> = angles
+        .iter()
+        .zip(rgb)
+        .enumerate()
+        .map(|(i, (a, v))| {
+            let names = ["theta_i", "phi_i", "theta_o", "phi_o"];
+            sample_from_degrees(what, i + 1, *a, *v, sigma.map(|s| s[i]), names)
+        })
+        .collect::<Result<_, _>>()?;
+    check_sigma_range(what, &samples, ["sigma_r", "sigma_g", "sigma_b"])?;
+    Ok(samples)
 }
 
 /// Reads the candidate directions of `plan --candidates`: a samples file
