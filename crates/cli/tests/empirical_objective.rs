@@ -392,7 +392,7 @@ fn select_and_cv_fit_the_same_leave_one_out_problems_under_relative() {
     let names = coll.names();
     let index = |name: &String| names.iter().position(|n| n == name).unwrap();
     let mut same = 0;
-    for t in 0..coll.len() {
+    for (t, name) in names.iter().enumerate() {
         let others: Vec<usize> = (0..coll.len()).filter(|&j| j != t).collect();
         let used = obj.contributors(&others, t).unwrap();
         let from_cv: Vec<usize> = others
@@ -401,15 +401,14 @@ fn select_and_cv_fit_the_same_leave_one_out_problems_under_relative() {
             .filter(|(_, u)| *u)
             .map(|(&j, _)| j)
             .collect();
-        let from_select: Vec<usize> = e.contributors[&names[t]].iter().map(index).collect();
+        let from_select: Vec<usize> = e.contributors[name].iter().map(index).collect();
         same += usize::from(from_cv == from_select);
         let best = obj.rho(&others, t).unwrap();
         for (side, support) in [("cv", &from_cv), ("select", &from_select)] {
             let rho = obj.rho(support, t).unwrap();
             assert!(
                 rho - best <= 1e-9,
-                "{}: {side}'s contributors fit it to rho {rho:e}, all the others to {best:e}",
-                names[t]
+                "{name}: {side}'s contributors fit it to rho {rho:e}, all the others to {best:e}"
             );
         }
     }
