@@ -67,6 +67,42 @@ struct Scored {
     dense_rho: Vec<f64>,
 }
 
+/// The settings' lists and counts, before any work: plans, methods and sample counts
+/// given, every count at least 1, and noise levels from 0 to 1000.
+fn check_counts(p: &AcqCvParams) -> Result<(), AcquireError> {
+    let empty = |name: &'static str, expected: &str| AcquireError::InvalidParam {
+        name,
+        value: "none".into(),
+        expected: expected.into(),
+    };
+    if p.plans.is_empty() {
+        return Err(empty("plans", "at least one plan criterion"));
+    }
+    if p.methods.is_empty() {
+        return Err(empty("methods", "at least one selection method"));
+    }
+    if p.ns.is_empty() {
+        return Err(empty("n", "at least one sample count"));
+    }
+    if p.ns.contains(&0) {
+        return Err(AcquireError::InvalidParam {
+            name: "n",
+            value: format!("{:?}", p.ns),
+            expected: "sample counts of at least 1".into(),
+        });
+    }
+    // Audit 3, T3: a level of 1e300 overflowed the fits' sums; the facade's check says
+    // the same range in the flag's words.
+    if let Some(s) = p.noises.iter().find(|s| !(0.0..=1e3).contains(*s)) {
+        return Err(AcquireError::InvalidParam {
+            name: "noise",
+            value: s.to_string(),
+            expected: "relative noise levels from 0 to 1000".into(),
+        });
+    }
+    Ok(())
+}
+
 impl<'a> Shared<'a> {
     /// Checks the settings, then chooses every fold's basis and renders, tabulates and
     /// lists what the folds share.
@@ -78,36 +114,7 @@ impl<'a> Shared<'a> {
     ) -> Result<Self, AcquireError> {
         let n = coll.len();
         let nmax = p.ns.iter().copied().max().unwrap_or(0);
-        let empty = |name: &'static str, expected: &str| AcquireError::InvalidParam {
-            name,
-            value: "none".into(),
-            expected: expected.into(),
-        };
-        if p.plans.is_empty() {
-            return Err(empty("plans", "at least one plan criterion"));
-        }
-        if p.methods.is_empty() {
-            return Err(empty("methods", "at least one selection method"));
-        }
-        if p.ns.is_empty() {
-            return Err(empty("n", "at least one sample count"));
-        }
-        if p.ns.contains(&0) {
-            return Err(AcquireError::InvalidParam {
-                name: "n",
-                value: format!("{:?}", p.ns),
-                expected: "sample counts of at least 1".into(),
-            });
-        }
-        // Audit 3, T3: a level of 1e300 overflowed the fits' sums; the facade's check says
-        // the same range in the flag's words.
-        if let Some(s) = p.noises.iter().find(|s| !(0.0..=1e3).contains(*s)) {
-            return Err(AcquireError::InvalidParam {
-                name: "noise",
-                value: s.to_string(),
-                expected: "relative noise levels from 0 to 1000".into(),
-            });
-        }
+        check_counts(p)?;
         let vp = CvParams {
             methods: p.methods.clone(),
             ks: vec![p.k],
