@@ -148,26 +148,14 @@ pub(crate) fn objective_of(
     })
 }
 
-/// `solver`: `exact` or `pgd`.
+/// `solver`: `exact` or `pgd` (the library's names and refusal).
 pub(crate) fn solver(s: &str) -> PyResult<bb::Solver> {
-    match s {
-        "exact" => Ok(bb::Solver::Exact),
-        "pgd" => Ok(bb::Solver::Pgd),
-        s => Err(value_err(format!(
-            "invalid solver `{s}` (expected exact, pgd)"
-        ))),
-    }
+    s.parse().map_err(value_err)
 }
 
-/// `gram`: `auto` or `grid`.
+/// `gram`: `auto` or `grid` (the library's names and refusal).
 pub(crate) fn gram_mode(s: &str) -> PyResult<bb::GramMode> {
-    match s {
-        "auto" => Ok(bb::GramMode::Auto),
-        "grid" => Ok(bb::GramMode::Grid),
-        s => Err(value_err(format!(
-            "invalid gram `{s}` (expected auto, grid)"
-        ))),
-    }
+    s.parse().map_err(value_err)
 }
 
 /// Fits `targets` (default: every material outside the basis) by `basis`: returns the

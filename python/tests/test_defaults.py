@@ -124,3 +124,11 @@ def test_every_command_refuses_a_bad_stride_in_one_wording(stride):
         with pytest.raises(ValueError) as e:
             call()
         assert str(e.value) == f"--stride {stride}: expected a whole number from 1 (the full grid) to 90", name
+
+
+def test_solver_and_gram_are_read_by_the_librarys_own_names():
+    # One text form: the library's FromStr, with its refusal (no hand-written parser here).
+    c = bb.Collection.default()
+    for bad, words in (({"solver": "bogus"}, "give exact or pgd"), ({"gram": "bogus"}, "give auto or grid")):
+        with pytest.raises(ValueError, match=words):
+            bb.fit(c, BASIS, ["gloss-red-enamel"], objective="l2", stride=9, appearance=False, **bad)

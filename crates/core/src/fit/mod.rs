@@ -124,6 +124,52 @@ pub enum GramMode {
     Grid,
 }
 
+impl Solver {
+    /// Every solver.
+    pub const ALL: [Solver; 2] = [Solver::Exact, Solver::Pgd];
+
+    /// The name on the command line, in Python and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Solver::Exact => "exact",
+            Solver::Pgd => "pgd",
+        }
+    }
+}
+
+impl std::str::FromStr for Solver {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Solver::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| format!("solver `{s}`: give exact or pgd"))
+    }
+}
+
+impl GramMode {
+    /// Every mode.
+    pub const ALL: [GramMode; 2] = [GramMode::Auto, GramMode::Grid];
+
+    /// The name on the command line, in Python and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            GramMode::Auto => "auto",
+            GramMode::Grid => "grid",
+        }
+    }
+}
+
+impl std::str::FromStr for GramMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        GramMode::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| format!("gram `{s}`: give auto or grid"))
+    }
+}
+
 /// Fit parameters. Defaults: evaluation mask, uniform weights, full grid, exact solver,
 /// automatic Gram mode.
 #[derive(Clone, Debug)]
