@@ -90,5 +90,7 @@ pub fn plan_samples(
     p: &acquire::PlanParams,
 ) -> Result<acquire::Plan> {
     run::check_criterion(p.criterion)?;
-    Ok(crate::acquire::plan(backend, coll, basis, targets, cands, p)?)
+    Ok(crate::acquire::plan(
+        backend, coll, basis, targets, cands, p,
+    )?)
 }

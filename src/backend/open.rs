@@ -131,7 +131,11 @@ impl Backend for AutoBackend {
         basis: usize,
         progress: Progress<'_>,
     ) -> Result<[Vec<f64>; 3], BackendError> {
-        match lobes.iter().flatten().any(|l| matches!(l, Lobe::Neural { .. })) {
+        match lobes
+            .iter()
+            .flatten()
+            .any(|l| matches!(l, Lobe::Neural { .. }))
+        {
             true => self.cpu.grams_per_channel(lobes, cells, basis, progress),
             false => self.gpu.grams_per_channel(lobes, cells, basis, progress),
         }

@@ -22,18 +22,18 @@
 //! of its output tree ([`brdf_basis::atomic::OutputPlan::tree`]), so the tree appears whole
 //! or not at all.
 
-use brdf_basis::experiment::report::{markdown, ReportContext};
-use brdf_basis::experiment::{claims, evaluation, Experiment, StageTiming};
+use crate::plot::colour_bar::{font_registered, with_colour_bar};
 use brdf_basis::distance::{DistanceParams, Metric, DEFAULT_BAND_ROWS};
 use brdf_basis::error::{DistanceError, OutputError};
 use brdf_basis::eval::image_error::{heatmap, DisplayParams, HeatmapScale};
 use brdf_basis::eval::render::RenderError;
+use brdf_basis::experiment::report::{markdown, ReportContext};
+use brdf_basis::experiment::{claims, evaluation, Experiment, StageTiming};
 use brdf_basis::io::image::{write_exr, write_png, write_rgb8_image, HEATMAP_QUANTITY};
 use brdf_basis::io::json::write_json;
 use brdf_basis::io::saved::{write_csv, write_npy_with_sidecar};
 use brdf_basis::io::sidecar::{sidecar_path, MatrixSettings};
 use brdf_basis::merl::Weighting;
-use crate::plot::colour_bar::{font_registered, with_colour_bar};
 use brdf_basis::select as clustering;
 use brdf_basis::select::EmpiricalOutput;
 use std::path::{Path, PathBuf};

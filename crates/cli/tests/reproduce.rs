@@ -137,11 +137,7 @@ fn reproduce_report_matches_its_files_and_figures() {
         let ink = img.pixels().filter(|p| p.0 != [255, 255, 255]).count() as f64
             / (img.width() * img.height()) as f64;
         // Without a font a line plot keeps only its axes and lines (db-vs-k: 0.5% ink).
-        let ink_least = if with_text() {
-            0.02
-        } else {
-            0.002
-        };
+        let ink_least = if with_text() { 0.02 } else { 0.002 };
         assert!(
             ink > ink_least,
             "{stem}: only {ink} of the pixels are not white"
@@ -150,11 +146,7 @@ fn reproduce_report_matches_its_files_and_figures() {
             std::fs::read_to_string(out.join("figures").join(format!("{stem}.svg"))).expect(stem);
         // Without a font (none installed, or BRDF_BASIS_FONT=none) the figures carry no
         // text, so an SVG is shorter; it still draws.
-        let least = if with_text() {
-            2000
-        } else {
-            500
-        };
+        let least = if with_text() { 2000 } else { 500 };
         assert!(
             svg.contains("<svg") && svg.len() > least,
             "{stem}.svg: {} bytes",

@@ -2,14 +2,14 @@
 //! writing of `reproduce`'s figures.
 
 use super::Global;
+use crate::plot::report::report_figures;
+use crate::plot::{font, lobes, no_font_message, Figure};
 use brdf_basis::atomic::{write_atomic, OutputPlan};
 use brdf_basis::eval::shade::material_brdf;
 use brdf_basis::experiment::report::ReportContext;
 use brdf_basis::experiment::Experiment;
 use brdf_basis::fit::file::FitFile;
 use brdf_basis::io::image::{rgb8_png_bytes, write_rgb8_image};
-use crate::plot::report::report_figures;
-use crate::plot::{font, lobes, no_font_message, Figure};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `plot`.

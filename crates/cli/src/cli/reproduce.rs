@@ -4,10 +4,10 @@
 //! ([`brdf_basis::experiment::layout`]).
 
 use super::Global;
+use crate::layout;
 use anyhow::Context;
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::eval::image_error::DisplayParams;
-use crate::layout;
 use brdf_basis::experiment::report::ReportContext;
 use brdf_basis::experiment::{Stage, StageTiming};
 use brdf_basis::run::ReproduceRequest;
@@ -158,10 +158,8 @@ fn run_into(
     let e = r.experiment;
 
     let t_files = Instant::now();
-    let scale = crate::plot::showcase::common_scale(
-        &e.evaluation.showcase,
-        &DisplayParams::default(),
-    )?;
+    let scale =
+        crate::plot::showcase::common_scale(&e.evaluation.showcase, &DisplayParams::default())?;
     let mut written = layout::write_files(&e, root, scale)?;
     let mut ctx = ReportContext::default();
     // Audit 3, U9: a section left out by a flag is named, not silently missing.

@@ -181,13 +181,25 @@ mod tests {
         same_names::<GramArg, _>(&GramMode::ALL, |g| g.name().to_string());
         // One text form in the library (Python parses with it): names, JSON and parse agree.
         for s in Solver::ALL {
-            assert_eq!((serde_name(s), s.name().parse()), (s.name().to_string(), Ok(s)));
+            assert_eq!(
+                (serde_name(s), s.name().parse()),
+                (s.name().to_string(), Ok(s))
+            );
         }
         for g in GramMode::ALL {
-            assert_eq!((serde_name(g), g.name().parse()), (g.name().to_string(), Ok(g)));
+            assert_eq!(
+                (serde_name(g), g.name().parse()),
+                (g.name().to_string(), Ok(g))
+            );
         }
-        assert!("bogus".parse::<Solver>().unwrap_err().contains("give exact or pgd"));
-        assert!("bogus".parse::<GramMode>().unwrap_err().contains("give auto or grid"));
+        assert!("bogus"
+            .parse::<Solver>()
+            .unwrap_err()
+            .contains("give exact or pgd"));
+        assert!("bogus"
+            .parse::<GramMode>()
+            .unwrap_err()
+            .contains("give auto or grid"));
         use Criterion as C;
         let criteria = [C::Error, C::Condition, C::Random, C::Nielsen];
         same_names::<CriterionArg, _>(&criteria, |c| c.as_str().to_string());

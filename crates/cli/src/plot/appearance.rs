@@ -67,9 +67,9 @@ impl Renders {
                 let Some(img) = &t.image else { continue };
                 let tile = shrink(&display_image(img, &d).map_err(|e| e.to_string())?);
                 let label = t.objective.clone().unwrap_or_else(|| "target".into());
-                let caption = t
-                    .flip
-                    .map_or(String::new(), |f| format!("FLIP {}", brdf_basis::stats::num(f)));
+                let caption = t.flip.map_or(String::new(), |f| {
+                    format!("FLIP {}", brdf_basis::stats::num(f))
+                });
                 tiles.push((label, caption, tile));
             }
             columns = columns.max(tiles.len());

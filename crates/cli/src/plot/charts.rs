@@ -332,7 +332,12 @@ impl Draw for DbVsK<'_> {
             let med: Vec<(f64, f64)> = sets
                 .iter()
                 .filter(|s| s.method != "gcuk")
-                .map(|s| (s.best.k as f64 - 0.15, brdf_basis::stats::median(&s.db_values())))
+                .map(|s| {
+                    (
+                        s.best.k as f64 - 0.15,
+                        brdf_basis::stats::median(&s.db_values()),
+                    )
+                })
                 .filter(|p| p.1.is_finite())
                 .collect();
             chart

@@ -4,7 +4,9 @@
 
 pub(crate) use super::colour_bar::with_colour_bar;
 use super::{with_text, PlotError};
-use brdf_basis::eval::image_error::{heatmap, pixel_errors, DisplayParams, HeatmapScale, Rgb8Image};
+use brdf_basis::eval::image_error::{
+    heatmap, pixel_errors, DisplayParams, HeatmapScale, Rgb8Image,
+};
 use brdf_basis::eval::render::Image;
 
 /// What the colour bar measures.

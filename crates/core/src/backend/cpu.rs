@@ -393,15 +393,15 @@ pub fn fill_rows(
     cells: &[u32],
     scale: Option<&[f64]>,
 ) -> Result<(), BackendError> {
-    fill_rows_each(rows.into_iter().map(|(l, r)| (l, scale, r)).collect(), cells)
+    fill_rows_each(
+        rows.into_iter().map(|(l, r)| (l, scale, r)).collect(),
+        cells,
+    )
 }
 
 /// [`fill_rows`] with a scale per row (`None`: 1): the rows of one network share one
 /// evaluation whatever their scales.
-fn fill_rows_each(
-    rows: Vec<ScaledRow<'_, '_, '_>>,
-    cells: &[u32],
-) -> Result<(), BackendError> {
+fn fill_rows_each(rows: Vec<ScaledRow<'_, '_, '_>>, cells: &[u32]) -> Result<(), BackendError> {
     let tables = &GridTables::new();
     type NetRows<'a, 's, 'b> = (&'a Nbrdf, Vec<NeuralRow<'s, 'b>>);
     let mut nets: Vec<NetRows> = Vec::new();

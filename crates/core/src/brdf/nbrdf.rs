@@ -252,7 +252,11 @@ impl Nbrdf {
     /// lane doing its input's products and sums in the scalar order: no fusing), AVX2 where
     /// the processor has it.
     pub fn eval_inputs_f64_batch(&self, xs: &[[f64; 6]], out: &mut [[f64; 3]]) {
-        assert_eq!(xs.len(), out.len(), "eval_inputs_f64_batch: one output per input");
+        assert_eq!(
+            xs.len(),
+            out.len(),
+            "eval_inputs_f64_batch: one output per input"
+        );
         let w: Vec<f64> = self.w.iter().map(|&v| v as f64).collect();
         #[cfg(target_arch = "x86_64")]
         {
@@ -581,7 +585,8 @@ fn eval_f64_lanes(w: &[f64], xs: &[[f64; 6]], out: &mut [[f64; 3]]) {
     const L: usize = F64_LANES;
     for (xg, og) in xs.chunks(L).zip(out.chunks_mut(L)) {
         let n = xg.len();
-        let x: [[f64; L]; 6] = std::array::from_fn(|i| std::array::from_fn(|l| xg[l.min(n - 1)][i]));
+        let x: [[f64; L]; 6] =
+            std::array::from_fn(|i| std::array::from_fn(|l| xg[l.min(n - 1)][i]));
         let mut a1 = [[0f64; L]; HIDDEN];
         for (j, a) in a1.iter_mut().enumerate() {
             let mut s = [-0.0f64; L];

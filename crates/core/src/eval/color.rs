@@ -144,71 +144,71 @@ mod tests {
     /// The textbook form (`hypot`, four cosines), as first written: the oracle of the
     /// rewritten [`ciede2000`].
     fn ciede2000_textbook(x: Lab, y: Lab) -> f64 {
-    use std::f64::consts::PI;
-    let deg = PI / 180.0;
-    let [l1, a1, b1] = x;
-    let [l2, a2, b2] = y;
-    let c1 = a1.hypot(b1);
-    let c2 = a2.hypot(b2);
-    let c_mean = 0.5 * (c1 + c2);
-    let c7 = c_mean.powi(7);
-    let g = 0.5 * (1.0 - (c7 / (c7 + 25f64.powi(7))).sqrt());
-    let (a1p, a2p) = ((1.0 + g) * a1, (1.0 + g) * a2);
-    let (c1p, c2p) = (a1p.hypot(b1), a2p.hypot(b2));
-    let hue = |b: f64, a: f64| {
-        if a == 0.0 && b == 0.0 {
+        use std::f64::consts::PI;
+        let deg = PI / 180.0;
+        let [l1, a1, b1] = x;
+        let [l2, a2, b2] = y;
+        let c1 = a1.hypot(b1);
+        let c2 = a2.hypot(b2);
+        let c_mean = 0.5 * (c1 + c2);
+        let c7 = c_mean.powi(7);
+        let g = 0.5 * (1.0 - (c7 / (c7 + 25f64.powi(7))).sqrt());
+        let (a1p, a2p) = ((1.0 + g) * a1, (1.0 + g) * a2);
+        let (c1p, c2p) = (a1p.hypot(b1), a2p.hypot(b2));
+        let hue = |b: f64, a: f64| {
+            if a == 0.0 && b == 0.0 {
+                0.0
+            } else {
+                let h = b.atan2(a) / deg;
+                if h < 0.0 {
+                    h + 360.0
+                } else {
+                    h
+                }
+            }
+        };
+        let (h1p, h2p) = (hue(b1, a1p), hue(b2, a2p));
+        let dl = l2 - l1;
+        let dc = c2p - c1p;
+        let dh = if c1p * c2p == 0.0 {
             0.0
         } else {
-            let h = b.atan2(a) / deg;
-            if h < 0.0 {
-                h + 360.0
+            let d = h2p - h1p;
+            if d > 180.0 {
+                d - 360.0
+            } else if d < -180.0 {
+                d + 360.0
             } else {
-                h
+                d
             }
-        }
-    };
-    let (h1p, h2p) = (hue(b1, a1p), hue(b2, a2p));
-    let dl = l2 - l1;
-    let dc = c2p - c1p;
-    let dh = if c1p * c2p == 0.0 {
-        0.0
-    } else {
-        let d = h2p - h1p;
-        if d > 180.0 {
-            d - 360.0
-        } else if d < -180.0 {
-            d + 360.0
+        };
+        let dh_big = 2.0 * (c1p * c2p).sqrt() * (0.5 * dh * deg).sin();
+        let l_mean = 0.5 * (l1 + l2);
+        let cp_mean = 0.5 * (c1p + c2p);
+        let hp_mean = if c1p * c2p == 0.0 {
+            h1p + h2p
+        } else if (h1p - h2p).abs() <= 180.0 {
+            0.5 * (h1p + h2p)
+        } else if h1p + h2p < 360.0 {
+            0.5 * (h1p + h2p + 360.0)
         } else {
-            d
-        }
-    };
-    let dh_big = 2.0 * (c1p * c2p).sqrt() * (0.5 * dh * deg).sin();
-    let l_mean = 0.5 * (l1 + l2);
-    let cp_mean = 0.5 * (c1p + c2p);
-    let hp_mean = if c1p * c2p == 0.0 {
-        h1p + h2p
-    } else if (h1p - h2p).abs() <= 180.0 {
-        0.5 * (h1p + h2p)
-    } else if h1p + h2p < 360.0 {
-        0.5 * (h1p + h2p + 360.0)
-    } else {
-        0.5 * (h1p + h2p - 360.0)
-    };
-    let t = 1.0 - 0.17 * ((hp_mean - 30.0) * deg).cos()
-        + 0.24 * (2.0 * hp_mean * deg).cos()
-        + 0.32 * ((3.0 * hp_mean + 6.0) * deg).cos()
-        - 0.20 * ((4.0 * hp_mean - 63.0) * deg).cos();
-    let d_theta = 30.0 * (-((hp_mean - 275.0) / 25.0).powi(2)).exp();
-    let cp7 = cp_mean.powi(7);
-    let rc = 2.0 * (cp7 / (cp7 + 25f64.powi(7))).sqrt();
-    let l50 = (l_mean - 50.0) * (l_mean - 50.0);
-    let sl = 1.0 + 0.015 * l50 / (20.0 + l50).sqrt();
-    let sc = 1.0 + 0.045 * cp_mean;
-    let sh = 1.0 + 0.015 * cp_mean * t;
-    let rt = -(2.0 * d_theta * deg).sin() * rc;
-    let (tl, tc, th) = (dl / sl, dc / sc, dh_big / sh);
-    (tl * tl + tc * tc + th * th + rt * tc * th).sqrt()
-}
+            0.5 * (h1p + h2p - 360.0)
+        };
+        let t = 1.0 - 0.17 * ((hp_mean - 30.0) * deg).cos()
+            + 0.24 * (2.0 * hp_mean * deg).cos()
+            + 0.32 * ((3.0 * hp_mean + 6.0) * deg).cos()
+            - 0.20 * ((4.0 * hp_mean - 63.0) * deg).cos();
+        let d_theta = 30.0 * (-((hp_mean - 275.0) / 25.0).powi(2)).exp();
+        let cp7 = cp_mean.powi(7);
+        let rc = 2.0 * (cp7 / (cp7 + 25f64.powi(7))).sqrt();
+        let l50 = (l_mean - 50.0) * (l_mean - 50.0);
+        let sl = 1.0 + 0.015 * l50 / (20.0 + l50).sqrt();
+        let sc = 1.0 + 0.045 * cp_mean;
+        let sh = 1.0 + 0.015 * cp_mean * t;
+        let rt = -(2.0 * d_theta * deg).sin() * rc;
+        let (tl, tc, th) = (dl / sl, dc / sc, dh_big / sh);
+        (tl * tl + tc * tc + th * th + rt * tc * th).sqrt()
+    }
 
     #[test]
     fn ciede2000_is_the_textbook_form_within_rounding() {
@@ -224,7 +224,11 @@ mod tests {
             let x = [next(0.0, 100.0), next(-128.0, 128.0), next(-128.0, 128.0)];
             // Near pairs (the renders' case), far pairs, and neutral ones.
             let y = match i % 3 {
-                0 => [x[0] + next(-2.0, 2.0), x[1] + next(-2.0, 2.0), x[2] + next(-2.0, 2.0)],
+                0 => [
+                    x[0] + next(-2.0, 2.0),
+                    x[1] + next(-2.0, 2.0),
+                    x[2] + next(-2.0, 2.0),
+                ],
                 1 => [next(0.0, 100.0), next(-128.0, 128.0), next(-128.0, 128.0)],
                 _ => [next(0.0, 100.0), next(-1e-3, 1e-3), 0.0],
             };

@@ -62,7 +62,11 @@ pub(super) fn accumulate_chunk(
     // Cell-major columns F (the Lambertian column first) and their products P, zero-padded.
     let mut f = vec![0f64; n * fpad];
     let mut p = vec![0f64; n * qpad];
-    for (c, (fr, pr)) in f.chunks_exact_mut(fpad).zip(p.chunks_exact_mut(qpad)).enumerate() {
+    for (c, (fr, pr)) in f
+        .chunks_exact_mut(fpad)
+        .zip(p.chunks_exact_mut(qpad))
+        .enumerate()
+    {
         fr[0] = lambert;
         for j in 1..m {
             fr[j] = b[(j - 1) * n + c] as f64;

@@ -383,7 +383,8 @@ fn f64_lanes_are_the_scalar_f64_network_to_the_bit() {
         let (th, td, pd) = crate::merl::cell_angles(12345);
         assert_eq!(
             n.eval_f64(th, td, pd),
-            n.eval_inputs_f64(&Nbrdf::inputs_f64(th, td, pd)).map(|v| v.max(0.0))
+            n.eval_inputs_f64(&Nbrdf::inputs_f64(th, td, pd))
+                .map(|v| v.max(0.0))
         );
     }
 }

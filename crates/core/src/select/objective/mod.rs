@@ -18,8 +18,8 @@
 //! ([`crate::nnls::incremental`]): `O(p^2)` per target and channel, with `p <= k + 1`.
 
 use crate::backend::weighted::TargetWeight;
-use crate::backend::{Backend, Progress};
 use crate::backend::Lobe;
+use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::{fit_cells, CollectionGrams, FitParams, GramMode};
 use crate::merl::CellSet;
