@@ -475,20 +475,8 @@ mod tests {
     /// bit for bit, with networks among the lobes (their three channels from one run).
     #[test]
     fn one_pass_per_channel_is_each_channels_reference_to_the_bit() {
-        use crate::brdf::{Nbrdf, NBRDF_WEIGHTS};
-        let mut s = 0x9e37_79b9_7f4a_7c15u64;
-        let nets: Vec<std::sync::Arc<Nbrdf>> = (0..4)
-            .map(|_| {
-                let w = (0..NBRDF_WEIGHTS)
-                    .map(|_| {
-                        s = s
-                            .wrapping_mul(6364136223846793005)
-                            .wrapping_add(1442695040888963407);
-                        ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1.2
-                    })
-                    .collect();
-                std::sync::Arc::new(Nbrdf::from_weights(w).expect("finite"))
-            })
+        let nets: Vec<std::sync::Arc<crate::brdf::Nbrdf>> = (0..4)
+            .map(|seed| std::sync::Arc::new(crate::brdf::seeded_for_tests(seed)))
             .collect();
         let lobes = |c: usize| -> Vec<Lobe> {
             let mut v: Vec<Lobe> = nets

@@ -208,22 +208,13 @@ pub(super) fn grams_per_channel(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::{Nbrdf, NBRDF_WEIGHTS};
+    use crate::brdf::Nbrdf;
     use crate::merl::{Mask, Weighting};
     use std::sync::Arc;
 
     /// A network with seeded pseudo-random weights.
     fn net(seed: u64) -> Arc<Nbrdf> {
-        let mut s = seed.wrapping_mul(6364136223846793005) | 1;
-        let w = (0..NBRDF_WEIGHTS)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1.2
-            })
-            .collect();
-        Arc::new(Nbrdf::from_weights(w).expect("finite"))
+        Arc::new(crate::brdf::seeded_for_tests(seed))
     }
 
     /// Channel `c`'s lobes: three networks and two analytic lobes.

@@ -3,18 +3,7 @@ use crate::merl::N_CELLS;
 
 /// A network with seeded pseudo-random weights of about the trained networks' size.
 fn net(seed: u64) -> Nbrdf {
-    let mut s = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let w = (0..NBRDF_WEIGHTS)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1.2
-        })
-        .collect();
-    Nbrdf::from_weights(w).expect("finite")
+    super::seeded_for_tests(seed)
 }
 
 #[test]
