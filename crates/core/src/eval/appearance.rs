@@ -16,7 +16,8 @@
 //!   weights, the plain mean over cells) over cells and channels of
 //!   `(log(1 + max(fhat, 0) c) - log(1 + max(f, 0) c))^2`, `c = max(cos theta_i, 0)`.
 
-use super::color::{ciede2000, srgb_to_lab};
+use super::color::{ciede2000, srgb_to_lab, srgb_to_lab_all};
+use super::fastmath::ln_1p;
 use super::flip::{FlipKernels, FlipReference};
 use super::image_error::{normalized_image_error, same_shape, DisplayParams};
 use super::render::{Image, RenderError};
@@ -91,7 +92,7 @@ impl Appearance {
 
 /// The display value of every channel of every pixel (SPEC 7's mapping).
 fn display_values(img: &Image, d: &DisplayParams) -> Vec<f64> {
-    img.data.iter().map(|&v| d.map(f64::from(v))).collect()
+    d.map_all(&img.data)
 }
 
 /// Mean CIEDE2000 over the sphere's pixels between the display-mapped renders `a` and `b`.
@@ -241,12 +242,13 @@ fn to_bytes(dv: &[f64]) -> Vec<u8> {
 
 /// The CIELAB colour of every sphere pixel of `img` from its display values `dv`.
 fn sphere_labs(img: &Image, dv: &[f64]) -> Vec<super::color::Lab> {
-    img.mask
-        .iter()
-        .enumerate()
-        .filter(|&(_, &on)| on)
-        .map(|(i, _)| srgb_to_lab([dv[3 * i], dv[3 * i + 1], dv[3 * i + 2]]))
-        .collect()
+    let mut rgb = Vec::with_capacity(dv.len());
+    for (&on, p) in img.mask.iter().zip(dv.chunks_exact(3)) {
+        if on {
+            rgb.extend_from_slice(p);
+        }
+    }
+    srgb_to_lab_all(&rgb)
 }
 
 /// Running sums of the log-RMSE: add cells with [`LogSums::add`], then [`LogSums::value`].
@@ -264,7 +266,7 @@ impl LogSums {
     #[inline]
     pub fn add(&mut self, fit: f64, target: f64, w: f64, cos_i: f64) {
         let c = cos_i.max(0.0);
-        let d = (fit.max(0.0) * c).ln_1p() - (target.max(0.0) * c).ln_1p();
+        let d = ln_1p(fit.max(0.0) * c) - ln_1p(target.max(0.0) * c);
         self.squared += w * d * d;
         self.weight += w;
     }
@@ -273,14 +275,44 @@ impl LogSums {
     /// for [`Self::add_against`] when one target is compared with many fits.
     #[inline]
     pub fn target_log(target: f64, cos_i: f64) -> f64 {
-        (target.max(0.0) * cos_i.max(0.0)).ln_1p()
+        ln_1p(target.max(0.0) * cos_i.max(0.0))
+    }
+
+    /// The terms `log(1 + max(v, 0) max(c, 0))` of many cells at once ([`Self::target_log`]
+    /// of each, the same bits, four at a time): a fit's or a target's, for
+    /// [`Self::add_logs`].
+    pub fn logs(values: &[f64], cos_i: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; values.len()];
+        Self::logs_into(values, cos_i, &mut Vec::new(), &mut out);
+        out
+    }
+
+    /// [`Self::logs`] into `out` (of the same length as `values`), with `scratch` for the
+    /// products: no allocation once `scratch` has grown.
+    pub fn logs_into(values: &[f64], cos_i: &[f64], scratch: &mut Vec<f64>, out: &mut [f64]) {
+        assert!(values.len() == cos_i.len() && values.len() == out.len());
+        scratch.clear();
+        scratch.extend(
+            values
+                .iter()
+                .zip(cos_i)
+                .map(|(&v, &c)| v.max(0.0) * c.max(0.0)),
+        );
+        super::fastmath::ln_1p_slice(scratch, out);
     }
 
     /// [`Self::add`] with the target's term given ([`Self::target_log`] of the target and
     /// `cos_i`): the same bits.
     #[inline]
     pub fn add_against(&mut self, fit: f64, target_log: f64, w: f64, cos_i: f64) {
-        let d = (fit.max(0.0) * cos_i.max(0.0)).ln_1p() - target_log;
+        self.add_logs(ln_1p(fit.max(0.0) * cos_i.max(0.0)), target_log, w);
+    }
+
+    /// [`Self::add`] with both terms given ([`Self::logs`] or [`Self::target_log`] of the
+    /// fit and of the target): the same bits.
+    #[inline]
+    pub fn add_logs(&mut self, fit_log: f64, target_log: f64, w: f64) {
+        let d = fit_log - target_log;
         self.squared += w * d * d;
         self.weight += w;
     }

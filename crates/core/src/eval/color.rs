@@ -22,30 +22,73 @@ pub(crate) fn srgb_decode(v: f64) -> f64 {
     if v <= 0.04045 {
         v / 12.92
     } else {
-        ((v + 0.055) / 1.055).powf(2.4)
+        super::fastmath::srgb_pow().pow((v + 0.055) / 1.055)
     }
 }
 
-fn lab_f(t: f64) -> f64 {
+/// CIELAB's `f` of `t` given `t`'s cube root `root` (used above the threshold only).
+#[inline]
+fn lab_f_of(t: f64, root: f64) -> f64 {
     const D: f64 = 6.0 / 29.0;
     if t > D * D * D {
-        t.cbrt()
+        root
     } else {
         t / (3.0 * D * D) + 4.0 / 29.0
     }
 }
 
-/// CIELAB (D65 white: the XYZ of sRGB white) of an sRGB-encoded colour in `[0, 1]^3`.
-pub fn srgb_to_lab(rgb: [f64; 3]) -> Lab {
-    let lin = rgb.map(|v| srgb_decode(v.clamp(0.0, 1.0)));
+fn lab_f(t: f64) -> f64 {
+    lab_f_of(t, super::fastmath::cube_root().pow(t))
+}
+
+/// The ratios `X / X_n`, `Y / Y_n`, `Z / Z_n` of linear sRGB `lin`.
+#[inline]
+fn white_ratios(lin: [f64; 3]) -> [f64; 3] {
     let xyz = SRGB_TO_XYZ.map(|row| row[0] * lin[0] + row[1] * lin[1] + row[2] * lin[2]);
     let white = SRGB_TO_XYZ.map(|row| row[0] + row[1] + row[2]);
-    let f = [0, 1, 2].map(|i| lab_f(xyz[i] / white[i]));
+    [0, 1, 2].map(|i| xyz[i] / white[i])
+}
+
+/// CIELAB from CIELAB's `f` of the three white ratios.
+#[inline]
+fn lab_of(f: [f64; 3]) -> Lab {
     [
         116.0 * f[1] - 16.0,
         500.0 * (f[0] - f[1]),
         200.0 * (f[1] - f[2]),
     ]
+}
+
+/// CIELAB (D65 white: the XYZ of sRGB white) of an sRGB-encoded colour in `[0, 1]^3`.
+pub fn srgb_to_lab(rgb: [f64; 3]) -> Lab {
+    let lin = rgb.map(|v| srgb_decode(v.clamp(0.0, 1.0)));
+    lab_of(white_ratios(lin).map(lab_f))
+}
+
+/// [`srgb_to_lab`] of every colour of `rgb` (interleaved, three values a colour): the same
+/// bits, the powers four at a time.
+pub fn srgb_to_lab_all(rgb: &[f64]) -> Vec<Lab> {
+    assert_eq!(rgb.len() % 3, 0, "three values a colour");
+    let v: Vec<f64> = rgb.iter().map(|v| v.clamp(0.0, 1.0)).collect();
+    let z: Vec<f64> = v.iter().map(|&v| (v + 0.055) / 1.055).collect();
+    let mut p = vec![0.0; z.len()];
+    super::fastmath::srgb_pow().pow_slice(&z, &mut p);
+    // `srgb_decode`'s branches.
+    let lin = v
+        .iter()
+        .zip(&p)
+        .map(|(&v, &p)| if v <= 0.04045 { v / 12.92 } else { p });
+    let lin: Vec<f64> = lin.collect();
+    let mut t = Vec::with_capacity(lin.len());
+    for l in lin.chunks_exact(3) {
+        t.extend_from_slice(&white_ratios([l[0], l[1], l[2]]));
+    }
+    let mut root = vec![0.0; t.len()];
+    super::fastmath::cube_root().pow_slice(&t, &mut root);
+    t.chunks_exact(3)
+        .zip(root.chunks_exact(3))
+        .map(|(t, r)| lab_of([0, 1, 2].map(|i| lab_f_of(t[i], r[i]))))
+        .collect()
 }
 
 /// The CIEDE2000 colour difference of two CIELAB colours (`k_L = k_C = k_H = 1`).
@@ -298,5 +341,36 @@ mod tests {
             (r[0] - 53.24).abs() < 0.05 && (r[1] - 80.09).abs() < 0.1,
             "{r:?}"
         );
+    }
+
+    /// The batch form gives [`srgb_to_lab`]'s bits, both branches of the decoding and of
+    /// CIELAB's `f` included, and out-of-range values clamped alike.
+    #[test]
+    fn srgb_to_lab_all_is_srgb_to_lab_of_each() {
+        let mut s = 0x1234_5678_9abc_def1u64;
+        let mut rgb: Vec<f64> = (0..30_000)
+            .map(|i| {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                let r = (s >> 11) as f64 / (1u64 << 53) as f64;
+                match i % 4 {
+                    0 => r * 0.05,
+                    1 => r.powi(6),
+                    _ => r,
+                }
+            })
+            .collect();
+        rgb.extend([0.0, 1.0, 0.04045, -0.5, 2.0, f64::NAN, 0.0, 0.0, 1e-12]);
+        let all = srgb_to_lab_all(&rgb);
+        for (c, lab) in rgb.chunks_exact(3).zip(&all) {
+            let one = srgb_to_lab([c[0], c[1], c[2]]);
+            for i in 0..3 {
+                assert!(
+                    lab[i].to_bits() == one[i].to_bits() || (lab[i].is_nan() && one[i].is_nan()),
+                    "{c:?}: {lab:?} vs {one:?}"
+                );
+            }
+        }
     }
 }

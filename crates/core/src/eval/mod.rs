@@ -2,6 +2,7 @@
 
 pub mod appearance;
 pub mod color;
+pub(crate) mod fastmath;
 pub mod flip;
 pub mod image_error;
 pub mod render;

@@ -704,14 +704,7 @@ fn nielsen_rows(
     let target_logs: Vec<Vec<f64>> = if nf.lights.is_empty() {
         Vec::new()
     } else {
-        tv.iter()
-            .map(|t| {
-                t.iter()
-                    .zip(nf.cos_i)
-                    .map(|(&v, &ci)| LogSums::target_log(v, ci))
-                    .collect()
-            })
-            .collect()
+        tv.iter().map(|t| LogSums::logs(t, nf.cos_i)).collect()
     };
     let nmax = nf.chosen.len();
     // Every (n, noise) reconstruction in loop order: its coefficients, rho, MAE, image
@@ -726,13 +719,17 @@ fn nielsen_rows(
             let (mut sq, mut ab) = (0.0, 0.0);
             let mut logs = LogSums::default();
             for c in 0..3 {
-                for (j, (&t, &w)) in tv[c].iter().zip(nf.weights).enumerate() {
-                    let v = nf.model.value(j, &coef[c]);
+                let values: Vec<f64> = (0..tv[c].len())
+                    .map(|j| nf.model.value(j, &coef[c]))
+                    .collect();
+                // The reconstruction's terms of the log-RMSE, four cells at a time.
+                let fit_logs = target_logs.get(c).map(|_| LogSums::logs(&values, nf.cos_i));
+                for (j, ((&t, &w), &v)) in tv[c].iter().zip(nf.weights).zip(&values).enumerate() {
                     let r = v - t;
                     sq += w * r * r;
                     ab += w * r.abs();
-                    if let Some(tl) = target_logs.get(c) {
-                        logs.add_against(v, tl[j], w, nf.cos_i[j]);
+                    if let (Some(tl), Some(fl)) = (target_logs.get(c), &fit_logs) {
+                        logs.add_logs(fl[j], tl[j], w);
                     }
                 }
             }

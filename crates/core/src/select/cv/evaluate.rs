@@ -612,24 +612,15 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
             values
                 .par_iter()
                 .zip(&is_target)
-                .map(|(v, &t)| {
-                    t.then(|| {
-                        [0, 1, 2].map(|c| {
-                            v[c].iter()
-                                .zip(&cos_i)
-                                .map(|(&b, &ci)| LogSums::target_log(b, ci))
-                                .collect()
-                        })
-                    })
-                })
+                .map(|(v, &t)| t.then(|| [0, 1, 2].map(|c| LogSums::logs(&v[c], &cos_i))))
                 .collect()
         } else {
             Vec::new()
         };
         let len = block.len();
         sums.par_iter_mut().zip(jobs).for_each_init(
-            || vec![0.0f64; 3 * len],
-            |fit, (sum, j)| {
+            || (vec![0.0f64; 3 * len], Vec::new(), Vec::new()),
+            |(fit, fl, scratch), (sum, j)| {
                 tick();
                 fit.resize(3 * len, 0.0);
                 // The fitted values of every cell, column by column (Lambertian first, then
@@ -656,6 +647,13 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
                 let ts = slot[j.target].expect("targets have slots");
                 let b = &values[ts];
                 let tl = if LOG { target_logs[ts].as_ref() } else { None };
+                // The fit's terms of the log-RMSE, four cells at a time.
+                if LOG {
+                    fl.resize(3 * len, 0.0);
+                    for (f, out) in fit.chunks(len).zip(fl.chunks_mut(len)) {
+                        LogSums::logs_into(f, &cos_i, scratch, out);
+                    }
+                }
                 for (i, &w) in w.iter().enumerate() {
                     for (c, e) in sum.iter_mut().enumerate() {
                         let bv = b[c][i];
@@ -668,7 +666,7 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
                             e.target += w * bv.abs();
                         }
                         if let Some(tl) = tl {
-                            e.log.add_against(fit[c * len + i], tl[c][i], w, cos_i[i]);
+                            e.log.add_logs(fl[c * len + i], tl[c][i], w);
                         }
                     }
                 }
