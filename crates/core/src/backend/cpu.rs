@@ -200,18 +200,59 @@ impl CpuBackend {
                 .collect(),
             // The tabulated lobe (the f32 twin, within SPEC 9's accuracy of the f64
             // network, `Lobe::eval_f64`): the values every reduction runs over.
+            Lobe::Neural { net, channel } => self
+                .neural_f32(lobe, net, *channel, cells)
+                .iter()
+                .map(|&v| f64::from(v))
+                .collect(),
+        }
+    }
+
+    /// A network's channel at `cells` in f32, from the cache or tabulated into it.
+    fn neural_f32(
+        &self,
+        lobe: &Lobe,
+        net: &std::sync::Arc<Nbrdf>,
+        channel: Option<usize>,
+        cells: &[u32],
+    ) -> std::sync::Arc<Vec<f32>> {
+        neural_cache::get(net, channel, cells, || {
+            let mut out = vec![0f32; cells.len()];
+            self.install(|| {
+                out.par_chunks_mut(1 << 14)
+                    .zip(cells.par_chunks(1 << 14))
+                    .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o))
+            });
+            out
+        })
+    }
+
+    /// `lobe`'s values over `cells` ([`Self::values_f64`]) to be read a block of cells at a
+    /// time with [`Self::block_values`]: a network's tabulation of all `cells` is fetched
+    /// (or made) once, other lobes are evaluated per block.
+    pub(crate) fn block_source<'a>(&self, lobe: &'a Lobe, cells: &[u32]) -> BlockSource<'a> {
+        match lobe {
             Lobe::Neural { net, channel } => {
-                let values = neural_cache::get(net, *channel, cells, || {
-                    let mut out = vec![0f32; cells.len()];
-                    self.install(|| {
-                        out.par_chunks_mut(1 << 14)
-                            .zip(cells.par_chunks(1 << 14))
-                            .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o))
-                    });
-                    out
-                });
-                values.iter().map(|&v| f64::from(v)).collect()
+                BlockSource::Tabulated(self.neural_f32(lobe, net, *channel, cells))
             }
+            _ => BlockSource::Direct(lobe),
+        }
+    }
+
+    /// The values of [`Self::values_f64`] at the block `cells`, which starts at `offset`
+    /// of the cells `source` was made for: the same bits.
+    pub(crate) fn block_values(
+        &self,
+        source: &BlockSource<'_>,
+        cells: &[u32],
+        offset: usize,
+    ) -> Vec<f64> {
+        match source {
+            BlockSource::Direct(lobe) => self.values_f64(lobe, cells),
+            BlockSource::Tabulated(v) => v[offset..offset + cells.len()]
+                .iter()
+                .map(|&x| f64::from(x))
+                .collect(),
         }
     }
 
@@ -320,6 +361,14 @@ type NeuralRow<'s, 'r> = (Option<usize>, Option<&'s [f64]>, &'r mut [f32]);
 /// keyed by the network (held, so its address cannot be reused), the channel and the
 /// cells (length and XXH3). The reductions (`reduce_pairs`) never use it: they evaluate
 /// per chunk and keep nothing.
+/// A lobe's values read a block of cells at a time ([`CpuBackend::block_source`]).
+pub(crate) enum BlockSource<'a> {
+    /// Evaluated per block.
+    Direct(&'a Lobe),
+    /// A network's f32 tabulation of all the cells.
+    Tabulated(std::sync::Arc<Vec<f32>>),
+}
+
 mod neural_cache {
     use super::Nbrdf;
     use std::sync::{Arc, Mutex};

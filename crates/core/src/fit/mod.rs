@@ -636,33 +636,61 @@ fn grid_errors(
                 .collect()
         }
         _ => {
-            // On the grid, in f64, cell by cell.
-            let cols: Vec<Vec<f64>> = lobes
+            // On the grid, in f64, cell by cell, a block of cells at a time (no column of the
+            // whole grid in f64: megabytes each, a page fault and a clearing per page), each
+            // sum carried from block to block in cell order: the bits of one pass.
+            const BLOCK: usize = 1 << 13;
+            let sources: Vec<_> = lobes
                 .iter()
-                .map(|l| cpu.values_f64(l, &cells.cells))
+                .map(|l| cpu.block_source(l, &cells.cells))
                 .collect();
-            targets
-                .par_iter()
-                .zip(sols)
-                .map(|(&t, s)| {
-                    let b =
-                        cpu.values_f64(&channel_lobe(&coll.materials()[t].data, c), &cells.cells);
-                    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
-                    cell_errors(&refs, &s.x, &b, &cells.weights)
+            let target_lobes: Vec<Lobe> = targets
+                .iter()
+                .map(|&t| channel_lobe(&coll.materials()[t].data, c))
+                .collect();
+            let target_sources: Vec<_> = target_lobes
+                .iter()
+                .map(|l| cpu.block_source(l, &cells.cells))
+                .collect();
+            let mut sums = vec![[0.0; 4]; targets.len()];
+            for (bi, (cc, w)) in cells
+                .cells
+                .chunks(BLOCK)
+                .zip(cells.weights.chunks(BLOCK))
+                .enumerate()
+            {
+                let off = bi * BLOCK;
+                let cols: Vec<Vec<f64>> = sources
+                    .iter()
+                    .map(|s| cpu.block_values(s, cc, off))
+                    .collect();
+                let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+                sums.par_iter_mut()
+                    .zip(&target_sources)
+                    .zip(sols)
+                    .for_each(|((acc, src), s)| {
+                        let b = cpu.block_values(src, cc, off);
+                        cell_error_sums(&refs, &s.x, &b, w, acc);
+                    });
+            }
+            sums.into_iter()
+                .map(|[sq, ab, l1, energy]| ChannelErrors {
+                    residual: sq.sqrt(),
+                    mae: ab,
+                    l1,
+                    energy,
                 })
                 .collect()
         }
     }
 }
 
-/// The grid errors of the combination `sum_k x_k cols_k` against the target values `b`,
-/// cell by cell in f64, with cell weights `w`: `sum w r^2`'s root, `sum w |r|` and
-/// `sum w |b|`. The one cell-by-cell error sum: the fits' ([`fit`]) and the
-/// cross-validation's held-out MAE (`select::cv`), which passes only the columns with a
-/// non-zero coefficient; dropping a `0 * col` term changes no bit of a sum of finite
-/// values (it adds a zero), so both give the same MAE.
-pub(crate) fn cell_errors(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64]) -> ChannelErrors {
-    let (mut sq, mut ab, mut l1, mut energy) = (0.0, 0.0, 0.0, 0.0);
+/// The grid error sums of the combination `sum_k x_k cols_k` against the target values
+/// `b`, cell by cell in f64, with cell weights `w`: `[sum w r^2, sum w |r|, sum w |b|,
+/// sum w b^2]`, carried on over the cells given (blocks of cells in cell order give the
+/// bits of one pass over all of them).
+fn cell_error_sums(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64], s: &mut [f64; 4]) {
+    let [mut sq, mut ab, mut l1, mut energy] = *s;
     for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
         let fitv: f64 = cols.iter().zip(x).map(|(col, &a)| a * col[i]).sum();
         let r = fitv - bv;
@@ -671,12 +699,7 @@ pub(crate) fn cell_errors(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64]) -> C
         l1 += w * bv.abs();
         energy += w * bv * bv;
     }
-    ChannelErrors {
-        residual: sq.sqrt(),
-        mae: ab,
-        l1,
-        energy,
-    }
+    *s = [sq, ab, l1, energy];
 }
 
 /// The fitted combination of channel `c` at the given cells (f64).

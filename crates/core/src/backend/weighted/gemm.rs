@@ -48,20 +48,21 @@ pub(super) fn accumulate_chunk(
     cw: &[f64],
     weight: TargetWeight,
 ) {
-    use rayon::prelude::*;
     let n = cc.len();
     if n == 0 || values.is_empty() {
         return;
     }
-    let stride = WeightedSystems::stride_for(m);
-    let targets = values.len() / stride;
     let nq = m * (m + 1) / 2;
     let (qpad, fpad) = (round_up(nq, G_COLS), round_up(m, R_COLS));
     let lambert = std::f32::consts::FRAC_1_PI as f64;
     let cos_i: Vec<f64> = cc.iter().map(|&c| cos_theta_i(c as usize)).collect();
-    // Cell-major columns F (the Lambertian column first) and their products P, zero-padded.
-    let mut f = vec![0f64; n * fpad];
-    let mut p = vec![0f64; n * qpad];
+    // Cell-major columns F (the Lambertian column first) and their products P, zero-padded,
+    // in buffers kept by the calling thread from chunk to chunk (P is megabytes a chunk: a
+    // fresh one cost a page fault and a clearing per page, about 5 % of a cross-validation
+    // of networks). Every value, padding included, is written below.
+    let (mut f, mut p) = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
+    f.resize(n * fpad, 0.0);
+    p.resize(n * qpad, 0.0);
     for (c, (fr, pr)) in f
         .chunks_exact_mut(fpad)
         .zip(p.chunks_exact_mut(qpad))
@@ -71,6 +72,7 @@ pub(super) fn accumulate_chunk(
         for j in 1..m {
             fr[j] = b[(j - 1) * n + c] as f64;
         }
+        fr[m..].fill(0.0);
         let mut q = 0;
         for i in 0..m {
             for j in i..m {
@@ -78,8 +80,35 @@ pub(super) fn accumulate_chunk(
                 q += 1;
             }
         }
+        pr[q..].fill(0.0);
     }
-    let (f, p, cos_i) = (&f[..], &p[..], &cos_i[..]);
+    accumulate_targets(values, m, y, cc, cw, weight, (&f, &p, &cos_i));
+    SCRATCH.with(|s| *s.borrow_mut() = (f, p));
+}
+
+thread_local! {
+    /// [`accumulate_chunk`]'s F and P buffers.
+    static SCRATCH: std::cell::RefCell<(Vec<f64>, Vec<f64>)> = const {
+        std::cell::RefCell::new((Vec::new(), Vec::new()))
+    };
+}
+
+/// [`accumulate_chunk`] given the chunk's F, P and cosines.
+fn accumulate_targets(
+    values: &mut [f64],
+    m: usize,
+    y: &[f32],
+    cc: &[u32],
+    cw: &[f64],
+    weight: TargetWeight,
+    (f, p, cos_i): (&[f64], &[f64], &[f64]),
+) {
+    use rayon::prelude::*;
+    let n = cc.len();
+    let stride = WeightedSystems::stride_for(m);
+    let targets = values.len() / stride;
+    let nq = m * (m + 1) / 2;
+    let (qpad, fpad) = (round_up(nq, G_COLS), round_up(m, R_COLS));
     // Tasks of whole tiles: enough of them for the threads, the same result for any size.
     let threads = rayon::current_num_threads().max(1);
     let per_task = round_up(targets.div_ceil(2 * threads), TT).clamp(TT, 8 * TT);

@@ -460,7 +460,7 @@ impl<'a> GridEval<'a> {
     /// the basis materials with a non-zero coefficient) is tabulated once per block, all
     /// three channels together (a network runs once per cell), and each job adds the
     /// block's cells to its running sums in cell order. The sums are those of
-    /// `fit::cell_errors` term by term, in the same order, so every MAE is the same to the
+    /// `fit::cell_error_sums` term by term, in the same order, so every MAE is the same to the
     /// bit as a pass over all cells per job.
     pub(crate) fn maes(&self, jobs: &[MaeJob<'_>], tick: Tick<'_>) -> Vec<f64> {
         if let Some(mom) = &self.moments {
@@ -524,7 +524,7 @@ impl<'a> GridEval<'a> {
     }
 }
 
-/// Sums of one channel of one job over the cells (`fit::cell_errors`'s): `sum w r^2`,
+/// Sums of one channel of one job over the cells (`fit::cell_error_sums`'s): `sum w r^2`,
 /// `sum w |r|` and `sum w |b|`.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct CellSums {
@@ -552,7 +552,7 @@ fn material_values(cpu: &CpuBackend, coll: &Collection, m: usize, cells: &[u32])
 /// pass for all jobs: block after block of [`MAE_BLOCK`] cells, every material the jobs
 /// need (their targets and basis materials) is tabulated once per block, all three channels
 /// together (a network runs once per cell), and each job adds the block's cells to its
-/// running sums in cell order. The sums are `fit::cell_errors`'s term by term, in the same
+/// running sums in cell order. The sums are `fit::cell_error_sums`'s term by term, in the same
 /// order, so every sum is the same to the bit as a pass over all cells per job (the old
 /// per-target passes). `ALL`: every column of the fit enters the combination and all three
 /// sums are formed (the fits' errors, `fit::fit`); else only the columns with a non-zero
@@ -624,7 +624,7 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
                 tick();
                 fit.resize(3 * len, 0.0);
                 // The fitted values of every cell, column by column (Lambertian first, then
-                // basis order, as `cell_errors` is given them): per cell the same products
+                // basis order, as `cell_error_sums` is given them): per cell the same products
                 // added in the same order as a sum over the columns, so the same bits; the
                 // loops over cells vectorise.
                 for (c, f) in fit.chunks_mut(len).enumerate() {
