@@ -149,6 +149,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(image_metrics, m)?)?;
     m.add_function(wrap_pyfunction!(ciede2000, m)?)?;
     m.add_function(wrap_pyfunction!(srgb_to_lab, m)?)?;
+    m.add_function(wrap_pyfunction!(srgb_to_ictcp, m)?)?;
+    m.add_function(wrap_pyfunction!(delta_e_itp, m)?)?;
     m.add_function(wrap_pyfunction!(backend_name, m)?)?;
     m.add_function(wrap_pyfunction!(defaults_json, m)?)?;
     Ok(())

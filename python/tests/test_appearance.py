@@ -30,6 +30,37 @@ def test_srgb_to_lab_matches_colour_science():
     np.testing.assert_allclose(got, want, atol=0.05)
 
 
+def test_ictcp_and_delta_e_itp_match_colour_science():
+    """ICtCp (BT.2100 PQ) and ΔE_ITP (BT.2124) against colour-science: display sRGB decoded
+    by the sRGB curve, BT.709 to BT.2020 by their primaries, white at 100 cd/m²."""
+    colour = pytest.importorskip("colour")
+    rng = np.random.default_rng(11)
+    rgb = rng.uniform(0, 1, (300, 3))
+    rgb[:20] = rng.uniform(0, 0.04, (20, 3))  # the sRGB curve's linear segment
+    rgb[20] = [0.0, 0.0, 0.0]
+    rgb[21] = [1.0, 1.0, 1.0]
+    lin = colour.models.eotf_sRGB(rgb)
+    bt2020 = colour.RGB_to_RGB(lin, colour.RGB_COLOURSPACES["sRGB"], colour.RGB_COLOURSPACES["ITU-R BT.2020"])
+    want = colour.RGB_to_ICtCp(100.0 * bt2020, method="ITU-R BT.2100-2 PQ")
+    got = np.array([bb.srgb_to_ictcp(list(c)) for c in rgb])
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    other = np.clip(rgb + rng.normal(0, 0.03, rgb.shape), 0, 1)
+    want_other = colour.RGB_to_ICtCp(
+        100.0
+        * colour.RGB_to_RGB(
+            colour.models.eotf_sRGB(other), colour.RGB_COLOURSPACES["sRGB"], colour.RGB_COLOURSPACES["ITU-R BT.2020"]
+        ),
+        method="ITU-R BT.2100-2 PQ",
+    )
+    want_de = colour.difference.delta_E_ITP(want, want_other)
+    got_de = np.array([bb.delta_e_itp(list(a), list(b)) for a, b in zip(got, want_other)])
+    np.testing.assert_allclose(got_de, want_de, rtol=1e-9, atol=1e-9)
+    with pytest.raises(ValueError, match="rgb"):
+        bb.srgb_to_ictcp([1.5, 0.0, 0.0])
+    with pytest.raises(ValueError, match="ictcp1"):
+        bb.delta_e_itp([float("nan"), 0.0, 0.0], [0.0, 0.0, 0.0])
+
+
 def _display_u8(img):
     return np.round(255.0 * np.clip(np.maximum(img, 0.0) ** (1.0 / 2.2), 0.0, 1.0)).astype(np.uint8)
 
@@ -55,7 +86,27 @@ def test_flip_matches_flip_evaluator_over_the_sphere():
     assert abs(ours["flip"] - want) <= 1e-3 * max(want, 1e-3), (ours, want)
     # And a render against itself scores 0 on every metric.
     same = bb.image_metrics(ref, ref)
-    assert same == {"image_error": 0.0, "ciede2000": 0.0, "flip": 0.0}
+    assert same == {"image_error": 0.0, "ciede2000": 0.0, "delta_e_itp": 0.0, "flip": 0.0}
+
+
+def test_image_delta_e_itp_matches_colour_science_over_the_sphere():
+    """The renders' mean ΔE_ITP: SPEC 7's display values read as sRGB, white at 100 cd/m²,
+    colour-science's ICtCp and ΔE_ITP per sphere pixel, averaged."""
+    colour = pytest.importorskip("colour")
+    c = bb.Collection.default()
+    ref = bb.render(bb.Brdf.material(c, "polished-gold"), size=64)
+    test = bb.render(bb.Brdf.material(c, "gloss-red-enamel"), size=64)
+    ours = bb.image_metrics(ref, test)
+
+    def itp(img):
+        d = np.clip(np.maximum(img.astype(np.float64), 0.0) ** (1.0 / 2.2), 0.0, 1.0)
+        lin = colour.models.eotf_sRGB(d[_sphere_mask(64)])
+        s, b = colour.RGB_COLOURSPACES["sRGB"], colour.RGB_COLOURSPACES["ITU-R BT.2020"]
+        return colour.RGB_to_ICtCp(100.0 * colour.RGB_to_RGB(lin, s, b), method="ITU-R BT.2100-2 PQ")
+
+    want = float(colour.difference.delta_E_ITP(itp(ref), itp(test)).mean())
+    assert want > 1.0
+    assert abs(ours["delta_e_itp"] - want) <= 1e-9 * want, (ours, want)
 
 
 @pytest.mark.parametrize("objective", ["relative", "log"])

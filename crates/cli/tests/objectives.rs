@@ -169,6 +169,7 @@ fn fit_refuses_a_bad_eps_and_writes_the_objective_and_appearance() {
     for key in [
         "mean_flip",
         "mean_ciede2000",
+        "mean_delta_e_itp",
         "mean_image_error",
         "log_rmse",
     ] {

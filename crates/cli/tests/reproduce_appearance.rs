@@ -87,7 +87,7 @@ fn reproduce_appearance_section_matches_its_json_and_leaves_the_paper_alone() {
             brdf_basis::collection::Collection::embedded_default().len()
         );
         let line = format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.objective,
             num(r.rho),
             num(r.objective_rho),
@@ -95,6 +95,7 @@ fn reproduce_appearance_section_matches_its_json_and_leaves_the_paper_alone() {
             num(r.image_error_paper_light),
             num(r.image_error),
             num(r.ciede2000),
+            num(r.delta_e_itp),
             num(r.flip_paper_light),
             num(r.flip),
             r.flip_better_than_l2
@@ -105,7 +106,7 @@ fn reproduce_appearance_section_matches_its_json_and_leaves_the_paper_alone() {
         let m = &c.results[0];
         assert_eq!(r.rho, m.mean_rho);
         assert_eq!(r.flip, m.appearance.as_ref().expect("appearance").flip);
-        assert!(r.flip > 0.0 && r.flip <= 1.0 && r.ciede2000 > 0.0);
+        assert!(r.flip > 0.0 && r.flip <= 1.0 && r.ciede2000 > 0.0 && r.delta_e_itp > 0.0);
     }
     assert!(st.rows[0].flip_better_than_l2.is_none());
     assert!(st.rows[1].flip_better_than_l2.is_some());

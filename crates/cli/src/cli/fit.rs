@@ -215,10 +215,11 @@ fn appearance_summary(a: &[brdf_basis::eval::appearance::Appearance]) -> Option<
         ))
     };
     Some(format!(
-        "appearance: mean log-RMSE {}; under the four lights mean image error {}, CIEDE2000 {}, FLIP {} (paper's light: image error {}, FLIP {})",
+        "appearance: mean log-RMSE {}; under the four lights mean image error {}, CIEDE2000 {}, ΔE_ITP {}, FLIP {} (paper's light: image error {}, FLIP {})",
         mean_of(|x| x.log_rmse),
         mean_of(|x| x.mean_image_error),
         mean_of(|x| x.mean_ciede2000),
+        mean_of(|x| x.mean_delta_e_itp),
         mean_of(|x| x.mean_flip),
         mean_of(|x| x.paper_light().image_error),
         mean_of(|x| x.paper_light().flip),

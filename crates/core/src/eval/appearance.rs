@@ -1,6 +1,6 @@
 //! Appearance metrics of a fit (SPEC 11): log-RMSE on the grid, and on renders under four
-//! lights the normalised image error (SPEC 7), the mean CIEDE2000 difference and the mean
-//! LDR FLIP.
+//! lights the normalised image error (SPEC 7), the mean CIEDE2000 difference, the mean LDR
+//! FLIP and the mean ΔE_ITP (ITU-R BT.2124, [`super::ictcp`]; issue 50).
 //!
 //! Conventions, where SPEC 11 leaves a choice:
 //! * renders are SPEC 7's sphere at [`RENDER_SIZE`]^2 pixels, displayed with exposure 0 and
@@ -52,6 +52,8 @@ pub struct LightScores {
     pub ciede2000: f64,
     /// Mean LDR FLIP over the sphere's pixels, in `[0, 1]`.
     pub flip: f64,
+    /// Mean ΔE_ITP (ITU-R BT.2124, [`super::ictcp`]) over the sphere's pixels.
+    pub delta_e_itp: f64,
 }
 
 /// Every appearance metric of one fit: log-RMSE, and per light and averaged over the lights
@@ -68,6 +70,8 @@ pub struct Appearance {
     pub mean_ciede2000: f64,
     /// Mean over the lights of the mean FLIP.
     pub mean_flip: f64,
+    /// Mean over the lights of the mean ΔE_ITP.
+    pub mean_delta_e_itp: f64,
 }
 
 impl Appearance {
@@ -80,6 +84,7 @@ impl Appearance {
             mean_image_error: mean(|l| l.image_error),
             mean_ciede2000: mean(|l| l.ciede2000),
             mean_flip: mean(|l| l.flip),
+            mean_delta_e_itp: mean(|l| l.delta_e_itp),
             lights,
         }
     }
@@ -169,6 +174,8 @@ pub struct Reference<'a> {
     display: Vec<f64>,
     /// CIELAB of every sphere pixel, in pixel order.
     lab: Vec<super::color::Lab>,
+    /// ICtCp of every sphere pixel, in pixel order.
+    itp: Vec<super::ictcp::Ictcp>,
     /// The 8-bit display image prepared for FLIP.
     flip: FlipReference,
 }
@@ -182,12 +189,15 @@ impl<'a> Reference<'a> {
         }
         let d = DisplayParams::default();
         let display = display_values(image, &d);
-        let lab = sphere_labs(image, &display);
+        let rgb = sphere_rgb(image, &display);
+        let lab = srgb_to_lab_all(&rgb);
+        let itp = super::ictcp::srgb_to_ictcp_all(&rgb);
         let flip = prepare_flip(image, &to_bytes(&display))?;
         Ok(Self {
             image,
             display,
             lab,
+            itp,
             flip,
         })
     }
@@ -220,17 +230,24 @@ impl<'a> Reference<'a> {
             })
             .collect();
         let image_error = errors.iter().sum::<f64>() / count as f64;
+        let rgb = sphere_rgb(test, &td);
         let mut sum = 0.0;
-        for (la, lb) in self.lab.iter().zip(sphere_labs(test, &td)) {
+        for (la, lb) in self.lab.iter().zip(srgb_to_lab_all(&rgb)) {
             sum += ciede2000(*la, lb);
         }
         let ciede = sum / self.lab.len() as f64;
+        let mut sum = 0.0;
+        for (a, b) in self.itp.iter().zip(super::ictcp::srgb_to_ictcp_all(&rgb)) {
+            sum += super::ictcp::delta_e_itp(*a, b);
+        }
+        let itp = sum / self.itp.len() as f64;
         Ok(LightScores {
             theta,
             phi,
             image_error,
             ciede2000: ciede,
             flip: flip_mean(&self.flip, &to_bytes(&td), &a.mask)?,
+            delta_e_itp: itp,
         })
     }
 }
@@ -240,15 +257,35 @@ fn to_bytes(dv: &[f64]) -> Vec<u8> {
     dv.iter().map(|&v| (v * 255.0).round() as u8).collect()
 }
 
-/// The CIELAB colour of every sphere pixel of `img` from its display values `dv`.
-fn sphere_labs(img: &Image, dv: &[f64]) -> Vec<super::color::Lab> {
+/// The display values of the sphere pixels of `img` (`dv` of every pixel), in pixel order.
+fn sphere_rgb(img: &Image, dv: &[f64]) -> Vec<f64> {
     let mut rgb = Vec::with_capacity(dv.len());
     for (&on, p) in img.mask.iter().zip(dv.chunks_exact(3)) {
         if on {
             rgb.extend_from_slice(p);
         }
     }
-    srgb_to_lab_all(&rgb)
+    rgb
+}
+
+/// Mean ΔE_ITP ([`super::ictcp`]) over the sphere's pixels between the display-mapped
+/// renders `a` and `b`.
+pub fn mean_delta_e_itp(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
+    normalized_image_error(a, b, d)?;
+    let (da, db) = (display_values(a, d), display_values(b, d));
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (i, &on) in a.mask.iter().enumerate() {
+        if on {
+            let pa = [da[3 * i], da[3 * i + 1], da[3 * i + 2]];
+            let pb = [db[3 * i], db[3 * i + 1], db[3 * i + 2]];
+            sum += super::ictcp::delta_e_itp(
+                super::ictcp::srgb_to_ictcp(pa),
+                super::ictcp::srgb_to_ictcp(pb),
+            );
+            n += 1;
+        }
+    }
+    Ok(sum / n as f64)
 }
 
 /// Running sums of the log-RMSE: add cells with [`LogSums::add`], then [`LogSums::value`].
@@ -350,12 +387,14 @@ mod tests {
         let a = render([0.1, 0.2, 0.6], LIGHTS[0]);
         let s = light_scores(&a, &a, LIGHTS[0]).unwrap();
         assert_eq!((s.image_error, s.ciede2000, s.flip), (0.0, 0.0, 0.0));
+        assert_eq!(s.delta_e_itp, 0.0);
         let hue = render([0.6, 0.2, 0.1], LIGHTS[0]);
         let grey = render([0.11, 0.21, 0.61], LIGHTS[0]);
         let h = light_scores(&a, &hue, LIGHTS[0]).unwrap();
         let g = light_scores(&a, &grey, LIGHTS[0]).unwrap();
         assert!(h.ciede2000 > 10.0 * g.ciede2000, "{h:?} {g:?}");
         assert!(h.flip > 5.0 * g.flip && h.flip <= 1.0, "{h:?} {g:?}");
+        assert!(h.delta_e_itp > 10.0 * g.delta_e_itp, "{h:?} {g:?}");
     }
 
     /// The prepared reference gives the separate metric functions' values to the bit.
@@ -375,6 +414,8 @@ mod tests {
             assert_eq!(s.image_error, normalized_image_error(&a, &b, &d).unwrap());
             assert_eq!(s.ciede2000, mean_ciede2000(&a, &b, &d).unwrap());
             assert_eq!(s.flip, mean_flip(&a, &b, &d).unwrap());
+            assert_eq!(s.delta_e_itp, mean_delta_e_itp(&a, &b, &d).unwrap());
+            assert!(s.delta_e_itp > 0.0);
             assert!(s.image_error > 0.0 && s.ciede2000 > 0.0 && s.flip > 0.0);
         }
         let small = render([0.1, 0.2, 0.3], LIGHTS[0]);

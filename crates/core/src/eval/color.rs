@@ -11,7 +11,7 @@
 pub type Lab = [f64; 3];
 
 /// sRGB to XYZ (D65), rows X, Y, Z (IEC 61966-2-1).
-const SRGB_TO_XYZ: [[f64; 3]; 3] = [
+pub(crate) const SRGB_TO_XYZ: [[f64; 3]; 3] = [
     [0.4124, 0.3576, 0.1805],
     [0.2126, 0.7152, 0.0722],
     [0.0193, 0.1192, 0.9505],
@@ -65,20 +65,24 @@ pub fn srgb_to_lab(rgb: [f64; 3]) -> Lab {
     lab_of(white_ratios(lin).map(lab_f))
 }
 
-/// [`srgb_to_lab`] of every colour of `rgb` (interleaved, three values a colour): the same
-/// bits, the powers four at a time.
-pub fn srgb_to_lab_all(rgb: &[f64]) -> Vec<Lab> {
-    assert_eq!(rgb.len() % 3, 0, "three values a colour");
+/// `srgb_decode(v.clamp(0, 1))` of every value (the same bits), the powers four at a time.
+pub(crate) fn srgb_decode_all(rgb: &[f64]) -> Vec<f64> {
     let v: Vec<f64> = rgb.iter().map(|v| v.clamp(0.0, 1.0)).collect();
     let z: Vec<f64> = v.iter().map(|&v| (v + 0.055) / 1.055).collect();
     let mut p = vec![0.0; z.len()];
     super::fastmath::srgb_pow().pow_slice(&z, &mut p);
     // `srgb_decode`'s branches.
-    let lin = v
-        .iter()
+    v.iter()
         .zip(&p)
-        .map(|(&v, &p)| if v <= 0.04045 { v / 12.92 } else { p });
-    let lin: Vec<f64> = lin.collect();
+        .map(|(&v, &p)| if v <= 0.04045 { v / 12.92 } else { p })
+        .collect()
+}
+
+/// [`srgb_to_lab`] of every colour of `rgb` (interleaved, three values a colour): the same
+/// bits, the powers four at a time.
+pub fn srgb_to_lab_all(rgb: &[f64]) -> Vec<Lab> {
+    assert_eq!(rgb.len() % 3, 0, "three values a colour");
+    let lin = srgb_decode_all(rgb);
     let mut t = Vec::with_capacity(lin.len());
     for l in lin.chunks_exact(3) {
         t.extend_from_slice(&white_ratios([l[0], l[1], l[2]]));

@@ -96,6 +96,8 @@ pub struct ObjectiveRow {
     pub image_error: f64,
     /// Mean CIEDE2000 over the four lights.
     pub ciede2000: f64,
+    /// Mean ΔE_ITP (ITU-R BT.2124) over the four lights.
+    pub delta_e_itp: f64,
     /// Mean FLIP under the paper's light.
     pub flip_paper_light: f64,
     /// Mean FLIP over the four lights.
@@ -239,6 +241,7 @@ fn row(kind: ObjectiveKind, eps: f64, h: &[HeldOut], l2: &[HeldOut]) -> Objectiv
         image_error_paper_light: a(&|x| x.paper_light().image_error),
         image_error: a(&|x| x.mean_image_error),
         ciede2000: a(&|x| x.mean_ciede2000),
+        delta_e_itp: a(&|x| x.mean_delta_e_itp),
         flip_paper_light: a(&|x| x.paper_light().flip),
         flip: a(&|x| x.mean_flip),
         flip_better_than_l2: (kind != ObjectiveKind::L2).then(|| {

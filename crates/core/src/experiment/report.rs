@@ -324,7 +324,7 @@ fn acquisition(_: &Experiment, ctx: &ReportContext, s: &mut String) {
         let _ = writeln!(s, "Not run: {why}.\n");
         return;
     }
-    let _ = writeln!(s, "A new material from a few measured samples: per fold a basis chosen on the training materials, plans chosen on them, each held-out material measured at the plan's first n samples (simulated, `f (1 + noise N(0, 1))`), fitted from them by NNLS under the objective `{}` (error, condition, random: each sample weighted by the objective at its measured value; with fewer samples than unknowns a ridge toward the training materials' mean coefficients, its strength chosen on the training folds) and scored on the whole evaluation mask against its own values: rho (relative residual, unweighted), MAE, the image error of its render and, in the second table, the appearance metrics of SPEC 11 (log-RMSE; image error, CIEDE2000 and FLIP on 256 x 256 renders under four lights). `nielsen` is the peer baseline (Nielsen, Jensen & Ramamoorthi 2015: log-mapped cosine-weighted PCA of every training material's channels, condition-number plan with local moves, ridge reconstruction with eta = 40), with its own reconstructor; its `dense rho` column is our basis's, for reference. Settings: {}. `acquisition.json` has every fold's basis, plan and held-out value.\n", a.cv.objective, a.settings);
+    let _ = writeln!(s, "A new material from a few measured samples: per fold a basis chosen on the training materials, plans chosen on them, each held-out material measured at the plan's first n samples (simulated, `f (1 + noise N(0, 1))`), fitted from them by NNLS under the objective `{}` (error, condition, random: each sample weighted by the objective at its measured value; with fewer samples than unknowns a ridge toward the training materials' mean coefficients, its strength chosen on the training folds) and scored on the whole evaluation mask against its own values: rho (relative residual, unweighted), MAE, the image error of its render and, in the second table, the appearance metrics of SPEC 11 (log-RMSE; image error, CIEDE2000, ΔE_ITP and FLIP on 256 x 256 renders under four lights). `nielsen` is the peer baseline (Nielsen, Jensen & Ramamoorthi 2015: log-mapped cosine-weighted PCA of every training material's channels, condition-number plan with local moves, ridge reconstruction with eta = 40), with its own reconstructor; its `dense rho` column is our basis's, for reference. Settings: {}. `acquisition.json` has every fold's basis, plan and held-out value.\n", a.cv.objective, a.settings);
     s.push_str(&a.cv.markdown());
     s.push('\n');
     for line in against_nielsen(&a.cv) {
@@ -389,6 +389,7 @@ fn against_nielsen(cv: &crate::acquire::AcqCv) -> Vec<String> {
                     b.image_error,
                 ),
                 ("CIEDE2000", a.ciede2000, b.ciede2000),
+                ("ΔE_ITP", a.delta_e_itp, b.delta_e_itp),
                 ("FLIP (4 lights)", a.flip, b.flip),
             ]);
         }
@@ -430,12 +431,12 @@ fn appearance(_: &Experiment, ctx: &ReportContext, s: &mut String) {
         return;
     };
     let n = st.rows.first().map_or(0, |r| r.materials);
-    let _ = writeln!(s, "The paper's fits above minimise `l2` on raw reflectance, and so do every number before this section: they reproduce the paper. Here the same model (a non-negative combination of basis materials and the Lambertian term, per channel) is fitted under each objective of SPEC 11, held out: {} folds (seed {}), per fold a {} basis of k = {} chosen on the training materials under the objective's shared weights, each of the {n} held-out materials fitted under its per-target weights (`relative`: eps {}) on a grid of stride {}. rho: the relative residual of SPEC 8 (unweighted); objective rho: under the objective's own weights; log-RMSE on the grid; image error, CIEDE2000 and FLIP (67 ppd) on 256 x 256 renders under the paper's light (45, 45) and averaged over the four lights of SPEC 11. Last column: the held-out materials whose four-light FLIP is lower than under `l2`. `appearance.json` has every fold's basis and every held-out value.\n", st.folds, st.seed, st.method, st.k, st.rows.iter().find_map(|r| r.eps).map_or("-".into(), |e| e.to_string()), st.stride);
-    let _ = writeln!(s, "| objective | rho | objective rho | log-RMSE | image error (45, 45) | image error (4 lights) | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | FLIP below l2 |\n|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "The paper's fits above minimise `l2` on raw reflectance, and so do every number before this section: they reproduce the paper. Here the same model (a non-negative combination of basis materials and the Lambertian term, per channel) is fitted under each objective of SPEC 11, held out: {} folds (seed {}), per fold a {} basis of k = {} chosen on the training materials under the objective's shared weights, each of the {n} held-out materials fitted under its per-target weights (`relative`: eps {}) on a grid of stride {}. rho: the relative residual of SPEC 8 (unweighted); objective rho: under the objective's own weights; log-RMSE on the grid; image error, CIEDE2000, ΔE_ITP (ITU-R BT.2124, white at 100 cd/m²) and FLIP (67 ppd) on 256 x 256 renders under the paper's light (45, 45) and averaged over the four lights of SPEC 11. Last column: the held-out materials whose four-light FLIP is lower than under `l2`. `appearance.json` has every fold's basis and every held-out value.\n", st.folds, st.seed, st.method, st.k, st.rows.iter().find_map(|r| r.eps).map_or("-".into(), |e| e.to_string()), st.stride);
+    let _ = writeln!(s, "| objective | rho | objective rho | log-RMSE | image error (45, 45) | image error (4 lights) | CIEDE2000 (4 lights) | ΔE_ITP (4 lights) | FLIP (45, 45) | FLIP (4 lights) | FLIP below l2 |\n|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &st.rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.objective,
             num(r.rho),
             num(r.objective_rho),
@@ -443,6 +444,7 @@ fn appearance(_: &Experiment, ctx: &ReportContext, s: &mut String) {
             num(r.image_error_paper_light),
             num(r.image_error),
             num(r.ciede2000),
+            num(r.delta_e_itp),
             num(r.flip_paper_light),
             num(r.flip),
             r.flip_better_than_l2

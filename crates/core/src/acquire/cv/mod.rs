@@ -544,7 +544,7 @@ impl AcqCv {
             return None;
         }
         let mut s = format!(
-            "Appearance (objective `{}`; SPEC 11: renders 256 px, four lights):\n\n| method | plan | n | noise | log-RMSE | image error (45, 45; 256 px) | image error (4 lights; 256 px) | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median FLIP |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+            "Appearance (objective `{}`; SPEC 11: renders 256 px, four lights):\n\n| method | plan | n | noise | log-RMSE | image error (45, 45; 256 px) | image error (4 lights; 256 px) | CIEDE2000 (4 lights) | ΔE_ITP (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median FLIP |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
             self.objective
         );
         let row = |s: &mut String,
@@ -555,11 +555,12 @@ impl AcqCv {
                    l: f64,
                    a: &AppearanceMeans| {
             s.push_str(&format!(
-                "| {m} | {plan} | {n} | {noise} | {} | {} | {} | {} | {} | {} | {} |\n",
+                "| {m} | {plan} | {n} | {noise} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 num(l),
                 num(a.image_error_paper_light),
                 num(a.image_error),
                 num(a.ciede2000),
+                num(a.delta_e_itp),
                 num(a.flip_paper_light),
                 num(a.flip),
                 num(a.median_flip)

@@ -346,6 +346,7 @@ pub(crate) fn means_of(a: &[&Appearance]) -> Option<AppearanceMeans> {
         image_error: mean(&col(&|x| x.mean_image_error)),
         median_image_error: median(&col(&|x| x.mean_image_error)),
         ciede2000: mean(&col(&|x| x.mean_ciede2000)),
+        delta_e_itp: mean(&col(&|x| x.mean_delta_e_itp)),
         flip_paper_light: mean(&col(&|x| x.paper_light().flip)),
         flip: mean(&col(&|x| x.mean_flip)),
         median_flip: median(&col(&|x| x.mean_flip)),

@@ -105,6 +105,8 @@ pub struct AppearanceMeans {
     pub median_image_error: f64,
     /// CIEDE2000, mean over the four lights.
     pub ciede2000: f64,
+    /// ΔE_ITP (ITU-R BT.2124), mean over the four lights.
+    pub delta_e_itp: f64,
     /// FLIP under the paper's light.
     pub flip_paper_light: f64,
     /// FLIP, mean over the four lights.

@@ -32,7 +32,7 @@ impl CvResult {
         );
         s.push_str(&self.table_markdown());
         if let Some(t) = self.appearance_markdown() {
-            s.push_str("\nAppearance of the held-out fits (SPEC 11): log-RMSE on the grid; renders at 256 x 256, image error (exposure 0, gamma 2.2), CIEDE2000 and FLIP (67 ppd) averaged over the sphere, under the paper's light (45, 45) and averaged over the four lights:\n\n");
+            s.push_str("\nAppearance of the held-out fits (SPEC 11): log-RMSE on the grid; renders at 256 x 256, image error (exposure 0, gamma 2.2), CIEDE2000, ΔE_ITP (ITU-R BT.2124) and FLIP (67 ppd) averaged over the sphere, under the paper's light (45, 45) and averaged over the four lights:\n\n");
             s.push_str(&t);
         }
         s.push_str("\nPaired Wilcoxon signed-rank tests (two-sided p) on the held-out values:\n\n");
@@ -61,13 +61,13 @@ impl CvResult {
             return None;
         }
         let mut s = String::from(
-            "| method | k | log-RMSE | image error (45, 45; 256 px) | image error (4 lights; 256 px) | median | CIEDE2000 (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median |\n|---|---|---|---|---|---|---|---|---|---|\n",
+            "| method | k | log-RMSE | image error (45, 45; 256 px) | image error (4 lights; 256 px) | median | CIEDE2000 (4 lights) | ΔE_ITP (4 lights) | FLIP (45, 45) | FLIP (4 lights) | median |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
         );
         for r in &self.results {
             let Some(a) = &r.appearance else { continue };
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 r.method,
                 r.k,
                 num(r.mean_log_rmse),
@@ -75,6 +75,7 @@ impl CvResult {
                 num(a.image_error),
                 num(a.median_image_error),
                 num(a.ciede2000),
+                num(a.delta_e_itp),
                 num(a.flip_paper_light),
                 num(a.flip),
                 num(a.median_flip)
