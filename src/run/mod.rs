@@ -117,7 +117,7 @@ impl From<TargetWeight> for ObjectiveSetting {
 /// # Errors
 /// [`crate::error::RequestError`] naming `--eps`.
 pub fn check_eps(eps: f64) -> crate::Result<f64> {
-    match (TargetWeight::Relative { eps }).check() {
+    match TargetWeight::relative(eps) {
         Ok(_) => Ok(eps),
         Err(e) => refuse!("--eps {eps}: {e}"),
     }

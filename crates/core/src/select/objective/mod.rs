@@ -139,7 +139,8 @@ const SHARED_WEIGHT_BLOCK_BYTES: usize = 32 << 20;
 /// of `f_c(s)` (the mean of the two middle values for an even count), normalised to sum 1
 /// (the scale of the weights changes no fit and no relative residual). The materials'
 /// three channels are tabulated by `backend` (f32) together, block by block of cells (a
-/// network runs once per cell for its three channels).
+/// network runs once per cell for its three channels). `weight` is checked by the caller's
+/// door (`ObjectiveParams::check`, `empirical`, the plan's checks).
 pub(crate) fn shared_weights(
     backend: &dyn Backend,
     coll: &Collection,
@@ -147,7 +148,6 @@ pub(crate) fn shared_weights(
     weight: TargetWeight,
     progress: Progress<'_>,
 ) -> Result<[CellSet; 3], SelectionError> {
-    let weight = weight.check().map_err(crate::fit::FitError::from)?;
     let mats: Vec<Lobe> = crate::fit::collection_lobes(coll)
         .into_iter()
         .flat_map(|l| l.into_iter().skip(1))
