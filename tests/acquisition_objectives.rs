@@ -292,7 +292,9 @@ fn fit_samples_from_arrays_is_the_request_of_a_samples_file() {
     assert_eq!(from_arrays.fit.coefficients, from_file.fit.coefficients);
     assert_eq!(from_arrays.warnings, from_file.warnings);
     assert!(req.input_files().is_empty());
-    req.grid.stride = 4;
+    req.grid = brdf_basis::merl::GridSpec::default()
+        .with_stride(4)
+        .expect("stride 4");
     let e = req.check().unwrap_err().to_string();
     assert!(
         e.starts_with("--stride does not apply with --samples"),

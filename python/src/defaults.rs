@@ -12,10 +12,10 @@ fn name<T: serde::Serialize>(v: T) -> Value {
 }
 
 /// `mask`, `weighting` and `stride` of a request's grid.
-fn grid(m: &mut Map<String, Value>, g: bb::run::Grid) {
-    m.insert("mask".into(), g.mask.as_str().into());
-    m.insert("weighting".into(), g.weighting.as_str().into());
-    m.insert("stride".into(), g.stride.into());
+fn grid(m: &mut Map<String, Value>, g: bb::merl::GridSpec) {
+    m.insert("mask".into(), g.mask().as_str().into());
+    m.insert("weighting".into(), g.weighting().as_str().into());
+    m.insert("stride".into(), g.stride().into());
 }
 
 /// `objective` and `eps` (`None` unless relative) when neither is given.

@@ -111,7 +111,8 @@ def test_fit_samples_refuses_as_the_cli_refuses(cli_error, tmp_path):  # noqa: F
 
 @pytest.mark.parametrize("stride", [0, 91])
 def test_every_command_refuses_a_bad_stride_in_one_wording(stride):
-    # The rule is the library's Grid::check, in the command line's words, before any work.
+    # The rule is the library's GridSpec (checked when built), in the command line's
+    # words, before any work.
     c = bb.Collection.default()
     calls = {
         "distance_matrix": lambda: bb.distance_matrix(c, stride=stride, backend="cpu"),

@@ -540,7 +540,9 @@ fn select_json_records_what_chose_the_basis() {
     let cpu = brdf_basis::CpuBackend::new();
     let mut r = SelectRequest::new(SelectMethod::Greedy);
     r.k = Some(2);
-    r.grid.stride = 8;
+    r.grid = brdf_basis::merl::GridSpec::default()
+        .with_stride(8)
+        .expect("stride 8");
     r.objective.eps = Some(0.02);
     let out = r.run(&cpu, &coll, &|_, _| {}).expect("greedy");
     let v: serde_json::Value = serde_json::from_str(&out.to_json()).expect("json");
@@ -567,7 +569,9 @@ fn select_json_records_what_chose_the_basis() {
     let mut r = SelectRequest::new(SelectMethod::Kmedoids);
     r.k = Some(2);
     r.runs = Some(1);
-    r.grid.stride = 8;
+    r.grid = brdf_basis::merl::GridSpec::default()
+        .with_stride(8)
+        .expect("stride 8");
     let v: serde_json::Value =
         serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("kmedoids").to_json())
             .expect("json");

@@ -44,7 +44,7 @@ pub struct ObjectiveParams {
     pub mask: Mask,
     /// Weighting (default uniform).
     pub weighting: Weighting,
-    /// Grid sub-sampling stride, `>= 1` (default 1).
+    /// Grid sub-sampling stride, 1 to 90 (default 1).
     pub stride: usize,
     /// Gram mode (default auto).
     pub gram: GramMode,
@@ -93,13 +93,20 @@ impl ObjectiveParams {
         self.objective = o;
         self
     }
-    /// Validates: `1 <= stride <= 90`.
+    /// Sets the mask, weighting and stride of a checked grid.
+    pub fn grid(self, g: crate::merl::GridSpec) -> Self {
+        self.mask(g.mask())
+            .weighting(g.weighting())
+            .stride(g.stride())
+    }
+    /// Validates: the stride's rule ([`crate::merl::GridSpec::STRIDE_RULE`]) and the
+    /// objective's.
     pub fn check(&self) -> Result<ValidObjectiveParams, SelectionError> {
-        if self.stride == 0 || self.stride > 90 {
+        if !crate::merl::GridSpec::stride_ok(self.stride) {
             return Err(SelectionError::InvalidParam {
                 name: "stride",
                 value: self.stride.to_string(),
-                expected: "an integer in 1..=90",
+                expected: crate::merl::GridSpec::STRIDE_RULE,
             });
         }
         if let Err(e) = self.objective.check() {
