@@ -292,10 +292,47 @@ fn fit_samples_from_arrays_is_the_request_of_a_samples_file() {
     assert_eq!(from_arrays.fit.coefficients, from_file.fit.coefficients);
     assert_eq!(from_arrays.warnings, from_file.warnings);
     assert!(req.input_files().is_empty());
-    req.grid.stride = 4;
+    req.grid = brdf_basis::merl::GridSpec::default()
+        .with_stride(4)
+        .expect("stride 4");
     let e = req.check().unwrap_err().to_string();
     assert!(
         e.starts_with("--stride does not apply with --samples"),
         "{e}"
     );
+}
+
+/// A plan's objective is checked with its other settings, before any work, whatever the
+/// criterion and targets (before: a `condition` plan without targets never formed its
+/// shared weights, and an `eps` of -1 was planned without a word).
+#[test]
+fn plan_refuses_a_bad_eps_with_its_settings() {
+    let coll = Collection::embedded_default();
+    let grid = FitParams {
+        stride: 8,
+        ..FitParams::default()
+    };
+    let cands = cell_candidates(&coll, &[0, 1, 2, 3], &grid).expect("candidates");
+    for (criterion, targets) in [
+        (Criterion::Condition, &[][..]),
+        (Criterion::Condition, &[2, 3][..]),
+        (Criterion::Error, &[2, 3][..]),
+    ] {
+        let p = PlanParams {
+            n: 4,
+            criterion,
+            fit: FitParams {
+                objective: TargetWeight::Relative { eps: -1.0 },
+                ..grid.clone()
+            },
+            ..PlanParams::default()
+        };
+        let e = plan(&CpuBackend::new(), &coll, &[0, 1], targets, &cands, &p)
+            .expect_err("a plan with eps -1")
+            .to_string();
+        assert!(
+            e.contains("the relative objective's eps must be a positive number, not -1"),
+            "{criterion:?} {targets:?}: {e}"
+        );
+    }
 }

@@ -126,51 +126,65 @@ fn factored_tables_equal_the_model_from_directions() {
     }
 }
 
-/// The stride rule has one home (issue 47): every request with a grid refuses a stride
-/// outside 1..=90 in its `check`, before any work, in the command line's words and
-/// naming `--stride` (a door without the command line's parser, Python or the library,
-/// got three different refusals, or none above 90).
+/// The grid has one home (issue 47): `merl::GridSpec`, checked when it is built, which
+/// the requests, the command line and Python hold. A stride outside 1..=90 cannot make
+/// one, and the refusal names `--stride` in the command line's words; the core's
+/// parameter types (objective, distances, reproduce) refuse it by the same rule and
+/// wording (before: "an integer in 1..=90", "an integer >= 1" with no upper bound, and
+/// "at least 1").
 #[test]
-fn every_request_with_a_grid_refuses_a_bad_stride_in_one_wording() {
-    use brdf_basis::run::{
-        AcquisitionRequest, CvRequest, DistanceRequest, FitRequest, Grid, SelectMethod,
-        SelectRequest, STRIDE_RULE,
-    };
-    for stride in [0, 91] {
-        let grid = Grid {
+fn the_grid_is_checked_when_built_by_one_rule() {
+    use brdf_basis::distance::DistanceParams;
+    use brdf_basis::experiment::ExperimentParams;
+    use brdf_basis::merl::{GridSpec, Mask, Weighting};
+    use brdf_basis::select::ObjectiveParams;
+    let coll = brdf_basis::Collection::embedded_default();
+    for stride in [0, 91, 360] {
+        let want = format!("--stride {stride}: {}", GridSpec::STRIDE_RULE);
+        let e = GridSpec::new(Mask::Valid, Weighting::SolidAngle, stride).expect_err("built");
+        assert_eq!(e.to_string(), want);
+        let e = GridSpec::default().with_stride(stride).expect_err("built");
+        assert_eq!(e.to_string(), want);
+        assert!(!GridSpec::stride_ok(stride));
+        let e = ObjectiveParams::default()
+            .stride(stride)
+            .check()
+            .expect_err("objective")
+            .to_string();
+        assert!(e.contains(GridSpec::STRIDE_RULE), "{e}");
+        let e = DistanceParams::default()
+            .stride(stride)
+            .check(&coll)
+            .expect_err("distance")
+            .to_string();
+        assert!(e.contains(GridSpec::STRIDE_RULE), "{e}");
+        let e = ExperimentParams {
             stride,
-            ..Grid::default()
-        };
-        let want = format!("--stride {stride}: {STRIDE_RULE}");
-        let mut distance = DistanceRequest::default();
-        distance.grid = grid;
-        let mut select = SelectRequest::new(SelectMethod::Greedy);
-        select.k = Some(2);
-        select.grid = grid;
-        let mut fit = FitRequest::new(vec!["polished-gold".into()]);
-        fit.grid = grid;
-        let mut cv = CvRequest::default();
-        cv.grid = grid;
-        let mut acquisition = AcquisitionRequest::default();
-        acquisition.grid = grid;
-        let checks = [
-            ("distance", distance.check()),
-            ("select", select.check()),
-            ("fit", fit.check()),
-            ("cv", cv.check()),
-            ("cv --acquisition", acquisition.check()),
-        ];
-        for (command, r) in checks {
-            let e = r.expect_err(command).to_string();
-            assert_eq!(e, want, "{command}");
+            ..ExperimentParams::default()
         }
-        assert!(grid.check().is_err());
+        .check_count(coll.len())
+        .expect_err("reproduce")
+        .to_string();
+        assert!(e.contains(GridSpec::STRIDE_RULE), "{e}");
     }
     for stride in [1, 8, 90] {
-        let grid = Grid {
-            stride,
-            ..Grid::default()
-        };
-        assert!(grid.check().is_ok(), "{stride}");
+        let g = GridSpec::new(Mask::Valid, Weighting::SolidAngle, stride).expect("in range");
+        assert_eq!(
+            (g.mask(), g.weighting(), g.stride()),
+            (Mask::Valid, Weighting::SolidAngle, stride)
+        );
+        assert!(ObjectiveParams::default().grid(g).check().is_ok());
+        assert!(DistanceParams::default().grid(g).check(&coll).is_ok());
     }
+    let d = GridSpec::default();
+    assert_eq!(
+        (d.mask(), d.weighting(), d.stride()),
+        (Mask::Evaluation, Weighting::Uniform, 1)
+    );
+    // The requests' default grid is the core's.
+    assert_eq!(brdf_basis::run::DistanceRequest::default().grid, d);
+    assert_eq!(
+        brdf_basis::run::SelectRequest::new(brdf_basis::run::SelectMethod::Greedy).grid,
+        d
+    );
 }

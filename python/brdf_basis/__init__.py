@@ -468,8 +468,9 @@ def fit_samples(
 def defaults() -> dict:
     """The settings each command function takes when a keyword argument is left out
     (``None``), by function name (``distance_matrix``, ``select``, ``fit``, ``plan``,
-    ``fit_samples``, ``cross_validate``, ``acquisition_cv``): read from the library's
-    requests, the one home of the defaults (the command line's ``--help`` shows the same).
+    ``fit_samples``, ``cross_validate``, ``acquisition_cv``, and the helpers ``kmedoids``,
+    ``render``, ``image_error``, ``mask``): read from the library's requests and parameter
+    types, the one home of the defaults (the command line's ``--help`` shows the same).
     Settings whose default depends on others (a method's ``k``, ``runs``, ...) are left
     to the request.
 
@@ -532,12 +533,12 @@ def kmedoids(
     d: _np.ndarray,
     k: int,
     *,
-    seed: int = 1,
-    init: str = "build",
-    algorithm: str = "fasterpam",
-    restarts: int = 1,
-    max_iter: int = 100,
-    order: str = "shuffled",
+    seed: Optional[int] = None,
+    init: Optional[str] = None,
+    algorithm: Optional[str] = None,
+    restarts: Optional[int] = None,
+    max_iter: Optional[int] = None,
+    order: Optional[str] = None,
     tolerance: Optional[float] = None,
     medoids: Optional[Sequence[int]] = None,
 ) -> KMedoidsResult:
@@ -549,7 +550,9 @@ def kmedoids(
     (``order="shuffled"``, like the ``kmedoids`` package with a ``random_state``) or in
     item order (``"sequential"``, the package without one). ``medoids`` gives the initial
     medoids of one run instead; ``tolerance`` is the relative tie margin of the loss
-    comparisons (default 1e-6; 0 compares strictly, as the package).
+    comparisons (0 compares strictly, as the package). A setting left out (``None``) is
+    the library's, listed by ``defaults()["kmedoids"]`` (seed 1, BUILD, FasterPAM, one
+    run, 100 iterations, shuffled, tolerance 1e-6).
 
     >>> import numpy as np
     >>> x = _np.array([0.0, 0.1, 5.0, 5.2]); d = _np.abs(x[:, None] - x[None, :])

@@ -184,12 +184,23 @@ def register(name: str = "brdf_basis") -> None:
     mi.register_bsdf(name, lambda props: BrdfBasisBSDF(props))
 
 
-def sphere_scene(bsdf_entry: dict, *, size: int = 64, light: Tuple[float, float] = (45.0, 45.0)):
+def _render_settings(size: Optional[int], light: Optional[Tuple[float, float]]) -> tuple:
+    """``size`` and ``light`` with those left out (``None``) the library's, as
+    :func:`brdf_basis.render` takes them (``defaults()["render"]``)."""
+    from . import defaults
+
+    d = defaults()["render"]
+    return (d["size"] if size is None else size, tuple(d["light"]) if light is None else light)
+
+
+def sphere_scene(bsdf_entry: dict, *, size: Optional[int] = None, light: Optional[Tuple[float, float]] = None):
     """The sphere of SPEC 7 as a Mitsuba scene: a unit sphere seen by an orthographic
     camera from +z over [-1, 1]^2 (x right, y up), lit by a directional light of
-    irradiance 1 from ``light = (theta, phi)`` degrees, the ``direct`` integrator."""
+    irradiance 1 from ``light = (theta, phi)`` degrees, the ``direct`` integrator.
+    ``size`` and ``light`` left out are :func:`brdf_basis.render`'s."""
     import mitsuba as mi
 
+    size, light = _render_settings(size, light)
     t, p = (math.radians(v) for v in light)
     wi = [math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)]
     T = mi.ScalarTransform4f
@@ -210,12 +221,14 @@ def sphere_scene(bsdf_entry: dict, *, size: int = 64, light: Tuple[float, float]
     )
 
 
-def render_sphere(bsdf_entry: Union[dict, Brdf], *, size: int = 64, light: Tuple[float, float] = (45.0, 45.0)) -> np.ndarray:
+def render_sphere(bsdf_entry: Union[dict, Brdf], *, size: Optional[int] = None, light: Optional[Tuple[float, float]] = None) -> np.ndarray:
     """Renders :func:`sphere_scene` with Mitsuba, one camera ray through each pixel
     centre (SPEC 7's sampling; ``mi.render`` would jitter the rays inside the pixels):
-    linear radiance, (size, size, 3) float32, row 0 at the top."""
+    linear radiance, (size, size, 3) float32, row 0 at the top. ``size`` and ``light``
+    left out are :func:`brdf_basis.render`'s (the same image size by default)."""
     import mitsuba as mi
 
+    size, light = _render_settings(size, light)
     entry = bsdf(bsdf_entry) if isinstance(bsdf_entry, Brdf) else bsdf_entry
     scene = sphere_scene(entry, size=size, light=light)
     sensor = scene.sensors()[0]

@@ -41,51 +41,50 @@ pub(crate) type KMedoidsTuple = (Vec<usize>, Vec<usize>, f64, usize, f64);
 
 /// k-medoids on a precomputed matrix: (medoids, labels, loss, iterations, db_index).
 /// With `medoids`, one run from those initial medoids (`init` and `restarts` unused).
+/// A setting left out (`None`) is the library's (`KMedoidsParams::new`, `defaults()`).
 #[pyfunction]
-#[pyo3(signature = (d, k, *, seed = 1, init = "build", algorithm = "fasterpam", restarts = 1, max_iter = 100, order = "shuffled", tolerance = None, medoids = None))]
+#[pyo3(signature = (d, k, *, seed = None, init = None, algorithm = None, restarts = None, max_iter = None, order = None, tolerance = None, medoids = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn kmedoids(
     py: Python<'_>,
     d: PyReadonlyArray2<'_, f64>,
     k: usize,
-    seed: u64,
-    init: &str,
-    algorithm: &str,
-    restarts: usize,
-    max_iter: usize,
-    order: &str,
+    seed: Option<u64>,
+    init: Option<&str>,
+    algorithm: Option<&str>,
+    restarts: Option<usize>,
+    max_iter: Option<usize>,
+    order: Option<&str>,
     tolerance: Option<f64>,
     medoids: Option<Vec<usize>>,
 ) -> PyResult<KMedoidsTuple> {
     let m = matrix_of(&d)?;
-    let init = match init {
-        "build" => bb::KMedoidsInit::Build,
-        "random" => bb::KMedoidsInit::Random,
-        s => {
-            return Err(value_err(format!(
+    let init = init
+        .map(|init| match init {
+            "build" => Ok(bb::KMedoidsInit::Build),
+            "random" => Ok(bb::KMedoidsInit::Random),
+            s => Err(value_err(format!(
                 "invalid init `{s}` (expected build, random)"
-            )))
-        }
-    };
-    let order = match order {
-        "shuffled" => bb::KMedoidsOrder::Shuffled,
-        "sequential" => bb::KMedoidsOrder::Sequential,
-        s => {
-            return Err(value_err(format!(
+            ))),
+        })
+        .transpose()?;
+    let order = order
+        .map(|order| match order {
+            "shuffled" => Ok(bb::KMedoidsOrder::Shuffled),
+            "sequential" => Ok(bb::KMedoidsOrder::Sequential),
+            s => Err(value_err(format!(
                 "invalid order `{s}` (expected shuffled, sequential)"
-            )))
-        }
-    };
-    let mut p = bb::KMedoidsParams::new(k)
-        .seed(seed)
-        .init(init)
-        .algorithm(parse(algorithm)?)
-        .restarts(restarts)
-        .max_iter(max_iter)
-        .order(order);
-    if let Some(t) = tolerance {
-        p = p.tolerance(t);
-    }
+            ))),
+        })
+        .transpose()?;
+    let mut p = bb::KMedoidsParams::new(k);
+    set(&mut p.seed, seed);
+    set(&mut p.init, init);
+    set(&mut p.algorithm, algorithm.map(parse).transpose()?);
+    set(&mut p.restarts, restarts);
+    set(&mut p.max_iter, max_iter);
+    set(&mut p.order, order);
+    set(&mut p.tolerance, tolerance);
     let p = p.check().map_err(lib_err)?;
     let r = py
         .detach(|| match &medoids {

@@ -79,18 +79,20 @@ impl Brdf {
 
 /// The sphere of SPEC 7 (orthographic from +z, one directional light from
 /// `light = (theta, phi)` degrees): linear radiance, shape (size, size, 3) float32, row 0
-/// at the top (what `brdf-basis render --out` writes).
+/// at the top (what `brdf-basis render --out` writes). `size` and `light` left out
+/// (`None`) are the library's (`RenderParams::default()`, `defaults()`).
 #[pyfunction]
-#[pyo3(signature = (brdf, *, size = 256, light = (45.0, 45.0)))]
+#[pyo3(signature = (brdf, *, size = None, light = None))]
 pub(crate) fn render<'py>(
     py: Python<'py>,
     brdf: &Bound<'py, Brdf>,
-    size: u32,
-    light: (f64, f64),
+    size: Option<u32>,
+    light: Option<(f64, f64)>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let p = bb::eval::render::RenderParams::default()
-        .with_size(size)
-        .with_light(light.0, light.1);
+    let mut p = bb::eval::render::RenderParams::default();
+    set(&mut p.size, size);
+    set(&mut p.light, light);
+    let size = p.size;
     let f = &brdf.get().f;
     let img = py
         .detach(|| bb::eval::render::render_sphere(&p, f))
@@ -145,18 +147,19 @@ pub(crate) fn image_of(
 
 /// Normalised image error of SPEC 7 between two sphere renders (float32 arrays
 /// (size, size, 3)): the mean over sphere pixels and channels of |a - b| after the
-/// display mapping (exposure, gamma, clamp).
+/// display mapping (exposure, gamma, clamp). `exposure` and `gamma` left out (`None`)
+/// are the library's (`DisplayParams::default()`, `defaults()`).
 #[pyfunction]
-#[pyo3(signature = (a, b, *, exposure = 0.0, gamma = 2.2))]
+#[pyo3(signature = (a, b, *, exposure = None, gamma = None))]
 pub(crate) fn image_error(
     a: PyReadonlyArrayDyn<'_, f32>,
     b: PyReadonlyArrayDyn<'_, f32>,
-    exposure: f64,
-    gamma: f64,
+    exposure: Option<f64>,
+    gamma: Option<f64>,
 ) -> PyResult<f64> {
-    let d = bb::eval::image_error::DisplayParams::default()
-        .with_exposure(exposure)
-        .with_gamma(gamma);
+    let mut d = bb::eval::image_error::DisplayParams::default();
+    set(&mut d.exposure, exposure);
+    set(&mut d.gamma, gamma);
     d.check().map_err(lib_err)?;
     bb::eval::image_error::normalized_image_error(&image_of(&a, "a")?, &image_of(&b, "b")?, &d)
         .map_err(lib_err)

@@ -117,11 +117,15 @@ pub(crate) fn coll_of(c: &Bound<'_, Collection>) -> Arc<bb::Collection> {
 }
 
 /// The boolean mask of the MERL grid, shape (90, 90, 180): `"valid"` (both directions
-/// above the horizon) or `"evaluation"` (theta_i, theta_o <= 80 deg, 2 theta_d >= 3 deg).
+/// above the horizon) or `"evaluation"` (theta_i, theta_o <= 80 deg, 2 theta_d >= 3 deg);
+/// `None`: the library's default grid's mask (`merl::GridSpec::default()`, `defaults()`).
 #[pyfunction]
-#[pyo3(signature = (name = "evaluation"))]
-pub(crate) fn mask<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-    let m: bb::Mask = parse(name)?;
+#[pyo3(signature = (name = None))]
+pub(crate) fn mask<'py>(py: Python<'py>, name: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
+    let m: bb::Mask = match name {
+        Some(name) => parse(name)?,
+        None => bb::merl::GridSpec::default().mask(),
+    };
     let v: Vec<bool> = (0..bb::merl::N_CELLS)
         .map(|c| {
             let info = bb::merl::cell_info(c);

@@ -39,17 +39,25 @@ pub(crate) fn distance_matrix<'py>(
 }
 
 /// The grid settings of a request (`mask`, `weighting`, `stride`): those given replace
-/// the request's defaults `g`.
+/// the request's defaults `g`, into a grid checked when built (`merl::GridSpec`, the
+/// stride's rule in its words).
 pub(crate) fn grid(
-    mut g: bb::run::Grid,
+    g: bb::merl::GridSpec,
     mask: Option<&str>,
     weighting: Option<&str>,
     stride: Option<usize>,
-) -> PyResult<bb::run::Grid> {
-    set(&mut g.mask, mask.map(parse).transpose()?);
-    set(&mut g.weighting, weighting.map(parse).transpose()?);
-    set(&mut g.stride, stride);
-    Ok(g)
+) -> PyResult<bb::merl::GridSpec> {
+    let mut g = g;
+    if let Some(m) = mask {
+        g = g.with_mask(parse(m)?);
+    }
+    if let Some(w) = weighting {
+        g = g.with_weighting(parse(w)?);
+    }
+    match stride {
+        Some(s) => g.with_stride(s).map_err(lib_err),
+        None => Ok(g),
+    }
 }
 
 /// A setting given (`Some`) replaces the request's default; `None` keeps it.

@@ -12,10 +12,10 @@ fn name<T: serde::Serialize>(v: T) -> Value {
 }
 
 /// `mask`, `weighting` and `stride` of a request's grid.
-fn grid(m: &mut Map<String, Value>, g: bb::run::Grid) {
-    m.insert("mask".into(), g.mask.as_str().into());
-    m.insert("weighting".into(), g.weighting.as_str().into());
-    m.insert("stride".into(), g.stride.into());
+fn grid(m: &mut Map<String, Value>, g: bb::merl::GridSpec) {
+    m.insert("mask".into(), g.mask().as_str().into());
+    m.insert("weighting".into(), g.weighting().as_str().into());
+    m.insert("stride".into(), g.stride().into());
 }
 
 /// `objective` and `eps` (`None` unless relative) when neither is given.
@@ -111,6 +111,35 @@ pub(crate) fn defaults_json() -> PyResult<String> {
     m.insert("appearance".into(), a.appearance.into());
     m.insert("backend".into(), backend);
     all.insert("acquisition_cv".into(), m.into());
+
+    // The helpers that are not commands: the library's parameter types' defaults.
+    let k = bb::KMedoidsParams::new(2);
+    all.insert(
+        "kmedoids".into(),
+        json!({
+            "seed": k.seed,
+            "init": k.init.to_string(),
+            "algorithm": k.algorithm.to_string(),
+            "restarts": k.restarts,
+            "max_iter": k.max_iter,
+            "order": k.order.to_string(),
+            "tolerance": k.tolerance,
+        }),
+    );
+    let r = bb::eval::render::RenderParams::default();
+    all.insert(
+        "render".into(),
+        json!({ "size": r.size, "light": [r.light.0, r.light.1] }),
+    );
+    let d = bb::eval::image_error::DisplayParams::default();
+    all.insert(
+        "image_error".into(),
+        json!({ "exposure": d.exposure, "gamma": d.gamma }),
+    );
+    all.insert(
+        "mask".into(),
+        json!({ "name": bb::merl::GridSpec::default().mask().as_str() }),
+    );
 
     serde_json::to_string_pretty(&Value::Object(all)).map_err(|e| value_err(e.to_string()))
 }

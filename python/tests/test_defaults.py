@@ -22,6 +22,11 @@ NATIVE = {
     "fit_samples": _native.fit_samples,
     "cross_validate": _native.cross_validate_json,
     "acquisition_cv": _native.acquisition_cv_json,
+    # The helpers that are not commands: their defaults are the library's parameter types'.
+    "kmedoids": _native.kmedoids,
+    "render": _native.render,
+    "image_error": _native.image_error,
+    "mask": _native.mask,
 }
 BASIS = ["polished-gold", "matte-white-paint"]
 
@@ -111,7 +116,8 @@ def test_fit_samples_refuses_as_the_cli_refuses(cli_error, tmp_path):  # noqa: F
 
 @pytest.mark.parametrize("stride", [0, 91])
 def test_every_command_refuses_a_bad_stride_in_one_wording(stride):
-    # The rule is the library's Grid::check, in the command line's words, before any work.
+    # The rule is the library's GridSpec (checked when built), in the command line's
+    # words, before any work.
     c = bb.Collection.default()
     calls = {
         "distance_matrix": lambda: bb.distance_matrix(c, stride=stride, backend="cpu"),
@@ -132,3 +138,52 @@ def test_solver_and_gram_are_read_by_the_librarys_own_names():
     for bad, words in (({"solver": "bogus"}, "give exact or pgd"), ({"gram": "bogus"}, "give auto or grid")):
         with pytest.raises(ValueError, match=words):
             bb.fit(c, BASIS, ["gloss-red-enamel"], objective="l2", stride=9, appearance=False, **bad)
+
+
+def test_no_public_function_holds_a_literal_default():
+    # Every function of the package and of its Mitsuba glue: a setting left out is None,
+    # which the library resolves (the plug-in's registered name is a name, not a setting).
+    import brdf_basis.mitsuba as bbm
+
+    funcs = [(n, getattr(bb, n)) for n in bb.__all__ if inspect.isroutine(getattr(bb, n))]
+    funcs += [(n, f) for n, f in vars(bbm).items() if inspect.isfunction(f) and not n.startswith("_") and f.__module__ == bbm.__name__]
+    assert len(funcs) > 20
+    for name, f in funcs:
+        for p in inspect.signature(f).parameters.values():
+            if (name, p.name) == ("register", "name"):
+                continue
+            assert p.default in (inspect.Parameter.empty, None), (name, p.name, p.default)
+
+
+def test_the_helpers_left_alone_are_the_library_defaults():
+    d = bb.defaults()
+    assert d["kmedoids"] == {
+        "seed": 1,
+        "init": "build",
+        "algorithm": "fasterpam",
+        "restarts": 1,
+        "max_iter": 100,
+        "order": "shuffled",
+        "tolerance": 1e-6,
+    }
+    assert d["render"] == {"size": 256, "light": [45.0, 45.0]}
+    assert d["image_error"] == {"exposure": 0.0, "gamma": 2.2}
+    assert d["mask"] == {"name": d["distance_matrix"]["mask"]}
+    # A call without the settings is the call with them.
+    rng = np.random.default_rng(3)
+    x = rng.random((12, 2))
+    dm = np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(-1))
+    k = d["kmedoids"]
+    assert bb.kmedoids(dm, 3) == bb.kmedoids(dm, 3, **k)
+    c = bb.Collection.default()
+    f = bb.Brdf.material(c, "polished-gold")
+    r = d["render"]
+    img = bb.render(f)
+    assert img.shape == (r["size"], r["size"], 3)
+    assert np.array_equal(img, bb.render(f, size=r["size"], light=tuple(r["light"])))
+    g = bb.render(bb.Brdf.material(c, "matte-white-paint"), size=32)
+    h = bb.render(f, size=32)
+    assert bb.image_error(g, h) == bb.image_error(g, h, **d["image_error"])
+    assert bb.image_error(g, h) != bb.image_error(g, h, gamma=1.0)
+    assert np.array_equal(bb.mask(), bb.mask(d["mask"]["name"]))
+    assert not np.array_equal(bb.mask(), bb.mask("valid"))

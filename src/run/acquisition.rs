@@ -1,10 +1,11 @@
 //! `cv --acquisition`: acquisition cross-validation (SPEC 10).
 
-use super::{check_restarts, Grid, ObjectiveSetting};
+use super::{check_restarts, ObjectiveSetting};
 use crate::acquire::{acquisition_cv_with_progress, AcqCv, AcqCvParams, Criterion};
 use crate::backend::Backend;
 use crate::backend::Progress;
 use crate::collection::Collection;
+use crate::merl::GridSpec;
 use crate::select::cv::CvMethod;
 use crate::select::ObjectiveParams;
 use crate::Result;
@@ -38,7 +39,7 @@ pub struct AcquisitionRequest {
     /// `--render-size`.
     pub render_size: u32,
     /// `--mask`, `--weighting`, `--stride`.
-    pub grid: Grid,
+    pub grid: GridSpec,
     /// `--seed`.
     pub seed: u64,
     /// `--objective` and `--eps` (SPEC 11): the fold bases' shared weights, the plans'
@@ -64,7 +65,7 @@ impl Default for AcquisitionRequest {
             shortlist: None,
             restarts: None,
             render_size: d.render_size,
-            grid: Grid::default(),
+            grid: GridSpec::default(),
             seed: d.seed,
             objective: ObjectiveSetting::default(),
             appearance: d.appearance,
@@ -90,9 +91,7 @@ impl AcquisitionRequest {
             restarts: self.restarts.unwrap_or(d.restarts),
             render_size: self.render_size,
             objective: ObjectiveParams::default()
-                .mask(self.grid.mask)
-                .weighting(self.grid.weighting)
-                .stride(self.grid.stride)
+                .grid(self.grid)
                 .objective(self.objective.weight()?),
             appearance: self.appearance,
             ridge: self.ridge,
@@ -109,7 +108,6 @@ impl AcquisitionRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        self.grid.check()?;
         self.objective.weight()?;
         let given = [
             self.candidates_per_step.is_some(),

@@ -1,9 +1,10 @@
 //! `cv`: cross-validated comparison of basis-selection methods (SPEC 8).
 
-use super::{refuse, Grid, ObjectiveSetting};
+use super::{refuse, ObjectiveSetting};
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::distance::Metric;
+use crate::merl::GridSpec;
 use crate::select::cv::{cross_validate, CvMethod, CvParams, CvResult};
 use crate::select::{GaParams, ObjectiveParams};
 use crate::Result;
@@ -22,7 +23,7 @@ pub struct CvRequest {
     /// `--metric`: distance of the clustering methods (default: [`CvParams::default`]'s).
     pub metric: Option<Metric>,
     /// `--mask`, `--weighting`, `--stride`.
-    pub grid: Grid,
+    pub grid: GridSpec,
     /// `--runs`: k-medoids restarts and GCUK runs per fold (default:
     /// [`CvParams::default`]'s).
     pub runs: Option<usize>,
@@ -49,7 +50,7 @@ impl Default for CvRequest {
             ks: d.ks,
             folds: d.folds,
             metric: None,
-            grid: Grid::default(),
+            grid: GridSpec::default(),
             runs: None,
             ga_population: None,
             ga_generations: None,
@@ -72,9 +73,7 @@ impl CvRequest {
             folds: self.folds,
             seed: self.seed,
             objective: ObjectiveParams::default()
-                .mask(self.grid.mask)
-                .weighting(self.grid.weighting)
-                .stride(self.grid.stride)
+                .grid(self.grid)
                 .objective(self.objective.weight()?),
             metric: self.metric.unwrap_or(d.metric),
             runs: self.runs.unwrap_or(d.runs),
@@ -113,7 +112,6 @@ impl CvRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        self.grid.check()?;
         for (given, flag, users) in self.method_settings() {
             if given && !self.methods.iter().any(|m| users.contains(m)) {
                 let users: Vec<&str> = users.iter().map(|m| m.name()).collect();

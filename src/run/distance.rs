@@ -1,6 +1,6 @@
 //! `distance`: the pairwise distance matrix of a collection, whole or one tile of it.
 
-use super::{refuse, Grid};
+use super::refuse;
 use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::distance::{check_band_rows, tile_rows};
@@ -8,6 +8,7 @@ use crate::distance::{
     distance_matrix_banded, distance_tile, DistanceMatrix, DistanceParams, LobeKind, Metric, Tile,
     ValidDistanceParams, DEFAULT_BAND_ROWS,
 };
+use crate::merl::GridSpec;
 use crate::Result;
 
 /// `brdf-basis distance`: its settings, with the defaults of `distance --help`.
@@ -17,7 +18,7 @@ pub struct DistanceRequest {
     /// `--metric`: brdf-it (the paper's Eq. 5) or euclidean (on F0, n).
     pub metric: Metric,
     /// `--mask`, `--weighting`, `--stride`.
-    pub grid: Grid,
+    pub grid: GridSpec,
     /// `--lobe`: specular or full (`None`: specular when every material is analytic).
     pub lobe: Option<LobeKind>,
     /// `--band-rows`: materials per back-end call (a multiple of 4; changes no value).
@@ -30,7 +31,7 @@ impl Default for DistanceRequest {
     fn default() -> Self {
         Self {
             metric: Metric::BrdfIt,
-            grid: Grid::default(),
+            grid: GridSpec::default(),
             lobe: None,
             band_rows: DEFAULT_BAND_ROWS,
             tile: None,
@@ -56,7 +57,6 @@ impl DistanceRequest {
     /// [`crate::error::DistanceError`] or [`crate::error::RequestError`] naming the
     /// setting.
     pub fn check(&self) -> Result<()> {
-        self.grid.check()?;
         check_band_rows(self.band_rows)?;
         if let Some((i, n)) = self.tile {
             if i == 0 || i > n {
@@ -76,9 +76,7 @@ impl DistanceRequest {
         self.check()?;
         let mut p = DistanceParams::default()
             .metric(self.metric)
-            .mask(self.grid.mask)
-            .weighting(self.grid.weighting)
-            .stride(self.grid.stride);
+            .grid(self.grid);
         p.lobe = self.lobe;
         let p = p.check(coll)?;
         if let Some((i, n)) = self.tile {

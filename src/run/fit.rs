@@ -1,6 +1,6 @@
 //! `fit`: materials of the collection as non-negative combinations of a basis.
 
-use super::{all_others, indices_of, refuse, Grid, ObjectiveSetting};
+use super::{all_others, indices_of, refuse, ObjectiveSetting};
 use crate::acquire::SampleFit;
 use crate::backend::weighted::ObjectiveKind;
 use crate::backend::{Backend, Progress};
@@ -9,6 +9,7 @@ use crate::eval::appearance::Appearance;
 use crate::fit::diagnostics::{fit_warnings, WARN_RELATIVE_RESIDUAL};
 use crate::fit::file::FitFile;
 use crate::fit::{fit, FitParams, GramMode, Solver, TargetFit};
+use crate::merl::GridSpec;
 use crate::Result;
 use std::path::PathBuf;
 
@@ -33,7 +34,7 @@ pub struct FitRequest {
     /// `--targets` or `--all-others`.
     pub targets: FitTargets,
     /// `--mask`, `--weighting`, `--stride`.
-    pub grid: Grid,
+    pub grid: GridSpec,
     /// `--solver`.
     pub solver: Solver,
     /// `--gram`.
@@ -70,7 +71,7 @@ impl FitRequest {
         Self {
             basis,
             targets: FitTargets::default(),
-            grid: Grid::default(),
+            grid: GridSpec::default(),
             solver: d.solver,
             gram: d.gram,
             objective: ObjectiveSetting::default(),
@@ -84,7 +85,6 @@ impl FitRequest {
     /// # Errors
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        self.grid.check()?;
         let w = self.objective.weight()?;
         let d = FitParams::default();
         let given: Vec<String> = [
@@ -112,13 +112,12 @@ impl FitRequest {
     /// As [`Self::check`].
     pub fn params(&self) -> Result<FitParams> {
         Ok(FitParams {
-            mask: self.grid.mask,
-            weighting: self.grid.weighting,
-            stride: self.grid.stride,
             solver: self.solver,
             gram: self.gram,
             objective: self.objective.weight()?,
-        })
+            ..FitParams::default()
+        }
+        .grid(self.grid))
     }
 
     /// The basis and target indices in `coll`: targets each once, never empty.
@@ -197,7 +196,7 @@ pub struct FitSamplesRequest {
     pub samples: Samples,
     /// `--mask`, `--weighting`, `--stride`: do not apply (the defaults only, recorded in
     /// the JSON; [`Self::check`] refuses others).
-    pub grid: Grid,
+    pub grid: GridSpec,
     /// `--solver`: does not apply (the default only, recorded in the JSON).
     pub solver: Solver,
     /// `--gram`: does not apply (the default only, recorded in the JSON).
@@ -269,7 +268,7 @@ impl FitSamplesRequest {
         Self {
             basis,
             samples,
-            grid: Grid::default(),
+            grid: GridSpec::default(),
             solver: d.solver,
             gram: d.gram,
             seed: 1,
@@ -296,11 +295,11 @@ impl FitSamplesRequest {
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
         self.objective.weight()?;
-        let (grid, g, d) = (&self.grid, Grid::default(), FitParams::default());
+        let (grid, g, d) = (&self.grid, GridSpec::default(), FitParams::default());
         let ignored: Vec<&str> = [
-            ("--stride", grid.stride != g.stride),
-            ("--mask", grid.mask != g.mask),
-            ("--weighting", grid.weighting != g.weighting),
+            ("--stride", grid.stride() != g.stride()),
+            ("--mask", grid.mask() != g.mask()),
+            ("--weighting", grid.weighting() != g.weighting()),
             ("--solver", self.solver != d.solver),
             ("--gram", self.gram != d.gram),
         ]
@@ -371,13 +370,12 @@ impl FitSamplesRequest {
             ));
         }
         let p = FitParams {
-            mask: self.grid.mask,
-            weighting: self.grid.weighting,
-            stride: self.grid.stride,
             solver: self.solver,
             gram: self.gram,
             objective,
-        };
+            ..FitParams::default()
+        }
+        .grid(self.grid);
         let target = sf.target_fit(&name);
         // Audit 3, U6: the dense fit's rule (relative residual above 0.5, under the
         // objective's weights when it is not `l2`), on the samples.

@@ -18,7 +18,7 @@
 //! let coll = Collection::embedded_default();
 //! let mut req = SelectRequest::new(SelectMethod::Greedy);
 //! req.k = Some(3);
-//! req.grid.stride = 8;
+//! req.grid = brdf_basis::merl::GridSpec::default().with_stride(8)?;
 //! let out = req.run(&CpuBackend::new(), &coll, &|_, _| {})?;
 //! assert!(out.to_json().contains("\"method\": \"greedy\""));
 //! // A rule every door makes: a `nielsen` plan is not one `fit --samples` can use.
@@ -48,7 +48,6 @@ pub use select::{SelectMethod, SelectRequest};
 
 use crate::backend::weighted::{ObjectiveKind, TargetWeight};
 use crate::collection::Collection;
-use crate::merl::{Mask, Weighting};
 
 /// The fit objective of `fit`, `select`, `plan` and `cv` when none is given (SPEC 11):
 /// the library's one default (`relative`, `eps` 0.01), the same for the core's parameter
@@ -117,31 +116,9 @@ impl From<TargetWeight> for ObjectiveSetting {
 /// # Errors
 /// [`crate::error::RequestError`] naming `--eps`.
 pub fn check_eps(eps: f64) -> crate::Result<f64> {
-    match (TargetWeight::Relative { eps }).check() {
+    match TargetWeight::relative(eps) {
         Ok(_) => Ok(eps),
         Err(e) => refuse!("--eps {eps}: {e}"),
-    }
-}
-
-/// Which grid cells a command reduces over and how they are weighted: the
-/// `--mask`, `--weighting` and `--stride` of `distance`, `select`, `fit` and `cv`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Grid {
-    /// Grid cells (default: the evaluation mask).
-    pub mask: Mask,
-    /// Cell weights (default: uniform, the paper's Eq. 5).
-    pub weighting: Weighting,
-    /// Every `stride`-th cell on each grid axis (default 1: the full grid).
-    pub stride: usize,
-}
-
-impl Default for Grid {
-    fn default() -> Self {
-        Self {
-            mask: Mask::Evaluation,
-            weighting: Weighting::Uniform,
-            stride: 1,
-        }
     }
 }
 
@@ -152,26 +129,6 @@ macro_rules! refuse {
     };
 }
 pub(crate) use refuse;
-
-/// The rule of `--stride`, its one wording (the command line's parser and
-/// [`Grid::check`]).
-pub const STRIDE_RULE: &str = "expected a whole number from 1 (the full grid) to 90";
-
-impl Grid {
-    /// The grid's rule, its one home: a stride from 1 (the full grid) to 90 (the mask and
-    /// the weighting are valid by their type). Every request with a grid checks it in its
-    /// `check`, so that a door without the command line's parser (Python, the library)
-    /// gets the same refusal before any work.
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`] naming `--stride`.
-    pub fn check(&self) -> crate::Result<()> {
-        if !(1..=90).contains(&self.stride) {
-            refuse!("--stride {}: {STRIDE_RULE}", self.stride);
-        }
-        Ok(())
-    }
-}
 
 /// Collection indices of `names` (surrounding spaces ignored), in order.
 ///

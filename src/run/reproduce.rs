@@ -41,8 +41,10 @@ pub struct ReproduceRequest {
     pub paper_bases: Option<PathBuf>,
     /// `--cv-folds`: folds of the cross-validations (0: none).
     pub cv_folds: usize,
-    /// `--cv-runs`: k-medoids restarts and GCUK runs per fold.
-    pub cv_runs: usize,
+    /// `--cv-runs`: k-medoids restarts and GCUK runs per fold of the selection methods'
+    /// cross-validation (`None`: [`ExperimentParams::default`]'s); refused with
+    /// `--cv-folds 0`, which leaves that cross-validation out.
+    pub cv_runs: Option<usize>,
     /// Bases chosen by fitting error (`--no-selection` clears it).
     pub selection: bool,
     /// The acquisition cross-validation (`--no-acquisition` clears it).
@@ -68,7 +70,7 @@ impl Default for ReproduceRequest {
             showcase: d.showcase,
             paper_bases: None,
             cv_folds: d.cv_folds,
-            cv_runs: d.cv_runs,
+            cv_runs: None,
             selection: d.error_driven,
             acquisition: true,
             appearance: true,
@@ -101,6 +103,7 @@ impl ReproduceRequest {
     /// [`crate::experiment::ExperimentError`] for settings that do not fit the collection
     /// or an unreadable paper-bases file.
     pub fn check(&self, coll: &Collection) -> Result<ValidExperimentParams> {
+        self.check_settings()?;
         let paper_bases = match &self.paper_bases {
             Some(p) => read_paper_bases(p, coll)?,
             None => vec![],
@@ -115,7 +118,23 @@ impl ReproduceRequest {
     /// # Errors
     /// [`crate::experiment::ExperimentError`] naming the setting that does not fit.
     pub fn check_count(&self, n: usize) -> Result<()> {
+        self.check_settings()?;
         Ok(self.experiment_params(vec![]).check_count(n)?)
+    }
+
+    /// The rules of the settings that need no collection (also made by [`Self::check`]
+    /// and [`Self::check_count`]): no setting of a part the others leave out, so that
+    /// none is ignored without a word (`--cv-runs` with `--cv-folds 0`).
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError`] naming the setting.
+    pub fn check_settings(&self) -> Result<()> {
+        if let (Some(runs), 0) = (self.cv_runs, self.cv_folds) {
+            super::refuse!(
+                "--cv-runs {runs} applies to the cross-validation of the selection methods, which --cv-folds 0 leaves out: give --cv-folds 2 or more, or leave --cv-runs out"
+            );
+        }
+        Ok(())
     }
 
     fn experiment_params(
@@ -134,7 +153,7 @@ impl ReproduceRequest {
             paper_bases,
             error_driven: self.selection,
             cv_folds: self.cv_folds,
-            cv_runs: self.cv_runs,
+            cv_runs: self.cv_runs.unwrap_or(ExperimentParams::default().cv_runs),
             ..Default::default()
         }
     }

@@ -1,7 +1,7 @@
 //! `select`: a basis by the paper's Algorithm 1, by clustering a distance matrix (computed
 //! or saved), or by fitting error (SPEC 8).
 
-use super::{optional_indices, refuse, Grid, ObjectiveSetting};
+use super::{optional_indices, refuse, ObjectiveSetting};
 use crate::backend::{Backend, Progress};
 use crate::cluster::{ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsParams};
 use crate::collection::Collection;
@@ -9,6 +9,7 @@ use crate::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
 use crate::error::RequestError;
 use crate::experiment::ExperimentParams;
 use crate::fit::FitParams;
+use crate::merl::GridSpec;
 use crate::select::ErrorDrivenOutput;
 use crate::select::{gcuk_runs, kmedoids_runs, named_runs};
 use crate::select::{
@@ -134,7 +135,7 @@ pub struct SelectRequest {
     /// of the matrix's metric; default brdf-it).
     pub metric: Option<Metric>,
     /// `--mask`, `--weighting`, `--stride`.
-    pub grid: Grid,
+    pub grid: GridSpec,
     /// `--seed`.
     pub seed: u64,
     /// `--distances`: cluster this saved matrix (a `.npy` written by `distance`, read with
@@ -171,7 +172,7 @@ impl SelectRequest {
             ga_crossover: None,
             ga_mutation: None,
             metric: None,
-            grid: Grid::default(),
+            grid: GridSpec::default(),
             seed: 1,
             distances: None,
             objective: ObjectiveSetting::default(),
@@ -245,7 +246,6 @@ impl SelectRequest {
     /// # Errors
     /// [`RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
-        self.grid.check()?;
         let m = self.method;
         let range = self.k_min.is_some() || self.k_max.is_some();
         if self.k.is_some() && m == SelectMethod::Gcuk {
@@ -275,12 +275,12 @@ impl SelectRequest {
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
             let g = &self.grid;
-            let d = Grid::default();
+            let d = GridSpec::default();
             for (given, flag) in [
                 (npy && self.metric.is_some(), "--metric"),
-                (g.stride != d.stride, "--stride"),
-                (g.mask != d.mask, "--mask"),
-                (g.weighting != d.weighting, "--weighting"),
+                (g.stride() != d.stride(), "--stride"),
+                (g.mask() != d.mask(), "--mask"),
+                (g.weighting() != d.weighting(), "--weighting"),
             ] {
                 if given {
                     refuse!("{flag} does not apply with --distances: the saved matrix was computed with its own settings (a .npy's sidecar records them)");
@@ -422,7 +422,7 @@ impl SelectRequest {
             Some(self.objective.weight()?)
         };
         let g = &self.grid;
-        out.record(objective, g.mask, g.weighting, g.stride);
+        out.record(objective, g.mask(), g.weighting(), g.stride());
         Ok(out)
     }
 
@@ -444,12 +444,10 @@ impl SelectRequest {
         if self.method == SelectMethod::Empirical {
             let p = EmpiricalParams {
                 fit: FitParams {
-                    mask: g.mask,
-                    weighting: g.weighting,
-                    stride: g.stride,
                     objective: self.objective.weight()?,
                     ..Default::default()
-                },
+                }
+                .grid(*g),
                 more_than: self.more_than(),
             };
             let e = crate::select::empirical(backend, coll, &p, progress)?;
@@ -461,9 +459,7 @@ impl SelectRequest {
         }
         let dp = DistanceParams::default()
             .metric(self.metric())
-            .mask(g.mask)
-            .weighting(g.weighting)
-            .stride(g.stride)
+            .grid(*g)
             .check(coll)?;
         let d = distance_matrix(backend, coll, &dp, progress)?;
         self.cluster(&d, &self.metric().to_string(), fingerprint, progress)
@@ -559,9 +555,7 @@ impl SelectRequest {
         let vgp = self.ga_params().check()?;
         let g = &self.grid;
         let op = ObjectiveParams::default()
-            .mask(g.mask)
-            .weighting(g.weighting)
-            .stride(g.stride)
+            .grid(*g)
             .objective(self.objective.weight()?)
             .check()?;
         let obj = Objective::new(backend, coll, &op, progress)?;

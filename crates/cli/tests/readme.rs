@@ -142,3 +142,105 @@ fn the_transcripts_print_what_they_show() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
 }
+
+/// The commands of the ```` ```sh ```` blocks of a Markdown text (`name`: the file): each
+/// `brdf-basis ...` line (after an optional `$ `), its `\` continuations joined and its
+/// trailing `# ...` comment removed, with where it starts.
+fn sh_commands(name: &str, md: &str) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    let (mut in_sh, mut open): (bool, Option<(String, String)>) = (false, None);
+    for (i, line) in md.lines().enumerate() {
+        if line.starts_with("```") {
+            in_sh = !in_sh && matches!(line.trim(), "```sh" | "```bash" | "```shell");
+            open = None;
+            continue;
+        }
+        if !in_sh {
+            continue;
+        }
+        let code = line.split(" #").next().unwrap_or("").trim_end();
+        let (text, more) = match code.strip_suffix('\\') {
+            Some(t) => (t.trim_end(), true),
+            None => (code, false),
+        };
+        let cmd = match open.take() {
+            Some((at, c)) => Some((at, format!("{c} {}", text.trim()))),
+            None => {
+                let t = text.trim_start();
+                let t = t.strip_prefix("$ ").unwrap_or(t);
+                t.starts_with("brdf-basis ")
+                    .then(|| (format!("{name}:{}", i + 1), t.to_string()))
+            }
+        };
+        if let Some(c) = cmd {
+            if more {
+                open = Some(c);
+            } else {
+                out.push(c);
+            }
+        }
+    }
+    out
+}
+
+/// Whether the binary's parser takes `command` (every flag known, every value of the
+/// right kind): the command is parsed with `--help` added, which prints the command's
+/// help instead of running it; an unknown flag or a bad value fails first.
+fn parses(command: &str) -> Result<(), String> {
+    let args: Vec<&str> = command.split_whitespace().skip(1).collect();
+    let o = bin_cpu()
+        .args(&args)
+        .arg("--help")
+        .output()
+        .expect("run brdf-basis");
+    match o.status.success() {
+        true => Ok(()),
+        false => Err(String::from_utf8_lossy(&o.stderr).into_owned()),
+    }
+}
+
+/// The commands the README and `docs/` show without their output (```` ```sh ```` blocks)
+/// are ones the binary takes: a renamed or removed flag, or a value it no longer accepts,
+/// cannot stay in them (the transcripts above are run whole).
+#[test]
+fn the_documented_commands_parse() {
+    let md = "```sh\nbrdf-basis a --b 1   # c\n$ brdf-basis d \\\n  --e f\necho brdf-basis g\n```\n```text\nbrdf-basis h\n```\n";
+    assert_eq!(
+        sh_commands("m.md", md),
+        [
+            ("m.md:2".to_string(), "brdf-basis a --b 1".to_string()),
+            ("m.md:3".to_string(), "brdf-basis d --e f".to_string()),
+        ]
+    );
+    // The check can fail: a flag the command lacks and a value it refuses.
+    assert!(parses("brdf-basis select --method greedy --no-such-flag").is_err());
+    assert!(parses("brdf-basis select --method bogus").is_err());
+    assert!(parses("brdf-basis select --method greedy -k 5 --stride 0").is_err());
+    let root = crate::common::repo();
+    let mut files = vec![root.join("README.md")];
+    for e in std::fs::read_dir(root.join("docs")).expect("docs/") {
+        let p = e.expect("entry").path();
+        if p.extension().is_some_and(|e| e == "md") {
+            files.push(p);
+        }
+    }
+    let mut commands = Vec::new();
+    for f in &files {
+        let name = f.strip_prefix(root).unwrap_or(f).display().to_string();
+        commands.extend(sh_commands(
+            &name,
+            &std::fs::read_to_string(f).expect("read"),
+        ));
+    }
+    assert!(
+        commands
+            .iter()
+            .any(|(at, c)| at.starts_with("README.md:") && c.starts_with("brdf-basis select")),
+        "{commands:?}"
+    );
+    let failures: Vec<String> = commands
+        .iter()
+        .filter_map(|(at, c)| parses(c).err().map(|e| format!("{at}: `{c}`\n{e}")))
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

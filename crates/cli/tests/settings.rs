@@ -540,7 +540,9 @@ fn select_json_records_what_chose_the_basis() {
     let cpu = brdf_basis::CpuBackend::new();
     let mut r = SelectRequest::new(SelectMethod::Greedy);
     r.k = Some(2);
-    r.grid.stride = 8;
+    r.grid = brdf_basis::merl::GridSpec::default()
+        .with_stride(8)
+        .expect("stride 8");
     r.objective.eps = Some(0.02);
     let out = r.run(&cpu, &coll, &|_, _| {}).expect("greedy");
     let v: serde_json::Value = serde_json::from_str(&out.to_json()).expect("json");
@@ -567,7 +569,9 @@ fn select_json_records_what_chose_the_basis() {
     let mut r = SelectRequest::new(SelectMethod::Kmedoids);
     r.k = Some(2);
     r.runs = Some(1);
-    r.grid.stride = 8;
+    r.grid = brdf_basis::merl::GridSpec::default()
+        .with_stride(8)
+        .expect("stride 8");
     let v: serde_json::Value =
         serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("kmedoids").to_json())
             .expect("json");
@@ -577,4 +581,270 @@ fn select_json_records_what_chose_the_basis() {
     );
     assert_eq!(v["stride"], 8);
     assert_eq!(v["metric"], "brdf-it");
+}
+
+/// How a flag of a command is shown to be used or refused (the table of
+/// [`every_flag_of_every_command_is_classified`]).
+#[derive(Clone, Copy, Debug)]
+enum Use {
+    /// A global flag: the back-end, the seed of every random step, progress bars.
+    Global,
+    /// Used by every run of the command (an output, an input, a setting of every mode).
+    Always,
+    /// Used by some methods or criteria only: walked against each by this file's walks of
+    /// the requests (`select`, `plan`, `cv`, the objective's `--eps`).
+    Walked,
+    /// Used in some modes only: given in a mode (these arguments) where it does not
+    /// apply, the binary refuses it by name before any work.
+    RefusedWith(&'static [&'static str]),
+}
+
+/// Every flag of every command, by how it is used ([`Use`]).
+fn flag_uses() -> Vec<(&'static str, &'static str, Use)> {
+    use Use::*;
+    const SAMPLES: &[&str] = &["--samples", "s.csv"];
+    const NO_ACQUISITION: &[&str] = &[];
+    const ACQUISITION: &[&str] = &["--acquisition"];
+    const EXR_ALONE: &[&str] = &[];
+    let mut t = vec![];
+    for c in [
+        "info",
+        "tabulate",
+        "distance",
+        "select",
+        "fit",
+        "render",
+        "reproduce",
+        "cv",
+        "plot",
+        "plan",
+        "merge",
+    ] {
+        for f in ["--backend", "--seed", "--quiet"] {
+            t.push((c, f, Global));
+        }
+    }
+    for (c, f) in [
+        ("tabulate", "--material"),
+        ("tabulate", "--out"),
+        ("distance", "--metric"),
+        ("distance", "--weighting"),
+        ("distance", "--mask"),
+        ("distance", "--stride"),
+        ("distance", "--lobe"),
+        ("distance", "--tile"),
+        ("distance", "--band-rows"),
+        ("distance", "--out"),
+        ("fit", "--basis"),
+        ("fit", "--objective"),
+        ("fit", "--json"),
+        ("fit", "--export"),
+        ("fit", "--samples"),
+        ("render", "--material"),
+        ("render", "--fit"),
+        ("render", "--out"),
+        ("render", "--png"),
+        ("render", "--light"),
+        ("render", "--size"),
+        ("reproduce", "--out"),
+        ("reproduce", "--force"),
+        ("reproduce", "--no-selection"),
+        ("reproduce", "--no-acquisition"),
+        ("reproduce", "--no-appearance"),
+        ("cv", "--methods"),
+        ("cv", "--folds"),
+        ("cv", "--weighting"),
+        ("cv", "--mask"),
+        ("cv", "--stride"),
+        ("cv", "--render-size"),
+        ("cv", "--objective"),
+        ("cv", "--no-appearance"),
+        ("cv", "--acquisition"),
+        ("cv", "--json"),
+        ("cv", "--markdown"),
+        ("plot", "--material"),
+        ("plot", "--fit"),
+        ("plot", "--out"),
+        ("plot", "--angles"),
+        ("plan", "--basis"),
+        ("plan", "--criterion"),
+        ("plan", "--targets"),
+        ("plan", "--candidates"),
+        ("plan", "--objective"),
+        ("plan", "--out"),
+        ("plan", "--json"),
+        ("merge", "--out"),
+    ] {
+        t.push((c, f, Always));
+    }
+    // `select`: every flag but the global ones and those of every method is walked
+    // (`every_select_flag_is_walked`).
+    for s in select_settings() {
+        t.push(("select", s.0, Walked));
+    }
+    for f in EVERY_METHOD {
+        if !["--backend", "--seed", "--quiet", "--help"].contains(f) {
+            t.push(("select", f, Always));
+        }
+    }
+    for (c, f) in [
+        ("fit", "--eps"),
+        ("plan", "--eps"),
+        ("plan", "--candidates-per-step"),
+        ("plan", "--shortlist"),
+        ("plan", "--restarts"),
+        ("cv", "--eps"),
+    ] {
+        t.push((c, f, Walked));
+    }
+    for f in [
+        "--targets",
+        "--all-others",
+        "--weighting",
+        "--mask",
+        "--stride",
+        "--solver",
+        "--gram",
+        "--no-appearance",
+    ] {
+        t.push(("fit", f, RefusedWith(SAMPLES)));
+    }
+    for f in ["--metric", "--runs", "--ga-population", "--ga-generations"] {
+        t.push(("cv", f, RefusedWith(ACQUISITION)));
+    }
+    for f in [
+        "--no-ridge",
+        "--plans",
+        "--noise",
+        "--candidates-per-step",
+        "--shortlist",
+        "--restarts",
+        "--figure",
+    ] {
+        t.push(("cv", f, RefusedWith(NO_ACQUISITION)));
+    }
+    for f in ["--exposure", "--gamma", "--heatmap"] {
+        t.push(("render", f, RefusedWith(EXR_ALONE)));
+    }
+    // The paper's pipeline (section VI) runs whatever --no-selection, --no-acquisition and
+    // --no-appearance leave out; the Acquisition and Appearance sections fold by
+    // --cv-folds too (5 when 0).
+    for f in [
+        "--runs",
+        "--stride",
+        "--k-min",
+        "--k-max",
+        "--gcuk-k-max",
+        "--render-size",
+        "--showcase",
+        "--paper-bases",
+        "--cv-folds",
+    ] {
+        t.push(("reproduce", f, Always));
+    }
+    t.push(("reproduce", "--cv-runs", RefusedWith(&["--cv-folds", "0"])));
+    t
+}
+
+/// The arguments that give `flag` to `command` (a value of the right kind), after the
+/// arguments that make a run of it (on a collection file that does not exist).
+fn giving(command: &str, flag: &str) -> Vec<&'static str> {
+    let mut a: Vec<&'static str> = match command {
+        "fit" => vec![
+            "fit",
+            "no-such-collection.csv",
+            "--basis",
+            "polished-gold",
+            "--json",
+            "f.json",
+        ],
+        "cv" => vec![
+            "cv",
+            "no-such-collection.csv",
+            "--methods",
+            "greedy",
+            "--json",
+            "c.json",
+        ],
+        "reproduce" => vec!["reproduce", "no-such-collection.csv", "--out", "r"],
+        "render" => vec![
+            "render",
+            "no-such-collection.csv",
+            "--material",
+            "polished-gold",
+            "--out",
+            "r.exr",
+        ],
+        _ => panic!("no run of {command}"),
+    };
+    a.extend(match flag {
+        "--targets" => vec!["--targets", "polished-copper"],
+        "--all-others" => vec!["--all-others"],
+        "--weighting" => vec!["--weighting", "solid-angle"],
+        "--mask" => vec!["--mask", "valid"],
+        "--stride" => vec!["--stride", "4"],
+        "--solver" => vec!["--solver", "pgd"],
+        "--gram" => vec!["--gram", "grid"],
+        "--no-appearance" => vec!["--no-appearance"],
+        "--metric" => vec!["--metric", "euclidean"],
+        "--runs" => vec!["--runs", "3"],
+        "--ga-population" => vec!["--ga-population", "8"],
+        "--ga-generations" => vec!["--ga-generations", "3"],
+        "--no-ridge" => vec!["--no-ridge"],
+        "--plans" => vec!["--plans", "random"],
+        "--noise" => vec!["--noise", "0.1"],
+        "--candidates-per-step" => vec!["--candidates-per-step", "5"],
+        "--shortlist" => vec!["--shortlist", "4"],
+        "--restarts" => vec!["--restarts", "2"],
+        "--figure" => vec!["--figure", "f.png"],
+        "--exposure" => vec!["--exposure", "1"],
+        "--gamma" => vec!["--gamma", "1.8"],
+        "--heatmap" => vec!["--heatmap", "h.png"],
+        "--cv-runs" => vec!["--cv-runs", "3"],
+        _ => panic!("no value of {flag}"),
+    });
+    a
+}
+
+/// No setting ignored in silence (issue 47), for every command: each flag of each
+/// command's `--help` is classified ([`Use`]), so that a new flag cannot slip by, and each
+/// flag that only some modes use is refused by name, before any work (here: before the
+/// collection, a file that does not exist, is read), when given in a mode that does not.
+#[test]
+fn every_flag_of_every_command_is_classified() {
+    let top = bin_cpu().arg("--help").output().expect("help");
+    let commands: BTreeSet<String> = String::from_utf8_lossy(&top.stdout)
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+        .filter(|c| c != "help")
+        .collect();
+    let uses = flag_uses();
+    let classified: BTreeSet<String> = uses.iter().map(|u| u.0.to_string()).collect();
+    assert_eq!(commands, classified, "commands");
+    for c in &commands {
+        let help = help_flags(&[c]);
+        let table: BTreeSet<String> = uses
+            .iter()
+            .filter(|u| u.0 == c)
+            .map(|u| u.1.to_string())
+            .collect();
+        assert_eq!(help, table, "flags of `{c}`: --help against the table");
+    }
+    for (command, flag, u) in uses {
+        if let Use::RefusedWith(mode) = u {
+            let mut args = giving(command, flag);
+            args.extend_from_slice(mode);
+            let o = bin_cpu().args(&args).output().expect("run brdf-basis");
+            let e = String::from_utf8_lossy(&o.stderr);
+            // clap's `requires` names what is missing: --heatmap needs --fit.
+            let named = if flag == "--heatmap" { "--fit" } else { flag };
+            assert!(
+                !o.status.success() && e.contains(named) && !e.contains("no-such-collection"),
+                "{args:?}: {e}"
+            );
+        }
+    }
 }

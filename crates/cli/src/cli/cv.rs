@@ -123,7 +123,7 @@ impl CvArgs {
         }
         r.folds = self.folds;
         r.metric = self.metric;
-        r.grid = self.grid.grid();
+        r.grid = self.grid.grid()?;
         r.runs = self.runs;
         r.ga_population = self.ga_population;
         r.ga_generations = self.ga_generations;
@@ -157,7 +157,7 @@ impl CvArgs {
         r.shortlist = self.shortlist;
         r.restarts = self.restarts;
         r.render_size = self.render_size;
-        r.grid = self.grid.grid();
+        r.grid = self.grid.grid()?;
         r.seed = g.seed;
         r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;

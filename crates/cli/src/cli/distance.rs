@@ -63,7 +63,7 @@ impl DistanceArgs {
     pub(crate) fn request(&self) -> anyhow::Result<DistanceRequest> {
         let mut r = DistanceRequest::default();
         r.metric = self.metric;
-        r.grid = self.grid.grid();
+        r.grid = self.grid.grid()?;
         r.lobe = self.lobe;
         r.band_rows = self.band_rows;
         r.tile = self.tile.as_deref().map(parse_tile).transpose()?;

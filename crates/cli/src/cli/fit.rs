@@ -63,19 +63,19 @@ pub(crate) struct FitArgs {
 impl FitArgs {
     /// The request these flags make (`fit` without `--samples`): neither `--targets` nor
     /// `--all-others` is an empty target list, which the request refuses.
-    pub(crate) fn request(&self) -> FitRequest {
+    pub(crate) fn request(&self) -> anyhow::Result<FitRequest> {
         let mut r = FitRequest::new(self.basis.clone());
         r.targets = if self.all_others {
             FitTargets::AllOthers
         } else {
             FitTargets::Named(self.targets.clone())
         };
-        r.grid = self.grid.grid();
+        r.grid = self.grid.grid()?;
         r.solver = self.solver.into();
         r.gram = self.gram.into();
         r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
-        r
+        Ok(r)
     }
 }
 
@@ -87,7 +87,7 @@ impl FitArgs {
             .clone()
             .expect("samples_request is called with --samples");
         let mut r = FitSamplesRequest::new(self.basis.clone(), path);
-        r.grid = self.grid.grid();
+        r.grid = self.grid.grid()?;
         r.solver = self.solver.into();
         r.gram = self.gram.into();
         r.seed = g.seed;
@@ -101,7 +101,7 @@ pub(crate) fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     if a.samples.is_some() {
         return run_samples(g, a);
     }
-    let req = a.request();
+    let req = a.request()?;
     req.check()?;
     // Output paths before the work: a typo costs no computation.
     let mut plan = OutputPlan::new(&a.collection);

@@ -16,6 +16,7 @@ mod values;
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::backend::Backend;
 use brdf_basis::collection::Collection;
+use brdf_basis::merl::GridSpec;
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 
@@ -63,13 +64,14 @@ pub(crate) struct GridArgs {
 }
 
 impl GridArgs {
-    /// The flags as a request's [`brdf_basis::run::Grid`].
-    pub(crate) fn grid(&self) -> brdf_basis::run::Grid {
-        brdf_basis::run::Grid {
-            mask: self.mask.into(),
-            weighting: self.weighting.into(),
-            stride: self.stride,
-        }
+    /// The flags as a request's grid ([`brdf_basis::merl::GridSpec`], checked when built;
+    /// clap has checked the stride by the same rule).
+    pub(crate) fn grid(&self) -> anyhow::Result<GridSpec> {
+        Ok(GridSpec::new(
+            self.mask.into(),
+            self.weighting.into(),
+            self.stride,
+        )?)
     }
 }
 
@@ -106,17 +108,13 @@ fn with_default(text: &str, value: impl std::fmt::Display) -> String {
     format!("{text} [default: {value}]")
 }
 
-/// `--stride`: 1 (the full grid) to 90 (one cell per axis).
+/// `--stride`: 1 (the full grid) to 90 (one cell per axis), by the library's rule and in
+/// its words ([`GridSpec::STRIDE_RULE`]), checked here too so that clap names the flag
+/// and its value.
 fn parse_stride(s: &str) -> Result<usize, String> {
-    // The rule and its wording are the library's (`Grid::check`), checked here too so
-    // that clap names the flag and its value.
-    let grid = |stride| brdf_basis::run::Grid {
-        stride,
-        ..Default::default()
-    };
     match s.parse::<usize>() {
-        Ok(v) if grid(v).check().is_ok() => Ok(v),
-        _ => Err(format!("{}, got `{s}`", brdf_basis::run::STRIDE_RULE)),
+        Ok(v) if GridSpec::stride_ok(v) => Ok(v),
+        _ => Err(format!("{}, got `{s}`", GridSpec::STRIDE_RULE)),
     }
 }
 

@@ -36,12 +36,13 @@ pub(crate) struct RenderArgs {
     /// Light direction THETA,PHI in degrees (theta from the normal, in [0, 180]).
     #[arg(long, default_value = "45,45", value_name = "THETA,PHI", value_parser = parse_light)]
     pub light: (f64, f64),
-    /// Exposure E (scale 2^E) for PNG and error.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub exposure: f64,
-    /// Gamma for PNG and error.
-    #[arg(long, default_value_t = 2.2)]
-    pub gamma: f64,
+    /// With --png or --fit: exposure E (scale 2^E) of the PNG, the heatmap and the error
+    /// (an `Option` so that one given to an OpenEXR alone, which is linear, is refused).
+    #[arg(long, allow_hyphen_values = true, help = super::with_default("With --png or --fit: exposure E (scale 2^E) of the PNG, the heatmap and the error", DisplayParams::default().exposure))]
+    pub exposure: Option<f64>,
+    /// With --png or --fit: gamma of the PNG, the heatmap and the error.
+    #[arg(long, help = super::with_default("With --png or --fit: gamma of the PNG, the heatmap and the error", DisplayParams::default().gamma))]
+    pub gamma: Option<f64>,
     /// Image size in pixels.
     #[arg(long, default_value_t = 256)]
     pub size: u32,
@@ -84,6 +85,20 @@ pub(crate) fn plan_image(
 
 /// Renders.
 pub(crate) fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
+    // The display mapping is that of the PNG and of the error against the material: the
+    // OpenEXR alone is linear radiance, which would ignore it.
+    if a.png.is_none() && a.fit.is_none() {
+        for (given, flag) in [
+            (a.exposure.is_some(), "--exposure"),
+            (a.gamma.is_some(), "--gamma"),
+        ] {
+            if given {
+                anyhow::bail!(
+                    "{flag} applies to --png and --fit (the PNG preview, the heatmap and the image error), not to the OpenEXR alone, which is linear radiance: add --png or --fit, or leave it out"
+                );
+            }
+        }
+    }
     if a.heatmap.is_some() {
         // The heatmap's colour bar is labelled: an unusable BRDF_BASIS_FONT is refused now.
         crate::plot::font()?;
@@ -122,9 +137,13 @@ pub(crate) fn run(g: &Global, a: RenderArgs) -> anyhow::Result<()> {
         .with_size(a.size)
         .with_light(a.light.0, a.light.1);
     params.check()?;
-    let display = DisplayParams::default()
-        .with_exposure(a.exposure)
-        .with_gamma(a.gamma);
+    let mut display = DisplayParams::default();
+    if let Some(e) = a.exposure {
+        display = display.with_exposure(e);
+    }
+    if let Some(gamma) = a.gamma {
+        display = display.with_gamma(gamma);
+    }
     display.check()?;
     let original = render_sphere(&params, &material_brdf(&coll.materials()[target].data))?;
     let image = match &a.fit {

@@ -64,9 +64,10 @@ pub(crate) struct ReproduceArgs {
     /// Folds of the cross-validation of every selection method (0: none).
     #[arg(long, default_value_t = defaults().cv_folds)]
     pub cv_folds: usize,
-    /// k-medoids restarts and GCUK runs per fold in the cross-validation.
-    #[arg(long, default_value_t = defaults().cv_runs)]
-    pub cv_runs: usize,
+    /// k-medoids restarts and GCUK runs per fold in the cross-validation (an `Option`:
+    /// given with --cv-folds 0 it is refused).
+    #[arg(long, help = super::with_default("k-medoids restarts and GCUK runs per fold in the cross-validation (with --cv-folds above 0)", brdf_basis::experiment::ExperimentParams::default().cv_runs))]
+    pub cv_runs: Option<usize>,
     /// Leave out the bases chosen by fitting error (greedy, swap).
     #[arg(long)]
     pub no_selection: bool,
@@ -109,6 +110,7 @@ impl ReproduceArgs {
 pub(crate) fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let req = a.request(g);
+    req.check_settings()?;
     // The output tree before any work: a new directory (its parent exists), an empty one,
     // or with --force one holding only an earlier run's files; writable.
     let mut plan = OutputPlan::new(&a.collection);

@@ -103,7 +103,7 @@ fn given(names: &[String]) -> Option<Vec<String>> {
 
 impl SelectArgs {
     /// The request these flags make.
-    pub(crate) fn request(&self, g: &Global) -> SelectRequest {
+    pub(crate) fn request(&self, g: &Global) -> anyhow::Result<SelectRequest> {
         let e = &self.error;
         let mut r = SelectRequest::new(self.method.into());
         r.k = self.k;
@@ -122,17 +122,17 @@ impl SelectArgs {
         r.ga_crossover = e.ga_crossover;
         r.ga_mutation = e.ga_mutation;
         r.metric = self.metric;
-        r.grid = self.grid.grid();
+        r.grid = self.grid.grid()?;
         r.seed = g.seed;
         r.distances = self.distances.clone();
         r.objective = self.objective.setting();
-        r
+        Ok(r)
     }
 }
 
 /// Runs the selection.
 pub(crate) fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
-    let req = a.request(g);
+    let req = a.request(g)?;
     req.check()?;
     req.check_source(!a.collection.is_empty())?;
     // Every output path before the work: a typo costs no computation.

@@ -306,6 +306,7 @@ pub fn fit_samples(
             what: "the samples".into(),
         });
     }
+    let objective = objective.check().map_err(crate::fit::FitError::from)?;
     let d = Design::at_samples(coll, basis, samples)?;
     fit_design(&d, samples, objective)
 }
@@ -317,12 +318,12 @@ pub fn fit_samples(
 /// Under an objective (SPEC 11) each sample's weight is the objective's weight at the
 /// measured value, `phi(y_c(s), cos theta_i(s))`, times its sigma weight: the residual,
 /// MAE and relative residual reported are then the objective's, on the samples.
+/// `objective` is checked by the caller ([`fit_samples`]).
 pub(crate) fn fit_design(
     d: &Design,
     samples: &[Sample],
     objective: TargetWeight,
 ) -> Result<SampleFit, AcquireError> {
-    let objective = objective.check().map_err(crate::fit::FitError::from)?;
     let m = d.m;
     let n = samples.len();
     let mut out = SampleFit {

@@ -75,6 +75,15 @@ pub enum KMedoidsInit {
     Random,
 }
 
+impl std::fmt::Display for KMedoidsInit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Build => "build",
+            Self::Random => "random",
+        })
+    }
+}
+
 /// The local search of k-medoids.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 #[serde(rename_all = "lowercase")]

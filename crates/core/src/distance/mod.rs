@@ -123,6 +123,12 @@ impl ValidDistanceParams {
 }
 
 impl DistanceParams {
+    /// Sets the mask, weighting and stride of a checked grid.
+    pub fn grid(self, g: crate::merl::GridSpec) -> Self {
+        self.mask(g.mask())
+            .weighting(g.weighting())
+            .stride(g.stride())
+    }
     /// Sets the metric.
     pub fn metric(mut self, m: Metric) -> Self {
         self.metric = m;
@@ -169,11 +175,13 @@ impl DistanceParams {
                 return Err(DistanceError::SpecularOfMeasured(m.name.clone()));
             }
         }
-        let stride = NonZeroUsize::new(self.stride).ok_or(DistanceError::UnknownOption {
-            what: "stride",
-            found: "0".into(),
-            expected: "an integer >= 1",
-        })?;
+        let stride = NonZeroUsize::new(self.stride)
+            .filter(|_| crate::merl::GridSpec::stride_ok(self.stride))
+            .ok_or(DistanceError::UnknownOption {
+                what: "stride",
+                found: self.stride.to_string(),
+                expected: crate::merl::GridSpec::STRIDE_RULE,
+            })?;
         Ok(ValidDistanceParams {
             metric: self.metric,
             mask: self.mask,

@@ -208,8 +208,12 @@ impl ExperimentParams {
                 "at least 1 run per configuration".into(),
             ));
         }
-        if self.stride == 0 {
-            return Err(invalid("--stride", 0, "at least 1 (1 = full grid)".into()));
+        if !crate::merl::GridSpec::stride_ok(self.stride) {
+            return Err(invalid(
+                "--stride",
+                self.stride,
+                crate::merl::GridSpec::STRIDE_RULE.into(),
+            ));
         }
         if self.k_min < 2 {
             return Err(invalid(

@@ -254,7 +254,7 @@ impl FitFile {
     }
 
     /// What `fit` never writes (audit 3, U7: a hand-edited file rendered as if fitted):
-    /// an unknown `objective`, an `eps` that is not a positive finite number, a negative or
+    /// an unknown `objective`, an `eps` that the objective refuses, a negative or
     /// non-finite coefficient. The message names the field (and the target).
     fn check_values(&self) -> Result<(), String> {
         use crate::backend::weighted::ObjectiveKind;
@@ -268,8 +268,9 @@ impl FitFile {
             }
         }
         if let Some(e) = self.eps {
-            if !(e.is_finite() && e > 0.0) {
-                return Err(format!("field `eps` is {e}, not a positive finite number"));
+            // The objective's one rule of `eps` (what `fit` checks before it writes one).
+            if let Err(why) = crate::backend::weighted::TargetWeight::relative(e) {
+                return Err(format!("field `eps` is {e:e}: {why}"));
             }
         }
         for t in &self.targets {
@@ -441,6 +442,19 @@ mod tests {
         let mut f = file([0.1; 3], [0.2; 3]);
         f.eps = Some(f64::NAN);
         let e = f.check_values().unwrap_err();
-        assert!(e.contains("field `eps` is NaN"), "{e}");
+        assert!(
+            e.contains("field `eps` is NaN: the relative objective's eps must be a positive number, not NaN"),
+            "{e}"
+        );
+        // The objective's own range (before: any positive number was read, an eps that
+        // no fit accepts included).
+        f.eps = Some(1e-200);
+        let e = f.check_values().unwrap_err();
+        assert!(
+            e.contains("field `eps` is 1e-200: the relative objective's eps must lie between 1e-100 and 1e100, not 1e-200"),
+            "{e}"
+        );
+        f.eps = Some(0.02);
+        assert!(f.check_values().is_ok());
     }
 }

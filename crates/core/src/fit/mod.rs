@@ -198,6 +198,18 @@ pub const DEFAULT_OBJECTIVE: TargetWeight = TargetWeight::Relative {
     eps: TargetWeight::DEFAULT_EPS,
 };
 
+impl FitParams {
+    /// These parameters on the mask, weighting and stride of a checked grid.
+    pub fn grid(self, g: crate::merl::GridSpec) -> Self {
+        Self {
+            mask: g.mask(),
+            weighting: g.weighting(),
+            stride: g.stride(),
+            ..self
+        }
+    }
+}
+
 impl Default for FitParams {
     fn default() -> Self {
         Self {

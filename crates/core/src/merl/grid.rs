@@ -298,6 +298,98 @@ impl Weighting {
     }
 }
 
+/// Which grid cells a command reduces over and how they are weighted: the `--mask`,
+/// `--weighting` and `--stride` of `distance`, `select`, `fit`, `cv` and
+/// `cv --acquisition`, one value checked when it is built ([`GridSpec::new`]): a
+/// `GridSpec` holds a stride from 1 (the full grid) to [`GridSpec::MAX_STRIDE`]. The
+/// requests, the command line and Python hold their grid as one; its [`Default`] is the
+/// library's (evaluation mask, uniform weights, the full grid).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GridSpec {
+    mask: Mask,
+    weighting: Weighting,
+    stride: usize,
+}
+
+impl Default for GridSpec {
+    fn default() -> Self {
+        Self {
+            mask: Mask::Evaluation,
+            weighting: Weighting::Uniform,
+            stride: 1,
+        }
+    }
+}
+
+impl GridSpec {
+    /// The largest stride: one cell per `theta_h` row.
+    pub const MAX_STRIDE: usize = N_TH;
+    /// The rule of `--stride`, its one wording (the command line's parser, the requests,
+    /// Python and the core's parameter checks).
+    pub const STRIDE_RULE: &'static str = "expected a whole number from 1 (the full grid) to 90";
+
+    /// The grid of `mask`, `weighting` and `stride`, checked: the stride's rule.
+    ///
+    /// # Errors
+    /// [`crate::error::RequestError::Settings`] naming `--stride` for a stride outside
+    /// 1..=[`Self::MAX_STRIDE`].
+    pub fn new(
+        mask: Mask,
+        weighting: Weighting,
+        stride: usize,
+    ) -> Result<Self, crate::error::RequestError> {
+        if !Self::stride_ok(stride) {
+            return Err(crate::error::RequestError::Settings(format!(
+                "--stride {stride}: {}",
+                Self::STRIDE_RULE
+            )));
+        }
+        Ok(Self {
+            mask,
+            weighting,
+            stride,
+        })
+    }
+
+    /// Whether `stride` keeps the rule ([`Self::STRIDE_RULE`]).
+    pub fn stride_ok(stride: usize) -> bool {
+        (1..=Self::MAX_STRIDE).contains(&stride)
+    }
+
+    /// This grid with another mask.
+    pub fn with_mask(self, mask: Mask) -> Self {
+        Self { mask, ..self }
+    }
+
+    /// This grid with another weighting.
+    pub fn with_weighting(self, weighting: Weighting) -> Self {
+        Self { weighting, ..self }
+    }
+
+    /// This grid with another stride, checked ([`Self::new`]).
+    ///
+    /// # Errors
+    /// As [`Self::new`].
+    pub fn with_stride(self, stride: usize) -> Result<Self, crate::error::RequestError> {
+        Self::new(self.mask, self.weighting, stride)
+    }
+
+    /// Grid cells.
+    pub fn mask(&self) -> Mask {
+        self.mask
+    }
+
+    /// Cell weights.
+    pub fn weighting(&self) -> Weighting {
+        self.weighting
+    }
+
+    /// Every `stride`-th cell on each grid axis (1: the full grid).
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+}
+
 /// The value of `all` spelled exactly `s` (`as_str`); `what` names the option and
 /// `expected` lists the spellings in the error.
 fn parse_named<T: Copy>(

@@ -44,7 +44,7 @@ pub struct ObjectiveParams {
     pub mask: Mask,
     /// Weighting (default uniform).
     pub weighting: Weighting,
-    /// Grid sub-sampling stride, `>= 1` (default 1).
+    /// Grid sub-sampling stride, 1 to 90 (default 1).
     pub stride: usize,
     /// Gram mode (default auto).
     pub gram: GramMode,
@@ -93,13 +93,20 @@ impl ObjectiveParams {
         self.objective = o;
         self
     }
-    /// Validates: `1 <= stride <= 90`.
+    /// Sets the mask, weighting and stride of a checked grid.
+    pub fn grid(self, g: crate::merl::GridSpec) -> Self {
+        self.mask(g.mask())
+            .weighting(g.weighting())
+            .stride(g.stride())
+    }
+    /// Validates: the stride's rule ([`crate::merl::GridSpec::STRIDE_RULE`]) and the
+    /// objective's.
     pub fn check(&self) -> Result<ValidObjectiveParams, SelectionError> {
-        if self.stride == 0 || self.stride > 90 {
+        if !crate::merl::GridSpec::stride_ok(self.stride) {
             return Err(SelectionError::InvalidParam {
                 name: "stride",
                 value: self.stride.to_string(),
-                expected: "an integer in 1..=90",
+                expected: crate::merl::GridSpec::STRIDE_RULE,
             });
         }
         if let Err(e) = self.objective.check() {
@@ -139,7 +146,8 @@ const SHARED_WEIGHT_BLOCK_BYTES: usize = 32 << 20;
 /// of `f_c(s)` (the mean of the two middle values for an even count), normalised to sum 1
 /// (the scale of the weights changes no fit and no relative residual). The materials'
 /// three channels are tabulated by `backend` (f32) together, block by block of cells (a
-/// network runs once per cell for its three channels).
+/// network runs once per cell for its three channels). `weight` is checked by the caller's
+/// door (`ObjectiveParams::check`, `empirical`, the plan's checks).
 pub(crate) fn shared_weights(
     backend: &dyn Backend,
     coll: &Collection,
@@ -147,7 +155,6 @@ pub(crate) fn shared_weights(
     weight: TargetWeight,
     progress: Progress<'_>,
 ) -> Result<[CellSet; 3], SelectionError> {
-    let weight = weight.check().map_err(crate::fit::FitError::from)?;
     let mats: Vec<Lobe> = crate::fit::collection_lobes(coll)
         .into_iter()
         .flat_map(|l| l.into_iter().skip(1))
