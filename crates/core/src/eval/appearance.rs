@@ -16,7 +16,7 @@
 //!   weights, the plain mean over cells) over cells and channels of
 //!   `(log(1 + max(fhat, 0) c) - log(1 + max(f, 0) c))^2`, `c = max(cos theta_i, 0)`.
 
-use super::color::{ciede2000, srgb_to_lab, srgb_to_lab_all};
+use super::color::{ciede2000, srgb_to_lab};
 use super::fastmath::ln_1p;
 use super::flip::{FlipKernels, FlipReference};
 use super::image_error::{normalized_image_error, same_shape, DisplayParams};
@@ -189,9 +189,9 @@ impl<'a> Reference<'a> {
         }
         let d = DisplayParams::default();
         let display = display_values(image, &d);
-        let rgb = sphere_rgb(image, &display);
-        let lab = srgb_to_lab_all(&rgb);
-        let itp = super::ictcp::srgb_to_ictcp_all(&rgb);
+        let lin = super::color::srgb_decode_all(&sphere_rgb(image, &display));
+        let lab = super::color::lab_from_linear_all(&lin);
+        let itp = super::ictcp::ictcp_from_linear_all(&lin);
         let flip = prepare_flip(image, &to_bytes(&display))?;
         Ok(Self {
             image,
@@ -230,14 +230,19 @@ impl<'a> Reference<'a> {
             })
             .collect();
         let image_error = errors.iter().sum::<f64>() / count as f64;
-        let rgb = sphere_rgb(test, &td);
+        // The sphere's colours decoded once for CIELAB and ICtCp.
+        let lin = super::color::srgb_decode_all(&sphere_rgb(test, &td));
         let mut sum = 0.0;
-        for (la, lb) in self.lab.iter().zip(srgb_to_lab_all(&rgb)) {
+        for (la, lb) in self.lab.iter().zip(super::color::lab_from_linear_all(&lin)) {
             sum += ciede2000(*la, lb);
         }
         let ciede = sum / self.lab.len() as f64;
         let mut sum = 0.0;
-        for (a, b) in self.itp.iter().zip(super::ictcp::srgb_to_ictcp_all(&rgb)) {
+        for (a, b) in self
+            .itp
+            .iter()
+            .zip(super::ictcp::ictcp_from_linear_all(&lin))
+        {
             sum += super::ictcp::delta_e_itp(*a, b);
         }
         let itp = sum / self.itp.len() as f64;

@@ -82,7 +82,12 @@ pub(crate) fn srgb_decode_all(rgb: &[f64]) -> Vec<f64> {
 /// bits, the powers four at a time.
 pub fn srgb_to_lab_all(rgb: &[f64]) -> Vec<Lab> {
     assert_eq!(rgb.len() % 3, 0, "three values a colour");
-    let lin = srgb_decode_all(rgb);
+    lab_from_linear_all(&srgb_decode_all(rgb))
+}
+
+/// CIELAB of decoded colours ([`srgb_decode_all`] of `rgb`): [`srgb_to_lab_all`] given
+/// the linear values, so that ICtCp can share the decoding.
+pub(crate) fn lab_from_linear_all(lin: &[f64]) -> Vec<Lab> {
     let mut t = Vec::with_capacity(lin.len());
     for l in lin.chunks_exact(3) {
         t.extend_from_slice(&white_ratios([l[0], l[1], l[2]]));

@@ -122,7 +122,12 @@ pub fn srgb_to_ictcp(rgb: [f64; 3]) -> Ictcp {
 /// same bits, the powers four at a time.
 pub fn srgb_to_ictcp_all(rgb: &[f64]) -> Vec<Ictcp> {
     assert_eq!(rgb.len() % 3, 0, "three values a colour");
-    let lin = super::color::srgb_decode_all(rgb);
+    ictcp_from_linear_all(&super::color::srgb_decode_all(rgb))
+}
+
+/// ICtCp of decoded colours (`color::srgb_decode_all` of `rgb`): [`srgb_to_ictcp_all`]
+/// given the linear values, so that CIELAB can share the decoding.
+pub(crate) fn ictcp_from_linear_all(lin: &[f64]) -> Vec<Ictcp> {
     let mut y = Vec::with_capacity(lin.len());
     for p in lin.chunks_exact(3) {
         let c = lms(mul_vec(
