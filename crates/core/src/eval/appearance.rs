@@ -102,7 +102,20 @@ fn display_values(img: &Image, d: &DisplayParams) -> Vec<f64> {
 
 /// Mean CIEDE2000 over the sphere's pixels between the display-mapped renders `a` and `b`.
 pub fn mean_ciede2000(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
-    // Same sizes and masks, and at least one sphere pixel: the image error's checks.
+    sphere_mean(a, b, d, |pa, pb| {
+        ciede2000(srgb_to_lab(pa), srgb_to_lab(pb))
+    })
+}
+
+/// The mean over the sphere's pixels of `per_pixel` of the display values of `a` and `b`,
+/// in pixel order, after the image error's checks (same sizes and masks, at least one
+/// sphere pixel).
+fn sphere_mean(
+    a: &Image,
+    b: &Image,
+    d: &DisplayParams,
+    per_pixel: impl Fn([f64; 3], [f64; 3]) -> f64,
+) -> Result<f64, RenderError> {
     normalized_image_error(a, b, d)?;
     let (da, db) = (display_values(a, d), display_values(b, d));
     let (mut sum, mut n) = (0.0, 0usize);
@@ -110,7 +123,7 @@ pub fn mean_ciede2000(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, Re
         if on {
             let pa = [da[3 * i], da[3 * i + 1], da[3 * i + 2]];
             let pb = [db[3 * i], db[3 * i + 1], db[3 * i + 2]];
-            sum += ciede2000(srgb_to_lab(pa), srgb_to_lab(pb));
+            sum += per_pixel(pa, pb);
             n += 1;
         }
     }
@@ -276,21 +289,10 @@ fn sphere_rgb(img: &Image, dv: &[f64]) -> Vec<f64> {
 /// Mean ΔE_ITP ([`super::ictcp`]) over the sphere's pixels between the display-mapped
 /// renders `a` and `b`.
 pub fn mean_delta_e_itp(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
-    normalized_image_error(a, b, d)?;
-    let (da, db) = (display_values(a, d), display_values(b, d));
-    let (mut sum, mut n) = (0.0, 0usize);
-    for (i, &on) in a.mask.iter().enumerate() {
-        if on {
-            let pa = [da[3 * i], da[3 * i + 1], da[3 * i + 2]];
-            let pb = [db[3 * i], db[3 * i + 1], db[3 * i + 2]];
-            sum += super::ictcp::delta_e_itp(
-                super::ictcp::srgb_to_ictcp(pa),
-                super::ictcp::srgb_to_ictcp(pb),
-            );
-            n += 1;
-        }
-    }
-    Ok(sum / n as f64)
+    use super::ictcp::{delta_e_itp, srgb_to_ictcp};
+    sphere_mean(a, b, d, |pa, pb| {
+        delta_e_itp(srgb_to_ictcp(pa), srgb_to_ictcp(pb))
+    })
 }
 
 /// Running sums of the log-RMSE: add cells with [`LogSums::add`], then [`LogSums::value`].
