@@ -410,8 +410,10 @@ def acquisition_cv(collection: Collection, **options) -> AcquisitionCv:
     ``random``, ``nielsen``), ``ns`` (list), ``noises`` (list), ``folds``,
     ``candidates_per_step``, ``shortlist``, ``render_size``, ``mask``, ``weighting``,
     ``stride``, ``seed``, ``objective`` and ``eps`` (SPEC 11; default relative),
-    ``appearance`` (log-RMSE, image error, CIEDE2000 and FLIP under four lights of every
-    reconstruction; default True), ``backend``, ``progress``.
+    ``appearance`` (log-RMSE, image error, CIEDE2000, ΔE_ITP and FLIP under four lights of
+    every reconstruction; default True), ``ridge`` (the ridge and energy bound of the fits
+    from samples; default True), ``test`` (a fixed split: the held-out materials' names,
+    scored as one fold; not with ``folds``), ``backend``, ``progress``.
     """
     text = _native.acquisition_cv_json(collection, **_name_options(options))
     d = _json.loads(text)

@@ -348,7 +348,7 @@ pub(crate) fn cross_validate_json<'py>(
 /// Acquisition cross-validation (SPEC 10) as `brdf-basis cv --acquisition` (the library's
 /// `run::AcquisitionRequest`): returns the `--json` text.
 #[pyfunction]
-#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = None, weighting = None, stride = None, seed = None, objective = None, eps = None, appearance = None, backend = None, progress = None))]
+#[pyo3(signature = (collection, *, methods = None, k = None, plans = None, ns = None, noises = None, folds = None, candidates_per_step = None, shortlist = None, restarts = None, render_size = None, mask = None, weighting = None, stride = None, seed = None, objective = None, eps = None, appearance = None, ridge = None, test = None, backend = None, progress = None))]
 pub(crate) fn acquisition_cv_json<'py>(
     py: Python<'py>,
     collection: &Bound<'py, Collection>,
@@ -369,6 +369,8 @@ pub(crate) fn acquisition_cv_json<'py>(
     objective: Option<&str>,
     eps: Option<Bound<'py, PyAny>>,
     appearance: Option<bool>,
+    ridge: Option<bool>,
+    test: Option<Vec<String>>,
     backend: Option<&str>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<String> {
@@ -376,6 +378,15 @@ pub(crate) fn acquisition_cv_json<'py>(
     let mut req = bb::run::AcquisitionRequest::default();
     req.objective = objective_of(objective, eps)?;
     set(&mut req.appearance, appearance);
+    set(&mut req.ridge, ridge);
+    if let Some(t) = test {
+        if folds.is_some() {
+            return Err(pyo3::exceptions::PyValueError::new_err(
+                "folds does not apply with test (a fixed split is one fold); leave one out",
+            ));
+        }
+        req.test = t;
+    }
     req.methods = parse_list(methods, &req.methods)?;
     req.k = k.unwrap_or(req.k);
     req.plans = parse_list(plans, &req.plans)?;

@@ -49,6 +49,8 @@ pub struct AcquisitionRequest {
     pub appearance: bool,
     /// The ridge of the fits from samples (`--no-ridge` turns it off).
     pub ridge: bool,
+    /// `--test`: a fixed split, the held-out materials by name (empty: `folds` folds).
+    pub test: Vec<String>,
 }
 
 impl Default for AcquisitionRequest {
@@ -70,6 +72,7 @@ impl Default for AcquisitionRequest {
             objective: ObjectiveSetting::default(),
             appearance: d.appearance,
             ridge: d.ridge,
+            test: d.test,
         }
     }
 }
@@ -95,6 +98,7 @@ impl AcquisitionRequest {
                 .objective(self.objective.weight()?),
             appearance: self.appearance,
             ridge: self.ridge,
+            test: self.test.clone(),
         })
     }
 

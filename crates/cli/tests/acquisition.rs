@@ -423,3 +423,141 @@ fn acquisition_cv_runs_the_nielsen_baseline() {
         seen.len()
     );
 }
+
+/// `cv --acquisition --test` (issue 50, item 3): a fixed split equal to fold `f` of a
+/// cross-validation, seeded as that fold (`seed + 1000 f`: a split is fold 0), gives that
+/// fold's basis, plans and every held-out number (the default objective, the ridge and the
+/// energy bound, the appearance metrics, `nielsen` beside ours); names it does not know or
+/// lists twice are refused by name.
+#[test]
+fn a_fixed_split_equal_to_a_fold_gives_that_folds_numbers() {
+    use brdf_basis::acquire::{acquisition_cv, AcqCvParams};
+    let c = brdf_basis::collection::synthetic(14, 3);
+    let p = AcqCvParams {
+        k: 2,
+        plans: vec![Criterion::Error, Criterion::Random, Criterion::Nielsen],
+        ns: vec![2, 5],
+        noises: vec![0.0],
+        folds: 3,
+        candidates_per_step: 200,
+        render_size: 16,
+        objective: brdf_basis::select::ObjectiveParams::default().stride(8),
+        ..AcqCvParams::default()
+    };
+    let all = acquisition_cv(&CpuBackend::new(), &c, &p).unwrap();
+    let f = 2;
+    let split = AcqCvParams {
+        test: all.folds[f].iter().rev().cloned().collect(),
+        seed: p.seed + 1000 * f as u64,
+        ..p.clone()
+    };
+    let one = acquisition_cv(&CpuBackend::new(), &c, &split).unwrap();
+    assert_eq!(one.folds, vec![all.folds[f].clone()]);
+    assert_eq!(one.results.len(), all.results.len());
+    for (a, b) in all.results.iter().zip(&one.results) {
+        assert_eq!((a.plan, a.n), (b.plan, b.n));
+        assert_eq!(b.fold_bases, vec![a.fold_bases[f].clone()]);
+        assert_eq!(b.fold_plans, vec![a.fold_plans[f].clone()]);
+        if !a.ridge.is_empty() {
+            assert_eq!(
+                (b.ridge[0], b.energy_ridge[0]),
+                (a.ridge[f], a.energy_ridge[f])
+            );
+        }
+        let rows: Vec<_> = a.held_out.iter().filter(|h| h.fold == f).collect();
+        assert_eq!(rows.len(), b.held_out.len());
+        assert!(!rows.is_empty());
+        for (x, y) in rows.iter().zip(&b.held_out) {
+            assert_eq!(y.fold, 0);
+            let y = brdf_basis::acquire::AcqHeldOut {
+                fold: f,
+                ..y.clone()
+            };
+            assert_eq!(**x, y, "{} {} {}", a.plan.as_str(), a.n, x.material);
+        }
+    }
+    for (bad, says) in [
+        (vec!["no-such".to_string()], "no-such"),
+        (
+            vec![all.folds[0][0].clone(), all.folds[0][0].clone()],
+            "once",
+        ),
+        (c.names(), "at least one to train on"),
+    ] {
+        let e = acquisition_cv(
+            &CpuBackend::new(),
+            &c,
+            &AcqCvParams {
+                test: bad,
+                ..p.clone()
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains(says) && e.contains("test"), "{e}");
+    }
+}
+
+/// `cv --acquisition --test LIST|FILE` on the command line: a file of names (comments and
+/// blank lines skipped) and the same names comma-separated give the same JSON, one fold
+/// of those materials; `--folds` beside it and a name the collection lacks are refused by
+/// name before anything is written.
+#[test]
+fn cv_acquisition_test_takes_a_list_or_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let csv = format!(
+        "{CSV}m5,0.3,0.3,0.1,0.4,0.3,0.2,0.3,60\nm6,0.01,0.2,0.3,0.7,0.7,0.7,0.05,800\nm7,0.25,0.05,0.2,0.1,0.2,0.3,0.6,30\n"
+    );
+    std::fs::write(d.join("c.csv"), csv).unwrap();
+    std::fs::write(d.join("test.txt"), "# held out\nm6\n\n  satin  # a comment\n").unwrap();
+    let run = |test: &str, extra: &[&str], json: &str| {
+        let mut c = common::bin_cpu();
+        c.current_dir(d).args([
+            "cv",
+            "c.csv",
+            "--acquisition",
+            "--methods",
+            "greedy",
+            "-k",
+            "2",
+            "--plans",
+            "error,random",
+            "-n",
+            "2,4",
+            "--noise",
+            "0",
+            "--stride",
+            "8",
+            "--render-size",
+            "16",
+            "--no-appearance",
+            "--candidates-per-step",
+            "100",
+            "--test",
+            test,
+            "--json",
+            json,
+        ]);
+        c.args(extra);
+        c.output().unwrap()
+    };
+    let a = run("test.txt", &[], "a.json");
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    let b = run("m6,satin", &[], "b.json");
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    let ja = std::fs::read_to_string(d.join("a.json")).unwrap();
+    assert_eq!(ja, std::fs::read_to_string(d.join("b.json")).unwrap());
+    let v: serde_json::Value = serde_json::from_str(&ja).unwrap();
+    assert_eq!(v["folds"], serde_json::json!([["satin", "m6"]]));
+    for (test, extra, says) in [
+        ("m6", &["--folds", "3"][..], "--folds 3 does not apply with --test"),
+        ("m6,no-such", &[][..], "no-such"),
+        ("m6,,satin", &[][..], "an empty name"),
+    ] {
+        let o = run(test, extra, "x.json");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains(says), "{test}: {e}");
+        assert!(!d.join("x.json").exists());
+    }
+}

@@ -229,6 +229,7 @@ fn cv_refuses_every_setting_no_listed_method_uses() {
         "--candidates-per-step",
         "--shortlist",
         "--restarts",
+        "--test",
     ];
     let known: BTreeSet<String> = walked
         .iter()
@@ -720,6 +721,7 @@ fn flag_uses() -> Vec<(&'static str, &'static str, Use)> {
         "--shortlist",
         "--restarts",
         "--figure",
+        "--test",
     ] {
         t.push(("cv", f, RefusedWith(NO_ACQUISITION)));
     }
@@ -797,6 +799,7 @@ fn giving(command: &str, flag: &str) -> Vec<&'static str> {
         "--shortlist" => vec!["--shortlist", "4"],
         "--restarts" => vec!["--restarts", "2"],
         "--figure" => vec!["--figure", "f.png"],
+        "--test" => vec!["--test", "polished-gold"],
         "--exposure" => vec!["--exposure", "1"],
         "--gamma" => vec!["--gamma", "1.8"],
         "--heatmap" => vec!["--heatmap", "h.png"],

@@ -32,9 +32,8 @@ pub(crate) struct CvArgs {
     /// Basis sizes, comma-separated [default: 5,12].
     #[arg(short = 'k', value_delimiter = ',')]
     pub k: Vec<usize>,
-    /// Number of folds.
-    #[arg(long, default_value_t = defaults().folds)]
-    pub folds: usize,
+    #[arg(long, help = super::with_default("Number of folds (not with --test)", defaults().folds))]
+    pub folds: Option<usize>,
     // Optional flags of some methods, so that the request can refuse one that no method
     // given uses; the help shows the request's defaults.
     #[arg(long, help = super::with_default("kmedoids, gcuk: distance, brdf-it or euclidean", brdf_basis::select::cv::CvParams::default().metric))]
@@ -96,6 +95,38 @@ pub(crate) struct CvArgs {
     /// reconstructions from each n by the first plan) as this .svg or .png file.
     #[arg(long)]
     pub figure: Option<PathBuf>,
+    /// --acquisition: a fixed split instead of folds: the held-out materials, as names
+    /// separated by commas or a file of names (one per line; `#` starts a comment). The
+    /// basis, the plans and the nielsen model are trained on the other materials; the
+    /// JSON is that of one fold (seeded as fold 0).
+    #[arg(long, value_name = "LIST|FILE")]
+    pub test: Option<String>,
+}
+
+/// The held-out materials of `--test`: the lines of the file it names (blank lines and
+/// `#` comments skipped, names trimmed), or else its comma-separated names.
+fn test_names(v: &str) -> anyhow::Result<Vec<String>> {
+    let path = std::path::Path::new(v);
+    let names: Vec<String> = if path.is_file() {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            anyhow::anyhow!(
+                "--test {}: cannot read the file of names: {e}",
+                path.display()
+            )
+        })?;
+        text.lines()
+            .map(|l| l.split('#').next().unwrap_or("").trim().to_string())
+            .filter(|l| !l.is_empty())
+            .collect()
+    } else {
+        v.split(',').map(|s| s.trim().to_string()).collect()
+    };
+    if names.is_empty() || names.iter().any(|n| n.is_empty()) {
+        anyhow::bail!(
+            "--test {v}: give the held-out materials' names, comma-separated, or a file of names (one per line); an empty name is not one"
+        );
+    }
+    Ok(names)
 }
 
 /// `--methods`, parsed (`None` when not given).
@@ -121,7 +152,7 @@ impl CvArgs {
         if !self.k.is_empty() {
             r.ks = self.k.clone();
         }
-        r.folds = self.folds;
+        r.folds = self.folds.unwrap_or(r.folds);
         r.metric = self.metric;
         r.grid = self.grid.grid()?;
         r.runs = self.runs;
@@ -152,7 +183,15 @@ impl CvArgs {
         if !self.noise.is_empty() {
             r.noises = self.noise.clone();
         }
-        r.folds = self.folds;
+        if let Some(t) = &self.test {
+            if let Some(f) = self.folds {
+                anyhow::bail!(
+                    "--folds {f} does not apply with --test (a fixed split is one fold); leave one out"
+                );
+            }
+            r.test = test_names(t)?;
+        }
+        r.folds = self.folds.unwrap_or(r.folds);
         r.candidates_per_step = self.candidates_per_step;
         r.shortlist = self.shortlist;
         r.restarts = self.restarts;
@@ -177,6 +216,7 @@ fn acquisition_only(a: &CvArgs) -> Vec<&'static str> {
         ("--candidates-per-step", a.candidates_per_step.is_some()),
         ("--shortlist", a.shortlist.is_some()),
         ("--restarts", a.restarts.is_some()),
+        ("--test", a.test.is_some()),
     ]
     .into_iter()
     .filter_map(|(flag, given)| given.then_some(flag))

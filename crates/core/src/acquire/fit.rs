@@ -109,6 +109,14 @@ pub(crate) struct Toward<'a> {
     pub shape: &'a [f64],
     /// Strength relative to the sampled design ([`solve_rows_toward`]).
     pub lambda: f64,
+    /// A second penalty toward the black material, `mu_e x^T E x`: `E` the shape
+    /// ([`function_shape`]) of the basis columns' *unweighted* Gram matrix on the whole
+    /// mask, so that `x^T E x` is the reconstruction's squared L2 norm (its energy, which
+    /// the specular peak dominates), and `mu_e = energy_lambda tr(A^T W A) / m`. Among the
+    /// fits the samples allow, it prefers the one with the least energy where the samples
+    /// do not look: an unpinned peak is shrunk toward none, never blown up (a
+    /// reconstruction shrunk all the way to black has rho 1). `None` or 0: no such term.
+    pub energy: Option<(&'a [f64], f64)>,
 }
 
 /// The shape of the ridge's penalty in function space: the basis columns' Gram matrix `G`
@@ -169,15 +177,25 @@ pub(crate) fn solve_rows_toward(
             g[j * m + i] = g[i * m + j];
         }
     }
-    if let Some(t) = prior.filter(|p| p.lambda > 0.0) {
-        let mu = t.lambda * (0..m).map(|i| g[i * m + i]).sum::<f64>() / m as f64;
-        for i in 0..m {
-            let sm: f64 = (0..m).map(|j| t.shape[i * m + j] * t.mean[j]).sum();
-            for j in 0..m {
-                g[i * m + j] += mu * t.shape[i * m + j];
+    if let Some(t) = prior {
+        // Both strengths are relative to the sampled design before any penalty.
+        let tr = (0..m).map(|i| g[i * m + i]).sum::<f64>();
+        if t.lambda > 0.0 {
+            let mu = t.lambda * tr / m as f64;
+            for i in 0..m {
+                let sm: f64 = (0..m).map(|j| t.shape[i * m + j] * t.mean[j]).sum();
+                for j in 0..m {
+                    g[i * m + j] += mu * t.shape[i * m + j];
+                }
+                h[i] += mu * sm;
+                bb += mu * t.mean[i] * sm;
             }
-            h[i] += mu * sm;
-            bb += mu * t.mean[i] * sm;
+        }
+        if let Some((e, le)) = t.energy.filter(|e| e.1 > 0.0) {
+            let mu = le * tr / m as f64;
+            for (gv, ev) in g.iter_mut().zip(&e[..m * m]) {
+                *gv += mu * ev;
+            }
         }
     }
     let p = GramProblem::new(m, &g, &h, bb)?;
@@ -514,6 +532,7 @@ mod tests {
                 mean: &mean,
                 shape: &eye,
                 lambda,
+                energy: None,
             }),
         )
         .unwrap();
@@ -585,6 +604,7 @@ mod tests {
                 mean: &mean,
                 shape: &shape,
                 lambda,
+                energy: None,
             }),
         )
         .unwrap()

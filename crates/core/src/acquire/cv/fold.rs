@@ -2,7 +2,7 @@
 //! ([`Shared`]), the fold's plans and fits from samples, their scores, the `nielsen`
 //! baseline, and the noise model and ridge of the fits from samples.
 
-use super::prior::{sample_coefficients, Prior, RidgePrior};
+use super::prior::{sample_coefficients, Prior, Strength};
 use super::*;
 
 /// One reconstruction of a fold: plan, n and noise indices, the held-out material's index
@@ -16,8 +16,8 @@ pub(super) type FoldRows = (
     Vec<String>,
     Vec<Candidate>,
     Vec<Vec<Vec<Cell>>>,
-    Vec<Vec<Option<f64>>>,
-    Option<RidgePrior>,
+    Vec<Vec<Option<Strength>>>,
+    Option<Prior>,
 );
 
 /// What every fold of every method shares: the checked settings, the fold bases, the
@@ -103,6 +103,39 @@ fn check_counts(p: &AcqCvParams) -> Result<(), AcquireError> {
     Ok(())
 }
 
+/// The held-out materials of a fixed split (`--test`), by name, as increasing collection
+/// indices; `None` for none given. Refused: a name the collection does not have, a name
+/// listed twice.
+fn test_split(coll: &Collection, test: &[String]) -> Result<Option<Vec<usize>>, AcquireError> {
+    if test.is_empty() {
+        return Ok(None);
+    }
+    let names = coll.names();
+    let mut idx = Vec::with_capacity(test.len());
+    for (j, t) in test.iter().enumerate() {
+        let Some(i) = names.iter().position(|x| x == t) else {
+            return Err(AcquireError::InvalidParam {
+                name: "test",
+                value: t.clone(),
+                expected: format!(
+                    "names of the collection's materials (`{t}` is not one of its {})",
+                    names.len()
+                ),
+            });
+        };
+        if test[..j].contains(t) {
+            return Err(AcquireError::InvalidParam {
+                name: "test",
+                value: t.clone(),
+                expected: "each held-out material once".into(),
+            });
+        }
+        idx.push(i);
+    }
+    idx.sort_unstable();
+    Ok(Some(idx))
+}
+
 impl<'a> Shared<'a> {
     /// Checks the settings, then chooses every fold's basis and renders, tabulates and
     /// lists what the folds share.
@@ -115,15 +148,19 @@ impl<'a> Shared<'a> {
         let n = coll.len();
         let nmax = p.ns.iter().copied().max().unwrap_or(0);
         check_counts(p)?;
-        let vp = CvParams {
+        let cvp = CvParams {
             methods: p.methods.clone(),
             ks: vec![p.k],
             folds: p.folds,
             seed: p.seed,
             objective: p.objective.clone(),
             ..CvParams::default()
-        }
-        .check(n)?;
+        };
+        let test = test_split(coll, &p.test)?;
+        let vp = match &test {
+            Some(t) => cvp.check_split(n, t.len())?,
+            None => cvp.check(n)?,
+        };
         // The objective's fits and plans; the scores (rho, MAE: SPEC 10) are l2's.
         let fp_obj = p.objective.fit_params();
         let weight = fp_obj
@@ -151,7 +188,10 @@ impl<'a> Shared<'a> {
         } else {
             None
         };
-        let folds = make_folds(n, p.folds, p.seed);
+        let folds = match test {
+            Some(t) => vec![t],
+            None => make_folds(n, p.folds, p.seed),
+        };
         let bases = fold_bases(&obj, dist.as_ref(), &folds, &vp, &pulse)?;
         let grid = GridEval::new(coll, &fp);
         let rp = RenderParams::default()
@@ -246,7 +286,7 @@ impl<'a> Shared<'a> {
             train: &train,
         };
         let mut acc = self.empty_cells();
-        let mut ridges: Vec<Vec<Option<f64>>> = vec![vec![None; p.ns.len()]; p.plans.len()];
+        let mut ridges: Vec<Vec<Option<Strength>>> = vec![vec![None; p.ns.len()]; p.plans.len()];
         let (recs, show) = self.our_plans(&at, prior.as_ref(), &mut acc, &mut ridges, tick)?;
         let sc = self.score(&at, &dense, &dense_x, &recs, tick)?;
         tick.step();
@@ -268,7 +308,7 @@ impl<'a> Shared<'a> {
             });
         }
         self.nielsen_plans(&at, &sc, &mut acc, tick)?;
-        Ok((named, show, acc, ridges, prior.map(|p| p.ridge)))
+        Ok((named, show, acc, ridges, prior))
     }
 
     /// The dense fit of each held-out material (the limit). Under an objective the
@@ -325,7 +365,7 @@ impl<'a> Shared<'a> {
         at: &FoldAt<'_>,
         prior: Option<&Prior>,
         acc: &mut [Vec<Vec<Cell>>],
-        ridges: &mut [Vec<Option<f64>>],
+        ridges: &mut [Vec<Option<Strength>>],
         tick: &Ticker<'_>,
     ) -> Result<(Vec<Rec>, Vec<Candidate>), AcquireError> {
         let (p, coll, backend, nmax, weight) =
@@ -386,13 +426,16 @@ impl<'a> Shared<'a> {
             mats.extend_from_slice(held);
             let vals = values_at(coll, &mats, &chosen)?;
             let cos: Vec<f64> = chosen.iter().map(|c| c.wi[2]).collect();
-            let lambdas = self.ridge_strengths(prior, train, &chosen, &vals, &cos, mm)?;
+            let tv = match prior {
+                Some(_) => values_at(coll, train, &chosen)?,
+                None => Default::default(),
+            };
+            let lambdas = self.ridge_strengths(prior, &tv, &vals, &cos, mm)?;
             if prior.is_some() {
                 for (ni, &l) in lambdas.iter().enumerate() {
                     ridges[pi][ni] = Some(l);
                 }
             }
-            let toward = |ni: usize| prior.map(|pr| (&pr.ridge, lambdas[ni]));
             for si in 0..p.noises.len() {
                 let sigma = p.noises[si];
                 // Noisy measurements of every held-out material at the nmax samples.
@@ -410,15 +453,20 @@ impl<'a> Shared<'a> {
                         .into_par_iter()
                         .map(|t| {
                             tick.pulse();
-                            sample_coefficients(
-                                basis.len(),
-                                &vals,
-                                &ys[t],
-                                ns,
-                                weight,
-                                &cos,
-                                toward(ni),
-                            )
+                            match prior {
+                                Some(pr) => pr
+                                    .fit_bounded(&vals, &tv, &ys[t], ns, weight, &cos, lambdas[ni])
+                                    .map(|r| r.0),
+                                None => sample_coefficients(
+                                    basis.len(),
+                                    &vals,
+                                    &ys[t],
+                                    ns,
+                                    weight,
+                                    &cos,
+                                    None,
+                                ),
+                            }
                         })
                         .collect::<Result<_, _>>()?;
                     recs.extend(xs.into_iter().enumerate().map(|(t, x)| (pi, ni, si, t, x)));
@@ -430,31 +478,28 @@ impl<'a> Shared<'a> {
         Ok((recs, show))
     }
 
-    /// The ridge strength of each n for one plan's samples `chosen` (values `vals` of the
-    /// basis and held-out materials, `cos` their cos theta_i), chosen on the training
-    /// materials `train`; 0 without a prior and where the samples determine the fit
-    /// (n >= the basis size + 1).
+    /// The strengths of the fits from samples of each n for one plan's samples `chosen`
+    /// (values `vals` of the basis and held-out materials, `cos` their cos theta_i),
+    /// chosen on the training materials (values `tv` at the samples, [`Prior::choose`]);
+    /// none without a prior,
+    /// and no ridge toward the mean where the samples determine the fit (n >= the basis
+    /// size + 1).
     fn ridge_strengths(
         &self,
         prior: Option<&Prior>,
-        train: &[usize],
-        chosen: &[Candidate],
+        tv: &[Vec<Vec<f64>>; 3],
         vals: &[Vec<Vec<f64>>; 3],
         cos: &[f64],
         mm: usize,
-    ) -> Result<Vec<f64>, AcquireError> {
+    ) -> Result<Vec<Strength>, AcquireError> {
         let (p, nmax) = (self.p, self.nmax);
         let Some(pr) = prior else {
-            return Ok(vec![0.0; p.ns.len()]);
+            return Ok(vec![Strength::default(); p.ns.len()]);
         };
-        let tv = values_at(self.coll, train, chosen)?;
         p.ns.iter()
             .map(|&ns| {
-                if ns.min(nmax) >= mm {
-                    Ok(0.0)
-                } else {
-                    pr.choose(vals, &tv, ns.min(nmax), self.weight, cos)
-                }
+                let ns = ns.min(nmax);
+                pr.choose(vals, tv, ns, self.weight, cos, ns < mm)
             })
             .collect()
     }

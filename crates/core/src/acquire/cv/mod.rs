@@ -75,6 +75,10 @@ pub struct AcqCvParams {
     /// materials, each left out of the prior it is judged with ([`RIDGE_STRENGTHS`]);
     /// `false`: plain NNLS.
     pub ridge: bool,
+    /// A fixed split: the names of the held-out materials, scored as one fold (seed
+    /// `seed`, as fold 0 of a cross-validation) with the basis, the plans and the
+    /// `nielsen` model trained on the others; empty: `folds` folds.
+    pub test: Vec<String>,
 }
 
 impl Default for AcqCvParams {
@@ -94,6 +98,7 @@ impl Default for AcqCvParams {
             objective: ObjectiveParams::default(),
             appearance: true,
             ridge: true,
+            test: Vec::new(),
         }
     }
 }
@@ -166,6 +171,14 @@ pub struct AcqResult {
     /// at least as many samples as unknowns; empty for `nielsen` and without a ridge).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ridge: Vec<f64>,
+    /// The strength of the energy penalty of the fits from samples per fold
+    /// ([`ENERGY_STRENGTHS`], chosen with `ridge`; empty where `ridge` is).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub energy_ridge: Vec<f64>,
+    /// The largest rho over the held-out materials (above 1: a reconstruction further
+    /// from its material than black is).
+    #[serde(default = "nan")]
+    pub max_rho: f64,
     /// Mean log-RMSE (SPEC 11), when the appearance metrics were computed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mean_log_rmse: Option<f64>,
@@ -244,12 +257,19 @@ pub struct AcqShowcase {
     pub tiles: Vec<(String, Image, f64, f64)>,
 }
 
+/// The value of a field missing from a file written before it.
+fn nan() -> f64 {
+    f64::NAN
+}
+
 /// Held-out rows and fold plans of one (plan, n, noise), accumulated over folds.
 type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
 
 mod fold;
 mod prior;
 mod showcase;
+
+pub use prior::{BOUND_MARGIN, BOUND_NEIGHBOURS, ENERGY_STRENGTHS, WILD_RHO};
 
 use fold::{FoldRows, Shared};
 use showcase::Showcase;
@@ -324,7 +344,7 @@ pub fn acquisition_cv_with_progress(
     tick.step();
     let names = &s.names;
     let mut show_chosen: Vec<Vec<Candidate>> = vec![Vec::new(); s.folds.len()];
-    let mut show_prior: Vec<Option<prior::RidgePrior>> = vec![None; s.folds.len()];
+    let mut show_prior: Vec<Option<prior::Prior>> = (0..s.folds.len()).map(|_| None).collect();
     let mut results = Vec::new();
     for (mi, m) in p.methods.iter().enumerate() {
         // Each fold returns its rows, merged in fold order.
@@ -337,7 +357,8 @@ pub fn acquisition_cv_with_progress(
         // rows[plan][n][noise] accumulated over folds.
         let mut acc = s.empty_cells();
         let mut fold_bases_named = Vec::new();
-        let mut ridge_folds: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); p.ns.len()]; p.plans.len()];
+        let mut ridge_folds: Vec<Vec<Vec<prior::Strength>>> =
+            vec![vec![Vec::new(); p.ns.len()]; p.plans.len()];
         for (f, (named, show, facc, fridge, fprior)) in per_fold.into_iter().enumerate() {
             fold_bases_named.push(named);
             if mi == 0 && !show.is_empty() {
@@ -412,7 +433,7 @@ fn summarize(
     p: &AcqCvParams,
     mut acc: Vec<Vec<Vec<Cell>>>,
     fold_bases_named: &[Vec<String>],
-    ridge_folds: &[Vec<Vec<f64>>],
+    ridge_folds: &[Vec<Vec<prior::Strength>>],
 ) -> Vec<AcqResult> {
     let mut results = Vec::new();
     for (pi, &crit) in p.plans.iter().enumerate() {
@@ -443,7 +464,9 @@ fn summarize(
                     median_image_error: median(&img),
                     mean_dense_mae: mean(&col(|h| h.dense_mae)),
                     mean_dense_image_error: mean(&col(|h| h.dense_image_error)),
-                    ridge: ridge_folds[pi][ni].clone(),
+                    ridge: ridge_folds[pi][ni].iter().map(|s| s.toward).collect(),
+                    energy_ridge: ridge_folds[pi][ni].iter().map(|s| s.energy).collect(),
+                    max_rho: rho.iter().copied().fold(f64::NAN, f64::max),
                     mean_log_rmse: looks_mean(&held_out, |h| h.appearance.as_ref()).map(|(l, _)| l),
                     appearance: looks_mean(&held_out, |h| h.appearance.as_ref()).map(|(_, a)| a),
                     mean_dense_log_rmse: looks_mean(&held_out, |h| h.dense_appearance.as_ref())

@@ -13,7 +13,7 @@ pub(super) struct Showcase<'a> {
     pub(super) folds: &'a [Vec<usize>],
     pub(super) bases: &'a [Vec<usize>],
     pub(super) chosen: &'a [Vec<Candidate>],
-    pub(super) prior: &'a [Option<super::prior::RidgePrior>],
+    pub(super) prior: &'a [Option<super::prior::Prior>],
     pub(super) cellset: &'a crate::merl::CellSet,
     pub(super) cands: &'a [Candidate],
     pub(super) rp: &'a RenderParams,
@@ -117,11 +117,29 @@ impl Showcase<'_> {
             let nb = basis.len();
             let y = measure(p.seed, ti, si, sigma, chosen.len(), |c, s| vals[c][nb][s]);
             let cos: Vec<f64> = chosen.iter().map(|c| c.wi[2]).collect();
+            // The fold's training materials at the samples (the energy bound's neighbours).
+            let tv = match &self.prior[f] {
+                Some(_) => {
+                    let held = &self.folds[f];
+                    let train: Vec<usize> = (0..coll.len())
+                        .filter(|i| held.binary_search(i).is_err() && !basis.contains(i))
+                        .collect();
+                    Some(values_at(coll, &train, chosen)?)
+                }
+                None => None,
+            };
             for &n in &ns {
-                let lambda = find(n).and_then(|r| r.ridge.get(f).copied()).unwrap_or(0.0);
-                let toward = self.prior[f].as_ref().map(|m| (m, lambda));
-                let x =
-                    sample_coefficients(nb, &vals, &y, n.min(chosen.len()), weight, &cos, toward)?;
+                let st = find(n).map_or(super::prior::Strength::default(), |r| {
+                    super::prior::Strength {
+                        toward: r.ridge.get(f).copied().unwrap_or(0.0),
+                        energy: r.energy_ridge.get(f).copied().unwrap_or(0.0),
+                    }
+                });
+                let k = n.min(chosen.len());
+                let x = match (&self.prior[f], &tv) {
+                    (Some(pr), Some(tv)) => pr.fit_bounded(&vals, tv, &y, k, weight, &cos, st)?.0,
+                    _ => sample_coefficients(nb, &vals, &y, k, weight, &cos, None)?,
+                };
                 let coef: Vec<[f64; 3]> = (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
                 let (img, ie) = render(&combination_brdf(coll, basis, &coef))?;
                 tiles.push((format!("n = {n}"), img, ie, rho_at(n)));

@@ -179,6 +179,37 @@ impl CvParams {
     /// smallest training set; `2 <= folds <= n`; `runs >= 1`; valid GA, objective and
     /// render settings.
     pub fn check(&self, n: usize) -> Result<ValidCvParams, SelectionError> {
+        self.check_held(n, None)
+    }
+
+    /// [`Self::check`] of one fixed split (`folds` 1) whose held-out set has `held`
+    /// materials: `held` from 1 to `n - 1`, every other rule as [`Self::check`] with the
+    /// training fold `n - held`.
+    ///
+    /// # Errors
+    /// As [`Self::check`].
+    pub fn check_split(&self, n: usize, held: usize) -> Result<ValidCvParams, SelectionError> {
+        if held == 0 || held >= n {
+            return Err(SelectionError::InvalidParam {
+                name: "--test",
+                value: format!(
+                    "{} (a collection of {})",
+                    crate::error::plural(held, "material", "materials"),
+                    crate::error::plural(n, "material", "materials")
+                ),
+                expected: "at least one held-out material and at least one to train on",
+            });
+        }
+        CvParams {
+            folds: 1,
+            ..self.clone()
+        }
+        .check_held(n, Some(held))
+    }
+
+    /// The rules of [`Self::check`]; with `split` (a fixed split's held-out count) no
+    /// rule on the number of folds and that count as the largest held-out fold.
+    fn check_held(&self, n: usize, split: Option<usize>) -> Result<ValidCvParams, SelectionError> {
         let bad = |name, value: String, expected| {
             Err(SelectionError::InvalidParam {
                 name,
@@ -194,7 +225,7 @@ impl CvParams {
                 return Err(SelectionError::DuplicateMethod(m.name().into()));
             }
         }
-        if self.folds < 2 || self.folds > n {
+        if split.is_none() && (self.folds < 2 || self.folds > n) {
             return bad(
                 "--folds",
                 format!(
@@ -205,7 +236,7 @@ impl CvParams {
                 "between 2 and the number of materials",
             );
         }
-        let train = n - n.div_ceil(self.folds);
+        let train = n - split.unwrap_or_else(|| n.div_ceil(self.folds));
         if self.ks.is_empty() {
             return bad("-k", "none".into(), "at least one basis size");
         }
