@@ -350,6 +350,9 @@ impl FitSamplesRequest {
             String::new()
         };
         let mut warnings = afit::determination_warnings(d, afit::WARN_CONDITION, &hint);
+        // Issue 50, item 2: a peak the samples do not pin is said, never a silent wild
+        // material.
+        warnings.extend(afit::peak_warning(coll, &basis, &sf, &samples)?);
         let name = self.target_name();
         let samples_file = match &self.samples {
             Samples::File(path) => Some(path),

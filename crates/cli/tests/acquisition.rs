@@ -510,7 +510,11 @@ fn cv_acquisition_test_takes_a_list_or_a_file() {
         "{CSV}m5,0.3,0.3,0.1,0.4,0.3,0.2,0.3,60\nm6,0.01,0.2,0.3,0.7,0.7,0.7,0.05,800\nm7,0.25,0.05,0.2,0.1,0.2,0.3,0.6,30\n"
     );
     std::fs::write(d.join("c.csv"), csv).unwrap();
-    std::fs::write(d.join("test.txt"), "# held out\nm6\n\n  satin  # a comment\n").unwrap();
+    std::fs::write(
+        d.join("test.txt"),
+        "# held out\nm6\n\n  satin  # a comment\n",
+    )
+    .unwrap();
     let run = |test: &str, extra: &[&str], json: &str| {
         let mut c = common::bin_cpu();
         c.current_dir(d).args([
@@ -551,7 +555,11 @@ fn cv_acquisition_test_takes_a_list_or_a_file() {
     let v: serde_json::Value = serde_json::from_str(&ja).unwrap();
     assert_eq!(v["folds"], serde_json::json!([["satin", "m6"]]));
     for (test, extra, says) in [
-        ("m6", &["--folds", "3"][..], "--folds 3 does not apply with --test"),
+        (
+            "m6",
+            &["--folds", "3"][..],
+            "--folds 3 does not apply with --test",
+        ),
         ("m6,no-such", &[][..], "no-such"),
         ("m6,,satin", &[][..], "an empty name"),
     ] {
@@ -560,4 +568,67 @@ fn cv_acquisition_test_takes_a_list_or_a_file() {
         assert!(!o.status.success() && e.contains(says), "{test}: {e}");
         assert!(!d.join("x.json").exists());
     }
+}
+
+/// Issue 50, item 2: samples of a specular material all far from its peak leave the peak
+/// to the basis; `fit --samples` says so, naming near-mirror directions that would pin it
+/// (`theta_o` within a few degrees of `theta_i`, `phi_o` opposite `phi_i`). Samples at its
+/// mirror directions pin it: no such warning.
+#[test]
+fn fit_samples_warns_when_the_samples_do_not_pin_the_peak() {
+    let c = coll();
+    let basis = [0, 1, 2];
+    let target = &c.materials()[3];
+    let sample = |ti: f64, pi: f64, to: f64, po: f64| {
+        let (wi, wo) = (dir(ti, pi), dir(to, po));
+        Sample {
+            wi,
+            wo,
+            rgb: material_at(target, wi, wo).unwrap(),
+            sigma: None,
+            line: 0,
+        }
+    };
+    let far: Vec<Sample> = [
+        (10.0, 0.0, 60.0, 90.0),
+        (50.0, 0.0, 20.0, 60.0),
+        (30.0, 0.0, 70.0, 0.0),
+        (65.0, 0.0, 40.0, 100.0),
+        (20.0, 0.0, 45.0, 300.0),
+        (40.0, 0.0, 10.0, 30.0),
+    ]
+    .iter()
+    .map(|&(a, b, cc, d)| sample(a, b, cc, d))
+    .collect();
+    let fit = fit_samples(&c, &basis, &far, TargetWeight::L2).unwrap();
+    let w = brdf_basis::acquire::peak_warning(&c, &basis, &fit, &far)
+        .unwrap()
+        .expect("a warning");
+    assert!(
+        w.contains("no sample looks at the highlight") && w.contains("`metal`"),
+        "{w}"
+    );
+    // The first direction named is near a mirror pair.
+    let first = w.split("degrees) (").nth(1).unwrap();
+    let nums: Vec<f64> = first
+        .split(')')
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!((nums[0] - nums[2]).abs() < 6.0, "{w}");
+    assert!(
+        ((nums[3] - nums[1]).rem_euclid(360.0) - 180.0).abs() < 10.0,
+        "{w}"
+    );
+    let mut pinned = far.clone();
+    for t in [5.0, 20.0, 35.0, 50.0, 65.0, 80.0] {
+        pinned.push(sample(t, 0.0, t, 180.0));
+    }
+    let fit = fit_samples(&c, &basis, &pinned, TargetWeight::L2).unwrap();
+    assert_eq!(
+        brdf_basis::acquire::peak_warning(&c, &basis, &fit, &pinned).unwrap(),
+        None
+    );
 }

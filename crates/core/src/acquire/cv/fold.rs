@@ -453,20 +453,15 @@ impl<'a> Shared<'a> {
                         .into_par_iter()
                         .map(|t| {
                             tick.pulse();
-                            match prior {
-                                Some(pr) => pr
-                                    .fit_bounded(&vals, &tv, &ys[t], ns, weight, &cos, lambdas[ni])
-                                    .map(|r| r.0),
-                                None => sample_coefficients(
-                                    basis.len(),
-                                    &vals,
-                                    &ys[t],
-                                    ns,
-                                    weight,
-                                    &cos,
-                                    None,
-                                ),
-                            }
+                            sample_coefficients(
+                                basis.len(),
+                                &vals,
+                                &ys[t],
+                                ns,
+                                weight,
+                                &cos,
+                                prior.map(|pr| (&pr.ridge, lambdas[ni])),
+                            )
                         })
                         .collect::<Result<_, _>>()?;
                     recs.extend(xs.into_iter().enumerate().map(|(t, x)| (pi, ni, si, t, x)));

@@ -176,7 +176,7 @@ pub struct AcqResult {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub energy_ridge: Vec<f64>,
     /// The largest rho over the held-out materials (above 1: a reconstruction further
-    /// from its material than black is).
+    /// from its material than black is; NaN in files written before it).
     #[serde(default = "nan")]
     pub max_rho: f64,
     /// Mean log-RMSE (SPEC 11), when the appearance metrics were computed.
@@ -269,7 +269,7 @@ mod fold;
 mod prior;
 mod showcase;
 
-pub use prior::{BOUND_MARGIN, BOUND_NEIGHBOURS, ENERGY_STRENGTHS, WILD_RHO};
+pub use prior::{ENERGY_STRENGTHS, HIGHLIGHT_DEG, WILD_RHO};
 
 use fold::{FoldRows, Shared};
 use showcase::Showcase;
@@ -504,7 +504,7 @@ impl AcqCv {
     pub fn markdown(&self) -> String {
         use crate::stats::num;
         let mut s = format!(
-            "| method | plan | n | noise | mean rho | median rho | dense rho | ratio | mean MAE | median MAE | {} | {} |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+            "| method | plan | n | noise | mean rho | median rho | max rho | dense rho | ratio | mean MAE | median MAE | {} | {} |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
             crate::select::cv::report::image_error_header("mean", self.render_size),
             crate::select::cv::report::image_error_header("median", self.render_size)
         );
@@ -523,9 +523,10 @@ impl AcqCv {
                     col(|h| h.dense_image_error),
                 );
                 s.push_str(&format!(
-                    "| {m} | dense fit (the limit) | all | 0 | {} | {} | {} | 1 | {} | {} | {} | {} |\n",
+                    "| {m} | dense fit (the limit) | all | 0 | {} | {} | {} | {} | 1 | {} | {} | {} | {} |\n",
                     num(mean(&rho)),
                     num(median(&rho)),
+                    num(rho.iter().copied().fold(f64::NAN, f64::max)),
                     num(mean(&rho)),
                     num(mean(&mae)),
                     num(median(&mae)),
@@ -535,13 +536,14 @@ impl AcqCv {
             }
             for r in self.results.iter().filter(|r| r.method == m) {
                 s.push_str(&format!(
-                    "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                    "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
                     r.method,
                     r.plan.as_str(),
                     r.n,
                     r.noise, // as given (0.02, not 0.02000): a setting, not a result
                     num(r.mean_rho),
                     num(r.median_rho),
+                    num(r.max_rho),
                     num(r.mean_dense_rho),
                     num(r.ratio),
                     num(r.mean_mae),

@@ -47,13 +47,13 @@ pub(super) struct RidgePrior {
     /// Shape of the penalty (`m x m`, trace `m`).
     pub(super) shape: [Vec<f64>; 3],
     /// Shape of the energy penalty ([`Toward::energy`]: the basis's unweighted Gram
-    /// matrix on the whole mask, trace `m`).
+    /// matrix on the highlight cells of the mask ([`HIGHLIGHT_DEG`]), trace `m`).
     pub(super) energy: [Vec<f64>; 3],
 }
 
 /// The two strengths of the fits from samples: the ridge toward the training materials'
-/// mean material ([`RIDGE_STRENGTHS`]) and the energy penalty toward black
-/// ([`ENERGY_STRENGTHS`]); zero and zero: plain NNLS.
+/// mean material ([`RIDGE_STRENGTHS`]) and the penalty on the reconstruction's energy in
+/// the highlight ([`ENERGY_STRENGTHS`]); zero and zero: plain NNLS.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Strength {
     pub(super) toward: f64,
@@ -64,17 +64,17 @@ pub(super) struct Strength {
 /// among per fold, plan and n (0: none).
 pub const ENERGY_STRENGTHS: [f64; 4] = [0.0, 1e-4, 1e-2, 1.0];
 
-/// How the energy of a reconstruction is bounded ([`Prior::fit_bounded`]): the
-/// [`BOUND_NEIGHBOURS`] training materials that look most like the measured material at
-/// its samples, each scaled to its samples, and [`BOUND_MARGIN`] times the largest of
-/// their energies.
-pub const BOUND_NEIGHBOURS: usize = 5;
-/// See [`BOUND_NEIGHBOURS`] (an energy twice the bound's is `sqrt(2)` times its amplitude).
-pub const BOUND_MARGIN: f64 = 2.0;
+/// The highlight of the energy penalty ([`Toward::energy`]): the cells whose half vector
+/// is within this angle of the normal (`theta_h`, degrees), where every isotropic
+/// material's specular peak lies and where a few samples rarely look.
+pub const HIGHLIGHT_DEG: f64 = 10.0;
 
-/// The rho (unweighted, SPEC 10) above which a fit from samples is wild: its error is
-/// larger than the material itself (black scores 1).
-pub const WILD_RHO: f64 = 1.0;
+/// The rho (unweighted, SPEC 10) above which a training fit from samples counts as wild
+/// when the strengths are chosen ([`Prior::choose`]): an error ten times the material's
+/// own size (black scores 1), the orders-of-magnitude extrapolations of an unpinned peak.
+/// Not 1: choosing against every fit above 1 shrank the reconstructions' bodies with their
+/// peaks and cost the images 5-30% (docs/acquisition.md, "Bounded reconstructions").
+pub const WILD_RHO: f64 = 10.0;
 
 /// The ridge of the fits from samples (SPEC 10, beside it in `docs/acquisition.md`): the
 /// mean over a fold's training materials of their dense fits (under the objective's
@@ -91,9 +91,6 @@ pub(super) struct Prior {
     /// The same without weights (l2, the cell weights of the mask only): the training
     /// materials' rho of SPEC 10, which tells a wild fit.
     dense_l2: Dense,
-    /// Each training material's energy on the whole mask (the sum over channels of
-    /// `sum_s w_s f^2`, unweighted).
-    energies: Vec<f64>,
 }
 
 impl Prior {
@@ -111,6 +108,7 @@ impl Prior {
             ..fp.clone()
         };
         let dense_l2 = Dense::new(backend, coll, basis, train, &fp_l2, progress)?;
+        let highlight = highlight_gram(coll, basis, &fp_l2)?;
         let m = dense.m;
         let nt = train.len();
         let mut coefs: [Vec<Vec<f64>>; 3] = Default::default();
@@ -125,7 +123,7 @@ impl Prior {
         let prior_of = |skip: Option<usize>| -> RidgePrior {
             let mut mean: [Vec<f64>; 3] = Default::default();
             let mut shape: [Vec<f64>; 3] = Default::default();
-            let energy = [0, 1, 2].map(|c| function_shape(m, &dense_l2.g[c].gram));
+            let energy = [0, 1, 2].map(|c| function_shape(m, &highlight[c]));
             for c in 0..3 {
                 let rows: Vec<&[f64]> = (0..nt)
                     .filter(|&t| Some(t) != skip)
@@ -152,22 +150,18 @@ impl Prior {
         } else {
             vec![ridge.clone(); nt]
         };
-        let energies = (0..nt)
-            .map(|t| (0..3).map(|c| dense_l2.g[c].bb[t]).sum())
-            .collect();
         Ok(Self {
             ridge,
             loo,
             dense,
             dense_l2,
-            energies,
         })
     }
 
     /// The strengths ([`Strength`]) of the fits from samples of the first `ns` samples,
     /// chosen on the training materials fitted from their noise-free values `tv[c][t][s]`
     /// (basis values `vals[c][b][s]`), each with the prior without it: first the fewest
-    /// wild fits (rho above [`WILD_RHO`]: an error larger than the material), then the
+    /// wild fits (rho above [`WILD_RHO`]), then the
     /// lowest mean score under the objective (`rho_W` under the shared weights on the
     /// whole mask, what the plans lower); ties to the weaker penalties (energy first, then
     /// the ridge toward the mean). The ridge toward the mean is tried only when `toward`
@@ -221,93 +215,128 @@ impl Prior {
         }
         Ok(grid[best])
     }
+}
 
-    /// The largest energy a reconstruction from measurements `y` at the first `ns`
-    /// samples may hold ([`BOUND_NEIGHBOURS`]): each training material (values `tv[c][t][s]`
-    /// at the samples) scaled to the measurements by weighted least squares under the
-    /// objective's weights at the measured values; the [`BOUND_NEIGHBOURS`] of the lowest
-    /// relative residual; [`BOUND_MARGIN`] times the largest energy among them, scaled.
-    /// Infinite without training materials.
-    pub(super) fn energy_bound(
-        &self,
-        tv: &[Vec<Vec<f64>>; 3],
-        y: &[Vec<f64>; 3],
-        ns: usize,
-        weight: TargetWeight,
-        cos: &[f64],
-    ) -> f64 {
-        let nt = tv[0].len();
-        let mut near: Vec<(f64, f64)> = (0..nt)
-            .map(|t| {
-                let (mut yv, mut vv, mut yy) = (0.0, 0.0, 0.0);
-                for c in 0..3 {
-                    for s in 0..ns {
-                        let w = weight.phi(y[c][s], cos[s]);
-                        let v = tv[c][t][s];
-                        yv += w * y[c][s] * v;
-                        vv += w * v * v;
-                        yy += w * y[c][s] * y[c][s];
-                    }
+/// The basis columns' unweighted Gram matrix (Lambertian first, `m x m` per channel) over
+/// the fit mask's cells in the highlight ([`HIGHLIGHT_DEG`]), with the mask's cell
+/// weights; in blocks of cells, so that its memory does not grow with the grid.
+fn highlight_gram(
+    coll: &Collection,
+    basis: &[usize],
+    fp: &FitParams,
+) -> Result<[Vec<f64>; 3], AcquireError> {
+    let cs = fit_cells(coll, basis, fp)?;
+    let limit = HIGHLIGHT_DEG.to_radians();
+    let cells: Vec<(u32, f64)> = cs
+        .cells
+        .iter()
+        .zip(&cs.weights)
+        .filter(|(c, _)| crate::merl::theta_h(crate::merl::unflat(**c as usize).0) < limit)
+        .map(|(c, w)| (*c, *w))
+        .collect();
+    let m = basis.len() + 1;
+    let mut g: [Vec<f64>; 3] = [vec![0.0; m * m], vec![0.0; m * m], vec![0.0; m * m]];
+    for block in cells.chunks(8192) {
+        let cands: Vec<Candidate> = block
+            .iter()
+            .map(|&(c, _)| {
+                let (wi, wo) = crate::merl::cell_directions(c as usize);
+                Candidate {
+                    wi,
+                    wo,
+                    cell: Some(c),
                 }
-                let scale = if vv > 0.0 { (yv / vv).max(0.0) } else { 0.0 };
-                let res = (yy - 2.0 * scale * yv + scale * scale * vv).max(0.0)
-                    / yy.max(f64::MIN_POSITIVE);
-                (res, scale * scale * self.energies[t])
             })
             .collect();
-        near.sort_by(|a, b| a.0.total_cmp(&b.0));
-        near.iter()
-            .take(BOUND_NEIGHBOURS)
-            .map(|x| x.1 * BOUND_MARGIN)
-            .fold(f64::NEG_INFINITY, f64::max)
-            .max(if nt == 0 { f64::INFINITY } else { 0.0 })
-    }
-
-    /// The energy of coefficients `x` on the whole mask (`sum_c x_c^T G_c x_c`, the basis's
-    /// unweighted Gram matrix).
-    pub(super) fn energy(&self, x: &[Vec<f64>; 3]) -> f64 {
-        let m = self.dense_l2.m;
-        (0..3)
-            .map(|c| {
-                let g = &self.dense_l2.g[c].gram;
-                (0..m)
-                    .map(|i| x[c][i] * (0..m).map(|j| g[i * m + j] * x[c][j]).sum::<f64>())
-                    .sum::<f64>()
-            })
-            .sum()
-    }
-
-    /// The fit from the first `ns` measurements `y` with strengths `st`, its energy
-    /// penalty raised (each step 10x, from [`ENERGY_STRENGTHS`]' first non-zero value up
-    /// to 1e12) while the reconstruction holds more energy than [`Self::energy_bound`]
-    /// allows: a wild peak is shrunk toward none. Returns the coefficients and the energy
-    /// strength used.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn fit_bounded(
-        &self,
-        vals: &[Vec<Vec<f64>>; 3],
-        tv: &[Vec<Vec<f64>>; 3],
-        y: &[Vec<f64>; 3],
-        ns: usize,
-        weight: TargetWeight,
-        cos: &[f64],
-        st: Strength,
-    ) -> Result<([Vec<f64>; 3], f64), AcquireError> {
-        let nb = self.dense.m - 1;
-        let fit = |st: Strength| {
-            sample_coefficients(nb, vals, y, ns, weight, cos, Some((&self.ridge, st)))
-        };
-        let mut x = fit(st)?;
-        let bound = self.energy_bound(tv, y, ns, weight, cos);
-        let mut e = st.energy;
-        while self.energy(&x) > bound && e < 1e12 {
-            e = if e > 0.0 {
-                e * 10.0
-            } else {
-                ENERGY_STRENGTHS[1]
-            };
-            x = fit(Strength { energy: e, ..st })?;
+        let vals = values_at(coll, basis, &cands)?;
+        for (c, gc) in g.iter_mut().enumerate() {
+            let mut row = vec![0.0; m];
+            for (k, &(_, w)) in block.iter().enumerate() {
+                row[0] = FRAC_1_PI;
+                for b in 0..basis.len() {
+                    row[b + 1] = vals[c][b][k];
+                }
+                for i in 0..m {
+                    let wi = w * row[i];
+                    for j in 0..m {
+                        gc[i * m + j] += wi * row[j];
+                    }
+                }
+            }
         }
-        Ok((x, e))
+    }
+    Ok(g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::acquire::plan::cell_candidates;
+
+    /// The energy penalty on a constructed underdetermined case: two grazing samples for
+    /// four unknowns. Its strength lowers the reconstruction's energy in the highlight
+    /// (`x^T H x`, the highlight Gram matrix) monotonically, and a zero strength is the
+    /// plain NNLS bit for bit.
+    #[test]
+    fn the_energy_penalty_shrinks_an_unpinned_highlight() {
+        let coll = crate::collection::synthetic(10, 7);
+        let basis = [0, 1, 2];
+        let train: Vec<usize> = (4..10).collect();
+        let fp = FitParams {
+            stride: 8,
+            ..FitParams::default()
+        };
+        let pr = Prior::new(&CpuBackend::new(), &coll, &basis, &train, &fp, &|_, _| {}).unwrap();
+        let h = highlight_gram(
+            &coll,
+            &basis,
+            &FitParams {
+                objective: TargetWeight::L2,
+                ..fp.clone()
+            },
+        )
+        .unwrap();
+        let all: Vec<usize> = (0..coll.len()).collect();
+        let cands = cell_candidates(&coll, &all, &fp).unwrap();
+        let mut grazing: Vec<Candidate> = cands
+            .iter()
+            .filter(|c| c.wi[2] < 0.3 && c.wo[2] < 0.3)
+            .copied()
+            .collect();
+        grazing.truncate(2);
+        assert_eq!(grazing.len(), 2);
+        let mut mats = basis.to_vec();
+        mats.push(3);
+        let vals = values_at(&coll, &mats, &grazing).unwrap();
+        let y = [0, 1, 2].map(|c| vals[c][3].clone());
+        let cos: Vec<f64> = grazing.iter().map(|c| c.wi[2]).collect();
+        let w = TargetWeight::L2;
+        let m = 4;
+        let energy = |x: &[Vec<f64>; 3]| -> f64 {
+            (0..3)
+                .map(|c| {
+                    (0..m)
+                        .map(|i| x[c][i] * (0..m).map(|j| h[c][i * m + j] * x[c][j]).sum::<f64>())
+                        .sum::<f64>()
+                })
+                .sum()
+        };
+        let plain = sample_coefficients(3, &vals, &y, 2, w, &cos, None).unwrap();
+        let zero = Strength::default();
+        let same = sample_coefficients(3, &vals, &y, 2, w, &cos, Some((&pr.ridge, zero))).unwrap();
+        assert_eq!(same, plain);
+        let mut last = energy(&plain);
+        assert!(last > 0.0);
+        for e in [1e-2, 1.0, 1e2, 1e4] {
+            let st = Strength {
+                toward: 0.0,
+                energy: e,
+            };
+            let x = sample_coefficients(3, &vals, &y, 2, w, &cos, Some((&pr.ridge, st))).unwrap();
+            let now = energy(&x);
+            assert!(now <= last * (1.0 + 1e-9), "{e}: {now} > {last}");
+            last = now;
+        }
+        assert!(last < 0.5 * energy(&plain), "{last}");
     }
 }

@@ -117,17 +117,6 @@ impl Showcase<'_> {
             let nb = basis.len();
             let y = measure(p.seed, ti, si, sigma, chosen.len(), |c, s| vals[c][nb][s]);
             let cos: Vec<f64> = chosen.iter().map(|c| c.wi[2]).collect();
-            // The fold's training materials at the samples (the energy bound's neighbours).
-            let tv = match &self.prior[f] {
-                Some(_) => {
-                    let held = &self.folds[f];
-                    let train: Vec<usize> = (0..coll.len())
-                        .filter(|i| held.binary_search(i).is_err() && !basis.contains(i))
-                        .collect();
-                    Some(values_at(coll, &train, chosen)?)
-                }
-                None => None,
-            };
             for &n in &ns {
                 let st = find(n).map_or(super::prior::Strength::default(), |r| {
                     super::prior::Strength {
@@ -136,10 +125,8 @@ impl Showcase<'_> {
                     }
                 });
                 let k = n.min(chosen.len());
-                let x = match (&self.prior[f], &tv) {
-                    (Some(pr), Some(tv)) => pr.fit_bounded(&vals, tv, &y, k, weight, &cos, st)?.0,
-                    _ => sample_coefficients(nb, &vals, &y, k, weight, &cos, None)?,
-                };
+                let toward = self.prior[f].as_ref().map(|pr| (&pr.ridge, st));
+                let x = sample_coefficients(nb, &vals, &y, k, weight, &cos, toward)?;
                 let coef: Vec<[f64; 3]> = (0..mm).map(|j| [x[0][j], x[1][j], x[2][j]]).collect();
                 let (img, ie) = render(&combination_brdf(coll, basis, &coef))?;
                 tiles.push((format!("n = {n}"), img, ie, rho_at(n)));
