@@ -16,7 +16,7 @@
 //!   weights, the plain mean over cells) over cells and channels of
 //!   `(log(1 + max(fhat, 0) c) - log(1 + max(f, 0) c))^2`, `c = max(cos theta_i, 0)`.
 
-use super::color::{ciede2000, srgb_to_lab};
+use super::color::{ciede2000_slice, srgb_to_lab_all, Lab};
 use super::fastmath::ln_1p;
 use super::flip::{FlipKernels, FlipReference};
 use super::image_error::{normalized_image_error, same_shape, DisplayParams};
@@ -101,10 +101,25 @@ fn display_values(img: &Image, d: &DisplayParams) -> Vec<f64> {
 }
 
 /// Mean CIEDE2000 over the sphere's pixels between the display-mapped renders `a` and `b`.
+///
+/// [`sphere_mean`] of [`super::color::ciede2000`] of the pixels'
+/// [`super::color::srgb_to_lab`]: the same checks, the same bits and the same order of the
+/// sum, the differences by [`ciede2000_slice`].
 pub fn mean_ciede2000(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
-    sphere_mean(a, b, d, |pa, pb| {
-        ciede2000(srgb_to_lab(pa), srgb_to_lab(pb))
-    })
+    normalized_image_error(a, b, d)?;
+    let lab = |img: &Image| srgb_to_lab_all(&sphere_rgb(img, &display_values(img, d)));
+    Ok(sum_ciede2000(&lab(a), &lab(b)) / a.sphere_pixels() as f64)
+}
+
+/// The sum of the CIEDE2000 differences of the pairs `(x[i], y[i])`, added in pixel order.
+fn sum_ciede2000(x: &[Lab], y: &[Lab]) -> f64 {
+    let mut de = vec![0.0; x.len()];
+    ciede2000_slice(x, y, &mut de);
+    let mut sum = 0.0;
+    for d in de {
+        sum += d;
+    }
+    sum
 }
 
 /// The mean over the sphere's pixels of `per_pixel` of the display values of `a` and `b`,
@@ -245,11 +260,8 @@ impl<'a> Reference<'a> {
         let image_error = errors.iter().sum::<f64>() / count as f64;
         // The sphere's colours decoded once for CIELAB and ICtCp.
         let lin = super::color::srgb_decode_all(&sphere_rgb(test, &td));
-        let mut sum = 0.0;
-        for (la, lb) in self.lab.iter().zip(super::color::lab_from_linear_all(&lin)) {
-            sum += ciede2000(*la, lb);
-        }
-        let ciede = sum / self.lab.len() as f64;
+        let test_lab = super::color::lab_from_linear_all(&lin);
+        let ciede = sum_ciede2000(&self.lab, &test_lab) / self.lab.len() as f64;
         let mut sum = 0.0;
         for (a, b) in self
             .itp
