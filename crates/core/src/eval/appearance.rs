@@ -28,6 +28,54 @@ pub const LIGHTS: [(f64, f64); 4] = [(45.0, 45.0), (0.0, 0.0), (60.0, 180.0), (7
 /// Render size of the appearance metrics (pixels per side).
 pub const RENDER_SIZE: u32 = 256;
 
+/// The size of the sphere renders [`render_looks`] counts (pixels per side): a look per
+/// pixel, enough to spread over the MERL cells the renders see.
+pub const LOOK_SIZE: u32 = 64;
+
+/// How much the renders of the appearance metrics look at each cell of `cells`: over the
+/// four [`LIGHTS`]' sphere renders ([`LOOK_SIZE`] px, SPEC 7's camera), the sum of
+/// `cos^2 theta_i` over the lit pixels whose MERL cell, snapped down to the set's stride,
+/// is that cell (a pixel's radiance is `f cos theta_i` times the light, so a reflectance
+/// error there counts with that square), normalised to mean 1 over `cells` (zeros when no
+/// pixel looks at any). Summed in pixel order: the same bits on every machine.
+pub fn render_looks(cells: &crate::merl::CellSet) -> Result<Vec<f64>, RenderError> {
+    use crate::merl::{flat, lookup, unflat};
+    let s = cells.stride.max(1);
+    let mut hits = std::collections::HashMap::<u32, f64>::new();
+    for (t, p) in LIGHTS {
+        let rp = super::render::RenderParams::default()
+            .with_size(LOOK_SIZE)
+            .with_light(t, p);
+        let seen = std::sync::Mutex::new(Vec::new());
+        super::render::render_sphere_indexed(&rp, &|px, wi, wo| {
+            if wi[2] > 0.0 && wo[2] > 0.0 {
+                let (i, j, k) = unflat(lookup(wi, wo));
+                let c = flat(i - i % s, j - j % s, k - k % s) as u32;
+                seen.lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push((px, c, wi[2] * wi[2]));
+            }
+            [0.0; 3]
+        })?;
+        let mut seen = seen.into_inner().unwrap_or_else(|e| e.into_inner());
+        seen.sort_by_key(|x| x.0);
+        for (_, c, w) in seen {
+            *hits.entry(c).or_insert(0.0) += w;
+        }
+    }
+    let raw: Vec<f64> = cells
+        .cells
+        .iter()
+        .map(|c| hits.get(c).copied().unwrap_or(0.0))
+        .collect();
+    let mean = raw.iter().sum::<f64>() / raw.len().max(1) as f64;
+    Ok(if mean > 0.0 {
+        raw.iter().map(|h| h / mean).collect()
+    } else {
+        raw
+    })
+}
+
 /// FLIP's viewing condition (SPEC 11): 67 pixels per degree (FLIP's default: a 0.7 m
 /// distance to a 0.7 m wide 4K monitor).
 pub const FLIP_PIXELS_PER_DEGREE: f32 = 67.0;

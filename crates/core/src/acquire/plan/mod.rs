@@ -56,6 +56,7 @@ mod state;
 
 use path::*;
 pub(crate) use state::Dense;
+pub use state::LOOK_FLOOR;
 use state::*;
 
 /// The cell centres of the fit mask valid in every material `idx` of `coll`.

@@ -4,6 +4,10 @@
 
 use super::*;
 
+/// The weight of a cell no appearance render looks at, beside the renders' looks of mean
+/// 1 ([`crate::eval::appearance::render_looks`]), in the plans' weights under an objective.
+pub const LOOK_FLOOR: f64 = 0.1;
+
 /// Full-mask Gram quantities of the basis and the training materials, per channel.
 pub(crate) struct Dense {
     /// Columns (Lambertian + basis).
@@ -18,8 +22,10 @@ impl Dense {
     /// Under an objective other than `l2` (SPEC 11) the cells carry its shared weights
     /// per channel: the objective's weight at the median over the basis and the targets
     /// ([`crate::select::shared_weights`] of those materials), so that `rho` is `rho_W`
-    /// with the weights a plan can know before the material is measured; one back-end
-    /// pass per channel (the weights are not separable). `progress` is the back-end
+    /// with the weights a plan can know before the material is measured, each times how
+    /// much the appearance renders look at the cell plus [`LOOK_FLOOR`]
+    /// ([`crate::eval::appearance::render_looks`]: the plans lower what the renders
+    /// judge); one back-end pass per channel (the weights are not separable). `progress` is the back-end
     /// passes' (a caller's cancel).
     pub(crate) fn new(
         backend: &dyn Backend,
@@ -36,13 +42,24 @@ impl Dense {
         let (per_channel, mode) = if fit.objective == crate::backend::weighted::TargetWeight::L2 {
             ([&cells; 3], fit.gram)
         } else {
-            shared = crate::select::shared_weights(
+            let mut sw = crate::select::shared_weights(
                 backend,
                 &coll.subset(&all),
                 &cells,
                 fit.objective,
                 progress,
             )?;
+            // What the plans lower is what is judged (issue 50): each cell's shared weight
+            // times how much the appearance renders look at it, plus a floor for the cells
+            // no render sees.
+            let looks = crate::eval::appearance::render_looks(&cells)
+                .map_err(|e| AcquireError::Render(e.to_string()))?;
+            for sc in sw.iter_mut() {
+                for (w, l) in sc.weights.iter_mut().zip(&looks) {
+                    *w *= l + LOOK_FLOOR;
+                }
+            }
+            shared = sw;
             (
                 [&shared[0], &shared[1], &shared[2]],
                 crate::fit::GramMode::Grid,
