@@ -46,7 +46,7 @@ pub fn peak_warning(
 ) -> Result<Option<String>, AcquireError> {
     let mean = |v: [f64; 3]| (v[0] + v[1] + v[2]) / 3.0;
     let measured = samples.iter().map(|s| mean(s.rgb)).fold(0.0f64, f64::max);
-    if !(measured > 0.0) {
+    if measured.is_nan() || measured <= 0.0 {
         return Ok(None);
     }
     let fp = FitParams {
