@@ -103,39 +103,6 @@ fn check_counts(p: &AcqCvParams) -> Result<(), AcquireError> {
     Ok(())
 }
 
-/// The held-out materials of a fixed split (`--test`), by name, as increasing collection
-/// indices; `None` for none given. Refused: a name the collection does not have, a name
-/// listed twice.
-fn test_split(coll: &Collection, test: &[String]) -> Result<Option<Vec<usize>>, AcquireError> {
-    if test.is_empty() {
-        return Ok(None);
-    }
-    let names = coll.names();
-    let mut idx = Vec::with_capacity(test.len());
-    for (j, t) in test.iter().enumerate() {
-        let Some(i) = names.iter().position(|x| x == t) else {
-            return Err(AcquireError::InvalidParam {
-                name: "test",
-                value: t.clone(),
-                expected: format!(
-                    "names of the collection's materials (`{t}` is not one of its {})",
-                    names.len()
-                ),
-            });
-        };
-        if test[..j].contains(t) {
-            return Err(AcquireError::InvalidParam {
-                name: "test",
-                value: t.clone(),
-                expected: "each held-out material once".into(),
-            });
-        }
-        idx.push(i);
-    }
-    idx.sort_unstable();
-    Ok(Some(idx))
-}
-
 impl<'a> Shared<'a> {
     /// Checks the settings, then chooses every fold's basis and renders, tabulates and
     /// lists what the folds share.
@@ -156,7 +123,7 @@ impl<'a> Shared<'a> {
             objective: p.objective.clone(),
             ..CvParams::default()
         };
-        let test = test_split(coll, &p.test)?;
+        let test = super::split::test_split(coll, &p.test)?;
         let vp = match &test {
             Some(t) => cvp.check_split(n, t.len())?,
             None => cvp.check(n)?,

@@ -268,6 +268,7 @@ type Cell = (Vec<AcqHeldOut>, Vec<Vec<PlannedSample>>);
 mod fold;
 mod prior;
 mod showcase;
+mod split;
 
 pub use prior::{ENERGY_STRENGTHS, HIGHLIGHT_DEG, WILD_RHO};
 
