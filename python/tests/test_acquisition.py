@@ -101,6 +101,34 @@ def test_acquisition_cv_returns_the_json_content_and_runs_the_nielsen_baseline(t
         bb.acquisition_cv(c, plans=["no-such-plan"])
 
 
+def test_acquisition_cv_scores_a_fixed_split_as_the_command_line_does(tmp_path):
+    """Issue 50, item 3: ``test=`` holds out the named materials as one fold, as ``cv
+    --acquisition --test`` does (the same JSON), and ``folds`` beside it is refused."""
+    exe = os.environ.get("BRDF_BASIS_BIN", "target/release/brdf-basis")
+    if not os.path.exists(exe):
+        if os.environ.get("BRDF_BASIS_REQUIRE_SHARED") == "1":
+            pytest.fail(f"the binary {exe} is missing")
+        pytest.skip(f"test_acquisition_cv_scores_a_fixed_split_as_the_command_line_does: no binary {exe}")
+    c = bb.Collection.default()
+    held = c.names[:3]
+    opts = dict(k=3, plans=["random"], ns=[3], noises=[0.0], stride=8,
+                render_size=16, appearance=False, backend="cpu")
+    r = bb.acquisition_cv(c, test=held, **opts)
+    assert len(r.folds) == 1 and sorted(r.folds[0]) == sorted(held)
+    assert sorted(h["material"] for h in r.results[0]["held_out"]) == sorted(held)
+    out = tmp_path / "a.json"
+    subprocess.run(
+        [exe, "--quiet", "--backend", "cpu", "cv", "--acquisition", "--methods", "greedy",
+         "-k", "3", "--plans", "random", "-n", "3", "--noise", "0", "--stride", "8",
+         "--render-size", "16", "--no-appearance",
+         "--test", ",".join(held), "--json", str(out)],
+        check=True,
+    )
+    assert json.loads(out.read_text())["results"] == r.results
+    with pytest.raises(ValueError, match="folds does not apply with test"):
+        bb.acquisition_cv(c, test=held, folds=3, **opts)
+
+
 def test_fit_samples_refuses_arrays_of_the_wrong_shape():
     """Audit 2, N8 and T17: arrays are checked, never reshaped: channels-first ``rgb``
     (3, n) or angles (4, n) are refused with their shape, a 1-D row is refused, and a
