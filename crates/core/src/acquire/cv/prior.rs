@@ -60,11 +60,11 @@ pub(super) struct Strength {
     pub(super) energy: f64,
 }
 
-/// Strengths of the energy penalty ([`Toward::energy`]) that `cv --acquisition` chooses
-/// among per fold, plan and n (0: none).
+/// Strengths of the energy penalty in the highlight (docs/acquisition.md) that
+/// `cv --acquisition` chooses among per fold, plan and n (0: none).
 pub const ENERGY_STRENGTHS: [f64; 4] = [0.0, 1e-4, 1e-2, 1.0];
 
-/// The highlight of the energy penalty ([`Toward::energy`]): the cells whose half vector
+/// The highlight of the energy penalty (docs/acquisition.md): the cells whose half vector
 /// is within this angle of the normal (`theta_h`, degrees), where every isotropic
 /// material's specular peak lies and where a few samples rarely look.
 pub const HIGHLIGHT_DEG: f64 = 10.0;
