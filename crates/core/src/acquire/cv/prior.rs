@@ -70,7 +70,7 @@ pub const ENERGY_STRENGTHS: [f64; 4] = [0.0, 1e-4, 1e-2, 1.0];
 pub const HIGHLIGHT_DEG: f64 = 10.0;
 
 /// The rho (unweighted, SPEC 10) above which a training fit from samples counts as wild
-/// when the strengths are chosen ([`Prior::choose`]): an error ten times the material's
+/// when the strengths are chosen (docs/acquisition.md): an error ten times the material's
 /// own size (black scores 1), the orders-of-magnitude extrapolations of an unpinned peak.
 /// Not 1: choosing against every fit above 1 shrank the reconstructions' bodies with their
 /// peaks and cost the images 5-30% (docs/acquisition.md, "Bounded reconstructions").
