@@ -36,7 +36,7 @@ const APART_DEG: f64 = 10.0;
 /// normal) while the reconstruction peaks above twice the largest measured value (the
 /// peak is the basis's guess). It names the reconstruction's brightest direction pairs
 /// near the mirror direction (`theta_i, phi_i, theta_o, phi_o` in degrees, `theta_h`
-/// below [`HIGHLIGHT_DEG`], at least [`APART_DEG`] of `theta_i` apart), where a
+/// below [`HIGHLIGHT_DEG`], at least 10 degrees of `theta_i` apart), where a
 /// measurement would pin it. `None` when the peak is pinned or no sample is positive.
 pub fn peak_warning(
     coll: &Collection,
