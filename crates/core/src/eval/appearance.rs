@@ -150,7 +150,7 @@ fn display_values(img: &Image, d: &DisplayParams) -> Vec<f64> {
 
 /// Mean CIEDE2000 over the sphere's pixels between the display-mapped renders `a` and `b`.
 ///
-/// [`sphere_mean`] of [`super::color::ciede2000`] of the pixels'
+/// The mean over the sphere's pixels (as `sphere_mean`) of [`super::color::ciede2000`] of the pixels'
 /// [`super::color::srgb_to_lab`]: the same checks, the same bits and the same order of the
 /// sum, the differences by [`ciede2000_slice`].
 pub fn mean_ciede2000(a: &Image, b: &Image, d: &DisplayParams) -> Result<f64, RenderError> {
