@@ -130,8 +130,8 @@ fn pow7(x: f64) -> f64 {
 ///
 /// What is left of the transcendental functions: one `atan2` (the mean hue in degrees, for
 /// `d theta`'s Gaussian), one `exp` and one `sin` (the textbook: two `atan2`, four `cos`,
-/// two `sin`, one `exp`), each the project's own ([`super::fastmath::atan2`],
-/// [`super::fastmath::exp_normal`], [`super::fastmath::sin_small`]: within 1 or 2 ulp of
+/// two `sin`, one `exp`), each the project's own (`fastmath::atan2`,
+/// `fastmath::exp_normal`, `fastmath::sin_small`: within 1 or 2 ulp of
 /// the C library's, branch-free), so that [`ciede2000_slice`] vectorises and gives this
 /// function's bits. A neutral colour (`C1' C2' = 0`) takes the textbook's hue rules, with
 /// the C library's `atan2` and `sin_cos`.
