@@ -208,7 +208,10 @@ impl CpuBackend {
         }
     }
 
-    /// A network's channel at `cells` in f32, from the cache or tabulated into it.
+    /// A network's channel at `cells` in f32, from the cache or tabulated into it. A
+    /// channel's miss tabulates the network's three channels together (one run of the
+    /// network per cell instead of one per channel: the passes that ask for one channel ask
+    /// for the other two next) and keeps all three.
     fn neural_f32(
         &self,
         lobe: &Lobe,
@@ -217,13 +220,33 @@ impl CpuBackend {
         cells: &[u32],
     ) -> std::sync::Arc<Vec<f32>> {
         neural_cache::get(net, channel, cells, || {
-            let mut out = vec![0f32; cells.len()];
+            let chunk = 1 << 14;
+            let Some(_) = channel else {
+                let mut out = vec![0f32; cells.len()];
+                self.install(|| {
+                    out.par_chunks_mut(chunk)
+                        .zip(cells.par_chunks(chunk))
+                        .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o))
+                });
+                return vec![(channel, out)];
+            };
+            // The three channels in one run of the network per cell: `neural_rows`' values,
+            // the same bits as each channel's own tabulation (a unit test holds them equal).
+            let [mut r, mut g, mut b] = [0; 3].map(|_| vec![0f32; cells.len()]);
             self.install(|| {
-                out.par_chunks_mut(1 << 14)
-                    .zip(cells.par_chunks(1 << 14))
-                    .for_each(|(o, c)| self.tabulate_into(lobe, c, None, o))
+                r.par_chunks_mut(chunk)
+                    .zip(g.par_chunks_mut(chunk))
+                    .zip(b.par_chunks_mut(chunk))
+                    .zip(cells.par_chunks(chunk))
+                    .for_each(|(((r, g), b), c)| {
+                        neural_rows(
+                            net,
+                            c,
+                            &mut [(Some(0), None, r), (Some(1), None, g), (Some(2), None, b)],
+                        );
+                    })
             });
-            out
+            vec![(Some(0), r), (Some(1), g), (Some(2), b)]
         })
     }
 
@@ -385,42 +408,57 @@ mod neural_cache {
 
     static CACHE: Mutex<Vec<Entry>> = Mutex::new(Vec::new());
 
-    /// The values of `(net, channel)` at `cells`, from the cache or from `compute`.
+    /// The values of `(net, channel)` at `cells`, from the cache or from `compute`, which
+    /// returns `channel`'s values and may return other channels' beside them (all kept).
     pub(super) fn get(
         net: &Arc<Nbrdf>,
         channel: Option<usize>,
         cells: &[u32],
-        compute: impl FnOnce() -> Vec<f32>,
+        compute: impl FnOnce() -> Vec<(Option<usize>, Vec<f32>)>,
     ) -> Arc<Vec<f32>> {
         let mut h = crate::hash::Hasher::new();
         h.write(bytemuck::cast_slice(cells));
         let key = (cells.len(), h.finish());
-        let found = |e: &Entry| Arc::ptr_eq(&e.net, net) && e.channel == channel && e.cells == key;
+        let found = |ch: Option<usize>| {
+            move |e: &Entry| Arc::ptr_eq(&e.net, net) && e.channel == ch && e.cells == key
+        };
         {
             let mut c = CACHE.lock().unwrap_or_else(|p| p.into_inner());
-            if let Some(i) = c.iter().position(found) {
+            if let Some(i) = c.iter().position(found(channel)) {
                 let e = c.remove(i);
                 let v = e.values.clone();
                 c.push(e);
                 return v;
             }
         }
-        let values = Arc::new(compute());
-        let bytes = 4 * values.len();
-        if bytes <= NEURAL_CACHE_BYTES {
-            let mut c = CACHE.lock().unwrap_or_else(|p| p.into_inner());
-            if !c.iter().any(found) {
-                let mut total: usize = c.iter().map(|e| 4 * e.values.len()).sum::<usize>() + bytes;
-                while total > NEURAL_CACHE_BYTES && !c.is_empty() {
-                    total -= 4 * c.remove(0).values.len();
-                }
-                c.push(Entry {
-                    net: net.clone(),
-                    channel,
-                    cells: key,
-                    values: values.clone(),
-                });
+        let mut made: Vec<(Option<usize>, Arc<Vec<f32>>)> = compute()
+            .into_iter()
+            .map(|(ch, v)| (ch, Arc::new(v)))
+            .collect();
+        // The asked channel last: the most recently used.
+        let at = made
+            .iter()
+            .position(|(ch, _)| *ch == channel)
+            .expect("compute returns the asked channel");
+        let asked = made.remove(at);
+        let values = asked.1.clone();
+        made.push(asked);
+        let mut c = CACHE.lock().unwrap_or_else(|p| p.into_inner());
+        for (ch, v) in made {
+            let bytes = 4 * v.len();
+            if bytes > NEURAL_CACHE_BYTES || c.iter().any(found(ch)) {
+                continue;
             }
+            let mut total: usize = c.iter().map(|e| 4 * e.values.len()).sum::<usize>() + bytes;
+            while total > NEURAL_CACHE_BYTES && !c.is_empty() {
+                total -= 4 * c.remove(0).values.len();
+            }
+            c.push(Entry {
+                net: net.clone(),
+                channel: ch,
+                cells: key,
+                values: v,
+            });
         }
         values
     }

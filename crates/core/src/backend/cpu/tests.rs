@@ -62,3 +62,41 @@ fn rows_of_different_lengths_are_an_error_not_a_read_past_the_end() {
     let mut acc = [[0f64; BLOCK]; BLOCK];
     block_reduce(PairOp::L1, [&[][..]; BLOCK], [&[][..]; BLOCK], &mut acc).expect("empty");
 }
+
+#[test]
+fn a_channels_cached_values_are_its_own_tabulation_whichever_channel_came_first() {
+    // A miss on one channel tabulates the network's three channels together and keeps
+    // them: each must be the bits of that channel's own tabulation (`tabulate_into`),
+    // whichever channel was asked first, over a cell count that is not a multiple of the
+    // chunk or of the network's run.
+    let cpu = CpuBackend::new();
+    let cells: Vec<u32> = crate::merl::CellSet::new(
+        crate::merl::Mask::Evaluation,
+        crate::merl::Weighting::Uniform,
+        3,
+    )
+    .cells
+    .into_iter()
+    .take((1 << 14) + 2_345)
+    .collect();
+    for first in 0..3 {
+        let net = std::sync::Arc::new(crate::brdf::seeded_for_tests(40 + first as u64));
+        let lobe = |c: usize| Lobe::Neural {
+            net: net.clone(),
+            channel: Some(c),
+        };
+        let order = [first, (first + 1) % 3, (first + 2) % 3];
+        for c in order {
+            let cached = cpu.values_f64(&lobe(c), &cells);
+            let mut own = vec![0f32; cells.len()];
+            cpu.tabulate_into(&lobe(c), &cells, None, &mut own);
+            assert!(
+                cached
+                    .iter()
+                    .zip(&own)
+                    .all(|(&a, &b)| a.to_bits() == f64::from(b).to_bits()),
+                "channel {c} (asked after {first})"
+            );
+        }
+    }
+}
