@@ -20,16 +20,22 @@
 //! run near the machine's FMA peak, where the scalar form stored every sum to memory after
 //! each cell.
 
-use super::{cos_theta_i, TargetWeight, WeightedSystems};
+#[cfg(test)]
+use super::cos_theta_i;
+use super::{TargetWeight, WeightedSystems};
 
 /// Cells per cache block.
 const BLOCK: usize = 128;
 /// Targets per register tile.
 const TT: usize = 4;
-/// Columns per `G` tile: three vectors of four f64.
-const G_COLS: usize = 12;
-/// Columns per `r` tile: two vectors of four f64.
+/// Columns per `G` tile and per `r` tile: two vectors of four f64 (with four targets,
+/// eight accumulators, two row vectors and a broadcast: eleven of AVX2's sixteen
+/// registers; three vectors, sixteen with nothing left, ran 1.3x slower).
+const G_COLS: usize = 8;
+/// Columns per `r` tile.
 const R_COLS: usize = 8;
+/// Cells per task of the chunk's F and P rows.
+const PREP_CELLS: usize = 1024;
 
 /// `n` rounded up to a multiple of `k`.
 fn round_up(n: usize, k: usize) -> usize {
@@ -55,32 +61,48 @@ pub(super) fn accumulate_chunk(
     let nq = m * (m + 1) / 2;
     let (qpad, fpad) = (round_up(nq, G_COLS), round_up(m, R_COLS));
     let lambert = std::f32::consts::FRAC_1_PI as f64;
-    let cos_i: Vec<f64> = cc.iter().map(|&c| cos_theta_i(c as usize)).collect();
+    // Only the log objective's weights depend on the incoming cosine.
+    let cos_i: Vec<f64> = if weight == TargetWeight::Log {
+        cc.iter().map(|&c| cos_theta_i_fast(c as usize)).collect()
+    } else {
+        Vec::new()
+    };
     // Cell-major columns F (the Lambertian column first) and their products P, zero-padded,
     // in buffers kept by the calling thread from chunk to chunk (P is megabytes a chunk: a
     // fresh one cost a page fault and a clearing per page, about 5 % of a cross-validation
-    // of networks). Every value, padding included, is written below.
+    // of networks). Every value, padding included, is written below, by tasks of
+    // [`PREP_CELLS`] cells (each product is exact: two f32 in f64).
     let (mut f, mut p) = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
     f.resize(n * fpad, 0.0);
     p.resize(n * qpad, 0.0);
-    for (c, (fr, pr)) in f
-        .chunks_exact_mut(fpad)
-        .zip(p.chunks_exact_mut(qpad))
-        .enumerate()
     {
-        fr[0] = lambert;
-        for j in 1..m {
-            fr[j] = b[(j - 1) * n + c] as f64;
-        }
-        fr[m..].fill(0.0);
-        let mut q = 0;
-        for i in 0..m {
-            for j in i..m {
-                pr[q] = fr[i] * fr[j];
-                q += 1;
-            }
-        }
-        pr[q..].fill(0.0);
+        use rayon::prelude::*;
+        f.par_chunks_mut(PREP_CELLS * fpad)
+            .zip(p.par_chunks_mut(PREP_CELLS * qpad))
+            .enumerate()
+            .for_each(|(task, (ft, pt))| {
+                for (i, (fr, pr)) in ft
+                    .chunks_exact_mut(fpad)
+                    .zip(pt.chunks_exact_mut(qpad))
+                    .enumerate()
+                {
+                    let c = task * PREP_CELLS + i;
+                    fr[0] = lambert;
+                    for j in 1..m {
+                        fr[j] = b[(j - 1) * n + c] as f64;
+                    }
+                    fr[m..].fill(0.0);
+                    let mut q = 0;
+                    for i in 0..m {
+                        let (a, row) = (fr[i], &fr[i..m]);
+                        for (o, &v) in pr[q..q + row.len()].iter_mut().zip(row) {
+                            *o = a * v;
+                        }
+                        q += row.len();
+                    }
+                    pr[q..].fill(0.0);
+                }
+            });
     }
     accumulate_targets(values, m, y, cc, cw, weight, (&f, &p, &cos_i));
     SCRATCH.with(|s| *s.borrow_mut() = (f, p));
@@ -129,6 +151,13 @@ fn accumulate_targets(
                 acc[t * width + qpad..t * width + qpad + m].copy_from_slice(&src[nq..nq + m]);
                 yy[t] = src[nq + m];
             }
+            let cos_at = |start: usize, len: usize| -> &[f64] {
+                if cos_i.is_empty() {
+                    &[]
+                } else {
+                    &cos_i[start..start + len]
+                }
+            };
             let mut wb = vec![0f64; padded * BLOCK];
             let mut wyb = vec![0f64; padded * BLOCK];
             let mut start = 0;
@@ -137,12 +166,24 @@ fn accumulate_targets(
                 for t in 0..count {
                     let yr = &yt[t * n + start..t * n + start + len];
                     let (wr, wyr) = (&mut wb[t * BLOCK..], &mut wyb[t * BLOCK..]);
-                    for (c, &yc) in yr.iter().enumerate() {
-                        let yc = yc as f64;
-                        let w = cw[start + c] * weight.phi(yc, cos_i[start + c]);
-                        wr[c] = w;
-                        wyr[c] = w * yc;
-                        yy[t] = wyr[c].mul_add(yc, yy[t]);
+                    block_weights(
+                        weight,
+                        yr,
+                        &cw[start..start + len],
+                        cos_at(start, len),
+                        wr,
+                        wyr,
+                    );
+                }
+                // `yy` per target, one fused chain over the cells in order; the tile's
+                // targets interleaved (independent chains).
+                for t0 in (0..count).step_by(TT) {
+                    let ts = t0..(t0 + TT).min(count);
+                    for c in 0..len {
+                        for t in ts.clone() {
+                            let yc = yt[t * n + start + c] as f64;
+                            yy[t] = wyb[t * BLOCK + c].mul_add(yc, yy[t]);
+                        }
                     }
                 }
                 let pb = &p[start * qpad..(start + len) * qpad];
@@ -152,7 +193,7 @@ fn accumulate_targets(
                     let tile_acc = &mut acc[t0 * width..(t0 + TT) * width];
                     let (w_rows, wy_rows) = (tile_rows(&wb, t0, len), tile_rows(&wyb, t0, len));
                     for col in (0..qpad).step_by(G_COLS) {
-                        tile_kernel::<3>(w_rows, pb, qpad, col, col, tile_acc, width);
+                        tile_kernel::<2>(w_rows, pb, qpad, col, col, tile_acc, width);
                     }
                     for col in (0..fpad).step_by(R_COLS) {
                         tile_kernel::<2>(wy_rows, fb, fpad, col, qpad + col, tile_acc, width);
@@ -167,6 +208,71 @@ fn accumulate_targets(
                 dst[nq + m] = yy[t];
             }
         });
+}
+
+/// One target's weights at a block of cells: `w = cw phi(y)` and `wy = w y`
+/// ([`TargetWeight::phi`]'s operations in its order, so its bits), the loop specialised per
+/// objective so that it vectorises; `cos_i` is read by the log objective only.
+fn block_weights(
+    weight: TargetWeight,
+    y: &[f32],
+    cw: &[f64],
+    cos_i: &[f64],
+    w: &mut [f64],
+    wy: &mut [f64],
+) {
+    let out = w.iter_mut().zip(wy.iter_mut());
+    match weight {
+        TargetWeight::L2 => {
+            for ((w, wy), (&yc, &cw)) in out.zip(y.iter().zip(cw)) {
+                let yc = yc as f64;
+                *w = cw;
+                *wy = cw * yc;
+            }
+        }
+        TargetWeight::Relative { eps } => {
+            for ((w, wy), (&yc, &cw)) in out.zip(y.iter().zip(cw)) {
+                let yc = yc as f64;
+                let ym = yc.max(0.0);
+                let v = cw * (1.0 / ((ym + eps) * (ym + eps)));
+                *w = v;
+                *wy = v * yc;
+            }
+        }
+        TargetWeight::Log => {
+            for (((w, wy), (&yc, &cw)), &ci) in out.zip(y.iter().zip(cw)).zip(cos_i) {
+                let yc = yc as f64;
+                let v = cw * weight.phi(yc, ci);
+                *w = v;
+                *wy = v * yc;
+            }
+        }
+    }
+}
+
+/// [`cos_theta_i`] from per-axis tables of the angles' cosines and sines: the same
+/// operations on the same values, so the same bits, without five trigonometric calls a
+/// cell.
+fn cos_theta_i_fast(cell: usize) -> f64 {
+    use crate::merl::{phi_d, theta_d, theta_h, N_PD, N_TD, N_TH};
+    struct Axes {
+        th: Vec<(f64, f64)>,
+        td: Vec<(f64, f64)>,
+        pd: Vec<f64>,
+    }
+    static AXES: std::sync::OnceLock<Axes> = std::sync::OnceLock::new();
+    let a = AXES.get_or_init(|| Axes {
+        th: (0..N_TH)
+            .map(|i| (theta_h(i).cos(), theta_h(i).sin()))
+            .collect(),
+        td: (0..N_TD)
+            .map(|j| (theta_d(j).cos(), theta_d(j).sin()))
+            .collect(),
+        pd: (0..N_PD).map(|k| phi_d(k).cos()).collect(),
+    });
+    let (i, j, k) = (cell / (N_TD * N_PD), (cell / N_PD) % N_TD, cell % N_PD);
+    let ((cth, sth), (ctd, std_), cpd) = (a.th[i], a.td[j], a.pd[k]);
+    cth * ctd - sth * std_ * cpd
 }
 
 /// The first `len` values of the [`BLOCK`]-long rows of the tile's targets `t0..t0 + TT`.
@@ -360,6 +466,52 @@ mod tests {
         }
     }
 
+    /// The tabulated incoming cosine is `cos_theta_i`'s bits on every cell of the grid.
+    #[test]
+    fn the_tabulated_incoming_cosine_is_the_direct_one_on_every_cell() {
+        let cells = crate::merl::N_TH * crate::merl::N_TD * crate::merl::N_PD;
+        for c in 0..cells {
+            assert_eq!(
+                cos_theta_i_fast(c).to_bits(),
+                cos_theta_i(c).to_bits(),
+                "cell {c}"
+            );
+        }
+    }
+
+    /// The block's weights are `cw * phi(y)` to the bit for every objective, NaN-free
+    /// values and zeros and negatives included.
+    #[test]
+    fn block_weights_are_phi_to_the_bit() {
+        let n = 301;
+        let y: Vec<f32> = values(11, n, -0.5, 40.0)
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| if i % 17 == 0 { 0.0 } else { v as f32 })
+            .collect();
+        let cw = values(12, n, 1e-7, 1e-3);
+        let cos_i: Vec<f64> = (0..n).map(|c| cos_theta_i(1_000 + 4_099 * c)).collect();
+        for weight in [
+            TargetWeight::L2,
+            TargetWeight::Relative { eps: 0.01 },
+            TargetWeight::Relative { eps: 3e-4 },
+            TargetWeight::Log,
+        ] {
+            let (mut w, mut wy) = (vec![0f64; n], vec![0f64; n]);
+            block_weights(weight, &y, &cw, &cos_i, &mut w, &mut wy);
+            for c in 0..n {
+                let yc = y[c] as f64;
+                let want = cw[c] * weight.phi(yc, cos_i[c]);
+                assert_eq!(w[c].to_bits(), want.to_bits(), "{weight:?} cell {c}");
+                assert_eq!(
+                    wy[c].to_bits(),
+                    (want * yc).to_bits(),
+                    "{weight:?} cell {c}"
+                );
+            }
+        }
+    }
+
     /// The sums do not depend on how many threads (hence tasks and tiles) compute them.
     #[test]
     fn the_sums_are_the_same_bits_on_one_thread_and_on_many() {
@@ -399,5 +551,49 @@ mod tests {
         assert_eq!(one, run(2));
         assert_eq!(one, run(7));
         assert!(one.iter().all(|v| v.is_finite() && *v > 0.5));
+    }
+}
+#[cfg(test)]
+mod rate {
+    use super::*;
+    #[test]
+    #[ignore]
+    fn gemm_rate() {
+        let (m, n, targets) = (13usize, 1usize << 14, 20usize);
+        let b: Vec<f32> = (0..(m - 1) * n)
+            .map(|i| ((i * 7919) % 1000) as f32 * 0.001 + 0.01)
+            .collect();
+        let y: Vec<f32> = (0..targets * n)
+            .map(|i| ((i * 104729) % 1000) as f32 * 0.002 + 0.01)
+            .collect();
+        let cc: Vec<u32> = (0..n as u32).map(|c| 37 * c + 1000).collect();
+        let cw = vec![1e-6; n];
+        let stride = WeightedSystems::stride_for(m);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let mut v = vec![0f64; targets * stride];
+        let w = TargetWeight::Relative { eps: 0.01 };
+        pool.install(|| {
+            for _ in 0..3 {
+                accumulate_chunk(&mut v, m, &b, &y, &cc, &cw, w);
+            }
+            let s = (0..40)
+                .map(|_| {
+                    let t = std::time::Instant::now();
+                    accumulate_chunk(&mut v, m, &b, &y, &cc, &cw, w);
+                    t.elapsed().as_secs_f64()
+                })
+                .fold(f64::INFINITY, f64::min);
+            let nq = m * (m + 1) / 2;
+            let lanes = (targets * n * (round_up(nq, G_COLS) + round_up(m, R_COLS))) as f64;
+            eprintln!(
+                "RATE {:.2} ms per chunk, {:.2} G FMA lanes/s ({:.2} G useful)",
+                s * 1e3,
+                lanes / s / 1e9,
+                (targets * n * (nq + m)) as f64 / s / 1e9
+            );
+        });
     }
 }
