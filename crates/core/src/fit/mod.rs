@@ -680,9 +680,9 @@ fn grid_errors(
                 sums.par_iter_mut()
                     .zip(&target_sources)
                     .zip(sols)
-                    .for_each(|((acc, src), s)| {
+                    .for_each_init(Vec::new, |fit, ((acc, src), s)| {
                         let b = cpu.block_values(src, cc, off);
-                        cell_error_sums(&refs, &s.x, &b, w, acc);
+                        cell_error_sums(&refs, &s.x, &b, w, acc, fit);
                     });
             }
             sums.into_iter()
@@ -700,11 +700,26 @@ fn grid_errors(
 /// The grid error sums of the combination `sum_k x_k cols_k` against the target values
 /// `b`, cell by cell in f64, with cell weights `w`: `[sum w r^2, sum w |r|, sum w |b|,
 /// sum w b^2]`, carried on over the cells given (blocks of cells in cell order give the
-/// bits of one pass over all of them).
-fn cell_error_sums(cols: &[&[f64]], x: &[f64], b: &[f64], w: &[f64], s: &mut [f64; 4]) {
+/// bits of one pass over all of them). The fitted values are formed column by column in
+/// `fit` (per cell the products added in column order: a sum over the columns, the same
+/// bits; the loops over cells vectorise).
+fn cell_error_sums(
+    cols: &[&[f64]],
+    x: &[f64],
+    b: &[f64],
+    w: &[f64],
+    s: &mut [f64; 4],
+    fit: &mut Vec<f64>,
+) {
+    fit.clear();
+    fit.resize(b.len(), -0.0);
+    for (col, &a) in cols.iter().zip(x) {
+        for (f, &v) in fit.iter_mut().zip(&col[..b.len()]) {
+            *f += a * v;
+        }
+    }
     let [mut sq, mut ab, mut l1, mut energy] = *s;
-    for (i, (&bv, &w)) in b.iter().zip(w).enumerate() {
-        let fitv: f64 = cols.iter().zip(x).map(|(col, &a)| a * col[i]).sum();
+    for ((&bv, &w), &fitv) in b.iter().zip(w).zip(fit.iter()) {
         let r = fitv - bv;
         sq += w * r * r;
         ab += w * r.abs();
