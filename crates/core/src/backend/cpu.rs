@@ -804,6 +804,17 @@ impl Backend for CpuBackend {
     ) -> Result<[Vec<f64>; 3], BackendError> {
         pairs::grams_per_channel(self, lobes, cells, basis, progress)
     }
+
+    fn weighted_systems_per_channel(
+        &self,
+        basis: [&[Lobe]; 3],
+        targets: [&[Lobe]; 3],
+        cells: &CellSet,
+        weight: super::weighted::TargetWeight,
+        progress: Progress<'_>,
+    ) -> Result<[super::weighted::WeightedSystems; 3], BackendError> {
+        systems::weighted_systems_per_channel(self, basis, targets, cells, weight, progress)
+    }
 }
 
 /// Asks the kernel for transparent huge pages under a large, freshly allocated (still
@@ -843,5 +854,6 @@ fn is_avx2() -> bool {
 }
 
 mod pairs;
+mod systems;
 #[cfg(test)]
 mod tests;

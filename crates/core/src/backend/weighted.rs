@@ -294,6 +294,25 @@ pub fn reference_per_channel<B: Backend + ?Sized>(
     weight: TargetWeight,
     progress: super::Progress<'_>,
 ) -> Result<[WeightedSystems; 3], BackendError> {
+    let tabulate = |lobes: &[Lobe], cc: &[u32], _: usize| backend.tabulate(lobes, cc);
+    reference_per_channel_by(&tabulate, basis, targets, cells, weight, progress)
+}
+
+/// A chunk's rows: `(lobes, the chunk's cells, the chunk's offset in the cell set)` to the
+/// lobe-major f32 rows of [`Backend::tabulate`].
+pub(crate) type ChunkRows<'a> =
+    dyn Fn(&[Lobe], &[u32], usize) -> Result<Vec<f32>, BackendError> + Sync + 'a;
+
+/// [`reference_per_channel`] with each chunk's rows from `tabulate` (the same values as
+/// the back-end's tabulation: the CPU back-end reads networks from tabulations it keeps).
+pub(crate) fn reference_per_channel_by(
+    tabulate: &ChunkRows<'_>,
+    basis: [&[Lobe]; 3],
+    targets: [&[Lobe]; 3],
+    cells: &CellSet,
+    weight: TargetWeight,
+    progress: super::Progress<'_>,
+) -> Result<[WeightedSystems; 3], BackendError> {
     let weight = weight.check()?;
     let (k, t) = (basis[0].len(), targets[0].len());
     if basis.iter().any(|b| b.len() != k) || targets.iter().any(|y| y.len() != t) {
@@ -313,8 +332,8 @@ pub fn reference_per_channel<B: Backend + ?Sized>(
         .zip(cells.weights.chunks(REFERENCE_CHUNK))
     {
         let n = cc.len();
-        let b = backend.tabulate(&all_basis, cc)?;
-        let y = backend.tabulate(&all_targets, cc)?;
+        let b = tabulate(&all_basis, cc, done)?;
+        let y = tabulate(&all_targets, cc, done)?;
         for (c, v) in values.iter_mut().enumerate() {
             let bc = &b[c * k * n..(c + 1) * k * n];
             let yc = &y[c * t * n..(c + 1) * t * n];
