@@ -637,11 +637,7 @@ pub(crate) fn cell_sums<const ALL: bool, const LOG: bool>(
                         }))
                         .zip(j.coef.iter().map(|a| a[c]))
                         .filter(|&(_, a)| ALL || a != 0.0);
-                    for (col, a) in cols {
-                        for (fv, &v) in f.iter_mut().zip(col) {
-                            *fv += a * v;
-                        }
-                    }
+                    crate::fit::add_columns(f, cols);
                 }
                 // Then each channel's sums in cell order (the three channels are independent
                 // sums, interleaved here).
