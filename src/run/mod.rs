@@ -83,19 +83,23 @@ impl ObjectiveSetting {
     ///
     /// # Errors
     /// [`crate::error::RequestError`]: `--eps` with an objective other than `relative`,
-    /// or an `eps` that is not a positive number ([`check_eps`]).
+    /// or an `eps` outside its range ([`TargetWeight::relative`], named `--eps`).
     pub fn weight(&self) -> crate::Result<TargetWeight> {
         let kind = self.objective.unwrap_or(DEFAULT_OBJECTIVE.kind());
         match (kind, self.eps) {
             (ObjectiveKind::Relative, eps) => {
                 let eps = eps.or(DEFAULT_OBJECTIVE.eps()).unwrap_or(TargetWeight::DEFAULT_EPS);
-                Ok(TargetWeight::Relative { eps: check_eps(eps)? })
+                match TargetWeight::relative(eps) {
+                    Ok(w) => Ok(w),
+                    Err(e) => refuse!("--eps {eps}: {e}"),
+                }
             }
             (k, Some(eps)) => refuse!(
                 "--eps {eps} applies to --objective relative, not to --objective {}: only the relative objective has an offset; leave --eps out",
                 k.name()
             ),
-            (k, None) => Ok(k.weight(TargetWeight::DEFAULT_EPS)),
+            (ObjectiveKind::L2, None) => Ok(TargetWeight::L2),
+            (ObjectiveKind::Log, None) => Ok(TargetWeight::Log),
         }
     }
 }
@@ -107,18 +111,6 @@ impl From<TargetWeight> for ObjectiveSetting {
             objective: Some(w.kind()),
             eps: w.eps(),
         }
-    }
-}
-
-/// The rule of `--eps` (SPEC 11), made by [`TargetWeight::check`]: a finite positive
-/// number. Returns `eps`.
-///
-/// # Errors
-/// [`crate::error::RequestError`] naming `--eps`.
-pub fn check_eps(eps: f64) -> crate::Result<f64> {
-    match TargetWeight::relative(eps) {
-        Ok(_) => Ok(eps),
-        Err(e) => refuse!("--eps {eps}: {e}"),
     }
 }
 
