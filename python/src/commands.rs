@@ -120,7 +120,7 @@ pub(crate) fn select_json<'py>(
     req.ga_mutation = ga_mutation;
     req.metric = metric.map(parse).transpose()?;
     req.grid = grid(req.grid, mask, weighting, stride)?;
-    set(&mut req.seed, seed);
+    req.seed = seed;
     req.objective = objective_of(objective, eps)?;
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;

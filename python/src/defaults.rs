@@ -47,7 +47,7 @@ pub(crate) fn defaults_json() -> PyResult<String> {
     let s = bb::run::SelectRequest::new(bb::run::SelectMethod::Greedy);
     let mut m = Map::new();
     grid(&mut m, s.grid);
-    m.insert("seed".into(), s.seed.into());
+    m.insert("seed".into(), s.seed().into());
     objective(&mut m)?;
     m.insert("backend".into(), backend.clone());
     all.insert("select".into(), m.into());

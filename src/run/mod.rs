@@ -56,6 +56,10 @@ use crate::collection::Collection;
 /// value, plans (`plan`) by the objective's shared weights (SPEC 11).
 pub use crate::fit::DEFAULT_OBJECTIVE;
 
+/// `--seed` when none is given: the seed of every random step of every command, the
+/// same as the core's parameter types' defaults (`tests/requests.rs` holds them equal).
+pub const SEED: u64 = 1;
+
 /// `--objective` and `--eps` as a door gave them (`None`: not given), the one home of
 /// the fit objective's default and rules for `fit`, `select`, `plan`, `cv` and
 /// `cv --acquisition`: [`ObjectiveSetting::weight`] applies [`DEFAULT_OBJECTIVE`] and

@@ -159,7 +159,7 @@ impl CvArgs {
         r.ga_population = self.ga_population;
         r.ga_generations = self.ga_generations;
         r.render_size = self.render_size;
-        r.seed = g.seed;
+        r.seed = g.seed_or(r.seed);
         r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
         Ok(r)
@@ -197,7 +197,7 @@ impl CvArgs {
         r.restarts = self.restarts;
         r.render_size = self.render_size;
         r.grid = self.grid.grid()?;
-        r.seed = g.seed;
+        r.seed = g.seed_or(r.seed);
         r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
         r.ridge = !self.no_ridge;
