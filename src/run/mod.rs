@@ -57,7 +57,8 @@ use crate::collection::Collection;
 pub use crate::fit::DEFAULT_OBJECTIVE;
 
 /// `--seed` when none is given: the seed of every random step of every command, the
-/// same as the core's parameter types' defaults (`tests/requests.rs` holds them equal).
+/// same as the core's parameter types' defaults (`crates/cli/tests/requests.rs` holds
+/// them equal).
 pub const SEED: u64 = 1;
 
 /// `--objective` and `--eps` as a door gave them (`None`: not given), the one home of

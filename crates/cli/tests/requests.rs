@@ -153,3 +153,27 @@ fn cli_defaults_are_the_requests() {
         );
     }
 }
+
+/// One seed default (issue 47): `--seed` left out is [`brdf_basis::run::SEED`] in every
+/// request and in the core's parameter types.
+#[test]
+fn every_seed_default_is_the_one() {
+    use brdf_basis::run::{FitSamplesRequest, ReproduceRequest, SEED};
+    let seeds = [
+        SelectRequest::new(SelectMethod::Kmedoids).seed(),
+        PlanRequest::new(Vec::new()).seed,
+        CvRequest::default().seed,
+        AcquisitionRequest::default().seed,
+        ReproduceRequest::default().seed,
+        FitSamplesRequest::new(Vec::new(), "s.csv".into()).seed,
+        brdf_basis::select::GaParams::default().seed,
+        brdf_basis::cluster::KMedoidsParams::new(3).seed,
+        brdf_basis::cluster::GcukParams::default().seed,
+        brdf_basis::select::cv::CvParams::default().seed,
+        brdf_basis::acquire::PlanParams::default().seed,
+        brdf_basis::acquire::AcqCvParams::default().seed,
+        brdf_basis::experiment::ExperimentParams::default().seed,
+    ];
+    assert_eq!(seeds, [SEED; 13]);
+    assert_eq!(SelectRequest::new(SelectMethod::Greedy).seed, None);
+}
