@@ -103,7 +103,7 @@ pub(crate) fn defaults_json() -> PyResult<String> {
     m.insert("plans".into(), name(&a.plans));
     m.insert("ns".into(), json!(a.ns));
     m.insert("noises".into(), json!(a.noises));
-    m.insert("folds".into(), a.folds.into());
+    m.insert("folds".into(), a.folds().into());
     m.insert("render_size".into(), a.render_size.into());
     grid(&mut m, a.grid);
     m.insert("seed".into(), a.seed.into());

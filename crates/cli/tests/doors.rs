@@ -396,7 +396,7 @@ fn acquisition_door() {
     req.plans = vec![Criterion::Condition];
     req.ns = vec![3];
     req.noises = vec![0.0];
-    req.folds = 2;
+    req.folds = Some(2);
     req.grid = grid(6);
     req.candidates_per_step = Some(200);
     req.render_size = 16;

@@ -134,6 +134,9 @@ fn cli_defaults_are_the_requests() {
         .collect::<Vec<_>>()
         .join(" ");
     let a = AcquisitionRequest::default();
+    // One `--render-size` and one `--folds` help for both modes: the same defaults.
+    let c = CvRequest::default();
+    assert_eq!((a.render_size, a.folds()), (c.render_size, c.folds));
     let join = |v: Vec<String>| v.join(",");
     for list in [
         join(a.plans.iter().map(|p| p.as_str().to_string()).collect()),
