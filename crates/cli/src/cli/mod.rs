@@ -33,15 +33,13 @@ pub(crate) struct Cli {
     pub command: Command,
 }
 
-/// Options every subcommand takes, as given (`None`: not given). A command that does not
-/// use `--backend` or `--seed` refuses it ([`Command::unused_globals`]).
+/// Options every subcommand takes, as given (`None`: not given). A command that draws
+/// nothing at random refuses `--seed`, and one that never opens a back-end refuses
+/// `--backend gpu` ([`Command::unused_globals`]).
 #[derive(Args, Debug, Clone)]
 pub(crate) struct Global {
-    // Compute back-end: auto (a hardware GPU if present, else CPU), gpu (any adapter,
-    // lavapipe included) or cpu.
     #[arg(long, global = true, help = with_default("Compute back-end: auto (a hardware GPU if present, else CPU), gpu (any adapter, lavapipe included) or cpu", brdf_basis::BackendChoice::default().as_str()))]
     pub backend: Option<values::BackendArg>,
-    // Seed of every random step.
     #[arg(long, global = true, help = with_default("Seed of every random step", brdf_basis::run::SEED))]
     pub seed: Option<u64>,
     /// No progress bars.
