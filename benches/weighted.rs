@@ -39,7 +39,7 @@ fn run(
     cells: &CellSet,
 ) -> (f64, Vec<WeightedSystems>) {
     let targets: Vec<Arc<Nbrdf>> = (0..t).map(|i| nets[i % nets.len()].clone()).collect();
-    let w = TargetWeight::Relative { eps: 0.01 };
+    let w = TargetWeight::relative(0.01).unwrap();
     let start = Instant::now();
     let out = (0..3)
         .map(|c| {

@@ -9,11 +9,27 @@
 //! Without a GPU adapter it prints `SKIP (no adapter)` and exits 0, unless
 //! `BRDF_BASIS_REQUIRE_GPU=1` (as in CI), when it fails.
 
-//! Only the crate-root facade is used, and wgpu and pollster through `brdf_basis`.
+//! Only the crate-root facade and the requests (`brdf_basis::run`) are used, and wgpu and
+//! pollster through `brdf_basis`.
 
+use brdf_basis::run::{DistanceOutput, DistanceRequest, FitRequest};
 use brdf_basis::{pollster, wgpu};
-use brdf_basis::{Collection, CpuBackend, DistanceParams, Distances, FitParams, GramMode};
-use brdf_basis::{KMedoidsInit, KMedoidsParams, Metric};
+use brdf_basis::{Backend, Collection, CpuBackend, Distances, GramMode};
+use brdf_basis::{DistanceMatrix, KMedoidsInit, KMedoidsParams, Metric};
+
+/// The BRDF_it matrix of `coll` on `backend` (every 4th cell per grid axis).
+fn distances(
+    backend: &dyn Backend,
+    coll: &Collection,
+) -> Result<DistanceMatrix, Box<dyn std::error::Error>> {
+    let mut req = DistanceRequest::default();
+    req.metric = Metric::BrdfIt;
+    req.grid = brdf_basis::merl::GridSpec::default().with_stride(4)?;
+    match req.run(backend, coll, &req.params(coll)?, &|_, _| {})? {
+        DistanceOutput::Matrix(d) => Ok(d),
+        _ => unreachable!("no --tile: the whole matrix"),
+    }
+}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 0. A headless host without XDG_RUNTIME_DIR: the Vulkan loader's Wayland probe would
@@ -61,9 +77,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 3. Distances, a basis and fits on the embedded default collection (every 4th cell
     //    per grid axis, to stay quick on a software adapter).
     let coll = Collection::embedded_default();
-    let dp = DistanceParams::default().metric(Metric::BrdfIt).stride(4);
-    let d = brdf_basis::distances(&gpu, &coll, &dp)?;
-    let d_cpu = brdf_basis::distances(&CpuBackend::new(), &coll, &dp)?;
+    let d = distances(&gpu, &coll)?;
+    let d_cpu = distances(&CpuBackend::new(), &coll)?;
     let n = coll.len();
     let mut worst = 0f64;
     for i in 0..n {
@@ -90,18 +105,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let targets: Vec<usize> = (0..n).filter(|t| !basis.contains(t)).collect();
-    // The Gram matrices by a pass of the GPU over the grid (analytic collections would
-    // otherwise take the closed form on the host).
-    let fp = FitParams {
-        stride: 4,
-        gram: GramMode::Grid,
-        ..Default::default()
-    };
-    let fits = brdf_basis::fit(&gpu, &coll, &basis, &targets, &fp)?;
+    // Every other material fitted by the basis; the Gram matrices by a pass of the GPU
+    // over the grid (analytic collections would otherwise take the closed form on the
+    // host).
+    let mut fr = FitRequest::new(basis.iter().map(|&b| coll.names()[b].clone()).collect());
+    fr.grid = brdf_basis::merl::GridSpec::default().with_stride(4)?;
+    fr.gram = GramMode::Grid;
+    fr.appearance = false;
+    let fits = fr.run(&gpu, &coll, &|_, _| {})?.fits;
     let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
     println!("fitted {} materials, mean MAE {mean:.4}", fits.len());
-    if fits.len() != targets.len() || !mean.is_finite() {
+    if fits.len() != n - basis.len() || !mean.is_finite() {
         return Err("fits incomplete".into());
     }
     Ok(())

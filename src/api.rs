@@ -6,18 +6,14 @@
 //! * Back-ends: [`gpu_backend`] wraps the host's own wgpu device and queue (use
 //!   [`crate::wgpu`], the version this crate is built against; feature `gpu`, on by
 //!   default), [`CpuBackend`], or [`open_backend`] by [`BackendChoice`].
-//! * Stages: [`distances`], [`KMedoidsParams::fit`], [`objective`] with
-//!   [`select_greedy`], [`select_swap`], [`select_ga`], [`empirical`], [`fit()`] and
-//!   [`cross_validate`].
+//! * The commands: one typed request each in [`crate::run`] (the one door of the command
+//!   line and Python too: the same defaults, rules and output). Below them, each stage's
+//!   module function ([`crate::distance::distance_matrix`], [`crate::select::greedy`],
+//!   [`crate::fit::fit`], ...) takes checked parameters and a progress callback
+//!   `(done, total)`; k-medoids on a matrix is [`KMedoidsParams::fit`].
 //! * One error type, [`Error`], with `From` for each module's error, and [`Result`].
-//!
-//! Each function checks its parameters against the collection (or the objective) before
-//! any work, and reports no progress. The module functions they call
-//! ([`crate::distance::distance_matrix`], [`crate::select::greedy`], [`crate::fit::fit`],
-//! ...) take a progress callback `(done, total)` for hosts that want one.
-//!
-//! * Acquisition (SPEC 10): [`crate::plan_samples`] (where to measure), [`fit_from_arrays`] (a
-//!   material from samples given as arrays) and [`acquisition_cv`].
+//! * Acquisition (SPEC 10): [`crate::plan_samples`] (where to measure, on given candidates)
+//!   and [`fit_from_arrays`] (a material from samples given as arrays).
 
 pub use crate::acquire::{
     acquisition_cv, AcqCv, AcqCvParams, AcquireError, Candidate, Criterion, Plan, PlanParams,
@@ -121,127 +117,6 @@ pub fn gpu_backend(
     use std::sync::Arc;
     let ctx = crate::backend::gpu::GpuContext::from_device(Arc::new(device), Arc::new(queue), info);
     Ok(GpuBackend::with_context(ctx)?)
-}
-
-/// The distance matrix of `coll` by `p` (metric, mask, weighting, stride) on `backend`.
-///
-/// # Errors
-/// [`Error::Distance`] for parameters that do not fit the collection (e.g. a stride that
-/// leaves no cell, the euclidean metric on measured materials) or a failed reduction.
-pub fn distances(
-    backend: &dyn Backend,
-    coll: &Collection,
-    p: &DistanceParams,
-) -> Result<DistanceMatrix> {
-    let valid = p.check(coll)?;
-    Ok(crate::distance::distance_matrix(
-        backend,
-        coll,
-        &valid,
-        &|_, _| {},
-    )?)
-}
-
-/// The selection objective `S(B; T)` of `coll` (SPEC 8): one Gram matrix per channel,
-/// shared by [`select_greedy`], [`select_swap`] and [`select_ga`].
-///
-/// # Errors
-/// [`Error::Selection`] for invalid parameters, an empty collection or a failed Gram pass.
-pub fn objective(
-    backend: &dyn Backend,
-    coll: &Collection,
-    p: &ObjectiveParams,
-) -> Result<Objective> {
-    Ok(Objective::new(backend, coll, &p.check()?, &|_, _| {})?)
-}
-
-/// Greedy forward selection of `p.k` materials on `obj`.
-///
-/// # Errors
-/// [`Error::Selection`] for parameters that do not fit the objective's materials or a
-/// failed solve.
-pub fn select_greedy(obj: &Objective, p: &SearchParams) -> Result<Selection> {
-    Ok(crate::select::greedy(
-        obj,
-        &p.check(obj.names())?,
-        &|_, _| {},
-    )?)
-}
-
-/// Swap refinement (from `p.init`, or the greedy basis) on `obj`.
-///
-/// # Errors
-/// As [`select_greedy`].
-pub fn select_swap(obj: &Objective, p: &SearchParams) -> Result<Selection> {
-    Ok(crate::select::swap(
-        obj,
-        &p.check(obj.names())?,
-        &|_, _| {},
-    )?)
-}
-
-/// The genetic algorithm on `obj` (seeded by `g.seed`).
-///
-/// # Errors
-/// As [`select_greedy`], and for invalid GA settings.
-pub fn select_ga(obj: &Objective, p: &SearchParams, g: &GaParams) -> Result<Selection> {
-    Ok(crate::select::ga(
-        obj,
-        &p.check(obj.names())?,
-        &g.check()?,
-        &|_, _| {},
-    )?)
-}
-
-/// The paper's empirical basis (Algorithm 1): materials that contribute to more than
-/// `p.more_than` leave-one-out fits.
-///
-/// # Errors
-/// [`Error::Selection`] for fewer than two materials, no common cells, an invalid
-/// objective, or a failed solve.
-pub fn empirical(
-    backend: &dyn Backend,
-    coll: &Collection,
-    p: &EmpiricalParams,
-) -> Result<Empirical> {
-    Ok(crate::select::empirical(backend, coll, p, &|_, _| {})?)
-}
-
-/// Fits each of `targets` (collection indices) as a non-negative combination of a
-/// Lambertian term and the `basis` materials.
-///
-/// # Errors
-/// [`Error::Fit`] for an empty basis or target list, indices out of range, no common
-/// cells, or a failed solve.
-pub fn fit(
-    backend: &dyn Backend,
-    coll: &Collection,
-    basis: &[usize],
-    targets: &[usize],
-    p: &FitParams,
-) -> Result<Vec<TargetFit>> {
-    Ok(crate::fit::fit(
-        backend,
-        coll,
-        basis,
-        targets,
-        p,
-        &|_, _| {},
-    )?)
-}
-
-/// K-fold cross-validation of the selection methods `p.methods` at the sizes `p.ks`.
-///
-/// # Errors
-/// [`Error::Selection`] for parameters that do not fit the collection or a failed stage.
-pub fn cross_validate(backend: &dyn Backend, coll: &Collection, p: &CvParams) -> Result<CvResult> {
-    let valid = p.check(coll.len())?;
-    Ok(crate::select::cv::cross_validate(
-        backend,
-        coll,
-        &valid,
-        &|_, _| {},
-    )?)
 }
 
 // ---------------------------------------------------------------------------------------
@@ -407,54 +282,16 @@ pub fn fit_from_arrays(
 mod tests {
     use super::*;
 
-    /// The facade is the module functions with checked parameters and no progress: the
-    /// same numbers, bit for bit.
-    #[test]
-    fn facade_results_are_the_module_results() {
-        let cpu = CpuBackend::new();
-        let coll = Collection::embedded_default();
-        let dp = DistanceParams::default().stride(8);
-        let d = distances(&cpu, &coll, &dp).unwrap();
-        let m =
-            crate::distance::distance_matrix(&cpu, &coll, &dp.check(&coll).unwrap(), &|_, _| {})
-                .unwrap();
-        assert_eq!(d.names(), m.names());
-        for i in 0..coll.len() {
-            for j in 0..coll.len() {
-                assert_eq!(d.dist(i, j).to_bits(), m.dist(i, j).to_bits());
-            }
-        }
-        let op = ObjectiveParams::default().stride(8);
-        let obj = objective(&cpu, &coll, &op).unwrap();
-        let sp = SearchParams::new(3);
-        let g = select_greedy(&obj, &sp).unwrap();
-        let vp = sp.check(obj.names()).unwrap();
-        assert_eq!(g, crate::select::greedy(&obj, &vp, &|_, _| {}).unwrap());
-        let targets: Vec<usize> = (0..coll.len()).filter(|t| !g.indices.contains(t)).collect();
-        let fp = FitParams {
-            stride: 8,
-            ..Default::default()
-        };
-        let f = fit(&cpu, &coll, &g.indices, &targets, &fp).unwrap();
-        let m = crate::fit::fit(&cpu, &coll, &g.indices, &targets, &fp, &|_, _| {}).unwrap();
-        // serde_json writes f64 by the shortest round-trip form: equal text, equal bits.
-        assert_eq!(
-            serde_json::to_string(&f).unwrap(),
-            serde_json::to_string(&m).unwrap()
-        );
-    }
-
     /// A module's error passes through [`Error`] with its message unchanged.
     #[test]
     fn module_errors_keep_their_message() {
-        let cpu = CpuBackend::new();
         let coll = Collection::embedded_default();
         let p = DistanceParams::default().stride(0);
-        let direct = p.check(&coll).unwrap_err().to_string();
-        let e = distances(&cpu, &coll, &p).unwrap_err();
+        let direct = p.check(&coll).unwrap_err();
+        let e = Error::from(p.check(&coll).unwrap_err());
         assert!(matches!(e, Error::Distance(_)), "{e:?}");
-        assert_eq!(e.to_string(), direct);
-        let e = fit(&cpu, &coll, &[], &[1], &FitParams::default()).unwrap_err();
+        assert_eq!(e.to_string(), direct.to_string());
+        let e = Error::from(crate::fit::FitError::EmptyBasis);
         assert!(
             matches!(e, Error::Fit(crate::fit::FitError::EmptyBasis)),
             "{e:?}"

@@ -11,38 +11,40 @@
 //!
 //! The crate root is the facade for a host program: [`Collection`], the back-ends
 //! ([`gpu_backend`] on the host's own wgpu device, [`CpuBackend`], [`open_backend`]),
-//! one function per stage ([`distances`], [`objective`], [`select_greedy`],
-//! [`select_swap`], [`select_ga`], [`empirical`], [`fit()`], [`cross_validate`];
-//! k-medoids is [`KMedoidsParams::fit`]), one [`Error`] and [`Result`]. Each function
-//! checks its parameters before any work and reports no progress; the module functions
-//! behind them ([`distance::distance_matrix`], [`select::greedy()`], [`fit::fit`], ...)
-//! take a `(done, total)` progress callback. [`wgpu`] and [`pollster`] are re-exported,
-//! so the host uses the wgpu this crate is built against without pinning it
-//! (`examples/embed.rs` opens its own device and hands it over).
-//!
-//! The commands themselves (`select`, `plan`, `fit`, `cv`, `cv --acquisition`) are typed
-//! requests in [`run`]: the one door through which the command line and the Python
-//! bindings reach them (their settings, documented defaults, every rule in one wording,
-//! and the typed output). Acquisition (SPEC 10: where to measure a new material, fits
-//! from samples) is [`acquire`], with [`plan_samples()`], [`fit_from_arrays`] and
-//! [`acquisition_cv`] at the root.
+//! one [`Error`] and [`Result`]. The commands (`distance`, `select`, `plan`, `fit`, `cv`,
+//! `cv --acquisition`, `reproduce`) are typed requests in [`run`]: the one door through
+//! which the command line, the Python bindings and a host reach them (their settings,
+//! documented defaults, every rule in one wording, and the typed output). Below them, the
+//! module functions ([`distance::distance_matrix`], [`select::greedy()`], [`fit::fit`],
+//! ...) take checked parameters and a `(done, total)` progress callback; k-medoids on a
+//! matrix is [`KMedoidsParams::fit`]. [`wgpu`] and [`pollster`] are re-exported, so the
+//! host uses the wgpu this crate is built against without pinning it (`examples/embed.rs`
+//! opens its own device and hands it over). Acquisition (SPEC 10: where to measure a new
+//! material, fits from samples) is [`acquire`], with [`plan_samples()`] and
+//! [`fit_from_arrays`] at the root.
 //!
 //! ```
-//! use brdf_basis::{CpuBackend, Collection, DistanceParams, FitParams, KMedoidsParams};
-//! use brdf_basis::{ObjectiveParams, SearchParams};
+//! use brdf_basis::run::{DistanceOutput, DistanceRequest, FitRequest, SelectMethod, SelectRequest};
+//! use brdf_basis::{Collection, CpuBackend, KMedoidsParams};
 //!
 //! # fn main() -> brdf_basis::Result<()> {
 //! let cpu = CpuBackend::new(); // or brdf_basis::gpu_backend(device, queue, info)?
 //! let coll = Collection::embedded_default();
 //! // Every 8th cell per grid axis keeps the example quick; the default is the full grid.
-//! let d = brdf_basis::distances(&cpu, &coll, &DistanceParams::default().stride(8))?;
+//! let grid = brdf_basis::merl::GridSpec::default().with_stride(8)?;
+//! let mut dr = DistanceRequest::default();
+//! dr.grid = grid;
+//! let DistanceOutput::Matrix(d) = dr.run(&cpu, &coll, &dr.params(&coll)?, &|_, _| {})? else {
+//!     unreachable!("no --tile")
+//! };
 //! let km = KMedoidsParams::new(3).fit(&d)?;
-//! let obj = brdf_basis::objective(&cpu, &coll, &ObjectiveParams::default().stride(8))?;
-//! let greedy = brdf_basis::select_greedy(&obj, &SearchParams::new(3))?;
-//! let targets: Vec<usize> = (0..coll.len()).filter(|t| !greedy.indices.contains(t)).collect();
-//! let fp = FitParams { stride: 8, ..Default::default() };
-//! let fits = brdf_basis::fit(&cpu, &coll, &greedy.indices, &targets, &fp)?;
-//! println!("k-medoids {:?}, greedy {:?}: {} fits", km.medoids, greedy.basis, fits.len());
+//! let mut sr = SelectRequest::new(SelectMethod::Greedy);
+//! (sr.k, sr.grid) = (Some(3), grid);
+//! let greedy = sr.run(&cpu, &coll, &|_, _| {})?;
+//! let mut fr = FitRequest::new(greedy.basis().to_vec()); // every other material a target
+//! (fr.grid, fr.appearance) = (grid, false);
+//! let fits = fr.run(&cpu, &coll, &|_, _| {})?.fits;
+//! println!("k-medoids {:?}, greedy {:?}: {} fits", km.medoids, greedy.basis(), fits.len());
 //! assert_eq!(fits.len(), coll.len() - 3);
 //! # Ok(())
 //! # }

@@ -56,7 +56,7 @@ fn fits_from_samples_reach_the_weighted_optimum_of_each_objective() {
     let mut fits = Vec::new();
     for w in [
         TargetWeight::L2,
-        TargetWeight::Relative { eps: 0.01 },
+        TargetWeight::relative(0.01).unwrap(),
         TargetWeight::Log,
     ] {
         let f = fit_samples(&coll, &basis, &samples, w).unwrap();
@@ -107,7 +107,7 @@ fn the_condition_plan_weighs_its_rows_by_the_shared_weights() {
     let basis = [0, 1, 2];
     let targets: Vec<usize> = (3..coll.len()).collect();
     let all: Vec<usize> = (0..coll.len()).collect();
-    let w = TargetWeight::Relative { eps: 0.01 };
+    let w = TargetWeight::relative(0.01).unwrap();
     let fit = FitParams {
         stride: 12,
         objective: w,
@@ -198,7 +198,7 @@ fn acquisition_cv_under_an_objective_scores_appearance_beside_the_baseline() {
         };
         acquisition_cv(&CpuBackend::new(), &coll, &p).unwrap()
     };
-    let rel = run(TargetWeight::Relative { eps: 0.01 });
+    let rel = run(TargetWeight::relative(0.01).unwrap());
     let l2 = run(TargetWeight::L2);
     assert_eq!(rel.objective, "relative");
     for r in &rel.results {
@@ -304,35 +304,22 @@ fn fit_samples_from_arrays_is_the_request_of_a_samples_file() {
 
 /// A plan's objective is checked with its other settings, before any work, whatever the
 /// criterion and targets (before: a `condition` plan without targets never formed its
-/// shared weights, and an `eps` of -1 was planned without a word).
+/// shared weights, and an `eps` of -1 was planned without a word). An `eps` of -1 cannot
+/// reach `plan` (issue 47): the weight refuses it when built, and the request names
+/// `--eps`.
 #[test]
 fn plan_refuses_a_bad_eps_with_its_settings() {
+    let want = "the relative objective's eps must be a positive number, not -1";
+    let e = TargetWeight::relative(-1.0)
+        .expect_err("eps -1")
+        .to_string();
+    assert_eq!(e, want);
     let coll = Collection::embedded_default();
-    let grid = FitParams {
-        stride: 8,
-        ..FitParams::default()
-    };
-    let cands = cell_candidates(&coll, &[0, 1, 2, 3], &grid).expect("candidates");
-    for (criterion, targets) in [
-        (Criterion::Condition, &[][..]),
-        (Criterion::Condition, &[2, 3][..]),
-        (Criterion::Error, &[2, 3][..]),
-    ] {
-        let p = PlanParams {
-            n: 4,
-            criterion,
-            fit: FitParams {
-                objective: TargetWeight::Relative { eps: -1.0 },
-                ..grid.clone()
-            },
-            ..PlanParams::default()
-        };
-        let e = plan(&CpuBackend::new(), &coll, &[0, 1], targets, &cands, &p)
-            .expect_err("a plan with eps -1")
-            .to_string();
-        assert!(
-            e.contains("the relative objective's eps must be a positive number, not -1"),
-            "{criterion:?} {targets:?}: {e}"
-        );
+    for criterion in [Criterion::Condition, Criterion::Error] {
+        let mut r = brdf_basis::run::PlanRequest::new(vec![coll.materials()[0].name.clone()]);
+        r.criterion = criterion;
+        r.objective.eps = Some(-1.0);
+        let e = r.check().expect_err("a plan with eps -1").to_string();
+        assert_eq!(e, format!("--eps -1: {want}"), "{criterion:?}");
     }
 }

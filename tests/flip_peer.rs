@@ -42,7 +42,7 @@ fn flip_agrees_with_nvidia_on_500_merl100_render_pairs() {
         .iter()
         .map(|o| {
             let p = FitParams {
-                objective: o.weight(0.01),
+                objective: o.weight(0.01).unwrap(),
                 stride: 4,
                 ..FitParams::default()
             };

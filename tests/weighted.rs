@@ -89,7 +89,7 @@ fn weighted_systems_by_hand() {
     for (w, phi) in [
         (TargetWeight::L2, 1.0),
         (
-            TargetWeight::Relative { eps: 0.01 },
+            TargetWeight::relative(0.01).unwrap(),
             1.0 / ((y + 0.01) * (y + 0.01)),
         ),
         (TargetWeight::Log, {
@@ -145,7 +145,7 @@ fn gpu_weighted_systems_match_the_f64_reference() {
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 3);
     for w in [
         TargetWeight::L2,
-        TargetWeight::Relative { eps: 0.01 },
+        TargetWeight::relative(0.01).unwrap(),
         TargetWeight::Log,
     ] {
         let want =
@@ -160,20 +160,8 @@ fn gpu_weighted_systems_match_the_f64_reference() {
             .expect("cpu method");
         assert_eq!(cpu, want);
     }
-    // A bad eps is refused by both.
-    let bad = TargetWeight::Relative { eps: 0.0 };
-    assert!(g
-        .weighted_systems(&basis, &targets, &cells, bad, &|_, _| {})
-        .is_err());
-    assert!(reference(
-        &CpuBackend::new(),
-        &basis,
-        &targets,
-        &cells,
-        bad,
-        &|_, _| {}
-    )
-    .is_err());
+    // A bad eps cannot reach either: it is refused when the weight is built.
+    assert!(TargetWeight::relative(0.0).is_err());
 }
 
 #[test]
@@ -192,7 +180,7 @@ fn gpu_weighted_systems_of_neural_targets_match_the_f64_reference() {
     let lobes = brdf_basis::distance::lobes(&sub, brdf_basis::distance::LobeKind::Full);
     let (basis, targets) = lobes.split_at(5);
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 4);
-    for w in [TargetWeight::L2, TargetWeight::Relative { eps: 0.01 }] {
+    for w in [TargetWeight::L2, TargetWeight::relative(0.01).unwrap()] {
         let want =
             reference(&CpuBackend::new(), basis, targets, &cells, w, &|_, _| {}).expect("cpu");
         let got = g
@@ -324,10 +312,10 @@ fn gpu_weighted_systems_at_the_edges_of_f32_are_the_cpus() {
     ];
     let cells = CellSet::new(Mask::Evaluation, Weighting::SolidAngle, 4);
     for w in [
-        TargetWeight::Relative { eps: 0.01 },
-        TargetWeight::Relative { eps: 1e-20 },
-        TargetWeight::Relative { eps: 1e-40 },
-        TargetWeight::Relative { eps: 1e30 },
+        TargetWeight::relative(0.01).unwrap(),
+        TargetWeight::relative(1e-20).unwrap(),
+        TargetWeight::relative(1e-40).unwrap(),
+        TargetWeight::relative(1e30).unwrap(),
         TargetWeight::Log,
         TargetWeight::L2,
     ] {

@@ -300,7 +300,8 @@ def select(collection: Collection, method: str, k: Optional[int] = None, **optio
     ``runs``, ``algorithm``, ``population``, ``generations``, ``more_than``,
     ``candidates``, ``targets``, ``init`` (lists of names), ``ga_population``,
     ``ga_generations``, ``ga_crossover``, ``ga_mutation``, ``metric``, ``mask``,
-    ``weighting``, ``stride``, ``seed``, ``backend``, ``progress``.
+    ``weighting``, ``stride``, ``seed``, ``backend``, ``progress``. An option the method
+    does not use is refused, naming it (``seed``: kmedoids, gcuk and ga only).
 
     >>> sel = select(Collection.default(), "kmedoids", k=3, runs=2, stride=8)
     >>> len(sel.basis)

@@ -120,7 +120,7 @@ pub(crate) fn select_json<'py>(
     req.ga_mutation = ga_mutation;
     req.metric = metric.map(parse).transpose()?;
     req.grid = grid(req.grid, mask, weighting, stride)?;
-    set(&mut req.seed, seed);
+    req.seed = seed;
     req.objective = objective_of(objective, eps)?;
     req.check().map_err(py_err)?;
     let backend = open_backend(backend)?;
@@ -380,11 +380,6 @@ pub(crate) fn acquisition_cv_json<'py>(
     set(&mut req.appearance, appearance);
     set(&mut req.ridge, ridge);
     if let Some(t) = test {
-        if folds.is_some() {
-            return Err(pyo3::exceptions::PyValueError::new_err(
-                "folds does not apply with test (a fixed split is one fold); leave one out",
-            ));
-        }
         req.test = t;
     }
     req.methods = parse_list(methods, &req.methods)?;
@@ -392,7 +387,7 @@ pub(crate) fn acquisition_cv_json<'py>(
     req.plans = parse_list(plans, &req.plans)?;
     req.ns = ns.unwrap_or(req.ns);
     req.noises = noises.unwrap_or(req.noises);
-    req.folds = folds.unwrap_or(req.folds);
+    req.folds = folds;
     req.candidates_per_step = candidates_per_step;
     req.shortlist = shortlist;
     req.restarts = restarts;

@@ -47,7 +47,7 @@ pub(crate) fn defaults_json() -> PyResult<String> {
     let s = bb::run::SelectRequest::new(bb::run::SelectMethod::Greedy);
     let mut m = Map::new();
     grid(&mut m, s.grid);
-    m.insert("seed".into(), s.seed.into());
+    m.insert("seed".into(), s.seed().into());
     objective(&mut m)?;
     m.insert("backend".into(), backend.clone());
     all.insert("select".into(), m.into());
@@ -103,7 +103,7 @@ pub(crate) fn defaults_json() -> PyResult<String> {
     m.insert("plans".into(), name(&a.plans));
     m.insert("ns".into(), json!(a.ns));
     m.insert("noises".into(), json!(a.noises));
-    m.insert("folds".into(), a.folds.into());
+    m.insert("folds".into(), a.folds().into());
     m.insert("render_size".into(), a.render_size.into());
     grid(&mut m, a.grid);
     m.insert("seed".into(), a.seed.into());

@@ -25,8 +25,8 @@ pub struct AcquisitionRequest {
     pub ns: Vec<usize>,
     /// `--noise`: relative noise levels of the simulated measurements.
     pub noises: Vec<f64>,
-    /// `--folds`.
-    pub folds: usize,
+    /// `--folds` (default: [`AcqCvParams::default`]'s; not with `test`, a fixed split).
+    pub folds: Option<usize>,
     /// `--candidates-per-step`: of the error, condition and nielsen plans (0: all;
     /// default: [`AcqCvParams::default`]'s).
     pub candidates_per_step: Option<usize>,
@@ -62,7 +62,7 @@ impl Default for AcquisitionRequest {
             plans: d.plans,
             ns: d.ns,
             noises: d.noises,
-            folds: d.folds,
+            folds: None,
             candidates_per_step: None,
             shortlist: None,
             restarts: None,
@@ -78,6 +78,11 @@ impl Default for AcquisitionRequest {
 }
 
 impl AcquisitionRequest {
+    /// `--folds` with its default.
+    pub fn folds(&self) -> usize {
+        self.folds.unwrap_or(AcqCvParams::default().folds)
+    }
+
     /// The library's parameters, the defaults applied.
     fn params(&self) -> Result<AcqCvParams> {
         let d = AcqCvParams::default();
@@ -87,7 +92,7 @@ impl AcquisitionRequest {
             plans: self.plans.clone(),
             ns: self.ns.clone(),
             noises: self.noises.clone(),
-            folds: self.folds,
+            folds: self.folds(),
             seed: self.seed,
             candidates_per_step: self.candidates_per_step.unwrap_or(d.candidates_per_step),
             shortlist: self.shortlist.unwrap_or(d.shortlist),
@@ -113,6 +118,11 @@ impl AcquisitionRequest {
     /// [`crate::error::RequestError`] naming the setting.
     pub fn check(&self) -> Result<()> {
         self.objective.weight()?;
+        if let (false, Some(f)) = (self.test.is_empty(), self.folds) {
+            super::refuse!(
+                "--folds {f} does not apply with --test (a fixed split is one fold); leave one out"
+            );
+        }
         let given = [
             self.candidates_per_step.is_some(),
             self.shortlist.is_some(),

@@ -271,7 +271,7 @@ impl FitSamplesRequest {
             grid: GridSpec::default(),
             solver: d.solver,
             gram: d.gram,
-            seed: 1,
+            seed: super::SEED,
             objective: ObjectiveSetting::default(),
         }
     }

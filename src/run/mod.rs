@@ -56,6 +56,11 @@ use crate::collection::Collection;
 /// value, plans (`plan`) by the objective's shared weights (SPEC 11).
 pub use crate::fit::DEFAULT_OBJECTIVE;
 
+/// `--seed` when none is given: the seed of every random step of every command, the
+/// same as the core's parameter types' defaults (`crates/cli/tests/requests.rs` holds
+/// them equal).
+pub const SEED: u64 = 1;
+
 /// `--objective` and `--eps` as a door gave them (`None`: not given), the one home of
 /// the fit objective's default and rules for `fit`, `select`, `plan`, `cv` and
 /// `cv --acquisition`: [`ObjectiveSetting::weight`] applies [`DEFAULT_OBJECTIVE`] and
@@ -83,19 +88,23 @@ impl ObjectiveSetting {
     ///
     /// # Errors
     /// [`crate::error::RequestError`]: `--eps` with an objective other than `relative`,
-    /// or an `eps` that is not a positive number ([`check_eps`]).
+    /// or an `eps` outside its range ([`TargetWeight::relative`], named `--eps`).
     pub fn weight(&self) -> crate::Result<TargetWeight> {
         let kind = self.objective.unwrap_or(DEFAULT_OBJECTIVE.kind());
         match (kind, self.eps) {
             (ObjectiveKind::Relative, eps) => {
                 let eps = eps.or(DEFAULT_OBJECTIVE.eps()).unwrap_or(TargetWeight::DEFAULT_EPS);
-                Ok(TargetWeight::Relative { eps: check_eps(eps)? })
+                match TargetWeight::relative(eps) {
+                    Ok(w) => Ok(w),
+                    Err(e) => refuse!("--eps {eps}: {e}"),
+                }
             }
             (k, Some(eps)) => refuse!(
                 "--eps {eps} applies to --objective relative, not to --objective {}: only the relative objective has an offset; leave --eps out",
                 k.name()
             ),
-            (k, None) => Ok(k.weight(TargetWeight::DEFAULT_EPS)),
+            (ObjectiveKind::L2, None) => Ok(TargetWeight::L2),
+            (ObjectiveKind::Log, None) => Ok(TargetWeight::Log),
         }
     }
 }
@@ -107,18 +116,6 @@ impl From<TargetWeight> for ObjectiveSetting {
             objective: Some(w.kind()),
             eps: w.eps(),
         }
-    }
-}
-
-/// The rule of `--eps` (SPEC 11), made by [`TargetWeight::check`]: a finite positive
-/// number. Returns `eps`.
-///
-/// # Errors
-/// [`crate::error::RequestError`] naming `--eps`.
-pub fn check_eps(eps: f64) -> crate::Result<f64> {
-    match TargetWeight::relative(eps) {
-        Ok(_) => Ok(eps),
-        Err(e) => refuse!("--eps {eps}: {e}"),
     }
 }
 

@@ -136,8 +136,9 @@ pub struct SelectRequest {
     pub metric: Option<Metric>,
     /// `--mask`, `--weighting`, `--stride`.
     pub grid: GridSpec,
-    /// `--seed`.
-    pub seed: u64,
+    /// `--seed`: of the seeded runs of kmedoids and gcuk and of the GA (default
+    /// [`super::SEED`]); the other methods draw nothing at random and refuse it.
+    pub seed: Option<u64>,
     /// `--distances`: cluster this saved matrix (a `.npy` written by `distance`, read with
     /// its sidecar, or a `.csv`) instead of computing one ([`SelectRequest::run_saved`]).
     pub distances: Option<PathBuf>,
@@ -173,7 +174,7 @@ impl SelectRequest {
             ga_mutation: None,
             metric: None,
             grid: GridSpec::default(),
-            seed: 1,
+            seed: None,
             distances: None,
             objective: ObjectiveSetting::default(),
         }
@@ -206,6 +207,11 @@ impl SelectRequest {
             .unwrap_or(EmpiricalParams::default().more_than)
     }
 
+    /// `--seed` with its default.
+    pub fn seed(&self) -> u64 {
+        self.seed.unwrap_or(super::SEED)
+    }
+
     /// `--metric` with its default.
     pub fn metric(&self) -> Metric {
         self.metric.unwrap_or(Self::METRIC)
@@ -213,7 +219,7 @@ impl SelectRequest {
 
     /// Every setting that only some methods use: whether it was given, its flag and the
     /// methods that use it (the one table of [`Self::check`]'s "applies to" rule).
-    fn method_settings(&self) -> [(bool, &'static str, &'static [SelectMethod]); 17] {
+    fn method_settings(&self) -> [(bool, &'static str, &'static [SelectMethod]); 18] {
         use SelectMethod::{Empirical, Ga, Gcuk, Greedy, Kmedoids, Swap};
         const CLUSTERING: &[SelectMethod] = &[Kmedoids, Gcuk];
         const ERROR: &[SelectMethod] = &[Greedy, Swap, Ga];
@@ -237,6 +243,7 @@ impl SelectRequest {
             (self.ga_generations.is_some(), "--ga-generations", &[Ga]),
             (self.ga_crossover.is_some(), "--ga-crossover", &[Ga]),
             (self.ga_mutation.is_some(), "--ga-mutation", &[Ga]),
+            (self.seed.is_some(), "--seed", &[Kmedoids, Gcuk, Ga]),
         ]
     }
 
@@ -394,7 +401,7 @@ impl SelectRequest {
             .population(self.ga_population.unwrap_or(d.population))
             .generations(self.ga_generations.unwrap_or(d.generations))
             .crossover_prob(self.ga_crossover.unwrap_or(d.crossover_prob))
-            .seed(self.seed);
+            .seed(self.seed());
         gp.mutation_prob = self.ga_mutation;
         gp
     }
@@ -520,11 +527,11 @@ impl SelectRequest {
         let (runs, algorithm) = if self.method == SelectMethod::Kmedoids {
             let ks = self.kmedoids_ks()?;
             let a = self.algorithm();
-            let runs = kmedoids_runs(d, &ks, self.runs(), self.seed, a, progress)?;
+            let runs = kmedoids_runs(d, &ks, self.runs(), self.seed(), a, progress)?;
             (runs, Some(a.to_string()))
         } else {
             let p = self.gcuk_params()?.check()?;
-            (gcuk_runs(d, &p, self.runs(), self.seed, progress)?, None)
+            (gcuk_runs(d, &p, self.runs(), self.seed(), progress)?, None)
         };
         let named = named_runs(d, &runs)?;
         Ok(SelectOutput::Clustering(ClusteringOutput::new(

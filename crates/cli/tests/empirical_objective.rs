@@ -181,8 +181,8 @@ fn empirical_under_an_objective_matches_an_enumerated_f64_reference() {
     let want_l2 = reference_contributors(&coll, &params(TargetWeight::L2).fit, TargetWeight::L2);
     assert_eq!(l2.contributors, want_l2, "l2");
     for weight in [
-        TargetWeight::Relative { eps: 0.01 },
-        TargetWeight::Relative { eps: 0.3 },
+        TargetWeight::relative(0.01).unwrap(),
+        TargetWeight::relative(0.3).unwrap(),
         TargetWeight::Log,
     ] {
         let p = params(weight);
@@ -196,17 +196,19 @@ fn empirical_under_an_objective_matches_an_enumerated_f64_reference() {
     }
 }
 
-/// A bad eps is refused before any work, with the setting named.
+/// A bad eps is refused before any work, with the setting named: it cannot be built into
+/// a weight (issue 47), and the `select` request refuses it in `check`.
 #[test]
 fn empirical_refuses_a_bad_eps() {
-    let e = empirical(
-        &CpuBackend::new(),
-        &seven(),
-        &params(TargetWeight::Relative { eps: 0.0 }),
-        &|_, _| {},
-    )
-    .unwrap_err();
+    let e = TargetWeight::relative(0.0).unwrap_err();
     assert!(e.to_string().contains("eps"), "{e}");
+    let mut r = brdf_basis::run::SelectRequest::new(brdf_basis::run::SelectMethod::Empirical);
+    r.objective.eps = Some(0.0);
+    let e = r.check().unwrap_err().to_string();
+    assert!(
+        e.starts_with("--eps 0: the relative objective's eps"),
+        "{e}"
+    );
 }
 
 /// The GPU back-end (its Gram kernel) chooses the CPU's basis, with the same histogram,
@@ -225,7 +227,7 @@ fn gpu_empirical_under_an_objective_chooses_the_cpus_basis() {
             .push(measured_material(m), std::path::Path::new("copy"), 0)
             .unwrap();
     }
-    for weight in [TargetWeight::Relative { eps: 0.01 }, TargetWeight::Log] {
+    for weight in [TargetWeight::relative(0.01).unwrap(), TargetWeight::Log] {
         let p = EmpiricalParams {
             more_than: 5,
             ..params(weight)
@@ -381,7 +383,7 @@ fn empirical_under_l2_keeps_the_paper_basis_of_before() {
 fn select_and_cv_fit_the_same_leave_one_out_problems_under_relative() {
     let coll = Collection::embedded_default();
     let cpu = CpuBackend::new();
-    let w = TargetWeight::Relative { eps: 0.01 };
+    let w = TargetWeight::relative(0.01).unwrap();
     let e = empirical(&cpu, &coll, &params(w), &|_, _| {}).unwrap();
     let op = ObjectiveParams::default()
         .stride(6)

@@ -14,6 +14,7 @@ mod audit2_s3;
 mod audit2_s4;
 mod cli;
 mod determinism;
+mod doors;
 mod empirical_objective;
 mod figures;
 mod fingerprints;

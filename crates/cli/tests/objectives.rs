@@ -27,8 +27,8 @@ fn weighted_fits_reach_the_optimum_of_an_independent_f64_reference() {
         .collect();
     let cpu = CpuBackend::new();
     for weight in [
-        TargetWeight::Relative { eps: 0.01 },
-        TargetWeight::Relative { eps: 0.3 },
+        TargetWeight::relative(0.01).unwrap(),
+        TargetWeight::relative(0.3).unwrap(),
         TargetWeight::Log,
     ] {
         let p = FitParams {
@@ -96,7 +96,7 @@ fn the_l2_objective_is_spec_5s_fit_and_a_weighted_fit_differs() {
         assert_eq!(f.objective_residual, f.relative_residual);
     }
     let rel = FitParams {
-        objective: TargetWeight::Relative { eps: 0.01 },
+        objective: TargetWeight::relative(0.01).unwrap(),
         ..p.clone()
     };
     let r = fit(&cpu, &coll, &basis, &targets, &rel, &|_, _| {}).unwrap();

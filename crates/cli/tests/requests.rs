@@ -134,6 +134,9 @@ fn cli_defaults_are_the_requests() {
         .collect::<Vec<_>>()
         .join(" ");
     let a = AcquisitionRequest::default();
+    // One `--render-size` and one `--folds` help for both modes: the same defaults.
+    let c = CvRequest::default();
+    assert_eq!((a.render_size, a.folds()), (c.render_size, c.folds));
     let join = |v: Vec<String>| v.join(",");
     for list in [
         join(a.plans.iter().map(|p| p.as_str().to_string()).collect()),
@@ -152,4 +155,28 @@ fn cli_defaults_are_the_requests() {
             "{list}: {help}"
         );
     }
+}
+
+/// One seed default (issue 47): `--seed` left out is [`brdf_basis::run::SEED`] in every
+/// request and in the core's parameter types.
+#[test]
+fn every_seed_default_is_the_one() {
+    use brdf_basis::run::{FitSamplesRequest, ReproduceRequest, SEED};
+    let seeds = [
+        SelectRequest::new(SelectMethod::Kmedoids).seed(),
+        PlanRequest::new(Vec::new()).seed,
+        CvRequest::default().seed,
+        AcquisitionRequest::default().seed,
+        ReproduceRequest::default().seed,
+        FitSamplesRequest::new(Vec::new(), "s.csv".into()).seed,
+        brdf_basis::select::GaParams::default().seed,
+        brdf_basis::cluster::KMedoidsParams::new(3).seed,
+        brdf_basis::cluster::GcukParams::default().seed,
+        brdf_basis::select::cv::CvParams::default().seed,
+        brdf_basis::acquire::PlanParams::default().seed,
+        brdf_basis::acquire::AcqCvParams::default().seed,
+        brdf_basis::experiment::ExperimentParams::default().seed,
+    ];
+    assert_eq!(seeds, [SEED; 13]);
+    assert_eq!(SelectRequest::new(SelectMethod::Greedy).seed, None);
 }

@@ -6,7 +6,7 @@
 //! The walks drive the library's requests; the binary is run only for `--help` (so that
 //! a new flag cannot miss the walk) and for the refusals made before the request exists.
 
-use crate::common::bin_cpu;
+use crate::common::{bin_cpu, bin_quiet};
 use brdf_basis::backend::weighted::ObjectiveKind;
 use brdf_basis::cluster::KMedoidsAlgorithm;
 use brdf_basis::distance::Metric;
@@ -30,7 +30,7 @@ fn gold() -> Option<Vec<String>> {
     Some(vec!["polished-gold".to_string()])
 }
 
-fn select_settings() -> [SelectSetting; 17] {
+fn select_settings() -> [SelectSetting; 18] {
     use SelectMethod::{Empirical, Ga, Gcuk, Greedy, Kmedoids, Swap};
     const FITTING: &[SelectMethod] = &[Empirical, Greedy, Swap, Ga];
     const ERROR: &[SelectMethod] = &[Greedy, Swap, Ga];
@@ -65,6 +65,7 @@ fn select_settings() -> [SelectSetting; 17] {
         ("--ga-generations", |r| r.ga_generations = Some(8), &[Ga]),
         ("--ga-crossover", |r| r.ga_crossover = Some(0.5), &[Ga]),
         ("--ga-mutation", |r| r.ga_mutation = Some(0.1), &[Ga]),
+        ("--seed", |r| r.seed = Some(3), &[Kmedoids, Gcuk, Ga]),
     ]
 }
 
@@ -91,7 +92,8 @@ fn help_flags(command: &[&str]) -> BTreeSet<String> {
         .collect()
 }
 
-/// The flags of a command that apply whatever the method: not walked.
+/// The flags of a command that apply whatever the method: not walked (`select` walks
+/// `--seed`; `cv` uses it with every method).
 const EVERY_METHOD: &[&str] = &[
     "--backend",
     "--seed",
@@ -532,6 +534,46 @@ fn the_binary_refuses_before_any_work() {
     assert_eq!(std::fs::read_dir(d.path()).expect("dir").count(), 0);
 }
 
+/// `--seed` given to a command that draws nothing at random, and `--backend gpu` given to
+/// one that never opens a back-end, are refused by name before any work (issue 47:
+/// before, both were ignored without a word); `select` refuses `--seed` by method.
+#[test]
+fn unused_global_flags_are_refused_by_name() {
+    let missing = "no-such-collection.csv";
+    for (args, want) in [
+        (
+            &["--seed", "3", "distance", missing, "--out", "d.npy"][..],
+            "--seed 3 does not apply to distance: it draws nothing at random; leave it out",
+        ),
+        (
+            &["fit", missing, "--basis", "polished-gold", "--seed", "2", "--json", "f.json"],
+            "--seed 2 does not apply to fit: it draws nothing at random; leave it out",
+        ),
+        (
+            &["render", missing, "--material", "polished-gold", "--out", "r.exr", "--backend", "gpu"],
+            "--backend gpu does not apply to render: it renders on the CPU; leave it out",
+        ),
+        (
+            &["fit", missing, "--basis", "polished-gold", "--samples", "s.csv", "--backend", "gpu", "--json", "f.json"],
+            "--backend gpu does not apply to fit --samples: the fit from samples solves its least-squares problem on the CPU (no grid cells to tabulate, no Gram matrix); leave it out",
+        ),
+        (
+            &["select", missing, "--method", "greedy", "-k", "3", "--seed", "3", "--json", "s.json"],
+            "--seed applies to kmedoids, gcuk and ga, not to --method greedy",
+        ),
+        (
+            &["select", "--method", "gcuk", "--distances", "saved.npy", "--backend", "gpu", "--json", "s.json"],
+            "--backend gpu does not apply with --distances: a saved matrix is clustered on the CPU, with no distance to compute; leave it out",
+        ),
+    ] {
+        let o = bin_quiet().args(args).output().expect("run brdf-basis");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        let got = err.lines().find_map(|l| l.strip_prefix("error: "));
+        assert_eq!(got, Some(want), "{args:?}: {err}");
+    }
+}
+
 /// `select`'s JSON records what chose the basis (issue 47): the fit objective and its eps
 /// (methods that fit), and the grid (every method); the keys it had keep their values.
 #[test]
@@ -588,7 +630,8 @@ fn select_json_records_what_chose_the_basis() {
 /// [`every_flag_of_every_command_is_classified`]).
 #[derive(Clone, Copy, Debug)]
 enum Use {
-    /// A global flag: the back-end, the seed of every random step, progress bars.
+    /// A global flag used by every run of the command: the back-end, the seed of every
+    /// random step, progress bars.
     Global,
     /// Used by every run of the command (an output, an input, a setting of every mode).
     Always,
@@ -621,10 +664,31 @@ fn flag_uses() -> Vec<(&'static str, &'static str, Use)> {
         "plan",
         "merge",
     ] {
-        for f in ["--backend", "--seed", "--quiet"] {
-            t.push((c, f, Global));
-        }
+        t.push((c, "--quiet", Global));
     }
+    // `--seed`: used by the commands that draw at random (by `select`'s seeded methods,
+    // walked), refused by the others; `--backend gpu`: refused by the commands and modes
+    // that never open a back-end (`--backend cpu` and `auto` are what they do).
+    for c in ["reproduce", "cv", "plan"] {
+        t.push((c, "--seed", Global));
+    }
+    for c in [
+        "info", "tabulate", "distance", "fit", "render", "plot", "merge",
+    ] {
+        t.push((c, "--seed", RefusedWith(&[])));
+    }
+    for c in ["info", "tabulate", "distance", "reproduce", "cv", "plan"] {
+        t.push((c, "--backend", Global));
+    }
+    for c in ["render", "plot", "merge"] {
+        t.push((c, "--backend", RefusedWith(&[])));
+    }
+    t.push(("fit", "--backend", RefusedWith(SAMPLES)));
+    t.push((
+        "select",
+        "--backend",
+        RefusedWith(&["--distances", "saved.npy"]),
+    ));
     for (c, f) in [
         ("tabulate", "--material"),
         ("tabulate", "--out"),
@@ -777,6 +841,28 @@ fn giving(command: &str, flag: &str) -> Vec<&'static str> {
             "--out",
             "r.exr",
         ],
+        "info" => vec!["info"],
+        "tabulate" => vec![
+            "tabulate",
+            "no-such-collection.csv",
+            "--material",
+            "polished-gold",
+            "--out",
+            "t.binary",
+        ],
+        "distance" => vec!["distance", "no-such-collection.csv", "--out", "d.npy"],
+        "plot" => vec![
+            "plot",
+            "no-such-collection.csv",
+            "--material",
+            "polished-gold",
+            "--out",
+            "p.svg",
+        ],
+        "merge" => vec!["merge", "no-such-collection.npy", "--out", "m.npy"],
+        "select" => vec![
+            "select", "--method", "kmedoids", "-k", "3", "--json", "s.json",
+        ],
         _ => panic!("no run of {command}"),
     };
     a.extend(match flag {
@@ -804,6 +890,8 @@ fn giving(command: &str, flag: &str) -> Vec<&'static str> {
         "--gamma" => vec!["--gamma", "1.8"],
         "--heatmap" => vec!["--heatmap", "h.png"],
         "--cv-runs" => vec!["--cv-runs", "3"],
+        "--seed" => vec!["--seed", "3"],
+        "--backend" => vec!["--backend", "gpu"],
         _ => panic!("no value of {flag}"),
     });
     a
@@ -840,7 +928,12 @@ fn every_flag_of_every_command_is_classified() {
         if let Use::RefusedWith(mode) = u {
             let mut args = giving(command, flag);
             args.extend_from_slice(mode);
-            let o = bin_cpu().args(&args).output().expect("run brdf-basis");
+            // `--backend gpu` in place of the harness's `--backend cpu`.
+            let mut bin = match flag {
+                "--backend" => bin_quiet(),
+                _ => bin_cpu(),
+            };
+            let o = bin.args(&args).output().expect("run brdf-basis");
             let e = String::from_utf8_lossy(&o.stderr);
             // clap's `requires` names what is missing: --heatmap needs --fit.
             let named = if flag == "--heatmap" { "--fit" } else { flag };

@@ -197,7 +197,6 @@ impl Backend for GpuBackend {
         weight: brdf_basis_core::backend::weighted::TargetWeight,
         progress: Progress<'_>,
     ) -> Result<brdf_basis_core::backend::weighted::WeightedSystems, BackendError> {
-        let weight = weight.check()?;
         Ok(self.weighted.run(
             &self.ctx,
             &self.tab,

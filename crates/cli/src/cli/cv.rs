@@ -47,9 +47,10 @@ pub(crate) struct CvArgs {
     pub ga_population: Option<usize>,
     #[arg(long, help = super::with_default("ga: generations", brdf_basis::select::GaParams::default().generations))]
     pub ga_generations: Option<usize>,
-    /// Render size in pixels for the image errors.
-    #[arg(long, default_value_t = defaults().render_size)]
-    pub render_size: u32,
+    // Render size in pixels for the image errors (`cv` and `cv --acquisition` have the same
+    // default: `requests::cli_defaults_are_the_requests`).
+    #[arg(long, help = super::with_default("Render size in pixels for the image errors", defaults().render_size))]
+    pub render_size: Option<u32>,
     /// The fit objective of the selection and the held-out fits.
     #[command(flatten)]
     pub objective: super::ObjectiveArgs,
@@ -158,8 +159,8 @@ impl CvArgs {
         r.runs = self.runs;
         r.ga_population = self.ga_population;
         r.ga_generations = self.ga_generations;
-        r.render_size = self.render_size;
-        r.seed = g.seed;
+        r.render_size = self.render_size.unwrap_or(r.render_size);
+        r.seed = g.seed_or(r.seed);
         r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
         Ok(r)
@@ -184,20 +185,15 @@ impl CvArgs {
             r.noises = self.noise.clone();
         }
         if let Some(t) = &self.test {
-            if let Some(f) = self.folds {
-                anyhow::bail!(
-                    "--folds {f} does not apply with --test (a fixed split is one fold); leave one out"
-                );
-            }
             r.test = test_names(t)?;
         }
-        r.folds = self.folds.unwrap_or(r.folds);
+        r.folds = self.folds;
         r.candidates_per_step = self.candidates_per_step;
         r.shortlist = self.shortlist;
         r.restarts = self.restarts;
-        r.render_size = self.render_size;
+        r.render_size = self.render_size.unwrap_or(r.render_size);
         r.grid = self.grid.grid()?;
-        r.seed = g.seed;
+        r.seed = g.seed_or(r.seed);
         r.objective = self.objective.setting();
         r.appearance = !self.no_appearance;
         r.ridge = !self.no_ridge;

@@ -90,7 +90,7 @@ impl FitArgs {
         r.grid = self.grid.grid()?;
         r.solver = self.solver.into();
         r.gram = self.gram.into();
-        r.seed = g.seed;
+        r.seed = g.seed_or(r.seed);
         r.objective = self.objective.setting();
         Ok(r)
     }

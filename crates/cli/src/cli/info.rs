@@ -19,7 +19,7 @@ pub(crate) struct InfoArgs {
 
 /// Prints the back-end, adapter, driver and limits.
 pub(crate) fn run(g: &Global, a: InfoArgs) -> anyhow::Result<()> {
-    let backend = BackendChoice::from(g.backend);
+    let backend = g.backend_choice();
     let gpu = if backend == BackendChoice::Cpu {
         None
     } else {

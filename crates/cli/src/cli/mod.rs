@@ -33,19 +33,30 @@ pub(crate) struct Cli {
     pub command: Command,
 }
 
-/// Options every subcommand takes.
+/// Options every subcommand takes, as given (`None`: not given). A command that draws
+/// nothing at random refuses `--seed`, and one that never opens a back-end refuses
+/// `--backend gpu` ([`Command::unused_globals`]).
 #[derive(Args, Debug, Clone)]
 pub(crate) struct Global {
-    /// Compute back-end: auto (a hardware GPU if present, else CPU), gpu (any adapter,
-    /// lavapipe included) or cpu.
-    #[arg(long, global = true, default_value = "auto")]
-    pub backend: values::BackendArg,
-    /// Seed of every random step.
-    #[arg(long, global = true, default_value_t = 1)]
-    pub seed: u64,
+    #[arg(long, global = true, help = with_default("Compute back-end: auto (a hardware GPU if present, else CPU), gpu (any adapter, lavapipe included) or cpu", brdf_basis::BackendChoice::default().as_str()))]
+    pub backend: Option<values::BackendArg>,
+    #[arg(long, global = true, help = with_default("Seed of every random step", brdf_basis::run::SEED))]
+    pub seed: Option<u64>,
     /// No progress bars.
     #[arg(long, global = true)]
     pub quiet: bool,
+}
+
+impl Global {
+    /// `--backend` with its default.
+    pub(crate) fn backend_choice(&self) -> brdf_basis::BackendChoice {
+        self.backend.map(Into::into).unwrap_or_default()
+    }
+
+    /// `--seed`, or the request's default `seed` when not given.
+    pub(crate) fn seed_or(&self, default: u64) -> u64 {
+        self.seed.unwrap_or(default)
+    }
 }
 
 /// Which grid cells a reduction runs over and how they are weighted (shared by
@@ -145,8 +156,53 @@ pub(crate) enum Command {
     Merge(merge::MergeArgs),
 }
 
+impl Command {
+    /// The command's name, why it does not use `--seed` and why it never opens a back-end
+    /// (`None`: it uses it; `select` refuses `--seed` by method in its request and
+    /// `--backend gpu` with `--distances`).
+    fn unused_globals(&self) -> (&'static str, Option<&'static str>, Option<&'static str>) {
+        const NOTHING_RANDOM: Option<&str> = Some("it draws nothing at random");
+        match self {
+            Command::Info(_) => ("info", NOTHING_RANDOM, None),
+            Command::Tabulate(_) => ("tabulate", NOTHING_RANDOM, None),
+            Command::Distance(_) => ("distance", NOTHING_RANDOM, None),
+            Command::Select(_) | Command::Reproduce(_) | Command::Cv(_) | Command::Plan(_) => {
+                ("", None, None)
+            }
+            Command::Fit(a) if a.samples.is_some() => (
+                "fit --samples",
+                None,
+                Some("the fit from samples solves its least-squares problem on the CPU (no grid cells to tabulate, no Gram matrix)"),
+            ),
+            Command::Fit(_) => ("fit", NOTHING_RANDOM, None),
+            Command::Render(_) => ("render", NOTHING_RANDOM, Some("it renders on the CPU")),
+            Command::Plot(_) => ("plot", NOTHING_RANDOM, Some("it draws on the CPU")),
+            Command::Merge(_) => (
+                "merge",
+                NOTHING_RANDOM,
+                Some("it copies the tiles' rows, computing nothing"),
+            ),
+        }
+    }
+}
+
+/// Refuses, naming the flag, before any work: `--seed` given to a command that draws
+/// nothing at random, and `--backend gpu` given to one that never opens a back-end (it
+/// would run on the CPU without a word; `--backend cpu` and `auto` are what it does).
+fn refuse_unused_globals(g: &Global, c: &Command) -> anyhow::Result<()> {
+    let (name, seed, cpu_only) = c.unused_globals();
+    if let (Some(s), Some(why)) = (g.seed, seed) {
+        anyhow::bail!("--seed {s} does not apply to {name}: {why}; leave it out");
+    }
+    if let (Some(values::BackendArg::Gpu), Some(why)) = (g.backend, cpu_only) {
+        anyhow::bail!("--backend gpu does not apply to {name}: {why}; leave it out");
+    }
+    Ok(())
+}
+
 /// Runs the parsed command line.
 pub(crate) fn run(cli: Cli) -> anyhow::Result<()> {
+    refuse_unused_globals(&cli.global, &cli.command)?;
     match cli.command {
         Command::Info(a) => info::run(&cli.global, a),
         Command::Tabulate(a) => tabulate::run(&cli.global, a),
@@ -182,7 +238,7 @@ fn mixing_note(coll: &Collection) -> Option<String> {
 
 /// Opens the back-end chosen by `--backend`.
 pub(crate) fn backend(g: &Global) -> anyhow::Result<Box<dyn Backend>> {
-    let b = brdf_basis::backend::open(g.backend.into())?;
+    let b = brdf_basis::backend::open(g.backend_choice())?;
     if !g.quiet {
         eprintln!("backend: {}", b.name());
     }

@@ -101,7 +101,7 @@ impl ReproduceArgs {
         r.selection = !self.no_selection;
         r.acquisition = !self.no_acquisition;
         r.appearance = !self.no_appearance;
-        r.seed = g.seed;
+        r.seed = g.seed_or(r.seed);
         r
     }
 }

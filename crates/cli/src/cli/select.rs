@@ -135,6 +135,9 @@ pub(crate) fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
     let req = a.request(g)?;
     req.check()?;
     req.check_source(!a.collection.is_empty())?;
+    if a.distances.is_some() && g.backend == Some(super::values::BackendArg::Gpu) {
+        anyhow::bail!("--backend gpu does not apply with --distances: a saved matrix is clustered on the CPU, with no distance to compute; leave it out");
+    }
     // Every output path before the work: a typo costs no computation.
     let mut plan = OutputPlan::new(&a.collection);
     if let Some(d) = &a.distances {

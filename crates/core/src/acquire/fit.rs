@@ -324,7 +324,6 @@ pub fn fit_samples(
             what: "the samples".into(),
         });
     }
-    let objective = objective.check().map_err(crate::fit::FitError::from)?;
     let d = Design::at_samples(coll, basis, samples)?;
     fit_design(&d, samples, objective)
 }

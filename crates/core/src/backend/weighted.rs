@@ -27,11 +27,30 @@ mod gemm;
 pub const WEIGHTED_TOLERANCE: f64 = 1e-4;
 
 /// The objective's per-cell weight factor `phi` (SPEC 11), times the cell weight `w_s`.
+///
+/// Valid when built: `relative` is made by [`TargetWeight::relative`] (or
+/// [`ObjectiveKind::weight`]), the one place its `eps` is checked. Its variant is
+/// `#[non_exhaustive]`, so that no other crate can build it with an unchecked `eps`; the
+/// back-ends and algorithms take a `TargetWeight` as valid:
+///
+/// ```
+/// use brdf_basis_core::backend::weighted::TargetWeight;
+/// let w = TargetWeight::relative(0.02).unwrap();
+/// assert_eq!(w.eps(), Some(0.02));
+/// assert!(TargetWeight::relative(0.0).is_err());
+/// ```
+///
+/// ```compile_fail
+/// use brdf_basis_core::backend::weighted::TargetWeight;
+/// // Not outside the core crate: `eps` would go unchecked.
+/// let w = TargetWeight::Relative { eps: 0.0 };
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum TargetWeight {
     /// `l2`: `phi = 1` (SPEC 5).
     L2,
-    /// `relative`: `phi = 1 / (max(y, 0) + eps)^2`.
+    /// `relative`: `phi = 1 / (max(y, 0) + eps)^2`. Built by [`TargetWeight::relative`].
+    #[non_exhaustive]
     Relative {
         /// `eps` in the reflectance units of SPEC 2 (SPEC 11's default 0.01).
         eps: f64,
@@ -62,12 +81,16 @@ impl ObjectiveKind {
         ObjectiveKind::Log,
     ];
 
-    /// The objective with `eps` (used by `relative` only).
-    pub fn weight(self, eps: f64) -> TargetWeight {
+    /// The objective with `eps` (used by `relative` only, checked by
+    /// [`TargetWeight::relative`]).
+    ///
+    /// # Errors
+    /// [`BackendError::Invalid`] for `relative` with an `eps` outside its range.
+    pub fn weight(self, eps: f64) -> Result<TargetWeight, BackendError> {
         match self {
-            ObjectiveKind::L2 => TargetWeight::L2,
-            ObjectiveKind::Relative => TargetWeight::Relative { eps },
-            ObjectiveKind::Log => TargetWeight::Log,
+            ObjectiveKind::L2 => Ok(TargetWeight::L2),
+            ObjectiveKind::Relative => TargetWeight::relative(eps),
+            ObjectiveKind::Log => Ok(TargetWeight::Log),
         }
     }
 
@@ -136,44 +159,41 @@ impl TargetWeight {
         }
     }
 
-    /// The smallest `eps` of `relative` ([`Self::check`]): the weight `1 / eps^2` of a zero
-    /// reflectance stays at most 1e200.
+    /// The smallest `eps` of `relative` ([`Self::relative`]): the weight `1 / eps^2` of a
+    /// zero reflectance stays at most 1e200.
     pub const MIN_EPS: f64 = 1e-100;
-    /// The largest `eps` of `relative` ([`Self::check`]): the weight `1 / (f + eps)^2` of
-    /// the largest reflectance a fit carries (1e100, the samples files' bound; tabulated
+    /// The largest `eps` of `relative` ([`Self::relative`]): the weight `1 / (f + eps)^2`
+    /// of the largest reflectance a fit carries (1e100, the samples files' bound; tabulated
     /// rows are f32, below 3.5e38) stays at least 2.5e-201.
     pub const MAX_EPS: f64 = 1e100;
 
-    /// `relative` with `eps`, checked ([`Self::check`]).
+    /// `relative` with `eps`, the one place `eps` is checked: a number from
+    /// [`Self::MIN_EPS`] to [`Self::MAX_EPS`]. In that range the weights `1 / (f + eps)^2`
+    /// of every reflectance `f` from 0 to 1e100 lie between 2.5e-201 and 1e200, so that
+    /// neither they nor their products with cell weights and values underflow to 0 or
+    /// overflow in f64 where they are formed (the GPU kernel forms them in f32 and hands the
+    /// targets whose weights leave f32's range to the f64 reference). Beyond it an `eps`
+    /// can make every weight 0 (a fit of nothing, all black, whose objective residual of 0
+    /// would read as perfect) or infinite.
+    ///
+    /// # Errors
+    /// [`BackendError::Invalid`] naming the relative objective's `eps` and its range.
     pub fn relative(eps: f64) -> Result<Self, BackendError> {
-        TargetWeight::Relative { eps }.check()
-    }
-
-    /// Checks `eps`: a number from [`Self::MIN_EPS`] to [`Self::MAX_EPS`]. In that range
-    /// the weights `1 / (f + eps)^2` of every reflectance `f` from 0 to 1e100 lie between
-    /// 2.5e-201 and 1e200, so that neither they nor their products with cell weights and
-    /// values underflow to 0 or overflow in f64 where they are formed (the GPU kernel forms
-    /// them in f32 and hands the targets whose weights leave f32's range to the f64
-    /// reference). Beyond it an `eps` can make every weight 0 (a fit of nothing, all black,
-    /// whose objective residual of 0 would read as perfect) or infinite.
-    pub fn check(self) -> Result<Self, BackendError> {
-        match self {
-            TargetWeight::Relative { eps } if !(eps.is_finite() && eps > 0.0) => {
-                Err(BackendError::Invalid(format!(
-                    "the relative objective's eps must be a positive number, not {eps}"
-                )))
-            }
-            TargetWeight::Relative { eps } if !(Self::MIN_EPS..=Self::MAX_EPS).contains(&eps) => {
-                Err(BackendError::Invalid(format!(
-                    "the relative objective's eps must lie between 1e-100 and 1e100, not {eps:e}: beyond that range its weights 1/(f + eps)^2 {} in f64 (inside it they stay between 1e-201 and 1e200 for every reflectance from 0 to 1e100)",
-                    match eps < Self::MIN_EPS {
-                        true => "overflow where f is small",
-                        false => "underflow to 0, which would fit nothing and read as a perfect fit",
-                    }
-                )))
-            }
-            w => Ok(w),
+        if !(eps.is_finite() && eps > 0.0) {
+            return Err(BackendError::Invalid(format!(
+                "the relative objective's eps must be a positive number, not {eps}"
+            )));
         }
+        if !(Self::MIN_EPS..=Self::MAX_EPS).contains(&eps) {
+            return Err(BackendError::Invalid(format!(
+                "the relative objective's eps must lie between 1e-100 and 1e100, not {eps:e}: beyond that range its weights 1/(f + eps)^2 {} in f64 (inside it they stay between 1e-201 and 1e200 for every reflectance from 0 to 1e100)",
+                match eps < Self::MIN_EPS {
+                    true => "overflow where f is small",
+                    false => "underflow to 0, which would fit nothing and read as a perfect fit",
+                }
+            )));
+        }
+        Ok(TargetWeight::Relative { eps })
     }
 }
 
@@ -264,7 +284,6 @@ pub fn reference<B: Backend + ?Sized>(
     weight: TargetWeight,
     progress: super::Progress<'_>,
 ) -> Result<WeightedSystems, BackendError> {
-    let weight = weight.check()?;
     let m = basis.len() + 1;
     let mut values = vec![0f64; targets.len() * WeightedSystems::stride_for(m)];
     let mut done = 0usize;
@@ -313,7 +332,6 @@ pub(crate) fn reference_per_channel_by(
     weight: TargetWeight,
     progress: super::Progress<'_>,
 ) -> Result<[WeightedSystems; 3], BackendError> {
-    let weight = weight.check()?;
     let (k, t) = (basis[0].len(), targets[0].len());
     if basis.iter().any(|b| b.len() != k) || targets.iter().any(|y| y.len() != t) {
         return Err(BackendError::Invalid(
@@ -357,7 +375,6 @@ pub(crate) fn reference_scalar<B: Backend + ?Sized>(
     progress: super::Progress<'_>,
 ) -> Result<WeightedSystems, BackendError> {
     use rayon::prelude::*;
-    let weight = weight.check()?;
     let m = basis.len() + 1;
     let stride = WeightedSystems::stride_for(m);
     let mut values = vec![0f64; targets.len() * stride];

@@ -171,7 +171,7 @@ pub fn run(
         progress(i as u64, total);
         let op = ObjectiveParams::default()
             .stride(p.stride)
-            .objective(kind.weight(p.eps));
+            .objective(kind.weight(p.eps).map_err(crate::fit::FitError::from)?);
         let obj = Objective::new(backend, coll, &op.check()?, &|_, _| {})?;
         let vp = CvParams::default()
             .methods(vec![CvMethod::Greedy])
@@ -314,7 +314,7 @@ fn figure_rows(
             } else {
                 let fp = ObjectiveParams::default()
                     .stride(p.stride)
-                    .objective(kind.weight(p.eps))
+                    .objective(kind.weight(p.eps).map_err(crate::fit::FitError::from)?)
                     .fit_params();
                 let f = crate::fit::fit(backend, coll, &basis, &[t], &fp, &|_, _| {})?;
                 f[0].coefficients.clone()

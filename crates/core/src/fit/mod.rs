@@ -390,7 +390,7 @@ pub fn fit(
             iterations: [0; 3],
         })
         .collect();
-    let weight = p.objective.check()?;
+    let weight = p.objective;
     let weighted = weight != TargetWeight::L2;
     // Per target, the objective's sums `sum_c sum_s W r^2` and `sum_c sum_s W b^2`.
     let mut objective_sums = vec![[0.0f64; 2]; targets.len()];

@@ -71,7 +71,7 @@ pub fn empirical(
     if n < 2 {
         return Err(FitError::EmptyBasis.into());
     }
-    let objective = p.fit.objective.check().map_err(FitError::from)?;
+    let objective = p.fit.objective;
     if objective != TargetWeight::L2 {
         let all: Vec<usize> = (0..n).collect();
         let cells = fit_cells(coll, &all, &p.fit)?;

@@ -130,10 +130,7 @@ impl<'a> Shared<'a> {
         };
         // The objective's fits and plans; the scores (rho, MAE: SPEC 10) are l2's.
         let fp_obj = p.objective.fit_params();
-        let weight = fp_obj
-            .objective
-            .check()
-            .map_err(crate::fit::FitError::from)?;
+        let weight = fp_obj.objective;
         let fp = FitParams {
             objective: TargetWeight::L2,
             ..fp_obj.clone()

@@ -348,11 +348,6 @@ pub(crate) fn check(
             expected: "at least 1".into(),
         });
     }
-    // The objective's rule, before any work (its shared weights are formed unchecked).
-    p.fit
-        .objective
-        .check()
-        .map_err(crate::fit::FitError::from)?;
     Ok(())
 }
 

@@ -109,9 +109,6 @@ impl ObjectiveParams {
                 expected: crate::merl::GridSpec::STRIDE_RULE,
             });
         }
-        if let Err(e) = self.objective.check() {
-            return Err(SelectionError::Fit(e.into()));
-        }
         Ok(ValidObjectiveParams(self.clone()))
     }
     /// The matching fit parameters (exact solver).
