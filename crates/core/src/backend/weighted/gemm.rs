@@ -14,8 +14,8 @@
 //! relative to the sum of the terms' magnitudes).
 //!
 //! Work is cache-blocked: per task of a few targets, blocks of [`BLOCK`] cells whose `P`
-//! rows (and the task's `W` rows) stay in L2, tiles of four targets by twelve (`G`) or
-//! eight (`r`) columns held in registers, so that the loop is one broadcast per target
+//! rows (and the task's `W` rows) stay in L2, tiles of four targets by eight (`G` and
+//! `r`) columns held in registers, so that the loop is one broadcast per target
 //! and one load per four columns for every four-by-four fused multiply-adds: the products
 //! run near the machine's FMA peak, where the scalar form stored every sum to memory after
 //! each cell.
