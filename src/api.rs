@@ -72,7 +72,7 @@ pub enum Error {
     SelectFile(#[from] crate::select::SelectFileError),
     /// A command's request refused before any work ([`crate::run`]).
     #[error(transparent)]
-    Request(#[from] crate::error::RequestError),
+    Request(#[from] crate::error::Refusal),
     /// Fitting materials by a basis.
     #[error(transparent)]
     Fit(#[from] crate::fit::FitError),

@@ -22,7 +22,7 @@ fn grid(m: &mut Map<String, Value>, g: bb::merl::GridSpec) {
 fn objective(m: &mut Map<String, Value>) -> PyResult<()> {
     let w = bb::run::ObjectiveSetting::default()
         .weight()
-        .map_err(py_err)?;
+        .map_err(lib_err)?;
     m.insert("objective".into(), w.kind().name().into());
     m.insert("eps".into(), w.eps().into());
     Ok(())

@@ -11,8 +11,9 @@ use brdf_basis::backend::weighted::ObjectiveKind;
 use brdf_basis::distance::Metric;
 use brdf_basis::merl::GridSpec;
 use brdf_basis::run::{
-    AcquisitionRequest, CvRequest, DistanceOutput, DistanceRequest, FitRequest, FitSamplesRequest,
-    FitTargets, ObjectiveSetting, PlanRequest, ReproduceRequest, SelectMethod, SelectRequest,
+    AcquisitionRequest, Ctx, CvRequest, DistanceOutput, DistanceRequest, FitRequest,
+    FitSamplesRequest, FitTargets, ObjectiveSetting, PlanRequest, ReproduceRequest, Request,
+    SelectMethod, SelectRequest,
 };
 use brdf_basis::select::cv::CvMethod;
 use brdf_basis::{Collection, CpuBackend, Criterion};
@@ -79,9 +80,9 @@ fn distance_door() {
     let mut req = DistanceRequest::default();
     req.metric = Metric::BrdfIt;
     req.grid = grid(9);
-    let p = req.params(&coll).expect("params");
+    req.params(&coll).expect("params");
     let DistanceOutput::Matrix(m) = req
-        .run(&CpuBackend::new(), &coll, &p, &|_, _| {})
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
         .expect("distance")
     else {
         panic!("a tile");
@@ -123,7 +124,7 @@ fn select_door() {
     (req.k, req.runs, req.seed, req.grid) = (Some(3), Some(2), Some(4), grid(8));
     let coll = Collection::embedded_default();
     let out = req
-        .run(&CpuBackend::new(), &coll, &|_, _| {})
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
         .expect("select");
     assert_eq!(read(d.path(), "s.json"), out.to_json());
     let cli = cli_refusal(
@@ -164,7 +165,7 @@ fn fit_door() {
     req.targets = FitTargets::Named(names(&["polished-copper", "gloss-black-enamel"]));
     (req.grid, req.appearance) = (grid(6), false);
     let coll = Collection::embedded_default();
-    let out = req.run(&CpuBackend::new(), &coll, &|_, _| {}).expect("fit");
+    let out = req.run(&Ctx::new(&CpuBackend::new(), &coll)).expect("fit");
     assert_eq!(read(d.path(), "f.json"), pretty(&out.file));
     let cli = cli_refusal(
         d.path(),
@@ -223,7 +224,7 @@ fn fit_samples_door() {
     );
     let mut req = FitSamplesRequest::new(names(&BASIS), d.path().join("s.csv"));
     let coll = Collection::embedded_default();
-    let out = req.run(&coll).expect("fit --samples");
+    let out = req.run(&Ctx::collection(&coll)).expect("fit --samples");
     // The file records the samples file's path as given: relative on the command line.
     let mut file = out.file;
     file.fitted_from = Some("s.csv".into());
@@ -280,7 +281,7 @@ fn plan_door() {
     let mut req = PlanRequest::new(names(&BASIS));
     (req.n, req.criterion) = (4, Criterion::Condition);
     let coll = Collection::embedded_default();
-    let plan = req.run(&CpuBackend::new(), &coll).expect("plan");
+    let plan = req.run(&Ctx::new(&CpuBackend::new(), &coll)).expect("plan");
     assert_eq!(read(d.path(), "p.json"), pretty(&plan));
     let cli = cli_refusal(
         d.path(),
@@ -337,7 +338,7 @@ fn cv_door() {
     req.appearance = false;
     let coll = Collection::embedded_default();
     req.check_count(coll.len()).expect("check");
-    let res = req.run(&CpuBackend::new(), &coll, &|_, _| {}).expect("cv");
+    let res = req.run(&Ctx::new(&CpuBackend::new(), &coll)).expect("cv");
     assert_eq!(read(d.path(), "c.json"), pretty(&res));
     let cli = cli_refusal(
         d.path(),
@@ -403,7 +404,7 @@ fn acquisition_door() {
     req.appearance = false;
     let coll = Collection::embedded_default();
     let res = req
-        .run(&CpuBackend::new(), &coll)
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
         .expect("cv --acquisition");
     assert_eq!(read(d.path(), "a.json"), pretty(&res));
     let cli = cli_refusal(
@@ -496,7 +497,7 @@ fn reproduce_door_refusal() {
     let mut req = ReproduceRequest::default();
     req.cv_folds = 0;
     req.cv_runs = Some(3);
-    assert_eq!(cli, req.check_settings().expect_err("cv-runs").to_string());
+    assert_eq!(cli, req.check().expect_err("cv-runs").to_string());
     assert!(
         cli.starts_with("--cv-runs 3 applies to the cross-validation"),
         "{cli}"
