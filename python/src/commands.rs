@@ -238,7 +238,7 @@ pub(crate) fn plan_json<'py>(
     req.candidates_per_step = candidates_per_step;
     req.shortlist = shortlist;
     req.restarts = restarts;
-    set(&mut req.seed, seed);
+    req.seed = seed;
     req.check().map_err(lib_err)?;
     let backend = open_backend(backend)?;
     let plan = run_long(py, progress, "plan", |pr| {

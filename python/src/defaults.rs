@@ -65,7 +65,7 @@ pub(crate) fn defaults_json() -> PyResult<String> {
     let p = bb::run::PlanRequest::new(Vec::new());
     let mut m = Map::new();
     m.insert("criterion".into(), name(p.criterion));
-    m.insert("seed".into(), p.seed.into());
+    m.insert("seed".into(), p.seed().into());
     objective(&mut m)?;
     m.insert("backend".into(), backend.clone());
     all.insert("plan".into(), m.into());

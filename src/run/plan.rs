@@ -35,8 +35,11 @@ pub struct PlanRequest {
     /// `--restarts`: error, seeded greedy paths, 1 to 64 (default:
     /// [`PlanParams::default`]'s).
     pub restarts: Option<usize>,
-    /// `--seed`.
-    pub seed: u64,
+    /// `--seed`: of the random plans, the candidate subsets of the error and condition
+    /// plans and the error plans' exploration (default [`super::SEED`]); a condition plan
+    /// examining every candidate (`--candidates-per-step 0`) draws nothing at random and
+    /// refuses it.
+    pub seed: Option<u64>,
     /// `--objective` and `--eps` (SPEC 11): the weights of the plan's rows and of its
     /// training fits, as given.
     pub objective: ObjectiveSetting,
@@ -77,7 +80,7 @@ impl PlanRequest {
             candidates_per_step: None,
             shortlist: None,
             restarts: None,
-            seed: d.seed,
+            seed: None,
             objective: ObjectiveSetting::default(),
         }
     }
@@ -93,6 +96,11 @@ impl PlanRequest {
         self.shortlist.unwrap_or(PlanParams::default().shortlist)
     }
 
+    /// `--seed` with its default.
+    pub fn seed(&self) -> u64 {
+        self.seed.unwrap_or(PlanParams::default().seed)
+    }
+
     /// `--restarts` with its default.
     pub fn restarts(&self) -> usize {
         self.restarts.unwrap_or(PlanParams::default().restarts)
@@ -105,7 +113,7 @@ impl PlanRequest {
             criterion: self.criterion,
             candidates_per_step: self.candidates_per_step(),
             shortlist: self.shortlist(),
-            seed: self.seed,
+            seed: self.seed(),
             fit: FitParams {
                 objective: self.objective.weight()?,
                 ..FitParams::default()
@@ -119,8 +127,9 @@ impl Request for PlanRequest {
     type Output = Plan;
 
     /// The rules of the settings: a criterion whose plan `fit --samples` can use, no
-    /// setting the criterion does not use (`criterion_settings`), 1 to 64 restarts, the
-    /// objective's ([`ObjectiveSetting::weight`]).
+    /// setting the criterion does not use (`criterion_settings`), no `--seed` for a plan
+    /// that draws nothing at random, 1 to 64 restarts, the objective's
+    /// ([`ObjectiveSetting::weight`]).
     fn check(&self) -> std::result::Result<(), Refusal> {
         check_criterion(self.criterion)?;
         let given = [
@@ -129,6 +138,16 @@ impl Request for PlanRequest {
             self.restarts.is_some(),
         ];
         criterion_settings("--criterion", &[self.criterion], given)?;
+        if let (Some(s), Criterion::Condition, 0) =
+            (self.seed, self.criterion, self.candidates_per_step())
+        {
+            refuse!(Refusal::DoesNotApply {
+                settings: vec!["--seed"],
+                shown: format!("--seed {s}"),
+                context: "to plan --criterion condition --candidates-per-step 0".into(),
+                why: ": it examines every candidate at each step and draws nothing at random; leave it out".into(),
+            });
+        }
         check_restarts(self.restarts())?;
         self.objective.weight()?;
         Ok(())

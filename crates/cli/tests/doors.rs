@@ -306,6 +306,113 @@ fn plan_door() {
     );
 }
 
+/// `plan --seed` with a condition plan that examines every candidate
+/// (`--candidates-per-step 0`: nothing drawn at random) is refused by name, by the
+/// binary and the library alike, as other unused `--seed`s are; with a subset per step
+/// the seed draws it and is taken.
+#[test]
+fn plan_refuses_a_seed_it_would_not_use() {
+    let d = tempfile::tempdir().expect("tmp");
+    let b = BASIS.join(",");
+    let args = |cps: &'static str| {
+        [
+            "--seed",
+            "7",
+            "plan",
+            "--basis",
+            "",
+            "-n",
+            "2",
+            "--criterion",
+            "condition",
+            "--candidates-per-step",
+            cps,
+            "--out",
+            "p.csv",
+        ]
+    };
+    let mut a = args("0");
+    a[4] = &b;
+    let cli = cli_refusal(d.path(), &a);
+    assert_eq!(
+        cli,
+        "--seed 7 does not apply to plan --criterion condition --candidates-per-step 0: it examines every candidate at each step and draws nothing at random; leave it out"
+    );
+    let mut req = PlanRequest::new(names(&BASIS));
+    (req.criterion, req.candidates_per_step, req.seed) = (Criterion::Condition, Some(0), Some(7));
+    let e = req.check().expect_err("seed");
+    assert_eq!(cli, e.to_string());
+    assert!(
+        matches!(&e, brdf_basis::run::Refusal::DoesNotApply { settings, .. } if settings[..] == ["--seed"]),
+        "{e:?}"
+    );
+    req.seed = None;
+    req.check().expect("condition, every candidate, no seed");
+    (req.candidates_per_step, req.seed) = (Some(50), Some(7));
+    req.check().expect("condition on a seeded subset");
+    let mut a = args("50");
+    a[4] = &b;
+    cli_ok(d.path(), &a);
+}
+
+/// `tabulate --backend gpu` of a measured material (a table copied as it is, on the CPU)
+/// is refused by name, as `render`, `plot` and `merge` refuse it; an analytic material
+/// is evaluated on the back-end and takes it (not run here: CI's GPU may be absent).
+#[test]
+fn tabulate_refuses_the_gpu_for_a_table() {
+    let d = tempfile::tempdir().expect("tmp");
+    cli_ok(
+        d.path(),
+        &[
+            "tabulate",
+            "--material",
+            "polished-gold",
+            "--out",
+            "gold.binary",
+        ],
+    );
+    // `--backend gpu` alone (the harness's `bin_cpu` gives `--backend cpu`).
+    let o = crate::common::bin_quiet()
+        .args([
+            "tabulate",
+            "gold.binary",
+            "--material",
+            "gold",
+            "--backend",
+            "gpu",
+            "--out",
+            "copy.binary",
+        ])
+        .current_dir(d.path())
+        .output()
+        .expect("run brdf-basis");
+    assert!(
+        !o.status.success(),
+        "tabulate --backend gpu of a table succeeded"
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    let cli = err
+        .lines()
+        .find_map(|l| l.strip_prefix("error: "))
+        .unwrap_or_else(|| panic!("no `error: ` line in {err}"));
+    assert_eq!(
+        cli,
+        "--backend gpu does not apply to tabulate --material gold: a measured material is a table on the MERL grid, copied as it is on the CPU with nothing to evaluate; leave it out"
+    );
+    assert!(!d.path().join("copy.binary").exists());
+    cli_ok(
+        d.path(),
+        &[
+            "tabulate",
+            "gold.binary",
+            "--material",
+            "gold",
+            "--out",
+            "copy.binary",
+        ],
+    );
+}
+
 /// `cv`: the JSON text; `--runs` with greedy alone, refused.
 #[test]
 fn cv_door() {

@@ -168,7 +168,7 @@ fn every_seed_default_is_the_one() {
     use brdf_basis::run::{FitSamplesRequest, ReproduceRequest, SEED};
     let seeds = [
         SelectRequest::new(SelectMethod::Kmedoids).seed(),
-        PlanRequest::new(Vec::new()).seed,
+        PlanRequest::new(Vec::new()).seed(),
         CvRequest::default().seed,
         AcquisitionRequest::default().seed,
         ReproduceRequest::default().seed,

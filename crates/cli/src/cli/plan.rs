@@ -68,7 +68,7 @@ impl PlanArgs {
         r.candidates_per_step = self.candidates_per_step;
         r.shortlist = self.shortlist;
         r.restarts = self.restarts;
-        r.seed = g.seed_or(r.seed);
+        r.seed = g.seed;
         r.objective = self.objective.setting();
         r
     }
