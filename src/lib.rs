@@ -61,6 +61,8 @@
 #![allow(clippy::result_large_err)]
 
 mod api;
+mod errors;
+mod table;
 pub use api::*;
 /// The executor the examples block on wgpu's futures with.
 #[cfg(feature = "gpu")]
