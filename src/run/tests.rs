@@ -110,8 +110,10 @@ fn refusals_of_the_other_requests_are_variants() {
         "{e}"
     );
 
-    let mut a = AcquisitionRequest::default();
-    a.ns = vec![5, 5];
+    let a = AcquisitionRequest {
+        ns: vec![5, 5],
+        ..Default::default()
+    };
     assert_eq!(
         a.check(),
         Err(Refusal::Duplicate {

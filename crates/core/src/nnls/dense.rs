@@ -52,10 +52,7 @@ pub fn solve_dense(
     }
     let bb: f64 = b.iter().map(|x| x * x).sum();
     let problem = super::GramProblem::new(cols, &g, &h, bb)?;
-    Ok(super::lawson_hanson::solve(
-        &problem,
-        &super::lawson_hanson::LhParams::default(),
-    )?)
+    super::lawson_hanson::solve(&problem, &super::lawson_hanson::LhParams::default())
 }
 
 #[cfg(test)]
