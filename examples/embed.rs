@@ -12,7 +12,7 @@
 //! Only the crate-root facade and the requests (`brdf_basis::run`) are used, and wgpu and
 //! pollster through `brdf_basis`.
 
-use brdf_basis::run::{DistanceOutput, DistanceRequest, FitRequest};
+use brdf_basis::run::{Ctx, DistanceOutput, DistanceRequest, FitRequest, Request};
 use brdf_basis::{pollster, wgpu};
 use brdf_basis::{Backend, Collection, CpuBackend, Distances, GramMode};
 use brdf_basis::{DistanceMatrix, KMedoidsInit, KMedoidsParams, Metric};
@@ -25,7 +25,7 @@ fn distances(
     let mut req = DistanceRequest::default();
     req.metric = Metric::BrdfIt;
     req.grid = brdf_basis::merl::GridSpec::default().with_stride(4)?;
-    match req.run(backend, coll, &req.params(coll)?, &|_, _| {})? {
+    match req.run(&Ctx::new(backend, coll))? {
         DistanceOutput::Matrix(d) => Ok(d),
         _ => unreachable!("no --tile: the whole matrix"),
     }
@@ -112,7 +112,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     fr.grid = brdf_basis::merl::GridSpec::default().with_stride(4)?;
     fr.gram = GramMode::Grid;
     fr.appearance = false;
-    let fits = fr.run(&gpu, &coll, &|_, _| {})?.fits;
+    let fits = fr.run(&Ctx::new(&gpu, &coll))?.fits;
     let mean = fits.iter().map(|f| f.mae).sum::<f64>() / fits.len() as f64;
     println!("fitted {} materials, mean MAE {mean:.4}", fits.len());
     if fits.len() != n - basis.len() || !mean.is_finite() {

@@ -24,7 +24,8 @@
 //! [`fit_from_arrays`] at the root.
 //!
 //! ```
-//! use brdf_basis::run::{DistanceOutput, DistanceRequest, FitRequest, SelectMethod, SelectRequest};
+//! use brdf_basis::run::{Ctx, DistanceOutput, DistanceRequest, FitRequest, Request};
+//! use brdf_basis::run::{SelectMethod, SelectRequest};
 //! use brdf_basis::{Collection, CpuBackend, KMedoidsParams};
 //!
 //! # fn main() -> brdf_basis::Result<()> {
@@ -34,16 +35,16 @@
 //! let grid = brdf_basis::merl::GridSpec::default().with_stride(8)?;
 //! let mut dr = DistanceRequest::default();
 //! dr.grid = grid;
-//! let DistanceOutput::Matrix(d) = dr.run(&cpu, &coll, &dr.params(&coll)?, &|_, _| {})? else {
+//! let DistanceOutput::Matrix(d) = dr.run(&Ctx::new(&cpu, &coll))? else {
 //!     unreachable!("no --tile")
 //! };
 //! let km = KMedoidsParams::new(3).fit(&d)?;
 //! let mut sr = SelectRequest::new(SelectMethod::Greedy);
 //! (sr.k, sr.grid) = (Some(3), grid);
-//! let greedy = sr.run(&cpu, &coll, &|_, _| {})?;
+//! let greedy = sr.run(&Ctx::new(&cpu, &coll).progress(&|_done, _total| {}))?;
 //! let mut fr = FitRequest::new(greedy.basis().to_vec()); // every other material a target
 //! (fr.grid, fr.appearance) = (grid, false);
-//! let fits = fr.run(&cpu, &coll, &|_, _| {})?.fits;
+//! let fits = fr.run(&Ctx::new(&cpu, &coll))?.fits;
 //! println!("k-medoids {:?}, greedy {:?}: {} fits", km.medoids, greedy.basis(), fits.len());
 //! assert_eq!(fits.len(), coll.len() - 3);
 //! # Ok(())
@@ -60,6 +61,8 @@
 #![allow(clippy::result_large_err)]
 
 mod api;
+mod errors;
+mod table;
 pub use api::*;
 /// The executor the examples block on wgpu's futures with.
 #[cfg(feature = "gpu")]
@@ -78,7 +81,7 @@ pub mod run;
 
 /// Plans where to measure a new material (SPEC 10): [`crate::acquire::plan`] on the basis
 /// columns `basis`, scored on `targets`, over `cands`, after the rule of
-/// [`crate::run::PlanRequest::check`] on the criterion: `nielsen` (the peer baseline,
+/// [`crate::run::PlanRequest`]'s [`check`](crate::run::Request::check) on the criterion: `nielsen` (the peer baseline,
 /// which reconstructs without a basis) is refused, as `brdf-basis plan` refuses it.
 ///
 /// # Errors

@@ -12,6 +12,7 @@ use brdf_basis::backend::cpu::CpuBackend;
 use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::FitParams;
+use brdf_basis::run::{Ctx, Request};
 use brdf_basis::select::ObjectiveParams;
 use std::f64::consts::FRAC_1_PI;
 
@@ -279,7 +280,7 @@ fn fit_samples_from_arrays_is_the_request_of_a_samples_file() {
     }
     std::fs::write(&csv, text).unwrap();
     let from_file = FitSamplesRequest::new(basis.clone(), csv)
-        .run(&coll)
+        .run(&Ctx::collection(&coll))
         .unwrap();
     let samples = Samples::Arrays {
         angles,
@@ -287,7 +288,7 @@ fn fit_samples_from_arrays_is_the_request_of_a_samples_file() {
         sigma: None,
     };
     let mut req = FitSamplesRequest::of(basis, samples);
-    let from_arrays = req.run(&coll).unwrap();
+    let from_arrays = req.run(&Ctx::collection(&coll)).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(from_arrays.fit.coefficients, from_file.fit.coefficients);
     assert_eq!(from_arrays.warnings, from_file.warnings);

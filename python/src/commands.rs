@@ -5,6 +5,7 @@
 #![allow(clippy::too_many_arguments)]
 
 use crate::*;
+use bb::run::{Ctx, Request};
 
 /// The distance matrix (N, N), float64, as `brdf-basis distance` writes it (the library's
 /// `run::DistanceRequest`).
@@ -24,10 +25,10 @@ pub(crate) fn distance_matrix<'py>(
     let mut req = bb::run::DistanceRequest::default();
     set(&mut req.metric, metric.map(parse).transpose()?);
     req.grid = grid(req.grid, mask, weighting, stride)?;
-    let valid = req.params(&coll).map_err(py_err)?;
+    req.params(&coll).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let d = run_long(py, progress, "distances", |pr| {
-        match req.run(backend.as_ref(), &coll, &valid, pr)? {
+        match req.run(&Ctx::new(backend.as_ref(), &coll).progress(pr))? {
             bb::run::DistanceOutput::Matrix(d) => Ok(d),
             _ => unreachable!("a request without a tile computes the whole matrix"),
         }
@@ -122,10 +123,10 @@ pub(crate) fn select_json<'py>(
     req.grid = grid(req.grid, mask, weighting, stride)?;
     req.seed = seed;
     req.objective = objective_of(objective, eps)?;
-    req.check().map_err(py_err)?;
+    req.check().map_err(lib_err)?;
     let backend = open_backend(backend)?;
     let out = run_long(py, progress, method, |pr| {
-        req.run(backend.as_ref(), &coll, pr)
+        req.run(&Ctx::new(backend.as_ref(), &coll).progress(pr))
     })?;
     Ok(out.to_json())
 }
@@ -197,10 +198,10 @@ pub(crate) fn fit_json<'py>(
     set(&mut req.gram, gram.map(gram_mode).transpose()?);
     req.objective = objective_of(objective, eps)?;
     set(&mut req.appearance, appearance);
-    req.check().map_err(py_err)?;
+    req.check().map_err(lib_err)?;
     let backend = open_backend(backend)?;
     let fitted = run_long(py, progress, "fit", |pr| {
-        req.run(backend.as_ref(), &coll, pr)
+        req.run(&Ctx::new(backend.as_ref(), &coll).progress(pr))
     })?;
     let text = serde_json::to_string_pretty(&fitted.file).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
@@ -237,11 +238,11 @@ pub(crate) fn plan_json<'py>(
     req.candidates_per_step = candidates_per_step;
     req.shortlist = shortlist;
     req.restarts = restarts;
-    set(&mut req.seed, seed);
-    req.check().map_err(py_err)?;
+    req.seed = seed;
+    req.check().map_err(lib_err)?;
     let backend = open_backend(backend)?;
     let plan = run_long(py, progress, "plan", |pr| {
-        req.run_with_progress(backend.as_ref(), &coll, pr)
+        req.run(&Ctx::new(backend.as_ref(), &coll).progress(pr))
     })?;
     let text = serde_json::to_string_pretty(&plan).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
@@ -279,8 +280,8 @@ pub(crate) fn fit_samples<'py>(
     let mut req = bb::run::FitSamplesRequest::of(basis, samples);
     req.objective = objective_of(objective, eps)?;
     set(&mut req.seed, seed);
-    req.check().map_err(py_err)?;
-    let out = req.run(&coll).map_err(py_err)?;
+    req.check().map_err(lib_err)?;
+    let out = req.run(&Ctx::collection(&coll)).map_err(py_err)?;
     let f = &out.fit;
     let flat: Vec<f64> = f.coefficients.iter().flatten().copied().collect();
     let coefficients = numpy::PyArray1::from_vec(py, flat)
@@ -339,7 +340,7 @@ pub(crate) fn cross_validate_json<'py>(
     req.check_count(coll.len()).map_err(py_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv", |pr| {
-        req.run(backend.as_ref(), &coll, pr)
+        req.run(&Ctx::new(backend.as_ref(), &coll).progress(pr))
     })?;
     let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")
@@ -394,10 +395,10 @@ pub(crate) fn acquisition_cv_json<'py>(
     req.render_size = render_size.unwrap_or(req.render_size);
     req.grid = grid(req.grid, mask, weighting, stride)?;
     set(&mut req.seed, seed);
-    req.check().map_err(py_err)?;
+    req.check().map_err(lib_err)?;
     let backend = open_backend(backend)?;
     let res = run_long(py, progress, "cv --acquisition", |pr| {
-        req.run_with_progress(backend.as_ref(), &coll, pr)
+        req.run(&Ctx::new(backend.as_ref(), &coll).progress(pr))
     })?;
     let text = serde_json::to_string_pretty(&res).map_err(|e| value_err(e.to_string()))?;
     Ok(text + "\n")

@@ -22,7 +22,7 @@ fn grid(m: &mut Map<String, Value>, g: bb::merl::GridSpec) {
 fn objective(m: &mut Map<String, Value>) -> PyResult<()> {
     let w = bb::run::ObjectiveSetting::default()
         .weight()
-        .map_err(py_err)?;
+        .map_err(lib_err)?;
     m.insert("objective".into(), w.kind().name().into());
     m.insert("eps".into(), w.eps().into());
     Ok(())
@@ -65,7 +65,7 @@ pub(crate) fn defaults_json() -> PyResult<String> {
     let p = bb::run::PlanRequest::new(Vec::new());
     let mut m = Map::new();
     m.insert("criterion".into(), name(p.criterion));
-    m.insert("seed".into(), p.seed.into());
+    m.insert("seed".into(), p.seed().into());
     objective(&mut m)?;
     m.insert("backend".into(), backend.clone());
     all.insert("plan".into(), m.into());

@@ -99,6 +99,16 @@ def test_plan_door(cli, cli_error, tmp_path):
     msg = cli_error("plan", "--basis", ",".join(BASIS), "--criterion", "random", "--shortlist", 3, "--out", tmp_path / "q.csv")
     py = refusal(lambda: bb.plan(coll(), BASIS, 4, criterion="random", shortlist=3, backend="cpu"))
     assert py == msg == "--shortlist applies to error plans, not to --criterion random"
+    # Issue 47: a condition plan over every candidate draws nothing at random.
+    msg = cli_error(
+        "--seed", 7, "plan", "--basis", ",".join(BASIS), "--criterion", "condition",
+        "--candidates-per-step", 0, "--out", tmp_path / "s.csv",
+    )
+    py = refusal(
+        lambda: bb.plan(coll(), BASIS, 2, criterion="condition", candidates_per_step=0, seed=7, backend="cpu")
+    )
+    assert py == msg
+    assert msg.startswith("--seed 7 does not apply to plan --criterion condition --candidates-per-step 0: ")
 
 
 def test_cv_door(cli, cli_error, tmp_path):

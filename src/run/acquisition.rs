@@ -1,10 +1,7 @@
 //! `cv --acquisition`: acquisition cross-validation (SPEC 10).
 
-use super::{check_restarts, ObjectiveSetting};
+use super::{check_restarts, refuse, Ctx, ObjectiveSetting, Refusal, Request};
 use crate::acquire::{acquisition_cv_with_progress, AcqCv, AcqCvParams, Criterion};
-use crate::backend::Backend;
-use crate::backend::Progress;
-use crate::collection::Collection;
 use crate::merl::GridSpec;
 use crate::select::cv::CvMethod;
 use crate::select::ObjectiveParams;
@@ -106,22 +103,29 @@ impl AcquisitionRequest {
             test: self.test.clone(),
         })
     }
+}
+
+impl Request for AcquisitionRequest {
+    type Output = AcqCv;
 
     /// The rules of the settings that need no collection (the objective's,
     /// [`ObjectiveSetting::weight`]; no plan setting that no plan of `--plans` uses; 1 to
     /// 64 restarts; noise levels from 0 to 1000; no plan,
     /// sample count or noise level listed twice, as `--methods` refuses a method listed
     /// twice: each would give a duplicate row); the others (folds, k, plans, n, noise) are
-    /// checked by [`Self::run`] before any work.
+    /// checked by [`Request::run`] before any work.
     ///
     /// # Errors
-    /// [`crate::error::RequestError`] naming the setting.
-    pub fn check(&self) -> Result<()> {
+    /// The [`Refusal`] naming the setting.
+    fn check(&self) -> std::result::Result<(), Refusal> {
         self.objective.weight()?;
         if let (false, Some(f)) = (self.test.is_empty(), self.folds) {
-            super::refuse!(
-                "--folds {f} does not apply with --test (a fixed split is one fold); leave one out"
-            );
+            refuse!(Refusal::DoesNotApply {
+                settings: vec!["--folds"],
+                shown: format!("--folds {f}"),
+                context: "with --test".into(),
+                why: " (a fixed split is one fold); leave one out".into(),
+            });
         }
         let given = [
             self.candidates_per_step.is_some(),
@@ -137,33 +141,65 @@ impl AcquisitionRequest {
         // Audit 3, T3: a noise level of 1e300 overflowed the fits' sums ("bb: non-finite
         // entry inf"); refused here, before any work, with the range.
         if let Some(s) = self.noises.iter().find(|s| !(0.0..=MAX_NOISE).contains(*s)) {
-            super::refuse!(
-                "--noise: noise level {s} is outside 0 to {MAX_NOISE} (relative noise levels: \
-                 0.02 is 2 % of the value)"
-            );
+            refuse!(Refusal::OutOfRange {
+                setting: "--noise",
+                value: None,
+                rule: format!(
+                    "noise level {s} is outside 0 to {MAX_NOISE} (relative noise levels: \
+                     0.02 is 2 % of the value)"
+                ),
+            });
         }
         // Audit 2, U3: in the flags' words, not "plans / methods / n = 3 / 1 / [0]".
         if self.plans.is_empty() {
-            super::refuse!("--plans: give at least one plan (error, condition, random, nielsen)");
+            refuse!(Refusal::Missing {
+                setting: "--plans",
+                message: "--plans: give at least one plan (error, condition, random, nielsen)"
+                    .into(),
+            });
         }
         if self.methods.is_empty() {
-            super::refuse!("--methods: give at least one selection method");
+            refuse!(Refusal::Missing {
+                setting: "--methods",
+                message: "--methods: give at least one selection method".into(),
+            });
         }
         if self.ns.is_empty() || self.ns.contains(&0) {
-            super::refuse!(
-                "-n: give sample counts of at least 1 (got {})",
-                if self.ns.is_empty() {
-                    "none".to_string()
-                } else {
-                    self.ns
-                        .iter()
-                        .map(|n| n.to_string())
-                        .collect::<Vec<_>>()
-                        .join(",")
-                }
-            );
+            refuse!(Refusal::OutOfRange {
+                setting: "-n",
+                value: None,
+                rule: format!(
+                    "give sample counts of at least 1 (got {})",
+                    if self.ns.is_empty() {
+                        "none".to_string()
+                    } else {
+                        self.ns
+                            .iter()
+                            .map(|n| n.to_string())
+                            .collect::<Vec<_>>()
+                            .join(",")
+                    }
+                ),
+            });
         }
         Ok(())
+    }
+
+    /// Runs the acquisition cross-validation on the collection and returns what
+    /// `cv --acquisition --json` writes (its [`AcqCv::markdown`] is `--markdown`). The
+    /// progress callback gets `(steps done, steps)`: the shared state, each plan of each
+    /// method and fold, each fold's scores, the showcase; it is also called, with the
+    /// same position, while a step runs (a caller may cancel from it: the command line's
+    /// bar, Python's Ctrl-C).
+    fn run(&self, ctx: &Ctx<'_>) -> Result<AcqCv> {
+        let (backend, coll) = (ctx.need_backend()?, ctx.need_collection()?);
+        self.check()?;
+        Ok(acquisition_cv_with_progress(
+            backend,
+            coll,
+            &self.params()?,
+            ctx.progress,
+        )?)
     }
 }
 
@@ -173,48 +209,19 @@ const MAX_NOISE: f64 = 1e3;
 
 /// Refuses a value of `flag`'s list that appears twice (`show`: the value in words).
 fn once<T: PartialEq>(
-    flag: &str,
-    what: &str,
+    flag: &'static str,
+    what: &'static str,
     values: &[T],
     show: impl Fn(&T) -> String,
-) -> Result<()> {
+) -> std::result::Result<(), Refusal> {
     for (j, v) in values.iter().enumerate() {
         if values[..j].contains(v) {
-            super::refuse!("{flag}: {what} {} is listed twice; give each once", show(v));
+            refuse!(Refusal::Duplicate {
+                setting: flag,
+                what,
+                value: show(v),
+            });
         }
     }
     Ok(())
-}
-
-impl AcquisitionRequest {
-    /// Runs the acquisition cross-validation on `coll` and returns what
-    /// `cv --acquisition --json` writes (its [`AcqCv::markdown`] is `--markdown`).
-    ///
-    /// # Errors
-    /// The settings' errors before any work, then the stages' errors.
-    pub fn run(&self, backend: &dyn Backend, coll: &Collection) -> Result<AcqCv> {
-        self.run_with_progress(backend, coll, &|_, _| {})
-    }
-
-    /// [`Self::run`], reporting `progress(steps done, steps)`: the shared state, each
-    /// plan of each method and fold, each fold's scores, the showcase. The callback is
-    /// also called, with the same position, while a step runs (a caller may cancel from
-    /// it: the command line's bar, Python's Ctrl-C).
-    ///
-    /// # Errors
-    /// As [`Self::run`].
-    pub fn run_with_progress(
-        &self,
-        backend: &dyn Backend,
-        coll: &Collection,
-        progress: Progress<'_>,
-    ) -> Result<AcqCv> {
-        self.check()?;
-        Ok(acquisition_cv_with_progress(
-            backend,
-            coll,
-            &self.params()?,
-            progress,
-        )?)
-    }
 }

@@ -1,8 +1,6 @@
 //! `cv`: cross-validated comparison of basis-selection methods (SPEC 8).
 
-use super::{refuse, ObjectiveSetting};
-use crate::backend::{Backend, Progress};
-use crate::collection::Collection;
+use super::{refuse, Ctx, ObjectiveSetting, Refusal, Request};
 use crate::distance::Metric;
 use crate::merl::GridSpec;
 use crate::select::cv::{cross_validate, CvMethod, CvParams, CvResult};
@@ -105,22 +103,25 @@ impl CvRequest {
             ),
         ]
     }
+}
+
+impl Request for CvRequest {
+    type Output = CvResult;
 
     /// The rules of the settings that need no collection: a setting that none of
     /// `--methods` uses, and the objective's ([`ObjectiveSetting::weight`]).
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`] naming the setting.
-    pub fn check(&self) -> Result<()> {
+    fn check(&self) -> Result<(), Refusal> {
         for (given, flag, users) in self.method_settings() {
             if given && !self.methods.iter().any(|m| users.contains(m)) {
                 let users: Vec<&str> = users.iter().map(|m| m.name()).collect();
                 let methods: Vec<&str> = self.methods.iter().map(|m| m.name()).collect();
-                refuse!(
-                    "{flag} applies to {}, not to --methods {}",
-                    super::list(&users),
-                    methods.join(",")
-                );
+                refuse!(Refusal::NotApplicable {
+                    setting: flag,
+                    value: None,
+                    applies_to: super::list(&users),
+                    not_to: format!("--methods {}", methods.join(",")),
+                    why: None,
+                });
             }
         }
         self.objective.weight()?;
@@ -129,28 +130,18 @@ impl CvRequest {
 
     /// [`Self::check`], then the settings against a collection of `n` materials
     /// (methods, folds, sizes, runs, GA, grid and render settings: [`CvParams::check`]).
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`] or [`crate::Error::Selection`] naming the setting.
-    pub fn check_count(&self, n: usize) -> Result<()> {
+    fn check_count(&self, n: usize) -> Result<()> {
         self.check()?;
         self.params()?.check(n)?;
         Ok(())
     }
 
-    /// Runs the cross-validation on `coll` and returns what `cv --json` writes (its
-    /// [`CvResult::markdown`] is `--markdown`).
-    ///
-    /// # Errors
-    /// The settings' errors before any work, then the stages' errors.
-    pub fn run(
-        &self,
-        backend: &dyn Backend,
-        coll: &Collection,
-        progress: Progress<'_>,
-    ) -> Result<CvResult> {
+    /// Runs the cross-validation on the collection and returns what `cv --json` writes
+    /// (its [`CvResult::markdown`] is `--markdown`).
+    fn run(&self, ctx: &Ctx<'_>) -> Result<CvResult> {
+        let (backend, coll) = (ctx.need_backend()?, ctx.need_collection()?);
         self.check()?;
         let valid = self.params()?.check(coll.len())?;
-        Ok(cross_validate(backend, coll, &valid, progress)?)
+        Ok(cross_validate(backend, coll, &valid, ctx.progress)?)
     }
 }

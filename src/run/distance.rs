@@ -1,7 +1,6 @@
 //! `distance`: the pairwise distance matrix of a collection, whole or one tile of it.
 
-use super::refuse;
-use crate::backend::{Backend, Progress};
+use super::{refuse, Ctx, Refusal, Request};
 use crate::collection::Collection;
 use crate::distance::{check_band_rows, tile_rows};
 use crate::distance::{
@@ -49,29 +48,66 @@ pub enum DistanceOutput {
     Tile(Tile),
 }
 
-impl DistanceRequest {
+impl Request for DistanceRequest {
+    type Output = DistanceOutput;
+
     /// The rules that need no collection: band rows a positive multiple of 4, a tile
     /// `1 <= I <= N`.
-    ///
-    /// # Errors
-    /// [`crate::error::DistanceError`] or [`crate::error::RequestError`] naming the
-    /// setting.
-    pub fn check(&self) -> Result<()> {
-        check_band_rows(self.band_rows)?;
+    fn check(&self) -> Result<(), Refusal> {
+        if let Err(e) = check_band_rows(self.band_rows) {
+            refuse!(Refusal::Rule {
+                setting: "--band-rows",
+                message: e.to_string(),
+            });
+        }
         if let Some((i, n)) = self.tile {
             if i == 0 || i > n {
-                refuse!("--tile `{i}/{n}`: expected I/N with 1 <= I <= N (e.g. --tile 3/8)");
+                refuse!(Refusal::OutOfRange {
+                    setting: "--tile",
+                    value: Some(format!("`{i}/{n}`")),
+                    rule: "expected I/N with 1 <= I <= N (e.g. --tile 3/8)".into(),
+                });
             }
         }
         Ok(())
     }
 
-    /// The distance parameters checked against `coll` (and the tile against its size).
+    /// Computes the matrix (or the tile) of the collection on the back-end, with the
+    /// parameters of [`DistanceRequest::params`].
+    fn run(&self, ctx: &Ctx<'_>) -> Result<DistanceOutput> {
+        let (backend, coll) = (ctx.need_backend()?, ctx.need_collection()?);
+        let p = self.params(coll)?;
+        let progress = ctx.progress;
+        Ok(match self.tile {
+            Some((i, n)) => DistanceOutput::Tile(distance_tile(
+                backend,
+                coll,
+                &p,
+                self.band_rows,
+                i,
+                n,
+                progress,
+            )?),
+            None => DistanceOutput::Matrix(distance_matrix_banded(
+                backend,
+                coll,
+                &p,
+                self.band_rows,
+                progress,
+            )?),
+        })
+    }
+}
+
+impl DistanceRequest {
+    /// The distance parameters checked against `coll` (and the tile against its size):
+    /// what [`Request::run`] computes with (the command line records them beside the
+    /// matrix).
     ///
     /// # Errors
-    /// [`crate::error::DistanceError`] for settings that do not fit the collection (a
-    /// stride that leaves no cell, the euclidean metric on measured materials, more tiles
-    /// than materials).
+    /// The request's [`Refusal`]; [`crate::error::DistanceError`] for settings that do
+    /// not fit the collection (a stride that leaves no cell, the euclidean metric on
+    /// measured materials, more tiles than materials).
     pub fn params(&self, coll: &Collection) -> Result<ValidDistanceParams> {
         self.check()?;
         let mut p = DistanceParams::default()
@@ -83,37 +119,5 @@ impl DistanceRequest {
             tile_rows(coll.len(), i, n)?;
         }
         Ok(p)
-    }
-
-    /// Computes the matrix (or the tile) of `coll` on `backend` with the checked `p`
-    /// ([`Self::params`]).
-    ///
-    /// # Errors
-    /// A failed reduction.
-    pub fn run(
-        &self,
-        backend: &dyn Backend,
-        coll: &Collection,
-        p: &ValidDistanceParams,
-        progress: Progress<'_>,
-    ) -> Result<DistanceOutput> {
-        Ok(match self.tile {
-            Some((i, n)) => DistanceOutput::Tile(distance_tile(
-                backend,
-                coll,
-                p,
-                self.band_rows,
-                i,
-                n,
-                progress,
-            )?),
-            None => DistanceOutput::Matrix(distance_matrix_banded(
-                backend,
-                coll,
-                p,
-                self.band_rows,
-                progress,
-            )?),
-        })
     }
 }

@@ -1,9 +1,8 @@
 //! `fit`: materials of the collection as non-negative combinations of a basis.
 
-use super::{all_others, indices_of, refuse, ObjectiveSetting};
+use super::{all_others, indices_of, refuse, Ctx, ObjectiveSetting, Refusal, Request};
 use crate::acquire::SampleFit;
 use crate::backend::weighted::ObjectiveKind;
-use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::eval::appearance::Appearance;
 use crate::fit::diagnostics::{fit_warnings, WARN_RELATIVE_RESIDUAL};
@@ -79,33 +78,6 @@ impl FitRequest {
         }
     }
 
-    /// The rules of the settings that need no collection (the objective's:
-    /// [`ObjectiveSetting::weight`]).
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`] naming the setting.
-    pub fn check(&self) -> Result<()> {
-        let w = self.objective.weight()?;
-        let d = FitParams::default();
-        let given: Vec<String> = [
-            (self.solver != d.solver, "--solver pgd".to_string()),
-            (self.gram != d.gram, "--gram grid".to_string()),
-        ]
-        .into_iter()
-        .filter_map(|(g, f)| g.then_some(f))
-        .collect();
-        if w.kind() != ObjectiveKind::L2 && !given.is_empty() {
-            refuse!(
-                "{} {} not apply to --objective {}: a weighted objective solves each target's own system exactly (Lawson-Hanson), with no shared Gram matrix and no projected gradient; --solver and --gram concern --objective l2 only: leave {} out, or give --objective l2",
-                given.join(" and "),
-                if given.len() == 1 { "does" } else { "do" },
-                w.kind().name(),
-                if given.len() == 1 { "it" } else { "them" },
-            );
-        }
-        Ok(())
-    }
-
     /// The library's parameters, the defaults applied.
     ///
     /// # Errors
@@ -128,40 +100,72 @@ impl FitRequest {
         let basis = indices_of(coll, &self.basis)?;
         let targets = match &self.targets {
             FitTargets::AllOthers => all_others(coll, &basis),
-            FitTargets::Named(names) if names.is_empty() => {
-                refuse!("give --targets X,Y or --all-others")
-            }
+            FitTargets::Named(names) if names.is_empty() => refuse!(Refusal::Missing {
+                setting: "--targets",
+                message: "give --targets X,Y or --all-others".into(),
+            }),
             FitTargets::Named(names) => indices_of(coll, names)?,
         };
         for (i, &t) in targets.iter().enumerate() {
             if targets[..i].contains(&t) {
-                refuse!(
-                    "--targets: material `{}` is given twice",
-                    crate::error::short_name(&coll.materials()[t].name)
-                );
+                refuse!(Refusal::Rule {
+                    setting: "--targets",
+                    message: format!(
+                        "--targets: material `{}` is given twice",
+                        crate::error::short_name(&coll.materials()[t].name)
+                    ),
+                });
             }
         }
         if targets.is_empty() {
-            refuse!(
-                "--all-others: every material of the collection is in the basis; nothing to fit"
-            );
+            refuse!(Refusal::Rule {
+                setting: "--all-others",
+                message:
+                    "--all-others: every material of the collection is in the basis; nothing to fit"
+                        .into(),
+            });
         }
         Ok((basis, targets))
     }
+}
 
-    /// Fits the targets on `backend` and returns the fits and the `--json` file.
-    ///
-    /// # Errors
-    /// As [`Self::indices`], then the fit's errors.
-    pub fn run(
-        &self,
-        backend: &dyn Backend,
-        coll: &Collection,
-        progress: Progress<'_>,
-    ) -> Result<FitOutput> {
+impl Request for FitRequest {
+    type Output = FitOutput;
+
+    /// The rules of the settings that need no collection: the objective's
+    /// ([`ObjectiveSetting::weight`]), and `--solver`/`--gram` only with `l2`.
+    fn check(&self) -> std::result::Result<(), Refusal> {
+        let w = self.objective.weight()?;
+        let d = FitParams::default();
+        let given: Vec<(&'static str, &'static str)> = [
+            (self.solver != d.solver, ("--solver", "--solver pgd")),
+            (self.gram != d.gram, ("--gram", "--gram grid")),
+        ]
+        .into_iter()
+        .filter_map(|(g, f)| g.then_some(f))
+        .collect();
+        if w.kind() != ObjectiveKind::L2 && !given.is_empty() {
+            let shown: Vec<&str> = given.iter().map(|g| g.1).collect();
+            refuse!(Refusal::DoesNotApply {
+                settings: given.iter().map(|g| g.0).collect(),
+                shown: shown.join(" and "),
+                context: format!("to --objective {}", w.kind().name()),
+                why: format!(
+                    ": a weighted objective solves each target's own system exactly (Lawson-Hanson), with no shared Gram matrix and no projected gradient; --solver and --gram concern --objective l2 only: leave {} out, or give --objective l2",
+                    if given.len() == 1 { "it" } else { "them" },
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Fits the targets on the back-end and returns the fits and the `--json` file.
+    fn run(&self, ctx: &Ctx<'_>) -> Result<FitOutput> {
+        let (backend, coll) = (ctx.need_backend()?, ctx.need_collection()?);
+        self.check()?;
         let p = self.params()?;
         let (basis, targets) = self.indices(coll)?;
-        let fits = fit(backend, coll, &basis, &targets, &p, progress)?;
+        let fits = fit(backend, coll, &basis, &targets, &p, ctx.progress)?;
         let warnings = fit_warnings(coll, &basis, &targets, &fits, p.objective);
         let appearance = if self.appearance {
             let mut all = basis.clone();
@@ -285,18 +289,19 @@ impl FitSamplesRequest {
         }
         .unwrap_or_else(|| "samples".into())
     }
+}
+
+impl Request for FitSamplesRequest {
+    type Output = FitSamplesOutput;
 
     /// The rules of the settings that need no collection: the objective's
     /// ([`ObjectiveSetting::weight`]), then the grid fit's settings, which do not apply to
     /// a fit from samples (given, they would be ignored and recorded in the JSON as if
     /// they had applied).
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`] naming the setting.
-    pub fn check(&self) -> Result<()> {
+    fn check(&self) -> std::result::Result<(), Refusal> {
         self.objective.weight()?;
         let (grid, g, d) = (&self.grid, GridSpec::default(), FitParams::default());
-        let ignored: Vec<&str> = [
+        let ignored: Vec<&'static str> = [
             ("--stride", grid.stride() != g.stride()),
             ("--mask", grid.mask() != g.mask()),
             ("--weighting", grid.weighting() != g.weighting()),
@@ -307,23 +312,24 @@ impl FitSamplesRequest {
         .filter_map(|(flag, given)| given.then_some(flag))
         .collect();
         if !ignored.is_empty() {
-            refuse!(
-                "{} {} not apply with --samples: the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS); leave {} out",
-                ignored.join(", "),
-                if ignored.len() == 1 { "does" } else { "do" },
-                if ignored.len() == 1 { "it" } else { "them" },
-            );
+            refuse!(Refusal::DoesNotApply {
+                shown: ignored.join(", "),
+                context: "with --samples".into(),
+                why: format!(
+                    ": the fit from samples solves a least-squares problem over the measured samples alone (no grid cells, no Gram matrix, its own NNLS); leave {} out",
+                    if ignored.len() == 1 { "it" } else { "them" },
+                ),
+                settings: ignored,
+            });
         }
         Ok(())
     }
 
-    /// Reads the samples and fits them by the basis of `coll`.
-    ///
-    /// # Errors
-    /// As [`Self::check`], then an unknown material, an unreadable or invalid samples
-    /// file, a failed fit.
-    pub fn run(&self, coll: &Collection) -> Result<FitSamplesOutput> {
+    /// Reads the samples and fits them by the basis of the collection (no back-end:
+    /// [`Ctx::collection`] is enough).
+    fn run(&self, ctx: &Ctx<'_>) -> Result<FitSamplesOutput> {
         use crate::acquire::{self as afit, read_samples};
+        let coll = ctx.need_collection()?;
         self.check()?;
         let objective = self.objective.weight()?;
         let basis = indices_of(coll, &self.basis)?;

@@ -1,9 +1,10 @@
 //! `plan`: where to measure a new material (SPEC 10).
 
-use super::{all_others, check_restarts, indices_of, refuse, ObjectiveSetting};
+use super::{
+    all_others, check_restarts, indices_of, refuse, Ctx, ObjectiveSetting, Refusal, Request,
+};
 use crate::acquire::{cell_candidates, plan_with_progress, Candidate};
 use crate::acquire::{read_candidates, Criterion, Plan, PlanParams};
-use crate::backend::{Backend, Progress};
 use crate::collection::Collection;
 use crate::fit::FitParams;
 use crate::Result;
@@ -34,8 +35,11 @@ pub struct PlanRequest {
     /// `--restarts`: error, seeded greedy paths, 1 to 64 (default:
     /// [`PlanParams::default`]'s).
     pub restarts: Option<usize>,
-    /// `--seed`.
-    pub seed: u64,
+    /// `--seed`: of the random plans, the candidate subsets of the error and condition
+    /// plans and the error plans' exploration (default [`super::SEED`]); a condition plan
+    /// examining every candidate (`--candidates-per-step 0`) draws nothing at random and
+    /// refuses it.
+    pub seed: Option<u64>,
     /// `--objective` and `--eps` (SPEC 11): the weights of the plan's rows and of its
     /// training fits, as given.
     pub objective: ObjectiveSetting,
@@ -43,9 +47,13 @@ pub struct PlanRequest {
 
 /// A criterion whose plan `fit --samples` can use: not `nielsen` (the rule of
 /// [`PlanRequest::check`] and of [`crate::plan_samples`]).
-pub(crate) fn check_criterion(criterion: Criterion) -> Result<()> {
+pub(crate) fn check_criterion(criterion: Criterion) -> std::result::Result<(), Refusal> {
     if criterion == Criterion::Nielsen {
-        refuse!("--criterion nielsen: the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random, and `cv --acquisition --plans nielsen` compares the baseline");
+        refuse!(Refusal::NotOffered {
+            setting: "--criterion",
+            value: "nielsen".into(),
+            why: "the peer baseline (Nielsen et al. 2015) reconstructs with its own PCA and ridge regression, not with a basis, so its plan is not one `fit --samples` can use; plan offers error, condition and random, and `cv --acquisition --plans nielsen` compares the baseline".into(),
+        });
     }
     Ok(())
 }
@@ -72,7 +80,7 @@ impl PlanRequest {
             candidates_per_step: None,
             shortlist: None,
             restarts: None,
-            seed: d.seed,
+            seed: None,
             objective: ObjectiveSetting::default(),
         }
     }
@@ -88,28 +96,14 @@ impl PlanRequest {
         self.shortlist.unwrap_or(PlanParams::default().shortlist)
     }
 
+    /// `--seed` with its default.
+    pub fn seed(&self) -> u64 {
+        self.seed.unwrap_or(PlanParams::default().seed)
+    }
+
     /// `--restarts` with its default.
     pub fn restarts(&self) -> usize {
         self.restarts.unwrap_or(PlanParams::default().restarts)
-    }
-
-    /// The rules of the settings: a criterion whose plan `fit --samples` can use, no
-    /// setting the criterion does not use (`criterion_settings`), 1 to 64 restarts, the
-    /// objective's ([`ObjectiveSetting::weight`]).
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`] naming the setting.
-    pub fn check(&self) -> Result<()> {
-        check_criterion(self.criterion)?;
-        let given = [
-            self.candidates_per_step.is_some(),
-            self.shortlist.is_some(),
-            self.restarts.is_some(),
-        ];
-        criterion_settings("--criterion", &[self.criterion], given)?;
-        check_restarts(self.restarts())?;
-        self.objective.weight()?;
-        Ok(())
     }
 
     /// The library's parameters of the plan.
@@ -119,7 +113,7 @@ impl PlanRequest {
             criterion: self.criterion,
             candidates_per_step: self.candidates_per_step(),
             shortlist: self.shortlist(),
-            seed: self.seed,
+            seed: self.seed(),
             fit: FitParams {
                 objective: self.objective.weight()?,
                 ..FitParams::default()
@@ -127,29 +121,45 @@ impl PlanRequest {
             restarts: self.restarts(),
         })
     }
+}
 
-    /// Plans the samples on `coll` (the Gram quantities on `backend`) and returns the plan
-    /// (`plan --json` is its JSON, `plan --out` its
-    /// [`crate::acquire::plan_csv`]).
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`], an unknown material, an unreadable candidates file, then
-    /// the plan's own errors.
-    pub fn run(&self, backend: &dyn Backend, coll: &Collection) -> Result<Plan> {
-        self.run_with_progress(backend, coll, &|_, _| {})
+impl Request for PlanRequest {
+    type Output = Plan;
+
+    /// The rules of the settings: a criterion whose plan `fit --samples` can use, no
+    /// setting the criterion does not use (`criterion_settings`), no `--seed` for a plan
+    /// that draws nothing at random, 1 to 64 restarts, the objective's
+    /// ([`ObjectiveSetting::weight`]).
+    fn check(&self) -> std::result::Result<(), Refusal> {
+        check_criterion(self.criterion)?;
+        let given = [
+            self.candidates_per_step.is_some(),
+            self.shortlist.is_some(),
+            self.restarts.is_some(),
+        ];
+        criterion_settings("--criterion", &[self.criterion], given)?;
+        if let (Some(s), Criterion::Condition, 0) =
+            (self.seed, self.criterion, self.candidates_per_step())
+        {
+            refuse!(Refusal::DoesNotApply {
+                settings: vec!["--seed"],
+                shown: format!("--seed {s}"),
+                context: "to plan --criterion condition --candidates-per-step 0".into(),
+                why: ": it examines every candidate at each step and draws nothing at random; leave it out".into(),
+            });
+        }
+        check_restarts(self.restarts())?;
+        self.objective.weight()?;
+        Ok(())
     }
 
-    /// [`Self::run`], reporting `progress(steps done, steps)` (every restart's steps); it
-    /// is called per candidate within a step too, so a caller can stop the plan from it.
-    ///
-    /// # Errors
-    /// As [`Self::run`].
-    pub fn run_with_progress(
-        &self,
-        backend: &dyn Backend,
-        coll: &Collection,
-        progress: Progress<'_>,
-    ) -> Result<Plan> {
+    /// Plans the samples on the collection (the Gram quantities on the back-end) and
+    /// returns the plan (`plan --json` is its JSON, `plan --out` its
+    /// [`crate::acquire::plan_csv`]). The progress callback gets `(steps done, steps)`
+    /// (every restart's steps); it is called per candidate within a step too, so a
+    /// caller can stop the plan from it.
+    fn run(&self, ctx: &Ctx<'_>) -> Result<Plan> {
+        let (backend, coll) = (ctx.need_backend()?, ctx.need_collection()?);
         self.check()?;
         let basis = indices_of(coll, &self.basis)?;
         let targets = match &self.targets {
@@ -169,7 +179,13 @@ impl PlanRequest {
             }
         };
         Ok(plan_with_progress(
-            backend, coll, &basis, &targets, &cands, &p, progress,
+            backend,
+            coll,
+            &basis,
+            &targets,
+            &cands,
+            &p,
+            ctx.progress,
         )?)
     }
 }
@@ -191,11 +207,10 @@ fn refuse_basis_twins(coll: &Collection, basis: &[usize], targets: &[usize]) -> 
             .iter()
             .find(|&&b| b != t && same(&m[t].data, &m[b].data))
         {
-            refuse!(
-                "target `{}` has the same values as basis material `{}`: the basis fits it exactly from any sample, so a plan would choose samples on a zero score; leave it out of --targets (or give another basis)",
-                crate::error::short_name(&m[t].name),
-                crate::error::short_name(&m[b].name)
-            );
+            refuse!(Refusal::SameAsBasis {
+                target: crate::error::short_name(&m[t].name).to_string(),
+                basis: crate::error::short_name(&m[b].name).to_string(),
+            });
         }
     }
     Ok(())
@@ -207,8 +222,12 @@ fn refuse_basis_twins(coll: &Collection, basis: &[usize], targets: &[usize]) -> 
 /// which criterion uses which, for `plan` and `cv --acquisition`).
 ///
 /// # Errors
-/// [`crate::error::RequestError`] naming the setting and the criteria that use it.
-pub(super) fn criterion_settings(by: &str, criteria: &[Criterion], given: [bool; 3]) -> Result<()> {
+/// [`Refusal::NotApplicable`] naming the setting and the criteria that use it.
+pub(super) fn criterion_settings(
+    by: &str,
+    criteria: &[Criterion],
+    given: [bool; 3],
+) -> std::result::Result<(), Refusal> {
     use Criterion::{Condition, Error, Nielsen};
     let table: [(&str, &[Criterion]); 3] = [
         ("--candidates-per-step", &[Error, Condition, Nielsen]),
@@ -219,11 +238,13 @@ pub(super) fn criterion_settings(by: &str, criteria: &[Criterion], given: [bool;
         if given && !criteria.iter().any(|c| users.contains(c)) {
             let users: Vec<&str> = users.iter().map(|c| c.as_str()).collect();
             let got: Vec<&str> = criteria.iter().map(|c| c.as_str()).collect();
-            refuse!(
-                "{flag} applies to {} plans, not to {by} {}",
-                super::list(&users),
-                got.join(",")
-            );
+            refuse!(Refusal::NotApplicable {
+                setting: flag,
+                value: None,
+                applies_to: format!("{} plans", super::list(&users)),
+                not_to: format!("{by} {}", got.join(",")),
+                why: None,
+            });
         }
     }
     Ok(())

@@ -1,6 +1,7 @@
 //! `reproduce`: the paper's section VI end to end ([`crate::experiment`]), then the
 //! acquisition cross-validation of the report with its settings policy.
 
+use super::{refuse, Ctx, Refusal, Request};
 use crate::acquire::AcqSelect;
 use crate::acquire::{acquisition_cv, AcqCv, AcqCvParams, Criterion};
 use crate::backend::Backend;
@@ -9,8 +10,7 @@ use crate::experiment::appearance::{self, AppearanceParams};
 use crate::experiment::bases::read_paper_bases;
 use crate::experiment::report::{AcquisitionReport, AppearanceReport};
 use crate::experiment::{
-    run as run_experiment, Experiment, ExperimentParams, Stage, StageProgress,
-    ValidExperimentParams,
+    run as run_experiment, Experiment, ExperimentParams, Stage, ValidExperimentParams,
 };
 use crate::select::ObjectiveParams;
 use crate::Result;
@@ -97,44 +97,19 @@ pub struct Reproduction {
 }
 
 impl ReproduceRequest {
-    /// The experiment's parameters for `coll`, checked (the paper bases read).
+    /// The experiment's parameters for `coll`, checked (the paper bases read): the
+    /// rules that need the collection, which [`Request::run`] makes before any work.
     ///
     /// # Errors
-    /// [`crate::experiment::ExperimentError`] for settings that do not fit the collection
-    /// or an unreadable paper-bases file.
-    pub fn check(&self, coll: &Collection) -> Result<ValidExperimentParams> {
-        self.check_settings()?;
+    /// The request's [`Refusal`]; [`crate::experiment::ExperimentError`] for settings
+    /// that do not fit the collection or an unreadable paper-bases file.
+    pub fn params(&self, coll: &Collection) -> Result<ValidExperimentParams> {
+        self.check()?;
         let paper_bases = match &self.paper_bases {
             Some(p) => read_paper_bases(p, coll)?,
             None => vec![],
         };
         Ok(self.experiment_params(paper_bases).check(coll)?)
-    }
-
-    /// The checks of [`Self::check`] that need only the number of materials `n`
-    /// ([`ExperimentParams::check_count`]), for a caller that has not loaded the collection
-    /// yet ([`Collection::count_many`]).
-    ///
-    /// # Errors
-    /// [`crate::experiment::ExperimentError`] naming the setting that does not fit.
-    pub fn check_count(&self, n: usize) -> Result<()> {
-        self.check_settings()?;
-        Ok(self.experiment_params(vec![]).check_count(n)?)
-    }
-
-    /// The rules of the settings that need no collection (also made by [`Self::check`]
-    /// and [`Self::check_count`]): no setting of a part the others leave out, so that
-    /// none is ignored without a word (`--cv-runs` with `--cv-folds 0`).
-    ///
-    /// # Errors
-    /// [`crate::error::RequestError`] naming the setting.
-    pub fn check_settings(&self) -> Result<()> {
-        if let (Some(runs), 0) = (self.cv_runs, self.cv_folds) {
-            super::refuse!(
-                "--cv-runs {runs} applies to the cross-validation of the selection methods, which --cv-folds 0 leaves out: give --cv-folds 2 or more, or leave --cv-runs out"
-            );
-        }
-        Ok(())
     }
 
     fn experiment_params(
@@ -157,21 +132,46 @@ impl ReproduceRequest {
             ..Default::default()
         }
     }
+}
 
-    /// Runs the experiment on `coll` with the checked `params` ([`Self::check`]), then the
-    /// appearance study and the acquisition cross-validation. `progress(stage, done, total)` reports the
-    /// experiment's stages.
-    ///
-    /// # Errors
-    /// The stages' errors.
-    pub fn run(
-        &self,
-        backend: &dyn Backend,
-        coll: &Collection,
-        params: &ValidExperimentParams,
-        progress: StageProgress<'_>,
-    ) -> Result<Reproduction> {
-        let experiment = run_experiment(backend, coll, params, progress)?;
+impl Request for ReproduceRequest {
+    type Output = Reproduction;
+
+    /// The rules of the settings that need no collection: no setting of a part the
+    /// others leave out, so that none is ignored without a word (`--cv-runs` with
+    /// `--cv-folds 0`).
+    fn check(&self) -> std::result::Result<(), Refusal> {
+        if let (Some(runs), 0) = (self.cv_runs, self.cv_folds) {
+            refuse!(Refusal::LeftOut {
+                setting: "--cv-runs",
+                value: runs.to_string(),
+                part: "the cross-validation of the selection methods".into(),
+                left_out_by: "--cv-folds 0".into(),
+                hint: "give --cv-folds 2 or more, or leave --cv-runs out".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The checks of [`ReproduceRequest::params`] that need only the number of
+    /// materials `n` ([`ExperimentParams::check_count`]), for a caller that has not
+    /// loaded the collection yet ([`Collection::count_many`]).
+    fn check_count(&self, n: usize) -> Result<()> {
+        self.check()?;
+        Ok(self.experiment_params(vec![]).check_count(n)?)
+    }
+
+    /// Runs the experiment on the collection with the parameters of
+    /// [`ReproduceRequest::params`], then the appearance study and the acquisition
+    /// cross-validation; the stages are reported to [`Ctx::stages`] (else each stage's
+    /// `(done, total)` to [`Ctx::progress`]).
+    fn run(&self, ctx: &Ctx<'_>) -> Result<Reproduction> {
+        let (backend, coll) = (ctx.need_backend()?, ctx.need_collection()?);
+        let params = self.params(coll)?;
+        let each = ctx.progress;
+        let by_stage = move |_: Stage, d: u64, t: u64| each(d, t);
+        let progress = ctx.stages.unwrap_or(&by_stage);
+        let experiment = run_experiment(backend, coll, &params, progress)?;
         let t = Instant::now();
         let appearance = if self.appearance {
             Some(match AppearanceParams::of(params.params(), coll.len()) {

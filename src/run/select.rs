@@ -1,12 +1,11 @@
 //! `select`: a basis by the paper's Algorithm 1, by clustering a distance matrix (computed
 //! or saved), or by fitting error (SPEC 8).
 
-use super::{optional_indices, refuse, ObjectiveSetting};
+use super::{optional_indices, refuse, Ctx, ObjectiveSetting, Refusal, Request};
 use crate::backend::{Backend, Progress};
 use crate::cluster::{ClusterError, GcukParams, KMedoidsAlgorithm, KMedoidsParams};
 use crate::collection::Collection;
 use crate::distance::{distance_matrix, DistanceMatrix, DistanceParams, Metric};
-use crate::error::RequestError;
 use crate::experiment::ExperimentParams;
 use crate::fit::FitParams;
 use crate::merl::GridSpec;
@@ -80,12 +79,12 @@ impl std::fmt::Display for SelectMethod {
 }
 
 impl std::str::FromStr for SelectMethod {
-    type Err = RequestError;
+    type Err = Refusal;
     fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
         Self::ALL
             .into_iter()
             .find(|m| m.as_str() == s)
-            .ok_or_else(|| RequestError::Unknown {
+            .ok_or_else(|| Refusal::Unknown {
                 what: "method",
                 value: s.to_string(),
                 expected: "empirical, kmedoids, gcuk, greedy, swap, ga",
@@ -140,7 +139,7 @@ pub struct SelectRequest {
     /// [`super::SEED`]); the other methods draw nothing at random and refuse it.
     pub seed: Option<u64>,
     /// `--distances`: cluster this saved matrix (a `.npy` written by `distance`, read with
-    /// its sidecar, or a `.csv`) instead of computing one ([`SelectRequest::run_saved`]).
+    /// its sidecar, or a `.csv`) instead of computing one (run with [`Ctx::saved`]).
     pub distances: Option<PathBuf>,
     /// `--objective` and `--eps` (SPEC 11): greedy, swap and ga score bases, and
     /// `empirical` makes its leave-one-out fits, under the objective's shared weights
@@ -247,70 +246,17 @@ impl SelectRequest {
         ]
     }
 
-    /// Refuses the settings that do not apply to the method (or to `distances`), so that
-    /// none is ignored without a word.
-    ///
-    /// # Errors
-    /// [`RequestError`] naming the setting.
-    pub fn check(&self) -> Result<()> {
-        let m = self.method;
-        let range = self.k_min.is_some() || self.k_max.is_some();
-        if self.k.is_some() && m == SelectMethod::Gcuk {
-            refuse!("-k does not apply to --method gcuk: GCUK chooses k itself within --k-min..--k-max (give --k-min K --k-max K to fix it)");
-        }
-        if self.k.is_some() && m == SelectMethod::Empirical {
-            refuse!("-k does not apply to --method empirical: its basis is every material contributing to more than --more-than fits");
-        }
-        if self.k.is_some() && range {
-            refuse!("give either -k or --k-min/--k-max, not both");
-        }
-        for (given, flag, methods) in self.method_settings() {
-            if given && !methods.contains(&m) {
-                let names: Vec<&str> = methods.iter().map(|m| m.as_str()).collect();
-                refuse!(
-                    "{flag} applies to {}, not to --method {m}",
-                    super::list(&names)
-                );
-            }
-        }
-        if let Some(path) = &self.distances {
-            if !m.clustering() {
-                refuse!("--distances clusters a saved matrix: it needs --method kmedoids or gcuk, not {m}");
-            }
-            // A CSV matrix has no sidecar: --metric labels it.
-            let npy = path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
-            let g = &self.grid;
-            let d = GridSpec::default();
-            for (given, flag) in [
-                (npy && self.metric.is_some(), "--metric"),
-                (g.stride() != d.stride(), "--stride"),
-                (g.mask() != d.mask(), "--mask"),
-                (g.weighting() != d.weighting(), "--weighting"),
-            ] {
-                if given {
-                    refuse!("{flag} does not apply with --distances: the saved matrix was computed with its own settings (a .npy's sidecar records them)");
-                }
-            }
-        }
-        if m.error_driven() && self.k.is_none() {
-            refuse!(
-                "give the basis size with -k K (greedy, swap and ga choose exactly k materials)"
-            );
-        }
-        self.objective.weight()?;
-        Ok(())
-    }
-
     /// Refuses a collection given with `distances` (a saved matrix is clustered
     /// without one); `collection`: whether one is given.
     ///
     /// # Errors
-    /// [`RequestError`].
-    pub fn check_source(&self, collection: bool) -> Result<()> {
+    /// [`Refusal::Rule`] naming `--distances`.
+    pub fn check_source(&self, collection: bool) -> std::result::Result<(), Refusal> {
         if self.distances.is_some() && collection {
-            refuse!("--distances clusters a saved matrix: give no COLLECTION with it");
+            refuse!(Refusal::Rule {
+                setting: "--distances",
+                message: "--distances clusters a saved matrix: give no COLLECTION with it".into(),
+            });
         }
         Ok(())
     }
@@ -354,7 +300,7 @@ impl SelectRequest {
     /// The clustering settings against `n` materials, before any long work.
     fn check_clustering(&self, n: usize) -> Result<()> {
         let flags = "check --runs, -k, --k-min and --k-max";
-        let range = |cause: String, hint: String| RequestError::Range {
+        let range = |cause: String, hint: String| Refusal::Range {
             command: "select",
             cause,
             hint,
@@ -406,17 +352,9 @@ impl SelectRequest {
         gp
     }
 
-    /// Runs the selection on `coll` (not with `distances`: see [`Self::run_saved`]) and
-    /// returns what `select --json` writes ([`SelectOutput::to_json`]). `progress(done,
-    /// total)` is called from the working threads, per stage.
-    ///
-    /// The output records what chose the basis: the grid, and the fit objective of the
-    /// methods that fit ([`SelectOutput::record`]).
-    ///
-    /// # Errors
-    /// [`RequestError`] and the parameters' errors before any work (k out of range, an
-    /// unknown material, ...), then the stages' errors.
-    pub fn run(
+    /// The selection on `coll` with the record of what chose the basis: the grid, and
+    /// the fit objective of the methods that fit ([`SelectOutput::record`]).
+    fn run_recorded(
         &self,
         backend: &dyn Backend,
         coll: &Collection,
@@ -433,15 +371,13 @@ impl SelectRequest {
         Ok(out)
     }
 
-    /// [`Self::run`] without the record of its settings.
+    /// [`Self::run_recorded`] without the record of its settings.
     fn run_unrecorded(
         &self,
         backend: &dyn Backend,
         coll: &Collection,
         progress: Progress<'_>,
     ) -> Result<SelectOutput> {
-        self.check()?;
-        self.check_source(true)?;
         let fingerprint = Some(coll.fingerprint());
         if self.method.error_driven() {
             return self.run_error_driven(backend, coll, fingerprint, progress);
@@ -470,19 +406,6 @@ impl SelectRequest {
             .check(coll)?;
         let d = distance_matrix(backend, coll, &dp, progress)?;
         self.cluster(&d, &self.metric().to_string(), fingerprint, progress)
-    }
-
-    /// Clusters the saved matrix `distances` (kmedoids or gcuk; no collection, no
-    /// back-end): the metric and fingerprint are the sidecar's (a CSV: `metric`, none).
-    ///
-    /// # Errors
-    /// As [`Self::run`], and the matrix file's errors.
-    pub fn run_saved(&self, progress: Progress<'_>) -> Result<SelectOutput> {
-        self.check()?;
-        let Some(path) = &self.distances else {
-            refuse!("run_saved clusters a saved matrix: give --distances FILE");
-        };
-        self.cluster_saved(path, progress)
     }
 
     fn cluster_saved(&self, path: &Path, progress: Progress<'_>) -> Result<SelectOutput> {
@@ -580,5 +503,117 @@ impl SelectRequest {
             weighting: None,
             stride: None,
         }))
+    }
+}
+
+impl Request for SelectRequest {
+    type Output = SelectOutput;
+
+    /// Refuses the settings that do not apply to the method (or to `distances`), so that
+    /// none is ignored without a word.
+    ///
+    fn check(&self) -> std::result::Result<(), Refusal> {
+        let m = self.method;
+        let range = self.k_min.is_some() || self.k_max.is_some();
+        let k_why = match m {
+            SelectMethod::Gcuk => Some(": GCUK chooses k itself within --k-min..--k-max (give --k-min K --k-max K to fix it)"),
+            SelectMethod::Empirical => Some(": its basis is every material contributing to more than --more-than fits"),
+            _ => None,
+        };
+        if let (Some(_), Some(why)) = (self.k, k_why) {
+            refuse!(Refusal::DoesNotApply {
+                settings: vec!["-k"],
+                shown: "-k".into(),
+                context: format!("to --method {m}"),
+                why: why.into(),
+            });
+        }
+        if self.k.is_some() && range {
+            refuse!(Refusal::Conflict {
+                a: "-k",
+                b: "--k-min/--k-max",
+            });
+        }
+        for (given, flag, methods) in self.method_settings() {
+            if given && !methods.contains(&m) {
+                let names: Vec<&str> = methods.iter().map(|m| m.as_str()).collect();
+                refuse!(Refusal::NotApplicable {
+                    setting: flag,
+                    value: None,
+                    applies_to: super::list(&names),
+                    not_to: format!("--method {m}"),
+                    why: None,
+                });
+            }
+        }
+        if let Some(path) = &self.distances {
+            if !m.clustering() {
+                refuse!(Refusal::Rule {
+                    setting: "--distances",
+                    message: format!("--distances clusters a saved matrix: it needs --method kmedoids or gcuk, not {m}"),
+                });
+            }
+            // A CSV matrix has no sidecar: --metric labels it.
+            let npy = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+            let g = &self.grid;
+            let d = GridSpec::default();
+            for (given, flag) in [
+                (npy && self.metric.is_some(), "--metric"),
+                (g.stride() != d.stride(), "--stride"),
+                (g.mask() != d.mask(), "--mask"),
+                (g.weighting() != d.weighting(), "--weighting"),
+            ] {
+                if given {
+                    refuse!(Refusal::DoesNotApply {
+                        settings: vec![flag],
+                        shown: flag.into(),
+                        context: "with --distances".into(),
+                        why: ": the saved matrix was computed with its own settings (a .npy's sidecar records them)".into(),
+                    });
+                }
+            }
+        }
+        if m.error_driven() && self.k.is_none() {
+            refuse!(Refusal::Missing {
+                setting: "-k",
+                message:
+                    "give the basis size with -k K (greedy, swap and ga choose exactly k materials)"
+                        .into(),
+            });
+        }
+        self.objective.weight()?;
+        Ok(())
+    }
+
+    /// [`Self::check`], then the clustering settings (k range, runs, GCUK's population
+    /// and generations) against `n` materials.
+    fn check_count(&self, n: usize) -> Result<()> {
+        self.check()?;
+        self.check_clustering(n)
+    }
+
+    /// Runs the selection and returns what `select --json` writes
+    /// ([`SelectOutput::to_json`]); the progress callback is called from the working
+    /// threads, per stage. With `distances`, clusters the saved matrix (kmedoids or
+    /// gcuk; run with [`Ctx::saved`]: no collection, no back-end): the metric and
+    /// fingerprint are the sidecar's (a CSV: `metric`, none). Otherwise runs on the
+    /// collection and back-end of `ctx`.
+    ///
+    /// The output records what chose the basis: the grid, and the fit objective of the
+    /// methods that fit ([`SelectOutput::record`]).
+    fn run(&self, ctx: &Ctx<'_>) -> Result<SelectOutput> {
+        self.check()?;
+        match &self.distances {
+            Some(path) => {
+                self.check_source(ctx.has_collection())?;
+                self.cluster_saved(path, ctx.progress)
+            }
+            None => {
+                let (backend, coll) = (ctx.need_backend()?, ctx.need_collection()?);
+                self.run_recorded(backend, coll, ctx.progress)
+            }
+        }
     }
 }

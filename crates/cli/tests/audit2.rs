@@ -4,6 +4,7 @@
 //! ran.
 
 use crate::common::*;
+use brdf_basis::run::Request as _;
 use std::path::Path;
 use std::process::Output;
 use std::time::Duration;
@@ -635,7 +636,7 @@ fn matrix_change_child() {
             _ => {}
         }
     };
-    let r = req.run_saved(&progress);
+    let r = req.run(&brdf_basis::run::Ctx::saved().progress(&progress));
     assert!(
         changed.load(std::sync::atomic::Ordering::SeqCst),
         "no progress report"

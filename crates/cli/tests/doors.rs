@@ -11,8 +11,9 @@ use brdf_basis::backend::weighted::ObjectiveKind;
 use brdf_basis::distance::Metric;
 use brdf_basis::merl::GridSpec;
 use brdf_basis::run::{
-    AcquisitionRequest, CvRequest, DistanceOutput, DistanceRequest, FitRequest, FitSamplesRequest,
-    FitTargets, ObjectiveSetting, PlanRequest, ReproduceRequest, SelectMethod, SelectRequest,
+    AcquisitionRequest, Ctx, CvRequest, DistanceOutput, DistanceRequest, FitRequest,
+    FitSamplesRequest, FitTargets, ObjectiveSetting, PlanRequest, ReproduceRequest, Request,
+    SelectMethod, SelectRequest,
 };
 use brdf_basis::select::cv::CvMethod;
 use brdf_basis::{Collection, CpuBackend, Criterion};
@@ -79,9 +80,9 @@ fn distance_door() {
     let mut req = DistanceRequest::default();
     req.metric = Metric::BrdfIt;
     req.grid = grid(9);
-    let p = req.params(&coll).expect("params");
+    req.params(&coll).expect("params");
     let DistanceOutput::Matrix(m) = req
-        .run(&CpuBackend::new(), &coll, &p, &|_, _| {})
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
         .expect("distance")
     else {
         panic!("a tile");
@@ -123,7 +124,7 @@ fn select_door() {
     (req.k, req.runs, req.seed, req.grid) = (Some(3), Some(2), Some(4), grid(8));
     let coll = Collection::embedded_default();
     let out = req
-        .run(&CpuBackend::new(), &coll, &|_, _| {})
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
         .expect("select");
     assert_eq!(read(d.path(), "s.json"), out.to_json());
     let cli = cli_refusal(
@@ -164,7 +165,7 @@ fn fit_door() {
     req.targets = FitTargets::Named(names(&["polished-copper", "gloss-black-enamel"]));
     (req.grid, req.appearance) = (grid(6), false);
     let coll = Collection::embedded_default();
-    let out = req.run(&CpuBackend::new(), &coll, &|_, _| {}).expect("fit");
+    let out = req.run(&Ctx::new(&CpuBackend::new(), &coll)).expect("fit");
     assert_eq!(read(d.path(), "f.json"), pretty(&out.file));
     let cli = cli_refusal(
         d.path(),
@@ -223,7 +224,7 @@ fn fit_samples_door() {
     );
     let mut req = FitSamplesRequest::new(names(&BASIS), d.path().join("s.csv"));
     let coll = Collection::embedded_default();
-    let out = req.run(&coll).expect("fit --samples");
+    let out = req.run(&Ctx::collection(&coll)).expect("fit --samples");
     // The file records the samples file's path as given: relative on the command line.
     let mut file = out.file;
     file.fitted_from = Some("s.csv".into());
@@ -280,7 +281,7 @@ fn plan_door() {
     let mut req = PlanRequest::new(names(&BASIS));
     (req.n, req.criterion) = (4, Criterion::Condition);
     let coll = Collection::embedded_default();
-    let plan = req.run(&CpuBackend::new(), &coll).expect("plan");
+    let plan = req.run(&Ctx::new(&CpuBackend::new(), &coll)).expect("plan");
     assert_eq!(read(d.path(), "p.json"), pretty(&plan));
     let cli = cli_refusal(
         d.path(),
@@ -302,6 +303,113 @@ fn plan_door() {
     assert_eq!(
         cli,
         "--shortlist applies to error plans, not to --criterion random"
+    );
+}
+
+/// `plan --seed` with a condition plan that examines every candidate
+/// (`--candidates-per-step 0`: nothing drawn at random) is refused by name, by the
+/// binary and the library alike, as other unused `--seed`s are; with a subset per step
+/// the seed draws it and is taken.
+#[test]
+fn plan_refuses_a_seed_it_would_not_use() {
+    let d = tempfile::tempdir().expect("tmp");
+    let b = BASIS.join(",");
+    let args = |cps: &'static str| {
+        [
+            "--seed",
+            "7",
+            "plan",
+            "--basis",
+            "",
+            "-n",
+            "2",
+            "--criterion",
+            "condition",
+            "--candidates-per-step",
+            cps,
+            "--out",
+            "p.csv",
+        ]
+    };
+    let mut a = args("0");
+    a[4] = &b;
+    let cli = cli_refusal(d.path(), &a);
+    assert_eq!(
+        cli,
+        "--seed 7 does not apply to plan --criterion condition --candidates-per-step 0: it examines every candidate at each step and draws nothing at random; leave it out"
+    );
+    let mut req = PlanRequest::new(names(&BASIS));
+    (req.criterion, req.candidates_per_step, req.seed) = (Criterion::Condition, Some(0), Some(7));
+    let e = req.check().expect_err("seed");
+    assert_eq!(cli, e.to_string());
+    assert!(
+        matches!(&e, brdf_basis::run::Refusal::DoesNotApply { settings, .. } if settings[..] == ["--seed"]),
+        "{e:?}"
+    );
+    req.seed = None;
+    req.check().expect("condition, every candidate, no seed");
+    (req.candidates_per_step, req.seed) = (Some(50), Some(7));
+    req.check().expect("condition on a seeded subset");
+    let mut a = args("50");
+    a[4] = &b;
+    cli_ok(d.path(), &a);
+}
+
+/// `tabulate --backend gpu` of a measured material (a table copied as it is, on the CPU)
+/// is refused by name, as `render`, `plot` and `merge` refuse it; an analytic material
+/// is evaluated on the back-end and takes it (not run here: CI's GPU may be absent).
+#[test]
+fn tabulate_refuses_the_gpu_for_a_table() {
+    let d = tempfile::tempdir().expect("tmp");
+    cli_ok(
+        d.path(),
+        &[
+            "tabulate",
+            "--material",
+            "polished-gold",
+            "--out",
+            "gold.binary",
+        ],
+    );
+    // `--backend gpu` alone (the harness's `bin_cpu` gives `--backend cpu`).
+    let o = crate::common::bin_quiet()
+        .args([
+            "tabulate",
+            "gold.binary",
+            "--material",
+            "gold",
+            "--backend",
+            "gpu",
+            "--out",
+            "copy.binary",
+        ])
+        .current_dir(d.path())
+        .output()
+        .expect("run brdf-basis");
+    assert!(
+        !o.status.success(),
+        "tabulate --backend gpu of a table succeeded"
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    let cli = err
+        .lines()
+        .find_map(|l| l.strip_prefix("error: "))
+        .unwrap_or_else(|| panic!("no `error: ` line in {err}"));
+    assert_eq!(
+        cli,
+        "--backend gpu does not apply to tabulate --material gold: a measured material is a table on the MERL grid, copied as it is on the CPU with nothing to evaluate; leave it out"
+    );
+    assert!(!d.path().join("copy.binary").exists());
+    cli_ok(
+        d.path(),
+        &[
+            "tabulate",
+            "gold.binary",
+            "--material",
+            "gold",
+            "--out",
+            "copy.binary",
+        ],
     );
 }
 
@@ -337,7 +445,7 @@ fn cv_door() {
     req.appearance = false;
     let coll = Collection::embedded_default();
     req.check_count(coll.len()).expect("check");
-    let res = req.run(&CpuBackend::new(), &coll, &|_, _| {}).expect("cv");
+    let res = req.run(&Ctx::new(&CpuBackend::new(), &coll)).expect("cv");
     assert_eq!(read(d.path(), "c.json"), pretty(&res));
     let cli = cli_refusal(
         d.path(),
@@ -403,7 +511,7 @@ fn acquisition_door() {
     req.appearance = false;
     let coll = Collection::embedded_default();
     let res = req
-        .run(&CpuBackend::new(), &coll)
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
         .expect("cv --acquisition");
     assert_eq!(read(d.path(), "a.json"), pretty(&res));
     let cli = cli_refusal(
@@ -496,7 +604,7 @@ fn reproduce_door_refusal() {
     let mut req = ReproduceRequest::default();
     req.cv_folds = 0;
     req.cv_runs = Some(3);
-    assert_eq!(cli, req.check_settings().expect_err("cv-runs").to_string());
+    assert_eq!(cli, req.check().expect_err("cv-runs").to_string());
     assert!(
         cli.starts_with("--cv-runs 3 applies to the cross-validation"),
         "{cli}"

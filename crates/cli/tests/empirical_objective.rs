@@ -8,6 +8,7 @@ use brdf_basis::backend::weighted::cos_theta_i;
 use brdf_basis::backend::weighted::TargetWeight;
 use brdf_basis::collection::Collection;
 use brdf_basis::fit::{channel_lobe, fit_cells, FitParams, LAMBERTIAN};
+use brdf_basis::run::Request as _;
 use brdf_basis::select::{empirical, EmpiricalParams, Objective, ObjectiveParams};
 use std::collections::BTreeMap;
 

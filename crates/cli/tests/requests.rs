@@ -6,7 +6,8 @@
 
 use crate::common::bin_cpu;
 use brdf_basis::run::{
-    AcquisitionRequest, CvRequest, FitRequest, FitTargets, PlanRequest, SelectMethod, SelectRequest,
+    AcquisitionRequest, Ctx, CvRequest, FitRequest, FitTargets, PlanRequest, Request, SelectMethod,
+    SelectRequest,
 };
 use brdf_basis::{Collection, CpuBackend, Criterion};
 
@@ -54,7 +55,10 @@ fn plan_nielsen_is_refused_the_same_way_by_every_door() {
         "{lib}"
     );
     let coll = Collection::embedded_default();
-    let run = req.run(&CpuBackend::new(), &coll).unwrap_err().to_string();
+    let run = req
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
+        .unwrap_err()
+        .to_string();
     assert_eq!(run, lib);
 }
 
@@ -109,7 +113,7 @@ fn fit_refuses_a_target_given_twice() {
     req.targets = FitTargets::Named(vec!["matte-white-paint".into(), "matte-white-paint".into()]);
     let coll = Collection::embedded_default();
     let lib = req
-        .run(&CpuBackend::new(), &coll, &|_, _| {})
+        .run(&Ctx::new(&CpuBackend::new(), &coll))
         .unwrap_err()
         .to_string();
     assert_eq!(cli, lib);
@@ -164,7 +168,7 @@ fn every_seed_default_is_the_one() {
     use brdf_basis::run::{FitSamplesRequest, ReproduceRequest, SEED};
     let seeds = [
         SelectRequest::new(SelectMethod::Kmedoids).seed(),
-        PlanRequest::new(Vec::new()).seed,
+        PlanRequest::new(Vec::new()).seed(),
         CvRequest::default().seed,
         AcquisitionRequest::default().seed,
         ReproduceRequest::default().seed,

@@ -11,8 +11,8 @@ use brdf_basis::backend::weighted::ObjectiveKind;
 use brdf_basis::cluster::KMedoidsAlgorithm;
 use brdf_basis::distance::Metric;
 use brdf_basis::run::{
-    AcquisitionRequest, CvRequest, FitRequest, FitSamplesRequest, ObjectiveSetting, PlanRequest,
-    SelectMethod, SelectRequest,
+    AcquisitionRequest, Ctx, CvRequest, FitRequest, FitSamplesRequest, ObjectiveSetting,
+    PlanRequest, Request, SelectMethod, SelectRequest,
 };
 use brdf_basis::select::cv::CvMethod;
 use brdf_basis::Criterion;
@@ -321,7 +321,9 @@ fn plans_refuse_every_setting_their_criterion_does_not_use() {
 type ObjectiveCheck = Box<dyn Fn(ObjectiveSetting) -> String>;
 
 fn objective_checks() -> Vec<(&'static str, ObjectiveCheck)> {
-    let show = |r: brdf_basis::Result<()>| r.err().map(|e| e.to_string()).unwrap_or_default();
+    let show = |r: Result<(), brdf_basis::run::Refusal>| {
+        r.err().map(|e| e.to_string()).unwrap_or_default()
+    };
     vec![
         (
             "fit",
@@ -587,7 +589,7 @@ fn select_json_records_what_chose_the_basis() {
         .with_stride(8)
         .expect("stride 8");
     r.objective.eps = Some(0.02);
-    let out = r.run(&cpu, &coll, &|_, _| {}).expect("greedy");
+    let out = r.run(&Ctx::new(&cpu, &coll)).expect("greedy");
     let v: serde_json::Value = serde_json::from_str(&out.to_json()).expect("json");
     assert_eq!(v["fit_objective"], "relative");
     assert_eq!(v["eps"], 0.02);
@@ -606,7 +608,7 @@ fn select_json_records_what_chose_the_basis() {
         eps: None,
     };
     let v: serde_json::Value =
-        serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("l2").to_json()).expect("json");
+        serde_json::from_str(&r.run(&Ctx::new(&cpu, &coll)).expect("l2").to_json()).expect("json");
     assert_eq!(v["fit_objective"], "l2");
     assert!(v.get("eps").is_none(), "{v}");
     let mut r = SelectRequest::new(SelectMethod::Kmedoids);
@@ -616,7 +618,7 @@ fn select_json_records_what_chose_the_basis() {
         .with_stride(8)
         .expect("stride 8");
     let v: serde_json::Value =
-        serde_json::from_str(&r.run(&cpu, &coll, &|_, _| {}).expect("kmedoids").to_json())
+        serde_json::from_str(&r.run(&Ctx::new(&cpu, &coll)).expect("kmedoids").to_json())
             .expect("json");
     assert!(
         v.get("fit_objective").is_none() && v.get("eps").is_none(),

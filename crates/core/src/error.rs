@@ -605,15 +605,123 @@ pub enum OutputError {
     },
 }
 
-/// A command's request (`brdf_basis::run`) refused before any work: settings that do not go together, or do not fit
-/// the collection. Every front door reports it with this wording.
-#[derive(Debug, thiserror::Error)]
+/// A command's request (`brdf_basis::run`) refused before any work: a setting out of its
+/// range, settings that do not go together, a setting the method does not use, or
+/// settings that do not fit the collection. One variant per kind of rule, each naming the
+/// setting by its command-line flag (Python's keyword arguments are the same names with
+/// underscores), so that a caller can match on which rule failed; every front door
+/// reports it with the same wording (its `Display`).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum RequestError {
-    /// Settings that do not go together; the message names them (by their command-line
-    /// flags) and says what to give instead.
-    #[error("{0}")]
-    Settings(String),
+pub enum Refusal {
+    /// A setting given that the chosen method, criterion or objective does not use:
+    /// `{setting}[ {value}] applies to {applies_to}, not to {not_to}[: {why}]`.
+    #[error(
+        "{setting}{} applies to {applies_to}, not to {not_to}{}",
+        .value.as_ref().map(|v| format!(" {v}")).unwrap_or_default(),
+        .why.as_ref().map(|w| format!(": {w}")).unwrap_or_default()
+    )]
+    NotApplicable {
+        /// The flag given (`--objective`, `--runs`, ...).
+        setting: &'static str,
+        /// Its value, where the message shows it.
+        value: Option<String>,
+        /// What uses it (`kmedoids and gcuk`, `--objective relative`, ...).
+        applies_to: String,
+        /// What was chosen (`--method greedy`, `--criterion random`, ...).
+        not_to: String,
+        /// Why, and what to give instead.
+        why: Option<String>,
+    },
+    /// Settings given that a mode of the command would ignore:
+    /// `{shown} does (do) not apply {context}{why}`.
+    #[error(
+        "{shown} {} not apply {context}{why}",
+        if .settings.len() == 1 { "does" } else { "do" }
+    )]
+    DoesNotApply {
+        /// The flags given, in the order the message lists them.
+        settings: Vec<&'static str>,
+        /// The flags as the message shows them (with a value where it matters).
+        shown: String,
+        /// The mode that ignores them (`with --samples`, `to --method gcuk`, ...).
+        context: String,
+        /// Why, and what to give instead, with its leading punctuation.
+        why: String,
+    },
+    /// A setting given for a part of the command that another setting leaves out:
+    /// `{setting} {value} applies to {part}, which {left_out_by} leaves out: {hint}`.
+    #[error("{setting} {value} applies to {part}, which {left_out_by} leaves out: {hint}")]
+    LeftOut {
+        /// The flag given.
+        setting: &'static str,
+        /// Its value.
+        value: String,
+        /// The part of the work that uses it.
+        part: String,
+        /// The settings that leave that part out.
+        left_out_by: String,
+        /// What to give instead.
+        hint: String,
+    },
+    /// A value outside the setting's range: `{setting}[ {value}]: {rule}`.
+    #[error(
+        "{setting}{}: {rule}",
+        .value.as_ref().map(|v| format!(" {v}")).unwrap_or_default()
+    )]
+    OutOfRange {
+        /// The flag.
+        setting: &'static str,
+        /// The value given, where the message shows it beside the flag.
+        value: Option<String>,
+        /// The rule, in words (with the value when `value` is `None`).
+        rule: String,
+    },
+    /// A value the command does not offer: `{setting} {value}: {why}`.
+    #[error("{setting} {value}: {why}")]
+    NotOffered {
+        /// The flag.
+        setting: &'static str,
+        /// The value given.
+        value: String,
+        /// Why, and what the command offers instead.
+        why: String,
+    },
+    /// Two settings of which one may be given: `give either {a} or {b}, not both`.
+    #[error("give either {a} or {b}, not both")]
+    Conflict {
+        /// The first.
+        a: &'static str,
+        /// The second.
+        b: &'static str,
+    },
+    /// A setting needed and not given (or given empty); the message names it.
+    #[error("{message}")]
+    Missing {
+        /// The flag.
+        setting: &'static str,
+        /// What to give, in words.
+        message: String,
+    },
+    /// A value listed twice: `{setting}: {what} {value} is listed twice; give each once`.
+    #[error("{setting}: {what} {value} is listed twice; give each once")]
+    Duplicate {
+        /// The flag.
+        setting: &'static str,
+        /// What the values are (`plan`, `sample count`, ...).
+        what: &'static str,
+        /// The value, as the message shows it.
+        value: String,
+    },
+    /// A target of a plan with a basis material's values (the basis fits it exactly from
+    /// any sample).
+    #[error("target `{target}` has the same values as basis material `{basis}`: the basis fits it exactly from any sample, so a plan would choose samples on a zero score; leave it out of --targets (or give another basis)")]
+    SameAsBasis {
+        /// The target.
+        target: String,
+        /// The basis material.
+        basis: String,
+    },
     /// A setting out of its range, as a stage's own check words it, with the settings to
     /// look at (`hint`).
     #[error("{command}: {cause} ({hint})")]
@@ -635,4 +743,35 @@ pub enum RequestError {
         /// The accepted spellings.
         expected: &'static str,
     },
+    /// A rule of one setting that fits none of the above; the message names it.
+    #[error("{message}")]
+    Rule {
+        /// The flag.
+        setting: &'static str,
+        /// The rule, in words.
+        message: String,
+    },
 }
+
+impl Refusal {
+    /// The flag this refusal names first (`None` for [`Refusal::Range`], which names the
+    /// command, and [`Refusal::Unknown`], a name of a choice).
+    pub fn setting(&self) -> Option<&'static str> {
+        match self {
+            Refusal::NotApplicable { setting, .. }
+            | Refusal::LeftOut { setting, .. }
+            | Refusal::OutOfRange { setting, .. }
+            | Refusal::NotOffered { setting, .. }
+            | Refusal::Missing { setting, .. }
+            | Refusal::Duplicate { setting, .. }
+            | Refusal::Rule { setting, .. } => Some(setting),
+            Refusal::DoesNotApply { settings, .. } => settings.first().copied(),
+            Refusal::Conflict { a, .. } => Some(a),
+            Refusal::SameAsBasis { .. } => Some("--targets"),
+            Refusal::Range { .. } | Refusal::Unknown { .. } => None,
+        }
+    }
+}
+
+/// The former name of [`Refusal`].
+pub type RequestError = Refusal;

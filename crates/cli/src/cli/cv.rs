@@ -3,7 +3,7 @@
 use super::Global;
 use brdf_basis::atomic::OutputPlan;
 use brdf_basis::distance::Metric;
-use brdf_basis::run::{AcquisitionRequest, CvRequest};
+use brdf_basis::run::{AcquisitionRequest, Ctx, CvRequest, Request};
 use brdf_basis::select::cv::CvMethod;
 use std::path::PathBuf;
 
@@ -247,10 +247,10 @@ pub(crate) fn run(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     req.check_count(coll.len())?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "cv");
-    let res = req.run(backend.as_ref(), &coll, &|d, t| {
+    let res = req.run(&Ctx::new(backend.as_ref(), &coll).progress(&|d, t| {
         pb.set_length(t);
         pb.set_position(d);
-    })?;
+    }))?;
     pb.finish_and_clear();
     let json = serde_json::to_string_pretty(&res)?;
     out.stage(&a.json, |w| {
@@ -331,7 +331,7 @@ fn run_acquisition(g: &Global, a: CvArgs) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let pb = super::progress_bar(g, 1, "cv --acq");
     // Called inside the steps too: the bar only when a step completes.
-    let res = req.run_with_progress(backend.as_ref(), &coll, &super::step_progress(&pb))?;
+    let res = req.run(&Ctx::new(backend.as_ref(), &coll).progress(&super::step_progress(&pb)))?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&res)?;

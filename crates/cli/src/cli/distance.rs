@@ -5,7 +5,7 @@ use brdf_basis::atomic::OutputPlan;
 use brdf_basis::distance::{LobeKind, Metric};
 use brdf_basis::io::saved::{csv_bytes, stage_npy_with_sidecar, stage_tile};
 use brdf_basis::io::sidecar::{sidecar_path, MatrixSettings};
-use brdf_basis::run::{DistanceOutput, DistanceRequest};
+use brdf_basis::run::{Ctx, DistanceOutput, DistanceRequest, Request};
 use std::path::PathBuf;
 
 /// Arguments of `distance`.
@@ -100,7 +100,7 @@ pub(crate) fn run(g: &Global, a: DistanceArgs) -> anyhow::Result<()> {
     };
     let settings = MatrixSettings::of(&p, a.band_rows);
     let n = coll.len();
-    let computed = req.run(backend.as_ref(), &coll, &p, &progress)?;
+    let computed = req.run(&Ctx::new(backend.as_ref(), &coll).progress(&progress))?;
     pb.finish_and_clear();
     let d = match computed {
         DistanceOutput::Matrix(d) => d,

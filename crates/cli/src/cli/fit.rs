@@ -8,7 +8,7 @@ use brdf_basis::fit::export::{
 };
 use brdf_basis::fit::FitParams;
 use brdf_basis::merl::write_binary_to;
-use brdf_basis::run::{FitRequest, FitSamplesRequest, FitTargets};
+use brdf_basis::run::{Ctx, FitRequest, FitSamplesRequest, FitTargets, Request};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `fit`.
@@ -119,10 +119,10 @@ pub(crate) fn run(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     let mut out = plan.into_set()?;
     let backend = super::backend(g)?;
     let pb = super::progress_bar(g, 1, "gram");
-    let fitted = req.run(backend.as_ref(), &coll, &|d, t| {
+    let fitted = req.run(&Ctx::new(backend.as_ref(), &coll).progress(&|d, t| {
         pb.set_length(t);
         pb.set_position(d);
-    })?;
+    }))?;
     pb.finish_and_clear();
     let (basis, fits) = (&fitted.basis, &fitted.fits);
     let warnings = &fitted.warnings;
@@ -319,7 +319,7 @@ fn run_samples(g: &Global, a: FitArgs) -> anyhow::Result<()> {
     }
     let mut out = out_plan.into_set()?;
     let coll = super::load_collection(&a.collection)?;
-    let fitted = req.run(&coll)?;
+    let fitted = req.run(&Ctx::collection(&coll))?;
     for w in &fitted.warnings {
         eprintln!("warning: {w}");
     }

@@ -3,7 +3,7 @@
 use super::Global;
 use brdf_basis::acquire::plan_csv;
 use brdf_basis::atomic::OutputPlan;
-use brdf_basis::run::PlanRequest;
+use brdf_basis::run::{Ctx, PlanRequest, Request};
 use std::path::PathBuf;
 
 /// The request's defaults, for `--help`.
@@ -68,7 +68,7 @@ impl PlanArgs {
         r.candidates_per_step = self.candidates_per_step;
         r.shortlist = self.shortlist;
         r.restarts = self.restarts;
-        r.seed = g.seed_or(r.seed);
+        r.seed = g.seed;
         r.objective = self.objective.setting();
         r
     }
@@ -99,7 +99,7 @@ pub(crate) fn run(g: &Global, a: PlanArgs) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let pb = super::progress_bar(g, 1, "plan");
     // Called per candidate: the bar only when a step completes.
-    let pl = req.run_with_progress(backend.as_ref(), &coll, &super::step_progress(&pb))?;
+    let pl = req.run(&Ctx::new(backend.as_ref(), &coll).progress(&super::step_progress(&pb)))?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let csv = plan_csv(&pl);

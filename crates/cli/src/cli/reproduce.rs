@@ -10,7 +10,7 @@ use brdf_basis::atomic::OutputPlan;
 use brdf_basis::eval::image_error::DisplayParams;
 use brdf_basis::experiment::report::ReportContext;
 use brdf_basis::experiment::{Stage, StageTiming};
-use brdf_basis::run::ReproduceRequest;
+use brdf_basis::run::{Ctx, ReproduceRequest, Request};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -110,7 +110,7 @@ impl ReproduceArgs {
 pub(crate) fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let req = a.request(g);
-    req.check_settings()?;
+    req.check()?;
     // The output tree before any work: a new directory (its parent exists), an empty one,
     // or with --force one holding only an earlier run's files; writable.
     let mut plan = OutputPlan::new(&a.collection);
@@ -124,11 +124,11 @@ pub(crate) fn run(g: &Global, a: ReproduceArgs) -> anyhow::Result<()> {
         &a.collection,
     )?)?;
     let coll = super::load_collection(&a.collection)?;
-    let params = req.check(&coll)?;
+    req.params(&coll)?;
     crate::plot::font()?; // an unusable BRDF_BASIS_FONT is refused before any work
     let mut out = plan.into_set()?;
     let root = out.tree_root(&a.out)?;
-    let written = run_into(g, &req, &coll, &params, &root)?;
+    let written = run_into(g, &req, &coll, &root)?;
     out.commit()?;
     for f in &written {
         println!("wrote {}", a.out.join(f).display());
@@ -148,14 +148,11 @@ fn run_into(
     g: &Global,
     req: &ReproduceRequest,
     coll: &brdf_basis::collection::Collection,
-    params: &brdf_basis::experiment::ValidExperimentParams,
     root: &Path,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let backend = super::backend(g)?;
     let bars = StageBars::new(g);
-    let r = req.run(backend.as_ref(), coll, params, &|s, d, t| {
-        bars.update(s, d, t)
-    })?;
+    let r = req.run(&Ctx::new(backend.as_ref(), coll).stages(&|s, d, t| bars.update(s, d, t)))?;
     bars.finish();
     let e = r.experiment;
 

@@ -6,7 +6,7 @@ use super::Global;
 use brdf_basis::atomic::{OutputPlan, OutputSet};
 use brdf_basis::cluster::KMedoidsAlgorithm;
 use brdf_basis::distance::Metric;
-use brdf_basis::run::{SelectMethod, SelectRequest};
+use brdf_basis::run::{Ctx, Request, SelectMethod, SelectRequest};
 use brdf_basis::select::SelectOutput;
 use std::path::{Path, PathBuf};
 
@@ -151,11 +151,11 @@ pub(crate) fn run(g: &Global, a: SelectArgs) -> anyhow::Result<()> {
         pb.set_position(done);
     };
     let output = if a.distances.is_some() {
-        req.run_saved(&progress)?
+        req.run(&Ctx::saved().progress(&progress))?
     } else {
         let coll = super::load_collection(&a.collection)?;
         let backend = super::backend(g)?;
-        req.run(backend.as_ref(), &coll, &progress)?
+        req.run(&Ctx::new(backend.as_ref(), &coll).progress(&progress))?
     };
     pb.finish_and_clear();
     write(&a.json, &output, out)

@@ -38,7 +38,16 @@ pub(crate) fn run(g: &Global, a: TabulateArgs) -> anyhow::Result<()> {
     let coll = super::load_collection(&a.collection)?;
     let m = coll.get(&a.material)?;
     // Tables are copied as they are; only a material evaluated on the grid needs the
-    // back-end (a GPU is not opened for a copy).
+    // back-end (a GPU is not opened for a copy, so `--backend gpu` is refused for one,
+    // as `render`, `plot` and `merge` refuse it).
+    let table = matches!(m.data, MaterialData::Measured(_) | MaterialData::Rgl(_));
+    if table && g.backend == Some(super::values::BackendArg::Gpu) {
+        anyhow::bail!(
+            "--backend gpu does not apply to tabulate --material {}: a {} material is a table on the MERL grid, copied as it is on the CPU with nothing to evaluate; leave it out",
+            a.material,
+            brdf_basis::material_kind(m)
+        );
+    }
     let rgb = match &m.data {
         MaterialData::Measured(_) | MaterialData::Rgl(_) => {
             brdf_basis::tabulate(&CpuBackend::new(), &coll, &a.material)

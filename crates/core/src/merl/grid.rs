@@ -331,18 +331,19 @@ impl GridSpec {
     /// The grid of `mask`, `weighting` and `stride`, checked: the stride's rule.
     ///
     /// # Errors
-    /// [`crate::error::RequestError::Settings`] naming `--stride` for a stride outside
+    /// [`crate::error::Refusal::OutOfRange`] naming `--stride` for a stride outside
     /// 1..=[`Self::MAX_STRIDE`].
     pub fn new(
         mask: Mask,
         weighting: Weighting,
         stride: usize,
-    ) -> Result<Self, crate::error::RequestError> {
+    ) -> Result<Self, crate::error::Refusal> {
         if !Self::stride_ok(stride) {
-            return Err(crate::error::RequestError::Settings(format!(
-                "--stride {stride}: {}",
-                Self::STRIDE_RULE
-            )));
+            return Err(crate::error::Refusal::OutOfRange {
+                setting: "--stride",
+                value: Some(stride.to_string()),
+                rule: Self::STRIDE_RULE.to_string(),
+            });
         }
         Ok(Self {
             mask,
@@ -370,7 +371,7 @@ impl GridSpec {
     ///
     /// # Errors
     /// As [`Self::new`].
-    pub fn with_stride(self, stride: usize) -> Result<Self, crate::error::RequestError> {
+    pub fn with_stride(self, stride: usize) -> Result<Self, crate::error::Refusal> {
         Self::new(self.mask, self.weighting, stride)
     }
 

@@ -35,9 +35,12 @@
 
 use serde::{Deserialize, Serialize};
 
+mod dense;
 pub mod incremental;
 pub mod lawson_hanson;
 pub mod pgd;
+
+pub use dense::solve_dense;
 
 /// Errors from the NNLS solvers and their input views.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
