@@ -346,6 +346,7 @@ mod tests {
     /// training fits wilder than [`WILD_RHO`] of the whole grid, and among those the
     /// lowest mean score; each training material judged with the prior without it.
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn the_strengths_leave_the_fewest_wild_training_fits() {
         let coll = crate::collection::synthetic(12, 11);
         let basis = [0, 1, 2];
