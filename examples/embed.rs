@@ -105,11 +105,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    // Every other material fitted by the basis; the Gram matrices by a pass of the GPU
-    // over the grid (analytic collections would otherwise take the closed form on the
-    // host).
+    // Every other material fitted by the basis under the paper's `l2` objective, whose
+    // shared Gram matrices come from a pass of the GPU over the grid (analytic
+    // collections would otherwise take the closed form on the host; `--gram` concerns
+    // `l2` only, and the request refuses it beside a weighted objective).
     let mut fr = FitRequest::new(basis.iter().map(|&b| coll.names()[b].clone()).collect());
     fr.grid = brdf_basis::merl::GridSpec::default().with_stride(4)?;
+    fr.objective.objective = Some(brdf_basis::backend::weighted::ObjectiveKind::L2);
     fr.gram = GramMode::Grid;
     fr.appearance = false;
     let fits = fr.run(&Ctx::new(&gpu, &coll))?.fits;
